@@ -1,0 +1,214 @@
+//! Rigid frames, rotation vectors and the small linear-algebra vocabulary of the engine.
+//!
+//! Conventions (DESIGN.md): lengths in mm, angles in rad. A small displacement or a pose error is
+//! (x, y, z, rx, ry, rz): translation first, then a rotation vector expressed in the base frame.
+
+use nalgebra::{Matrix3, Matrix6, Rotation3, Unit, Vector3, Vector6};
+
+pub type Vec3 = Vector3<f64>;
+pub type Mat3 = Matrix3<f64>;
+pub type Vec6 = Vector6<f64>;
+pub type Mat6 = Matrix6<f64>;
+
+/// A rigid transform: `p_world = rot * p_local + pos`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    pub rot: Mat3,
+    pub pos: Vec3,
+}
+
+impl Default for Frame {
+    fn default() -> Self {
+        Self::IDENTITY
+    }
+}
+
+impl Frame {
+    pub const IDENTITY: Frame = Frame {
+        rot: Mat3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+        pos: Vec3::new(0.0, 0.0, 0.0),
+    };
+
+    pub fn new(rot: Mat3, pos: Vec3) -> Self {
+        Self { rot, pos }
+    }
+
+    pub fn translation(pos: Vec3) -> Self {
+        Self {
+            rot: Mat3::identity(),
+            pos,
+        }
+    }
+
+    pub fn rotation(rot: Mat3) -> Self {
+        Self {
+            rot,
+            pos: Vec3::zeros(),
+        }
+    }
+
+    /// A pose from a position and a rotation vector (axis times angle, rad).
+    pub fn from_position_rotvec(pos: Vec3, rotvec: Vec3) -> Self {
+        Self {
+            rot: rotation_from_vector(&rotvec),
+            pos,
+        }
+    }
+
+    /// `self * other`: express `other` (given in self's local frame) in self's parent frame.
+    #[inline]
+    pub fn compose(&self, other: &Frame) -> Frame {
+        Frame {
+            rot: self.rot * other.rot,
+            pos: self.pos + self.rot * other.pos,
+        }
+    }
+
+    pub fn inverse(&self) -> Frame {
+        let rt = self.rot.transpose();
+        Frame {
+            rot: rt,
+            pos: -(rt * self.pos),
+        }
+    }
+
+    #[inline]
+    pub fn transform_point(&self, p: &Vec3) -> Vec3 {
+        self.pos + self.rot * p
+    }
+
+    /// The small displacement (translation, base-frame rotation vector) that carries `self` to `target`.
+    pub fn error_to(&self, target: &Frame) -> Vec6 {
+        let dp = target.pos - self.pos;
+        let dr = rotation_vector(&(target.rot * self.rot.transpose()));
+        Vec6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+    }
+}
+
+/// Rotation about a unit axis by an angle (Rodrigues).
+pub fn rotation_about(axis: &Vec3, angle: f64) -> Mat3 {
+    Rotation3::from_axis_angle(&Unit::new_unchecked(*axis), angle).into_inner()
+}
+
+/// The rotation whose rotation vector is `v` (exponential map).
+pub fn rotation_from_vector(v: &Vec3) -> Mat3 {
+    Rotation3::new(*v).into_inner()
+}
+
+/// The rotation vector of `r` (logarithm map), angle in [0, pi]. The angle comes from atan2 of the sine
+/// and cosine parts, accurate to round-off for small rotations (an acos of the trace is not: it loses half
+/// the digits, enough to stall a Newton solve).
+pub fn rotation_vector(r: &Mat3) -> Vec3 {
+    let v = Vec3::new(
+        r[(2, 1)] - r[(1, 2)],
+        r[(0, 2)] - r[(2, 0)],
+        r[(1, 0)] - r[(0, 1)],
+    ) * 0.5;
+    let sin = v.norm();
+    let cos = (r.trace() - 1.0) * 0.5;
+    let angle = sin.atan2(cos);
+    if cos > -0.9 {
+        // sin(angle) * axis = v
+        return if sin < 1e-300 { v } else { v * (angle / sin) };
+    }
+    // Near pi the antisymmetric part vanishes: take the axis from the symmetric part (1 - cos) a a^T.
+    let b = (r + r.transpose()) * 0.5 - Mat3::identity() * cos;
+    let k = (0..3)
+        .max_by(|&i, &j| b[(i, i)].total_cmp(&b[(j, j)]))
+        .unwrap();
+    let mut axis: Vec3 = b.column(k).into();
+    axis /= axis.norm();
+    if axis.dot(&v) < 0.0 {
+        axis = -axis;
+    }
+    axis * angle
+}
+
+/// The skew-symmetric matrix `[v]x` with `[v]x w = v x w` (paper 000 eq 56).
+pub fn skew(v: &Vec3) -> Mat3 {
+    Mat3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// `diag(R, R)`: maps a 6-vector (twist or wrench) from a rotated frame to the base frame (paper 000 eq 53).
+pub fn block_rotation(r: &Mat3) -> Mat6 {
+    let mut m = Mat6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(r);
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(r);
+    m
+}
+
+/// The map from a platform twist at a reference point RP to the twist of a point EP of the same rigid
+/// body, with `v = EP - RP`: `dt_EP = A dt_RP`, `A = [[I, -[v]x], [0, I]]` (paper 000 eq 55, with the sign of
+/// v corrected as in shared/reference/errata.md: v runs from the reference point to the leg's end point).
+pub fn point_shift(v: &Vec3) -> Mat6 {
+    let mut a = Mat6::identity();
+    a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-skew(v)));
+    a
+}
+
+/// Eigenvalues of a symmetric 3x3 matrix in ascending order (closed form, trigonometric method).
+pub fn symmetric_eigenvalues3(m: &Mat3) -> [f64; 3] {
+    let p1 = m[(0, 1)].powi(2) + m[(0, 2)].powi(2) + m[(1, 2)].powi(2);
+    let tr = m.trace();
+    if p1 <= 1e-30 * (tr * tr).max(f64::MIN_POSITIVE) {
+        let mut d = [m[(0, 0)], m[(1, 1)], m[(2, 2)]];
+        d.sort_by(f64::total_cmp);
+        return d;
+    }
+    let q = tr / 3.0;
+    let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    let b = (m - Mat3::identity() * q) / p;
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let largest = q + 2.0 * p * phi.cos();
+    let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+    [smallest, tr - largest - smallest, largest]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotation_vector_round_trip() {
+        for v in [
+            Vec3::new(0.3, -0.2, 0.7),
+            Vec3::new(1e-9, -3e-9, 2e-9),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 2.0, -2.0).normalize() * 3.1,
+            Vec3::new(-1.0, 0.5, 0.2).normalize() * (std::f64::consts::PI - 1e-7),
+        ] {
+            let back = rotation_vector(&rotation_from_vector(&v));
+            assert!(
+                (back - v).norm()
+                    <= 1e-13 * v.norm().max(1e-300) + 1e-9 * (v.norm() > 3.0) as u8 as f64,
+                "{v:?} -> {back:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn eigenvalues3_match_nalgebra() {
+        let m = Mat3::new(4.0, 1.0, -0.5, 1.0, 3.0, 0.2, -0.5, 0.2, 1.0);
+        let mut reference: Vec<f64> = m.symmetric_eigen().eigenvalues.iter().copied().collect();
+        reference.sort_by(f64::total_cmp);
+        let ours = symmetric_eigenvalues3(&m);
+        for k in 0..3 {
+            assert!(
+                (ours[k] - reference[k]).abs() < 1e-12,
+                "{ours:?} vs {reference:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn point_shift_moves_a_rotation_about_rp_to_ep() {
+        // A rotation w about RP moves EP = RP + v by w x v.
+        let v = Vec3::new(1.0, 2.0, 3.0);
+        let w = Vec3::new(0.1, -0.4, 0.2);
+        let t = point_shift(&v) * Vec6::new(0.0, 0.0, 0.0, w.x, w.y, w.z);
+        let expected = w.cross(&v);
+        assert!((t.fixed_rows::<3>(0) - expected).norm() < 1e-15);
+    }
+}

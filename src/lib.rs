@@ -1,0 +1,8 @@
+//! stiff: stiffness of parallel robots by the Virtual Joint Method (see ARCHITECTURE.md).
+pub mod cli;
+pub mod kinematics;
+pub mod model;
+pub mod output;
+pub mod platform;
+pub mod study;
+pub mod vjm;

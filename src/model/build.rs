@@ -1,0 +1,538 @@
+//! Validation of a parsed description into engine types: formulas evaluated, axes normalised, springs
+//! checked symmetric positive definite, each error located in the file.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use toml::Spanned;
+
+use super::error::{read_text, InputError, Locator};
+use super::expr::Scope;
+use super::schema::{AxisSpec, BeamSpec, ElementSpec, ModelFile, Num, TransformSpec};
+use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
+use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
+use crate::platform::leg::{Leg, VjmLeg};
+use crate::platform::manipulator::Manipulator;
+use crate::vjm::spring::{beam_compliance, BeamSection, SpringGroup};
+
+/// Reads and validates a manipulator description.
+pub fn load_manipulator(path: &Path) -> Result<Manipulator, InputError> {
+    let source = read_text(path)?;
+    parse_manipulator(path, &source)
+}
+
+pub fn parse_manipulator(path: &Path, source: &str) -> Result<Manipulator, InputError> {
+    let loc = Locator { path, source };
+    let file: ModelFile = toml::from_str(source).map_err(|e| loc.syntax(e))?;
+    let params = evaluate_parameters(&loc, &file.parameters)?;
+    let b = Builder { loc, params };
+    b.manipulator(&file)
+}
+
+/// Evaluates every parameter (parameters may use each other, in any order, without cycles).
+fn evaluate_parameters(
+    loc: &Locator,
+    specs: &BTreeMap<String, Num>,
+) -> Result<BTreeMap<String, f64>, InputError> {
+    struct Params<'a> {
+        specs: &'a BTreeMap<String, Num>,
+        done: BTreeMap<String, f64>,
+        stack: Vec<String>,
+    }
+    impl Scope for Params<'_> {
+        fn lookup(&mut self, name: &str) -> Result<f64, String> {
+            if let Some(v) = self.done.get(name) {
+                return Ok(*v);
+            }
+            let spec = self
+                .specs
+                .get(name)
+                .ok_or_else(|| format!("unknown parameter `{name}`"))?;
+            if self.stack.iter().any(|s| s == name) {
+                return Err(format!(
+                    "parameters depend on each other in a cycle: {} -> {name}",
+                    self.stack.join(" -> ")
+                ));
+            }
+            self.stack.push(name.to_string());
+            let r = spec.get_ref().eval(self);
+            self.stack.pop();
+            let v = r?;
+            self.done.insert(name.to_string(), v);
+            Ok(v)
+        }
+    }
+    let mut p = Params {
+        specs,
+        done: BTreeMap::new(),
+        stack: Vec::new(),
+    };
+    for (name, spec) in specs {
+        if name == "pi" {
+            return Err(loc.at(
+                spec.span(),
+                "`pi` is built in and cannot be a parameter name",
+            ));
+        }
+        p.lookup(name)
+            .map_err(|e| loc.at(spec.span(), format!("parameter `{name}`: {e}")))?;
+    }
+    Ok(p.done)
+}
+
+struct Builder<'a> {
+    loc: Locator<'a>,
+    params: BTreeMap<String, f64>,
+}
+
+/// Coordinates and springs collected while walking one chain.
+#[derive(Default)]
+struct ChainParts {
+    elements: Vec<Element>,
+    springs: Vec<SpringGroup>,
+    n_actuated: usize,
+    n_passive: usize,
+    n_virtual: usize,
+}
+
+impl ChainParts {
+    fn joint(&mut self, kind: JointKind, axis: Vec3, role: Role) {
+        let counter = match role {
+            Role::Actuated => &mut self.n_actuated,
+            Role::Passive => &mut self.n_passive,
+            Role::Virtual => &mut self.n_virtual,
+        };
+        let index = *counter;
+        *counter += 1;
+        self.elements.push(Element::Joint(Joint {
+            kind,
+            axis,
+            role,
+            index,
+            gain: 1.0,
+        }));
+    }
+
+    /// Virtual joints for a spring group of `dim` coordinates with the given stiffness block.
+    fn spring(
+        &mut self,
+        name: String,
+        joints: &[(JointKind, Vec3)],
+        stiffness: Mat6,
+        compliance: Mat6,
+    ) {
+        let first = self.n_virtual;
+        for (kind, axis) in joints {
+            self.joint(*kind, *axis, Role::Virtual);
+        }
+        self.springs.push(SpringGroup {
+            name,
+            first,
+            dim: joints.len(),
+            stiffness,
+            compliance,
+        });
+    }
+}
+
+const SIX_DOF: [(JointKind, Vec3); 6] = [
+    (JointKind::Prismatic, Vec3::new(1.0, 0.0, 0.0)),
+    (JointKind::Prismatic, Vec3::new(0.0, 1.0, 0.0)),
+    (JointKind::Prismatic, Vec3::new(0.0, 0.0, 1.0)),
+    (JointKind::Revolute, Vec3::new(1.0, 0.0, 0.0)),
+    (JointKind::Revolute, Vec3::new(0.0, 1.0, 0.0)),
+    (JointKind::Revolute, Vec3::new(0.0, 0.0, 1.0)),
+];
+
+impl Builder<'_> {
+    fn num(&self, n: &Num) -> Result<f64, InputError> {
+        let mut scope = self.params.clone();
+        n.get_ref()
+            .eval(&mut scope)
+            .map_err(|e| self.loc.at(n.span(), e))
+    }
+
+    fn positive(&self, n: &Num, what: &str) -> Result<f64, InputError> {
+        let v = self.num(n)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self
+                .loc
+                .at(n.span(), format!("{what} must be positive, got {v}")))
+        }
+    }
+
+    fn vec3(&self, v: &[Num; 3]) -> Result<Vec3, InputError> {
+        Ok(Vec3::new(
+            self.num(&v[0])?,
+            self.num(&v[1])?,
+            self.num(&v[2])?,
+        ))
+    }
+
+    fn axis(&self, a: &Spanned<AxisSpec>) -> Result<Vec3, InputError> {
+        let v = match a.get_ref() {
+            AxisSpec::Named(n) => match n.as_str() {
+                "x" | "+x" => Vec3::x(),
+                "y" | "+y" => Vec3::y(),
+                "z" | "+z" => Vec3::z(),
+                "-x" => -Vec3::x(),
+                "-y" => -Vec3::y(),
+                "-z" => -Vec3::z(),
+                other => {
+                    return Err(self.loc.at(
+                        a.span(),
+                        format!("unknown axis `{other}`: use x, y, z, -x, -y, -z or [ax, ay, az]"),
+                    ))
+                }
+            },
+            AxisSpec::Vector(c) => {
+                let mut scope = self.params.clone();
+                let mut v = Vec3::zeros();
+                for k in 0..3 {
+                    v[k] = c[k]
+                        .eval(&mut scope)
+                        .map_err(|e| self.loc.at(a.span(), e))?;
+                }
+                v
+            }
+        };
+        let n = v.norm();
+        if !(n > 0.0 && n.is_finite()) {
+            return Err(self.loc.at(a.span(), "an axis must be a non-zero vector"));
+        }
+        Ok(v / n)
+    }
+
+    fn transform(
+        &self,
+        translation: &Option<[Num; 3]>,
+        rotation_axis: &Option<Spanned<AxisSpec>>,
+        rotation_deg: &Option<Num>,
+        span: std::ops::Range<usize>,
+    ) -> Result<Frame, InputError> {
+        let pos = match translation {
+            Some(t) => self.vec3(t)?,
+            None => Vec3::zeros(),
+        };
+        let rot = match (rotation_axis, rotation_deg) {
+            (Some(a), Some(d)) => rotation_about(&self.axis(a)?, self.num(d)?.to_radians()),
+            (None, None) => nalgebra::Matrix3::identity(),
+            _ => {
+                return Err(self.loc.at(
+                    span,
+                    "give both `rotation_axis` and `rotation_deg`, or neither",
+                ))
+            }
+        };
+        Ok(Frame::new(rot, pos))
+    }
+
+    fn matrix6(&self, m: &Spanned<Vec<Vec<Num>>>, what: &str) -> Result<Mat6, InputError> {
+        let rows = m.get_ref();
+        if rows.len() != 6 || rows.iter().any(|r| r.len() != 6) {
+            return Err(self
+                .loc
+                .at(m.span(), format!("{what} must be 6 rows of 6 numbers")));
+        }
+        let mut out = Mat6::zeros();
+        for (i, row) in rows.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                out[(i, j)] = self.num(v)?;
+            }
+        }
+        let scale = out.abs().max();
+        if (out - out.transpose()).abs().max() > 1e-9 * scale {
+            return Err(self.loc.at(m.span(), format!("{what} is not symmetric")));
+        }
+        let sym = (out + out.transpose()) * 0.5;
+        if sym.cholesky().is_none() {
+            return Err(self
+                .loc
+                .at(m.span(), format!("{what} is not positive definite")));
+        }
+        Ok(sym)
+    }
+
+    fn beam(&self, b: &Spanned<BeamSpec>) -> Result<Mat6, InputError> {
+        let s = b.get_ref();
+        let e = self.positive(&s.e, "E")?;
+        let g = match (&s.g, &s.nu) {
+            (Some(g), None) => self.positive(g, "G")?,
+            (None, Some(nu)) => {
+                let nu = self.num(nu)?;
+                if !(-1.0 < nu && nu < 0.5) {
+                    return Err(self.loc.at(
+                        s.nu.as_ref().unwrap().span(),
+                        format!("nu must lie in (-1, 0.5), got {nu}"),
+                    ));
+                }
+                e / (2.0 * (1.0 + nu))
+            }
+            _ => {
+                return Err(self
+                    .loc
+                    .at(b.span(), "a beam needs exactly one of `G` and `nu`"))
+            }
+        };
+        let section = match (&s.diameter, &s.area, &s.iy, &s.iz, &s.j) {
+            (Some(d), None, None, None, None) => {
+                BeamSection::round(e, g, self.positive(d, "diameter")?)
+            }
+            (None, Some(a), Some(iy), Some(iz), Some(j)) => BeamSection {
+                e,
+                g,
+                area: self.positive(a, "A")?,
+                iy: self.positive(iy, "Iy")?,
+                iz: self.positive(iz, "Iz")?,
+                j: self.positive(j, "J")?,
+            },
+            _ => {
+                return Err(self.loc.at(
+                    b.span(),
+                    "a beam's section is either `diameter` or all of `A`, `Iy`, `Iz`, `J`",
+                ))
+            }
+        };
+        let length = self.positive(&s.length, "length")?;
+        let direction = match &s.direction {
+            Some(d) => self.axis(d)?,
+            None => Vec3::x(),
+        };
+        Ok(beam_compliance(&section, length, &direction))
+    }
+
+    fn element(
+        &self,
+        e: &Spanned<ElementSpec>,
+        position: usize,
+        parts: &mut ChainParts,
+    ) -> Result<(), InputError> {
+        let s = e.get_ref();
+        let kind = s.kind.get_ref().as_str();
+        let present = [
+            ("translation", s.translation.is_some()),
+            ("rotation_axis", s.rotation_axis.is_some()),
+            ("rotation_deg", s.rotation_deg.is_some()),
+            ("axis", s.axis.is_some()),
+            ("role", s.role.is_some()),
+            ("stiffness", s.stiffness.is_some()),
+            ("axes", s.axes.is_some()),
+            ("stiffness_matrix", s.stiffness_matrix.is_some()),
+            ("compliance_matrix", s.compliance_matrix.is_some()),
+            ("beam", s.beam.is_some()),
+        ];
+        let allowed: &[&str] = match kind {
+            "fixed" => &["translation", "rotation_axis", "rotation_deg"],
+            "prismatic" | "revolute" => &["axis", "role", "stiffness"],
+            "universal" => &["axes"],
+            "spherical" => &[],
+            "spring6" => &["stiffness_matrix", "compliance_matrix", "beam"],
+            other => {
+                return Err(self.loc.at(
+                    s.kind.span(),
+                    format!("unknown element type `{other}`: use fixed, prismatic, revolute, universal, spherical or spring6"),
+                ))
+            }
+        };
+        if let Some((key, _)) = present.iter().find(|(k, p)| *p && !allowed.contains(k)) {
+            return Err(self.loc.at(
+                e.span(),
+                format!("`{key}` does not apply to a `{kind}` element"),
+            ));
+        }
+        let name = s
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("{kind}{}", position + 1));
+        match kind {
+            "fixed" => {
+                let f =
+                    self.transform(&s.translation, &s.rotation_axis, &s.rotation_deg, e.span())?;
+                parts.elements.push(Element::Fixed(f));
+            }
+            "prismatic" | "revolute" => {
+                let jk = if kind == "prismatic" {
+                    JointKind::Prismatic
+                } else {
+                    JointKind::Revolute
+                };
+                let axis = match &s.axis {
+                    Some(a) => self.axis(a)?,
+                    None => {
+                        return Err(self
+                            .loc
+                            .at(e.span(), format!("a `{kind}` joint needs an `axis`")))
+                    }
+                };
+                let role = s.role.as_ref().ok_or_else(|| {
+                    self.loc.at(
+                        e.span(),
+                        format!("a `{kind}` joint needs a `role`: actuated, passive or elastic"),
+                    )
+                })?;
+                let stiffness = match &s.stiffness {
+                    Some(k) => Some(self.positive(k, "stiffness")?),
+                    None => None,
+                };
+                let spring = |parts: &mut ChainParts, k: f64| {
+                    let mut km = Mat6::zeros();
+                    km[(0, 0)] = k;
+                    let mut cm = Mat6::zeros();
+                    cm[(0, 0)] = 1.0 / k;
+                    parts.spring(name.clone(), &[(jk, axis)], km, cm);
+                };
+                match (role.get_ref().as_str(), stiffness) {
+                    // V_a(q + theta): the actuator and its control-loop spring move along one axis (eq 1).
+                    ("actuated", k) => {
+                        parts.joint(jk, axis, Role::Actuated);
+                        if let Some(k) = k {
+                            spring(parts, k);
+                        }
+                    }
+                    ("passive", None) => parts.joint(jk, axis, Role::Passive),
+                    ("passive", Some(_)) => {
+                        return Err(self.loc.at(
+                            e.span(),
+                            "a passive joint has no stiffness: use role = \"elastic\"",
+                        ))
+                    }
+                    ("elastic", Some(k)) => spring(parts, k),
+                    ("elastic", None) => {
+                        return Err(self
+                            .loc
+                            .at(e.span(), "an elastic joint needs a `stiffness`"))
+                    }
+                    (other, _) => {
+                        return Err(self.loc.at(
+                            role.span(),
+                            format!("unknown role `{other}`: use actuated, passive or elastic"),
+                        ))
+                    }
+                }
+            }
+            "universal" => {
+                let axes = s
+                    .axes
+                    .as_ref()
+                    .ok_or_else(|| self.loc.at(e.span(), "a universal joint needs two `axes`"))?;
+                if axes.get_ref().len() != 2 {
+                    return Err(self
+                        .loc
+                        .at(axes.span(), "a universal joint has exactly two axes"));
+                }
+                for a in axes.get_ref() {
+                    parts.joint(JointKind::Revolute, self.axis(a)?, Role::Passive);
+                }
+            }
+            "spherical" => {
+                for (_, a) in &SIX_DOF[3..] {
+                    parts.joint(JointKind::Revolute, *a, Role::Passive);
+                }
+            }
+            "spring6" => {
+                let compliance = match (&s.stiffness_matrix, &s.compliance_matrix, &s.beam) {
+                    (Some(k), None, None) => self.matrix6(k, "stiffness_matrix")?.try_inverse(),
+                    (None, Some(c), None) => Some(self.matrix6(c, "compliance_matrix")?),
+                    (None, None, Some(b)) => Some(self.beam(b)?),
+                    _ => {
+                        return Err(self.loc.at(
+                            e.span(),
+                            "a spring6 needs exactly one of `stiffness_matrix`, `compliance_matrix` and `beam`",
+                        ))
+                    }
+                };
+                let compliance = compliance.ok_or_else(|| {
+                    self.loc
+                        .at(e.span(), "the spring's matrix cannot be inverted")
+                })?;
+                let stiffness = compliance.try_inverse().ok_or_else(|| {
+                    self.loc
+                        .at(e.span(), "the spring's matrix cannot be inverted")
+                })?;
+                parts.spring(
+                    name,
+                    &SIX_DOF,
+                    (stiffness + stiffness.transpose()) * 0.5,
+                    compliance,
+                );
+            }
+            _ => unreachable!("element types are checked above"),
+        }
+        Ok(())
+    }
+
+    fn manipulator(&self, file: &ModelFile) -> Result<Manipulator, InputError> {
+        let mut legs = Vec::new();
+        if file.legs.get_ref().is_empty() {
+            return Err(self
+                .loc
+                .at(file.legs.span(), "a manipulator needs at least one [[leg]]"));
+        }
+        for leg_spec in file.legs.get_ref() {
+            let spec = leg_spec.get_ref();
+            if spec.chain.get_ref().is_empty() {
+                return Err(self.loc.at(
+                    spec.chain.span(),
+                    format!("leg `{}` has an empty chain", spec.name),
+                ));
+            }
+            let mut parts = ChainParts::default();
+            for (i, e) in spec.chain.get_ref().iter().enumerate() {
+                self.element(e, i, &mut parts)?;
+            }
+            let chain = Chain::new(std::mem::take(&mut parts.elements));
+            let attachment = match &spec.attachment {
+                Some(TransformSpec {
+                    translation,
+                    rotation_axis,
+                    rotation_deg,
+                }) => self.transform(translation, rotation_axis, rotation_deg, leg_spec.span())?,
+                None => Frame::IDENTITY,
+            };
+            let length_scale = chain.length_scale().max(1.0);
+            let copies: Vec<(String, Frame)> = if spec.copies.is_empty() {
+                vec![(spec.name.clone(), Frame::IDENTITY)]
+            } else {
+                spec.copies
+                    .iter()
+                    .map(|c| {
+                        let f = self.transform(
+                            &c.translation,
+                            &c.rotation_axis,
+                            &c.rotation_deg,
+                            leg_spec.span(),
+                        )?;
+                        Ok((format!("{}.{}", spec.name, c.name), f))
+                    })
+                    .collect::<Result<_, InputError>>()?
+            };
+            for (name, place) in copies {
+                if legs.iter().any(|l: &Leg| l.name() == name) {
+                    return Err(self
+                        .loc
+                        .at(leg_spec.span(), format!("two legs are named `{name}`")));
+                }
+                legs.push(Leg::Vjm(VjmLeg {
+                    name,
+                    chain: chain.prepended(place),
+                    attachment: place.compose(&attachment),
+                    springs: parts.springs.clone(),
+                    length_scale,
+                }));
+            }
+        }
+        let length_scale = legs
+            .iter()
+            .map(|l| match l {
+                Leg::Vjm(v) => v.length_scale,
+            })
+            .fold(1.0, f64::max);
+        Ok(Manipulator {
+            name: file.name.clone(),
+            legs,
+            length_scale,
+        })
+    }
+}

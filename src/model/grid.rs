@@ -1,0 +1,356 @@
+//! Where to evaluate: a box grid or named points in TOML (`manipulators/grids/`), or a CSV of points from
+//! any other tool. Points are read in blocks, so a map never holds all of them in memory.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::error::{read_text, InputError, Locator};
+use crate::kinematics::frame::{Frame, Vec3, Vec6};
+
+/// One pose to evaluate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PosePoint {
+    pub name: Option<String>,
+    /// Platform reference point, mm.
+    pub position: Vec3,
+    /// Platform orientation as a rotation vector, rad.
+    pub rotation: Vec3,
+    /// Reference wrench (N, N mm) at the reference point, if the input gives one.
+    pub wrench: Option<Vec6>,
+}
+
+impl PosePoint {
+    pub fn frame(&self) -> Frame {
+        Frame::from_position_rotvec(self.position, self.rotation)
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GridFile {
+    #[serde(rename = "box", default)]
+    boxgrid: Option<Spanned<BoxSpec>>,
+    #[serde(rename = "point", default)]
+    points: Vec<PointSpec>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BoxSpec {
+    /// First corner, mm.
+    from: [f64; 3],
+    /// Last corner, mm.
+    to: [f64; 3],
+    /// Number of points along x, y, z (each at least 1).
+    steps: Spanned<[i64; 3]>,
+    /// Fixed platform orientation, rotation vector in rad.
+    #[serde(default)]
+    orientation: Option<[f64; 3]>,
+    /// Reference wrench (Fx, Fy, Fz in N, Mx, My, Mz in N mm).
+    #[serde(default)]
+    wrench: Option<[f64; 6]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointSpec {
+    name: String,
+    at: [f64; 3],
+    #[serde(default)]
+    orientation: Option<[f64; 3]>,
+    #[serde(default)]
+    wrench: Option<[f64; 6]>,
+}
+
+#[derive(Clone, Debug)]
+struct BoxGrid {
+    from: Vec3,
+    to: Vec3,
+    steps: [usize; 3],
+    rotation: Vec3,
+    wrench: Option<Vec6>,
+}
+
+impl BoxGrid {
+    fn len(&self) -> u64 {
+        self.steps.iter().map(|&s| s as u64).product()
+    }
+
+    /// Point `i`, x varying fastest, then y, then z.
+    fn point(&self, i: u64) -> PosePoint {
+        let nx = self.steps[0] as u64;
+        let ny = self.steps[1] as u64;
+        let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
+        let mut p = Vec3::zeros();
+        for k in 0..3 {
+            p[k] = if self.steps[k] == 1 {
+                self.from[k]
+            } else {
+                self.from[k]
+                    + (self.to[k] - self.from[k]) * idx[k] as f64 / (self.steps[k] - 1) as f64
+            };
+        }
+        PosePoint {
+            name: None,
+            position: p,
+            rotation: self.rotation,
+            wrench: self.wrench,
+        }
+    }
+}
+
+/// Columns of a points CSV.
+const WRENCH_COLUMNS: [&str; 6] = ["Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm"];
+const ORIENTATION_COLUMNS: [&str; 3] = ["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"];
+
+struct CsvColumns {
+    name: Option<usize>,
+    xyz: [usize; 3],
+    orientation: Option<[usize; 3]>,
+    wrench: Option<[usize; 6]>,
+}
+
+enum Source {
+    Grid {
+        grid: Option<BoxGrid>,
+        named: Vec<PosePoint>,
+        next: u64,
+    },
+    Csv {
+        path: PathBuf,
+        reader: csv::Reader<File>,
+        columns: CsvColumns,
+        record: csv::StringRecord,
+    },
+}
+
+/// A stream of poses, read in blocks.
+pub struct PointSet {
+    /// True when the input sets an orientation (the map then reports it).
+    pub has_orientation: bool,
+    /// True when the input gives reference wrenches (the map then reports deflections).
+    pub has_wrench: bool,
+    /// Number of points, when known in advance.
+    pub len: Option<u64>,
+    source: Source,
+}
+
+impl PointSet {
+    /// A grid file (TOML): a `[box]`, named `[[point]]`s, or both (box points first).
+    pub fn from_grid_file(path: &Path) -> Result<Self, InputError> {
+        let source = read_text(path)?;
+        let loc = Locator {
+            path,
+            source: &source,
+        };
+        let file: GridFile = toml::from_str(&source).map_err(|e| loc.syntax(e))?;
+        let grid = match &file.boxgrid {
+            None => None,
+            Some(b) => {
+                let s = b.get_ref();
+                let mut steps = [0usize; 3];
+                for k in 0..3 {
+                    let n = s.steps.get_ref()[k];
+                    if n < 1 {
+                        return Err(loc.at(
+                            s.steps.span(),
+                            format!("steps must be at least 1 along each axis, got {n}"),
+                        ));
+                    }
+                    if n == 1 && s.from[k] != s.to[k] {
+                        return Err(loc.at(
+                            s.steps.span(),
+                            "one step along an axis needs `from` equal to `to` on it",
+                        ));
+                    }
+                    steps[k] = n as usize;
+                }
+                Some(BoxGrid {
+                    from: Vec3::from(s.from),
+                    to: Vec3::from(s.to),
+                    steps,
+                    rotation: Vec3::from(s.orientation.unwrap_or([0.0; 3])),
+                    wrench: s.wrench.map(Vec6::from),
+                })
+            }
+        };
+        let named: Vec<PosePoint> = file
+            .points
+            .iter()
+            .map(|p| PosePoint {
+                name: Some(p.name.clone()),
+                position: Vec3::from(p.at),
+                rotation: Vec3::from(p.orientation.unwrap_or([0.0; 3])),
+                wrench: p.wrench.map(Vec6::from),
+            })
+            .collect();
+        if grid.is_none() && named.is_empty() {
+            return Err(loc.whole("a grid needs a [box] or at least one [[point]]"));
+        }
+        let b = file.boxgrid.as_ref().map(|b| b.get_ref());
+        let has_orientation = b.is_some_and(|b| b.orientation.is_some())
+            || file.points.iter().any(|p| p.orientation.is_some());
+        let has_wrench =
+            b.is_some_and(|b| b.wrench.is_some()) || file.points.iter().any(|p| p.wrench.is_some());
+        let len = grid.as_ref().map_or(0, |g| g.len()) + named.len() as u64;
+        Ok(Self {
+            has_orientation,
+            has_wrench,
+            len: Some(len),
+            source: Source::Grid {
+                grid,
+                named,
+                next: 0,
+            },
+        })
+    }
+
+    /// A CSV with columns `x_mm,y_mm,z_mm`, optionally `name`, `pose_rx_rad,pose_ry_rad,pose_rz_rad` and
+    /// `Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm`.
+    pub fn from_points_csv(path: &Path) -> Result<Self, InputError> {
+        let file = File::open(path).map_err(|source| InputError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .comment(Some(b'#'))
+            .from_reader(file);
+        let whole = |m: String| InputError::Whole {
+            path: path.to_path_buf(),
+            message: m,
+        };
+        let headers = reader
+            .headers()
+            .map_err(|e| whole(format!("cannot read the header: {e}")))?
+            .clone();
+        let find = |n: &str| headers.iter().position(|h| h == n);
+        let need = |n: &str| {
+            find(n).ok_or_else(|| {
+                whole(format!(
+                    "no column `{n}` (columns: {})",
+                    headers.iter().collect::<Vec<_>>().join(",")
+                ))
+            })
+        };
+        let xyz = [need("x_mm")?, need("y_mm")?, need("z_mm")?];
+        let group = |names: &[&str]| -> Result<Option<Vec<usize>>, InputError> {
+            let found: Vec<Option<usize>> = names.iter().map(|n| find(n)).collect();
+            match found.iter().filter(|f| f.is_some()).count() {
+                0 => Ok(None),
+                n if n == names.len() => Ok(Some(found.into_iter().flatten().collect())),
+                _ => Err(whole(format!(
+                    "give all of the columns {} or none",
+                    names.join(",")
+                ))),
+            }
+        };
+        let orientation = group(&ORIENTATION_COLUMNS)?.map(|v| [v[0], v[1], v[2]]);
+        let wrench = group(&WRENCH_COLUMNS)?.map(|v| [v[0], v[1], v[2], v[3], v[4], v[5]]);
+        let columns = CsvColumns {
+            name: find("name"),
+            xyz,
+            orientation,
+            wrench,
+        };
+        Ok(Self {
+            has_orientation: columns.orientation.is_some(),
+            has_wrench: columns.wrench.is_some(),
+            len: None,
+            source: Source::Csv {
+                path: path.to_path_buf(),
+                reader,
+                columns,
+                record: csv::StringRecord::new(),
+            },
+        })
+    }
+
+    /// Appends up to `n` points to `out`; returns how many were added (0 at the end).
+    pub fn next_block(&mut self, n: usize, out: &mut Vec<PosePoint>) -> Result<usize, InputError> {
+        match &mut self.source {
+            Source::Grid { grid, named, next } => {
+                let in_grid = grid.as_ref().map_or(0, |g| g.len());
+                let total = in_grid + named.len() as u64;
+                let end = (*next + n as u64).min(total);
+                for i in *next..end {
+                    out.push(match grid {
+                        Some(g) if i < in_grid => g.point(i),
+                        _ => named[(i - in_grid) as usize].clone(),
+                    });
+                }
+                let added = (end - *next) as usize;
+                *next = end;
+                Ok(added)
+            }
+            Source::Csv {
+                path,
+                reader,
+                columns,
+                record,
+            } => {
+                let mut added = 0;
+                while added < n {
+                    let line = reader.position().line() + 1;
+                    let at = |column: usize, message: String| InputError::At {
+                        path: path.clone(),
+                        line: line as usize,
+                        column,
+                        message,
+                    };
+                    match reader.read_record(record) {
+                        Ok(false) => break,
+                        Ok(true) => {}
+                        Err(e) => {
+                            let line = e.position().map_or(line, |p| p.line());
+                            return Err(InputError::At {
+                                path: path.clone(),
+                                line: line as usize,
+                                column: 1,
+                                message: e.to_string(),
+                            });
+                        }
+                    }
+                    let field = |i: usize| -> Result<f64, InputError> {
+                        let t = record.get(i).unwrap_or("");
+                        match t.parse::<f64>() {
+                            Ok(v) if v.is_finite() => Ok(v),
+                            _ => Err(at(i + 1, format!("`{t}` is not a finite number"))),
+                        }
+                    };
+                    let position = Vec3::new(
+                        field(columns.xyz[0])?,
+                        field(columns.xyz[1])?,
+                        field(columns.xyz[2])?,
+                    );
+                    let rotation = match &columns.orientation {
+                        Some(c) => Vec3::new(field(c[0])?, field(c[1])?, field(c[2])?),
+                        None => Vec3::zeros(),
+                    };
+                    let wrench = match &columns.wrench {
+                        Some(c) => {
+                            let mut w = Vec6::zeros();
+                            for k in 0..6 {
+                                w[k] = field(c[k])?;
+                            }
+                            Some(w)
+                        }
+                        None => None,
+                    };
+                    let name = columns.name.and_then(|i| record.get(i)).map(str::to_string);
+                    out.push(PosePoint {
+                        name,
+                        position,
+                        rotation,
+                        wrench,
+                    });
+                    added += 1;
+                }
+                Ok(added)
+            }
+        }
+    }
+}

@@ -1,0 +1,161 @@
+//! The TOML schema of a manipulator description, as written by users (docs in README.md).
+//! Every table refuses unknown keys; positions are kept (`Spanned`) where validation may need to point.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use serde::de::{self, Deserializer, SeqAccess, Visitor};
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::expr::ExprSrc;
+
+pub type Num = Spanned<ExprSrc>;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    pub name: String,
+    #[serde(default)]
+    pub description: Option<String>,
+    /// Named numbers, usable in any formula of the file (and in each other).
+    #[serde(default)]
+    pub parameters: BTreeMap<String, Num>,
+    #[serde(rename = "leg")]
+    pub legs: Spanned<Vec<Spanned<LegSpec>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LegSpec {
+    pub name: String,
+    /// Copies of the leg, each moved rigidly (base part and platform attachment together) about the
+    /// world/platform origin; without copies the leg appears once as written.
+    #[serde(default)]
+    pub copies: Vec<CopySpec>,
+    /// The leg's end frame in the platform frame, as written before any copy transform (default: the
+    /// platform's reference point, platform axes).
+    #[serde(default)]
+    pub attachment: Option<TransformSpec>,
+    pub chain: Spanned<Vec<Spanned<ElementSpec>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CopySpec {
+    pub name: String,
+    #[serde(default)]
+    pub translation: Option<[Num; 3]>,
+    #[serde(default)]
+    pub rotation_axis: Option<Spanned<AxisSpec>>,
+    #[serde(default)]
+    pub rotation_deg: Option<Num>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransformSpec {
+    #[serde(default)]
+    pub translation: Option<[Num; 3]>,
+    #[serde(default)]
+    pub rotation_axis: Option<Spanned<AxisSpec>>,
+    #[serde(default)]
+    pub rotation_deg: Option<Num>,
+}
+
+/// One element of a chain. Which keys apply depends on `type`; the builder refuses the others.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ElementSpec {
+    #[serde(rename = "type")]
+    pub kind: Spanned<String>,
+    #[serde(default)]
+    pub name: Option<String>,
+    // fixed
+    #[serde(default)]
+    pub translation: Option<[Num; 3]>,
+    #[serde(default)]
+    pub rotation_axis: Option<Spanned<AxisSpec>>,
+    #[serde(default)]
+    pub rotation_deg: Option<Num>,
+    // prismatic, revolute
+    #[serde(default)]
+    pub axis: Option<Spanned<AxisSpec>>,
+    #[serde(default)]
+    pub role: Option<Spanned<String>>,
+    #[serde(default)]
+    pub stiffness: Option<Num>,
+    // universal
+    #[serde(default)]
+    pub axes: Option<Spanned<Vec<Spanned<AxisSpec>>>>,
+    // spring6
+    #[serde(default)]
+    pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+    #[serde(default)]
+    pub compliance_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+    #[serde(default)]
+    pub beam: Option<Spanned<BeamSpec>>,
+}
+
+/// A beam whose clamped-free compliance gives a 6-dof spring: material, section and length (N, mm).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BeamSpec {
+    /// Young's modulus, N/mm^2.
+    #[serde(rename = "E")]
+    pub e: Num,
+    /// Shear modulus, N/mm^2 (or give `nu`).
+    #[serde(rename = "G", default)]
+    pub g: Option<Num>,
+    /// Poisson's ratio: G = E / (2 (1 + nu)).
+    #[serde(default)]
+    pub nu: Option<Num>,
+    /// Round solid section of this diameter (mm), instead of A, Iy, Iz, J.
+    #[serde(default)]
+    pub diameter: Option<Num>,
+    #[serde(rename = "A", default)]
+    pub area: Option<Num>,
+    #[serde(rename = "Iy", default)]
+    pub iy: Option<Num>,
+    #[serde(rename = "Iz", default)]
+    pub iz: Option<Num>,
+    #[serde(rename = "J", default)]
+    pub j: Option<Num>,
+    pub length: Num,
+    /// The beam's axis in the spring's frame (default x).
+    #[serde(default)]
+    pub direction: Option<Spanned<AxisSpec>>,
+}
+
+/// An axis: "x", "-y", ... or a vector of three numbers or formulas.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AxisSpec {
+    Named(String),
+    Vector([ExprSrc; 3]),
+}
+
+impl<'de> Deserialize<'de> for AxisSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = AxisSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an axis name (\"x\", \"-y\", ...) or a vector of three numbers")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<AxisSpec, E> {
+                Ok(AxisSpec::Named(v.to_string()))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<AxisSpec, A::Error> {
+                let mut out: Vec<ExprSrc> = Vec::new();
+                while let Some(e) = seq.next_element::<ExprSrc>()? {
+                    out.push(e);
+                }
+                let n = out.len();
+                out.try_into()
+                    .map(AxisSpec::Vector)
+                    .map_err(|_| de::Error::invalid_length(n, &"three components"))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}

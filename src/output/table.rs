@@ -1,0 +1,155 @@
+//! CSV rows of a map: every column names its unit; numbers in shortest round-trip form, so the bytes are
+//! the same for any thread count.
+
+use crate::kinematics::frame::{Mat6, Vec6};
+use crate::model::grid::PosePoint;
+use crate::study::point::PointResult;
+
+/// Unit of entry (i, j) (1-based) of a 6x6 compliance matrix: it maps a wrench (N, N mm) to a displacement
+/// (mm, rad).
+pub fn compliance_unit(i: usize, j: usize) -> &'static str {
+    match (i <= 3, j <= 3) {
+        (true, true) => "mm_per_N",
+        (true, false) => "mm_per_Nmm",
+        (false, true) => "rad_per_N",
+        (false, false) => "rad_per_Nmm",
+    }
+}
+
+/// Unit of entry (i, j) of a stiffness matrix: it maps a displacement (mm, rad) to a wrench (N, N mm).
+pub fn stiffness_unit(i: usize, j: usize) -> &'static str {
+    match (i <= 3, j <= 3) {
+        (true, true) => "N_per_mm",
+        (true, false) => "N_per_rad",
+        (false, true) => "Nmm_per_mm",
+        (false, false) => "Nmm_per_rad",
+    }
+}
+
+/// Upper triangle, row by row: (1,1), (1,2), ... (6,6).
+pub fn upper_triangle() -> impl Iterator<Item = (usize, usize)> {
+    (1..=6).flat_map(|i| (i..=6).map(move |j| (i, j)))
+}
+
+/// Which optional columns a map has; fixed by the input before the first row.
+#[derive(Clone, Copy, Debug)]
+pub struct MapColumns {
+    pub orientation: bool,
+    pub stiffness: bool,
+    pub deflection: bool,
+}
+
+pub fn map_header(c: &MapColumns) -> String {
+    let mut h: Vec<String> = vec![
+        "index".into(),
+        "name".into(),
+        "x_mm".into(),
+        "y_mm".into(),
+        "z_mm".into(),
+    ];
+    if c.orientation {
+        h.extend(["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"].map(String::from));
+    }
+    h.extend(["status", "rank"].map(String::from));
+    h.extend(
+        [
+            "c_tran_max_mm_per_N",
+            "c_tran_min_mm_per_N",
+            "c_rot_max_rad_per_Nmm",
+        ]
+        .map(String::from),
+    );
+    if c.deflection {
+        h.extend(
+            [
+                "dx_mm",
+                "dy_mm",
+                "dz_mm",
+                "rx_rad",
+                "ry_rad",
+                "rz_rad",
+                "deflection_mm",
+            ]
+            .map(String::from),
+        );
+    }
+    h.extend(upper_triangle().map(|(i, j)| format!("C{i}{j}_{}", compliance_unit(i, j))));
+    if c.stiffness {
+        h.extend(upper_triangle().map(|(i, j)| format!("K{i}{j}_{}", stiffness_unit(i, j))));
+    }
+    let mut s = h.join(",");
+    s.push('\n');
+    s
+}
+
+/// Appends one number in shortest round-trip form.
+pub fn push_number(out: &mut String, v: f64) {
+    if v.is_finite() {
+        let mut b = ryu::Buffer::new();
+        out.push_str(b.format_finite(v));
+    } else {
+        out.push_str("nan");
+    }
+}
+
+/// Appends a text field, quoted where CSV needs it.
+pub fn push_text(out: &mut String, t: &str) {
+    if t.contains([',', '"', '\n', '\r']) {
+        out.push('"');
+        out.push_str(&t.replace('"', "\"\""));
+        out.push('"');
+    } else {
+        out.push_str(t);
+    }
+}
+
+fn push_optional(out: &mut String, v: Option<f64>) {
+    out.push(',');
+    if let Some(v) = v {
+        push_number(out, v);
+    }
+}
+
+fn push_matrix(out: &mut String, m: Option<&Mat6>) {
+    for (i, j) in upper_triangle() {
+        push_optional(out, m.map(|m| m[(i - 1, j - 1)]));
+    }
+}
+
+pub fn push_map_row(out: &mut String, c: &MapColumns, index: u64, p: &PosePoint, r: &PointResult) {
+    out.push_str(itoa::Buffer::new().format(index));
+    out.push(',');
+    if let Some(n) = &p.name {
+        push_text(out, n);
+    }
+    for k in 0..3 {
+        out.push(',');
+        push_number(out, p.position[k]);
+    }
+    if c.orientation {
+        for k in 0..3 {
+            out.push(',');
+            push_number(out, p.rotation[k]);
+        }
+    }
+    out.push(',');
+    out.push_str(r.status.as_str());
+    out.push(',');
+    out.push_str(itoa::Buffer::new().format(r.rank));
+    let pc = r.principal;
+    push_optional(out, pc.map(|p| p.translation_max));
+    push_optional(out, pc.map(|p| p.translation_min));
+    push_optional(out, pc.map(|p| p.rotation_max));
+    if c.deflection {
+        let d: Option<Vec6> = r.deflection;
+        for k in 0..6 {
+            push_optional(out, d.map(|d| d[k]));
+        }
+        push_optional(out, d.map(|d| d.fixed_rows::<3>(0).norm()));
+    }
+    push_matrix(out, r.compliance.as_ref());
+    if c.stiffness {
+        push_matrix(out, r.stiffness.as_ref());
+    }
+    out.push('\n');
+}

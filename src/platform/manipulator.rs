@@ -1,0 +1,73 @@
+//! A parallel manipulator: legs summed at the platform reference point (paper 001 s. 3.3, paper 000 eq 54).
+
+use super::leg::{Leg, LegFailure, LegResponse, LegState};
+use crate::kinematics::frame::{Frame, Mat6, Vec6};
+
+#[derive(Clone, Debug)]
+pub struct Manipulator {
+    pub name: String,
+    pub legs: Vec<Leg>,
+    /// mm per rad: weighs rotations against translations in rank decisions.
+    pub length_scale: f64,
+}
+
+/// Warm starts of every leg, carried from one point to the next by one worker.
+#[derive(Clone, Debug)]
+pub struct ManipulatorState {
+    pub legs: Vec<LegState>,
+}
+
+/// The sum over legs at one pose.
+#[derive(Clone, Debug)]
+pub struct Aggregate {
+    pub wrench: Vec6,
+    pub stiffness: Mat6,
+    pub legs: Vec<LegResponse>,
+}
+
+/// Which leg failed, and how.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseFailure {
+    pub leg: usize,
+    pub failure: LegFailure,
+}
+
+impl Manipulator {
+    pub fn new_state(&self) -> ManipulatorState {
+        ManipulatorState {
+            legs: self.legs.iter().map(Leg::new_state).collect(),
+        }
+    }
+
+    /// Places every leg for the commanded pose (inverse kinematics).
+    pub fn place(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<(), PoseFailure> {
+        for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
+            leg.place(platform, s)
+                .map_err(|failure| PoseFailure { leg: i, failure })?;
+        }
+        Ok(())
+    }
+
+    /// Unloaded stiffness at a commanded pose: K = sum_i K_i at the reference point.
+    pub fn unloaded(
+        &self,
+        platform: &Frame,
+        state: &mut ManipulatorState,
+    ) -> Result<Aggregate, PoseFailure> {
+        self.place(platform, state)?;
+        let mut total = Aggregate {
+            wrench: Vec6::zeros(),
+            stiffness: Mat6::zeros(),
+            legs: Vec::with_capacity(self.legs.len()),
+        };
+        for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
+            let r = leg
+                .respond_unloaded(platform, s)
+                .map_err(|failure| PoseFailure { leg: i, failure })?;
+            total.wrench += r.wrench;
+            total.stiffness += r.stiffness;
+            total.legs.push(r);
+        }
+        Ok(total)
+    }
+}

@@ -1,0 +1,4 @@
+//! The leg seam and the sum over legs at the platform.
+pub mod compliance;
+pub mod leg;
+pub mod manipulator;

@@ -1,0 +1,3 @@
+//! Batch jobs that turn a request into rows: one point, a map.
+pub mod map;
+pub mod point;

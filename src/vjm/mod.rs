@@ -1,0 +1,3 @@
+//! The Virtual Joint Method for one chain: springs and the unloaded stiffness (paper 001 eq 9).
+pub mod spring;
+pub mod stiffness;
