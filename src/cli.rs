@@ -16,11 +16,7 @@ use crate::study::map::{run_map, MapOptions};
 use crate::study::point::unloaded_point;
 
 #[derive(Parser, Debug)]
-#[command(
-    name = "stiff",
-    version,
-    about = "Stiffness of parallel robots: maps, points (units: mm, N, N mm, rad)"
-)]
+#[command(name = "stiff", version, about = "Stiffness of parallel robots: maps, points (units: mm, N, N mm, rad)")]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -141,17 +137,7 @@ fn map(a: MapArgs) -> Result<()> {
     let pool = thread_pool(a.run.threads)?;
     let mut sink = Sink::create(a.output.as_deref())?;
     let bar = progress_bar(points.len, a.run.quiet);
-    let summary = pool.install(|| {
-        run_map(
-            &model,
-            &mut points,
-            MapOptions {
-                stiffness: a.stiffness,
-            },
-            sink.writer(),
-            &bar,
-        )
-    })?;
+    let summary = run_map(&pool, &model, &mut points, MapOptions { stiffness: a.stiffness }, sink.writer(), &bar)?;
     sink.finish()?;
     bar.finish_and_clear();
     if !a.run.quiet {
@@ -165,12 +151,8 @@ fn map(a: MapArgs) -> Result<()> {
 
 fn point(a: PointArgs) -> Result<()> {
     let model = load_manipulator(&a.model)?;
-    let p = PosePoint {
-        name: None,
-        position: a.at,
-        rotation: a.orientation.unwrap_or_else(Vec3::zeros),
-        wrench: a.wrench,
-    };
+    let p =
+        PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
     print!("{}", point_report(&model.name, &p, &r));

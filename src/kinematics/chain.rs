@@ -35,11 +35,27 @@ pub struct Joint {
 }
 
 impl Joint {
+    /// `f * motion(value)`: the frame after this joint moves by `value` (rad or mm) about or along its axis.
+    /// Rotations about a principal axis only mix two columns, the common case on the hot path.
     #[inline]
-    fn motion(&self, value: f64) -> Frame {
+    fn apply(&self, f: &Frame, value: f64) -> Frame {
         match self.kind {
-            JointKind::Revolute => Frame::rotation(rotation_about(&self.axis, value)),
-            JointKind::Prismatic => Frame::translation(self.axis * value),
+            JointKind::Prismatic => Frame { rot: f.rot, pos: f.pos + f.rot * (self.axis * value) },
+            JointKind::Revolute => {
+                let principal = [self.axis.x, self.axis.y, self.axis.z].iter().position(|&c| c == 1.0);
+                match principal {
+                    Some(k) if self.axis.norm_squared() == 1.0 => {
+                        let (s, c) = value.sin_cos();
+                        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                        let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
+                        let mut rot = f.rot;
+                        rot.set_column(i, &(ci * c + cj * s));
+                        rot.set_column(j, &(cj * c - ci * s));
+                        Frame { rot, pos: f.pos }
+                    }
+                    _ => Frame { rot: f.rot * rotation_about(&self.axis, value), pos: f.pos },
+                }
+            }
         }
     }
 }
@@ -85,14 +101,48 @@ struct PlacedJoint {
     origin_world: Vec3,
 }
 
+impl PlacedJoint {
+    /// The joint's unit-rate twist seen at point `p`, times its gain.
+    #[inline]
+    fn twist_at(&self, p: &Vec3) -> Vec6 {
+        let w = self.axis_world;
+        let g = self.joint.gain;
+        match self.joint.kind {
+            JointKind::Revolute => {
+                let lin = w.cross(&(p - self.origin_world));
+                Vec6::new(lin.x * g, lin.y * g, lin.z * g, w.x * g, w.y * g, w.z * g)
+            }
+            JointKind::Prismatic => Vec6::new(w.x * g, w.y * g, w.z * g, 0.0, 0.0, 0.0),
+        }
+    }
+}
+
 /// The end frame and the Jacobian columns of one evaluation; buffers are reused between calls.
 #[derive(Clone, Debug, Default)]
 pub struct ChainJacobians {
     pub end: Frame,
     pub actuated: Vec<Vec6>,
     pub passive: Vec<Vec6>,
+    /// Filled by `fill_virtual`; zero until then.
     pub virtual_: Vec<Vec6>,
+    virtual_filled: bool,
     placed: Vec<PlacedJoint>,
+}
+
+impl ChainJacobians {
+    /// Computes the Jacobian columns of the virtual coordinates from the last evaluation.
+    pub fn fill_virtual(&mut self) {
+        if self.virtual_filled {
+            return;
+        }
+        let p = self.end.pos;
+        for pj in &self.placed {
+            if pj.joint.role == Role::Virtual {
+                self.virtual_[pj.joint.index] += pj.twist_at(&p);
+            }
+        }
+        self.virtual_filled = true;
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -122,12 +172,7 @@ impl Chain {
                 _ => merged.push(e),
             }
         }
-        Self {
-            elements: merged,
-            n_actuated: na,
-            n_passive: np,
-            n_virtual: nv,
-        }
+        Self { elements: merged, n_actuated: na, n_passive: np, n_virtual: nv }
     }
 
     pub fn elements(&self) -> &[Element] {
@@ -167,7 +212,7 @@ impl Chain {
                 Element::Joint(j) => {
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
-                        f = f.compose(&j.motion(v));
+                        f = j.apply(&f, v);
                     }
                 }
             }
@@ -175,25 +220,21 @@ impl Chain {
         f
     }
 
-    /// Forward kinematics with the analytic Jacobians of the end point with respect to every coordinate
-    /// (columns of the virtual coordinates only when `with_virtual`).
-    pub fn evaluate(&self, c: &Coordinates, with_virtual: bool, out: &mut ChainJacobians) {
+    /// Forward kinematics with the analytic Jacobians of the end point with respect to the actuated and
+    /// passive coordinates. Every joint's placement is recorded, so the virtual columns can follow on
+    /// demand (`ChainJacobians::fill_virtual`) without another pass: inverse kinematics needs them only at
+    /// its solution.
+    pub fn evaluate(&self, c: &Coordinates, out: &mut ChainJacobians) {
         out.placed.clear();
         let mut f = Frame::IDENTITY;
         for e in &self.elements {
             match e {
                 Element::Fixed(t) => f = f.compose(t),
                 Element::Joint(j) => {
-                    if with_virtual || j.role != Role::Virtual {
-                        out.placed.push(PlacedJoint {
-                            joint: *j,
-                            axis_world: f.rot * j.axis,
-                            origin_world: f.pos,
-                        });
-                    }
+                    out.placed.push(PlacedJoint { joint: *j, axis_world: f.rot * j.axis, origin_world: f.pos });
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
-                        f = f.compose(&j.motion(v));
+                        f = j.apply(&f, v);
                     }
                 }
             }
@@ -201,26 +242,15 @@ impl Chain {
         out.end = f;
         reset(&mut out.actuated, self.n_actuated);
         reset(&mut out.passive, self.n_passive);
-        reset(
-            &mut out.virtual_,
-            if with_virtual { self.n_virtual } else { 0 },
-        );
-        let p_end = f.pos;
+        reset(&mut out.virtual_, self.n_virtual);
+        out.virtual_filled = false;
         for pj in &out.placed {
-            let w = pj.axis_world;
-            let twist = match pj.joint.kind {
-                JointKind::Revolute => {
-                    let lin = w.cross(&(p_end - pj.origin_world));
-                    Vec6::new(lin.x, lin.y, lin.z, w.x, w.y, w.z)
-                }
-                JointKind::Prismatic => Vec6::new(w.x, w.y, w.z, 0.0, 0.0, 0.0),
-            };
             let col = match pj.joint.role {
                 Role::Actuated => &mut out.actuated[pj.joint.index],
                 Role::Passive => &mut out.passive[pj.joint.index],
-                Role::Virtual => &mut out.virtual_[pj.joint.index],
+                Role::Virtual => continue,
             };
-            *col += twist * pj.joint.gain;
+            *col += pj.twist_at(&f.pos);
         }
     }
 

@@ -24,52 +24,35 @@ impl Default for Frame {
 }
 
 impl Frame {
-    pub const IDENTITY: Frame = Frame {
-        rot: Mat3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
-        pos: Vec3::new(0.0, 0.0, 0.0),
-    };
+    pub const IDENTITY: Frame =
+        Frame { rot: Mat3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), pos: Vec3::new(0.0, 0.0, 0.0) };
 
     pub fn new(rot: Mat3, pos: Vec3) -> Self {
         Self { rot, pos }
     }
 
     pub fn translation(pos: Vec3) -> Self {
-        Self {
-            rot: Mat3::identity(),
-            pos,
-        }
+        Self { rot: Mat3::identity(), pos }
     }
 
     pub fn rotation(rot: Mat3) -> Self {
-        Self {
-            rot,
-            pos: Vec3::zeros(),
-        }
+        Self { rot, pos: Vec3::zeros() }
     }
 
     /// A pose from a position and a rotation vector (axis times angle, rad).
     pub fn from_position_rotvec(pos: Vec3, rotvec: Vec3) -> Self {
-        Self {
-            rot: rotation_from_vector(&rotvec),
-            pos,
-        }
+        Self { rot: rotation_from_vector(&rotvec), pos }
     }
 
     /// `self * other`: express `other` (given in self's local frame) in self's parent frame.
     #[inline]
     pub fn compose(&self, other: &Frame) -> Frame {
-        Frame {
-            rot: self.rot * other.rot,
-            pos: self.pos + self.rot * other.pos,
-        }
+        Frame { rot: self.rot * other.rot, pos: self.pos + self.rot * other.pos }
     }
 
     pub fn inverse(&self) -> Frame {
         let rt = self.rot.transpose();
-        Frame {
-            rot: rt,
-            pos: -(rt * self.pos),
-        }
+        Frame { rot: rt, pos: -(rt * self.pos) }
     }
 
     #[inline]
@@ -99,11 +82,7 @@ pub fn rotation_from_vector(v: &Vec3) -> Mat3 {
 /// and cosine parts, accurate to round-off for small rotations (an acos of the trace is not: it loses half
 /// the digits, enough to stall a Newton solve).
 pub fn rotation_vector(r: &Mat3) -> Vec3 {
-    let v = Vec3::new(
-        r[(2, 1)] - r[(1, 2)],
-        r[(0, 2)] - r[(2, 0)],
-        r[(1, 0)] - r[(0, 1)],
-    ) * 0.5;
+    let v = Vec3::new(r[(2, 1)] - r[(1, 2)], r[(0, 2)] - r[(2, 0)], r[(1, 0)] - r[(0, 1)]) * 0.5;
     let sin = v.norm();
     let cos = (r.trace() - 1.0) * 0.5;
     let angle = sin.atan2(cos);
@@ -113,9 +92,7 @@ pub fn rotation_vector(r: &Mat3) -> Vec3 {
     }
     // Near pi the antisymmetric part vanishes: take the axis from the symmetric part (1 - cos) a a^T.
     let b = (r + r.transpose()) * 0.5 - Mat3::identity() * cos;
-    let k = (0..3)
-        .max_by(|&i, &j| b[(i, i)].total_cmp(&b[(j, j)]))
-        .unwrap();
+    let k = (0..3).max_by(|&i, &j| b[(i, i)].total_cmp(&b[(j, j)])).unwrap();
     let mut axis: Vec3 = b.column(k).into();
     axis /= axis.norm();
     if axis.dot(&v) < 0.0 {
@@ -144,6 +121,26 @@ pub fn point_shift(v: &Vec3) -> Mat6 {
     let mut a = Mat6::identity();
     a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-skew(v)));
     a
+}
+
+/// A stiffness matrix moved from a body point EP to the point RP of the same rigid body: `A^T K A` with
+/// `A = point_shift(v)`, `v = EP - RP` (paper 000 eq 54-55), by 3x3 blocks.
+pub fn shift_stiffness(k: &Mat6, v: &Vec3) -> Mat6 {
+    if *v == Vec3::zeros() {
+        return *k;
+    }
+    let s = skew(v);
+    let k11: Mat3 = k.fixed_view::<3, 3>(0, 0).into();
+    let k12: Mat3 = k.fixed_view::<3, 3>(0, 3).into();
+    let k21: Mat3 = k.fixed_view::<3, 3>(3, 0).into();
+    let k22: Mat3 = k.fixed_view::<3, 3>(3, 3).into();
+    let top_right = k12 - k11 * s;
+    let mut out = Mat6::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&k11);
+    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&top_right);
+    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(s * k11 + k21));
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&(s * top_right + k22 - k21 * s));
+    out
 }
 
 /// Eigenvalues of a symmetric 3x3 matrix in ascending order (closed form, trigonometric method).
@@ -181,8 +178,7 @@ mod tests {
         ] {
             let back = rotation_vector(&rotation_from_vector(&v));
             assert!(
-                (back - v).norm()
-                    <= 1e-13 * v.norm().max(1e-300) + 1e-9 * (v.norm() > 3.0) as u8 as f64,
+                (back - v).norm() <= 1e-13 * v.norm().max(1e-300) + 1e-9 * (v.norm() > 3.0) as u8 as f64,
                 "{v:?} -> {back:?}"
             );
         }
@@ -195,11 +191,18 @@ mod tests {
         reference.sort_by(f64::total_cmp);
         let ours = symmetric_eigenvalues3(&m);
         for k in 0..3 {
-            assert!(
-                (ours[k] - reference[k]).abs() < 1e-12,
-                "{ours:?} vs {reference:?}"
-            );
+            assert!((ours[k] - reference[k]).abs() < 1e-12, "{ours:?} vs {reference:?}");
         }
+    }
+
+    #[test]
+    fn shift_stiffness_equals_the_congruence_it_stands_for() {
+        let k = Mat6::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 + if i == j { 20.0 } else { 0.0 });
+        let k = k + k.transpose();
+        let v = Vec3::new(0.3, -1.2, 2.5);
+        let a = point_shift(&v);
+        let expected = a.transpose() * k * a;
+        assert!((shift_stiffness(&k, &v) - expected).abs().max() < 1e-12 * expected.abs().max());
     }
 
     #[test]

@@ -13,22 +13,46 @@ pub struct IkFailure {
 }
 
 pub const MAX_ITERATIONS: usize = 60;
+/// Convergence: weighted pose error below this times the chain's length scale (a 900 mm leg: 1e-6 mm and
+/// 1e-9 rad), far below what changes a stiffness in its printed digits.
+pub const TOLERANCE: f64 = 1e-9;
+
+/// Buffers reused from one solve to the next (no allocation per point).
+#[derive(Clone, Debug, Default)]
+pub struct IkWorkspace {
+    pub current: ChainJacobians,
+    /// True when `current` was evaluated at the coordinates the next solve starts from (the previous
+    /// solution), so the first Newton step needs no new evaluation.
+    current_is_valid: bool,
+    trial: ChainJacobians,
+    trial_coords: Coordinates,
+}
+
+impl IkWorkspace {
+    /// To be called when the coordinates are changed by anything but `solve`.
+    pub fn invalidate(&mut self) {
+        self.current_is_valid = false;
+    }
+
+    /// The evaluation at the last solution (virtual columns included), while the coordinates have not
+    /// changed since.
+    pub fn solution(&mut self) -> Option<&ChainJacobians> {
+        if !self.current_is_valid {
+            return None;
+        }
+        self.current.fill_virtual();
+        Some(&self.current)
+    }
+}
 
 /// Weighted pose error: rotations (rad) times `length_scale` (mm/rad), so both parts are in mm.
 #[inline]
 fn weighted(e: &Vec6, length_scale: f64) -> Vec6 {
-    Vec6::new(
-        e[0],
-        e[1],
-        e[2],
-        e[3] * length_scale,
-        e[4] * length_scale,
-        e[5] * length_scale,
-    )
+    Vec6::new(e[0], e[1], e[2], e[3] * length_scale, e[4] * length_scale, e[5] * length_scale)
 }
 
 /// Solves `end_frame(coords) = target` for the actuated and passive coordinates; virtual coordinates are
-/// left as they are. Returns the number of iterations.
+/// left as they are. Returns the number of iterations; `ws.current` then holds the evaluation at the solution.
 ///
 /// The step is the minimum-norm damped solution `du = J^T (J J^T + lambda I)^-1 e` in the weighted metric,
 /// a 6x6 solve whatever the number of unknowns, so redundant and deficient chains (a 3-PUU leg has five
@@ -37,71 +61,69 @@ pub fn solve(
     chain: &Chain,
     target: &Frame,
     coords: &mut Coordinates,
-    ws: &mut ChainJacobians,
+    ws: &mut IkWorkspace,
     length_scale: f64,
 ) -> Result<usize, IkFailure> {
-    let tolerance = 1e-10 * length_scale.max(1.0);
-    let mut trial = coords.clone();
-    chain.evaluate(coords, false, ws);
-    let mut err = weighted(&ws.end.error_to(target), length_scale);
+    let tolerance = TOLERANCE * length_scale.max(1.0);
+    ws.trial_coords.clone_from(coords);
+    if !ws.current_is_valid {
+        chain.evaluate(coords, &mut ws.current);
+    }
+    ws.current_is_valid = false;
+    let mut err = weighted(&ws.current.end.error_to(target), length_scale);
     let mut norm = err.norm();
     for iteration in 0..MAX_ITERATIONS {
         if norm <= tolerance {
+            ws.current_is_valid = true;
             return Ok(iteration);
         }
-        let w = |j: &Vec6| weighted(j, length_scale);
+        let jw = |j: &Vec6| weighted(j, length_scale);
         let mut a = Mat6::zeros();
-        for j in ws.actuated.iter().chain(ws.passive.iter()) {
-            let jw = w(j);
-            a += jw * jw.transpose();
+        for j in ws.current.actuated.iter().chain(ws.current.passive.iter()) {
+            let w = jw(j);
+            a += w * w.transpose();
         }
         let damping = 1e-12 * a.trace() + 1e-300;
         for k in 0..6 {
             a[(k, k)] += damping;
         }
         let Some(chol) = a.cholesky() else {
-            return Err(IkFailure {
-                iterations: iteration,
-                residual_mm: norm,
-            });
+            return Err(IkFailure { iterations: iteration, residual_mm: norm });
         };
         let y = chol.solve(&err);
         // Back-tracking: halve the step until the error decreases.
         let mut step = 1.0;
         let mut accepted = false;
         for _ in 0..30 {
-            for (k, j) in ws.actuated.iter().enumerate() {
-                trial.actuated[k] = coords.actuated[k] + step * w(j).dot(&y);
+            let t = &mut ws.trial_coords;
+            for (k, j) in ws.current.actuated.iter().enumerate() {
+                t.actuated[k] = coords.actuated[k] + step * jw(j).dot(&y);
             }
-            for (k, j) in ws.passive.iter().enumerate() {
-                trial.passive[k] = coords.passive[k] + step * w(j).dot(&y);
+            for (k, j) in ws.current.passive.iter().enumerate() {
+                t.passive[k] = coords.passive[k] + step * jw(j).dot(&y);
             }
-            let trial_norm =
-                weighted(&chain.end_frame(&trial).error_to(target), length_scale).norm();
+            chain.evaluate(t, &mut ws.trial);
+            let trial_err = weighted(&ws.trial.end.error_to(target), length_scale);
+            let trial_norm = trial_err.norm();
             if trial_norm < norm {
-                coords.actuated.copy_from_slice(&trial.actuated);
-                coords.passive.copy_from_slice(&trial.passive);
+                coords.actuated.copy_from_slice(&t.actuated);
+                coords.passive.copy_from_slice(&t.passive);
+                std::mem::swap(&mut ws.current, &mut ws.trial);
+                norm = trial_norm;
+                err = trial_err;
                 accepted = true;
                 break;
             }
             step *= 0.5;
         }
         if !accepted {
-            return Err(IkFailure {
-                iterations: iteration,
-                residual_mm: norm,
-            });
+            return Err(IkFailure { iterations: iteration, residual_mm: norm });
         }
-        chain.evaluate(coords, false, ws);
-        err = weighted(&ws.end.error_to(target), length_scale);
-        norm = err.norm();
     }
     if norm <= tolerance {
+        ws.current_is_valid = true;
         Ok(MAX_ITERATIONS)
     } else {
-        Err(IkFailure {
-            iterations: MAX_ITERATIONS,
-            residual_mm: norm,
-        })
+        Err(IkFailure { iterations: MAX_ITERATIONS, residual_mm: norm })
     }
 }

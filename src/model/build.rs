@@ -30,10 +30,7 @@ pub fn parse_manipulator(path: &Path, source: &str) -> Result<Manipulator, Input
 }
 
 /// Evaluates every parameter (parameters may use each other, in any order, without cycles).
-fn evaluate_parameters(
-    loc: &Locator,
-    specs: &BTreeMap<String, Num>,
-) -> Result<BTreeMap<String, f64>, InputError> {
+fn evaluate_parameters(loc: &Locator, specs: &BTreeMap<String, Num>) -> Result<BTreeMap<String, f64>, InputError> {
     struct Params<'a> {
         specs: &'a BTreeMap<String, Num>,
         done: BTreeMap<String, f64>,
@@ -44,10 +41,7 @@ fn evaluate_parameters(
             if let Some(v) = self.done.get(name) {
                 return Ok(*v);
             }
-            let spec = self
-                .specs
-                .get(name)
-                .ok_or_else(|| format!("unknown parameter `{name}`"))?;
+            let spec = self.specs.get(name).ok_or_else(|| format!("unknown parameter `{name}`"))?;
             if self.stack.iter().any(|s| s == name) {
                 return Err(format!(
                     "parameters depend on each other in a cycle: {} -> {name}",
@@ -62,20 +56,12 @@ fn evaluate_parameters(
             Ok(v)
         }
     }
-    let mut p = Params {
-        specs,
-        done: BTreeMap::new(),
-        stack: Vec::new(),
-    };
+    let mut p = Params { specs, done: BTreeMap::new(), stack: Vec::new() };
     for (name, spec) in specs {
         if name == "pi" {
-            return Err(loc.at(
-                spec.span(),
-                "`pi` is built in and cannot be a parameter name",
-            ));
+            return Err(loc.at(spec.span(), "`pi` is built in and cannot be a parameter name"));
         }
-        p.lookup(name)
-            .map_err(|e| loc.at(spec.span(), format!("parameter `{name}`: {e}")))?;
+        p.lookup(name).map_err(|e| loc.at(spec.span(), format!("parameter `{name}`: {e}")))?;
     }
     Ok(p.done)
 }
@@ -104,34 +90,16 @@ impl ChainParts {
         };
         let index = *counter;
         *counter += 1;
-        self.elements.push(Element::Joint(Joint {
-            kind,
-            axis,
-            role,
-            index,
-            gain: 1.0,
-        }));
+        self.elements.push(Element::Joint(Joint { kind, axis, role, index, gain: 1.0 }));
     }
 
     /// Virtual joints for a spring group of `dim` coordinates with the given stiffness block.
-    fn spring(
-        &mut self,
-        name: String,
-        joints: &[(JointKind, Vec3)],
-        stiffness: Mat6,
-        compliance: Mat6,
-    ) {
+    fn spring(&mut self, name: String, joints: &[(JointKind, Vec3)], stiffness: Mat6, compliance: Mat6) {
         let first = self.n_virtual;
         for (kind, axis) in joints {
             self.joint(*kind, *axis, Role::Virtual);
         }
-        self.springs.push(SpringGroup {
-            name,
-            first,
-            dim: joints.len(),
-            stiffness,
-            compliance,
-        });
+        self.springs.push(SpringGroup { name, first, dim: joints.len(), stiffness, compliance });
     }
 }
 
@@ -147,9 +115,7 @@ const SIX_DOF: [(JointKind, Vec3); 6] = [
 impl Builder<'_> {
     fn num(&self, n: &Num) -> Result<f64, InputError> {
         let mut scope = self.params.clone();
-        n.get_ref()
-            .eval(&mut scope)
-            .map_err(|e| self.loc.at(n.span(), e))
+        n.get_ref().eval(&mut scope).map_err(|e| self.loc.at(n.span(), e))
     }
 
     fn positive(&self, n: &Num, what: &str) -> Result<f64, InputError> {
@@ -157,18 +123,12 @@ impl Builder<'_> {
         if v > 0.0 {
             Ok(v)
         } else {
-            Err(self
-                .loc
-                .at(n.span(), format!("{what} must be positive, got {v}")))
+            Err(self.loc.at(n.span(), format!("{what} must be positive, got {v}")))
         }
     }
 
     fn vec3(&self, v: &[Num; 3]) -> Result<Vec3, InputError> {
-        Ok(Vec3::new(
-            self.num(&v[0])?,
-            self.num(&v[1])?,
-            self.num(&v[2])?,
-        ))
+        Ok(Vec3::new(self.num(&v[0])?, self.num(&v[1])?, self.num(&v[2])?))
     }
 
     fn axis(&self, a: &Spanned<AxisSpec>) -> Result<Vec3, InputError> {
@@ -181,19 +141,16 @@ impl Builder<'_> {
                 "-y" => -Vec3::y(),
                 "-z" => -Vec3::z(),
                 other => {
-                    return Err(self.loc.at(
-                        a.span(),
-                        format!("unknown axis `{other}`: use x, y, z, -x, -y, -z or [ax, ay, az]"),
-                    ))
+                    return Err(self
+                        .loc
+                        .at(a.span(), format!("unknown axis `{other}`: use x, y, z, -x, -y, -z or [ax, ay, az]")))
                 }
             },
             AxisSpec::Vector(c) => {
                 let mut scope = self.params.clone();
                 let mut v = Vec3::zeros();
                 for k in 0..3 {
-                    v[k] = c[k]
-                        .eval(&mut scope)
-                        .map_err(|e| self.loc.at(a.span(), e))?;
+                    v[k] = c[k].eval(&mut scope).map_err(|e| self.loc.at(a.span(), e))?;
                 }
                 v
             }
@@ -219,12 +176,7 @@ impl Builder<'_> {
         let rot = match (rotation_axis, rotation_deg) {
             (Some(a), Some(d)) => rotation_about(&self.axis(a)?, self.num(d)?.to_radians()),
             (None, None) => nalgebra::Matrix3::identity(),
-            _ => {
-                return Err(self.loc.at(
-                    span,
-                    "give both `rotation_axis` and `rotation_deg`, or neither",
-                ))
-            }
+            _ => return Err(self.loc.at(span, "give both `rotation_axis` and `rotation_deg`, or neither")),
         };
         Ok(Frame::new(rot, pos))
     }
@@ -232,9 +184,7 @@ impl Builder<'_> {
     fn matrix6(&self, m: &Spanned<Vec<Vec<Num>>>, what: &str) -> Result<Mat6, InputError> {
         let rows = m.get_ref();
         if rows.len() != 6 || rows.iter().any(|r| r.len() != 6) {
-            return Err(self
-                .loc
-                .at(m.span(), format!("{what} must be 6 rows of 6 numbers")));
+            return Err(self.loc.at(m.span(), format!("{what} must be 6 rows of 6 numbers")));
         }
         let mut out = Mat6::zeros();
         for (i, row) in rows.iter().enumerate() {
@@ -248,9 +198,7 @@ impl Builder<'_> {
         }
         let sym = (out + out.transpose()) * 0.5;
         if sym.cholesky().is_none() {
-            return Err(self
-                .loc
-                .at(m.span(), format!("{what} is not positive definite")));
+            return Err(self.loc.at(m.span(), format!("{what} is not positive definite")));
         }
         Ok(sym)
     }
@@ -263,23 +211,16 @@ impl Builder<'_> {
             (None, Some(nu)) => {
                 let nu = self.num(nu)?;
                 if !(-1.0 < nu && nu < 0.5) {
-                    return Err(self.loc.at(
-                        s.nu.as_ref().unwrap().span(),
-                        format!("nu must lie in (-1, 0.5), got {nu}"),
-                    ));
+                    return Err(self
+                        .loc
+                        .at(s.nu.as_ref().unwrap().span(), format!("nu must lie in (-1, 0.5), got {nu}")));
                 }
                 e / (2.0 * (1.0 + nu))
             }
-            _ => {
-                return Err(self
-                    .loc
-                    .at(b.span(), "a beam needs exactly one of `G` and `nu`"))
-            }
+            _ => return Err(self.loc.at(b.span(), "a beam needs exactly one of `G` and `nu`")),
         };
         let section = match (&s.diameter, &s.area, &s.iy, &s.iz, &s.j) {
-            (Some(d), None, None, None, None) => {
-                BeamSection::round(e, g, self.positive(d, "diameter")?)
-            }
+            (Some(d), None, None, None, None) => BeamSection::round(e, g, self.positive(d, "diameter")?),
             (None, Some(a), Some(iy), Some(iz), Some(j)) => BeamSection {
                 e,
                 g,
@@ -289,10 +230,9 @@ impl Builder<'_> {
                 j: self.positive(j, "J")?,
             },
             _ => {
-                return Err(self.loc.at(
-                    b.span(),
-                    "a beam's section is either `diameter` or all of `A`, `Iy`, `Iz`, `J`",
-                ))
+                return Err(self
+                    .loc
+                    .at(b.span(), "a beam's section is either `diameter` or all of `A`, `Iy`, `Iz`, `J`"))
             }
         };
         let length = self.positive(&s.length, "length")?;
@@ -303,12 +243,7 @@ impl Builder<'_> {
         Ok(beam_compliance(&section, length, &direction))
     }
 
-    fn element(
-        &self,
-        e: &Spanned<ElementSpec>,
-        position: usize,
-        parts: &mut ChainParts,
-    ) -> Result<(), InputError> {
+    fn element(&self, e: &Spanned<ElementSpec>, position: usize, parts: &mut ChainParts) -> Result<(), InputError> {
         let s = e.get_ref();
         let kind = s.kind.get_ref().as_str();
         let present = [
@@ -332,45 +267,29 @@ impl Builder<'_> {
             other => {
                 return Err(self.loc.at(
                     s.kind.span(),
-                    format!("unknown element type `{other}`: use fixed, prismatic, revolute, universal, spherical or spring6"),
+                    format!(
+                    "unknown element type `{other}`: use fixed, prismatic, revolute, universal, spherical or spring6"
+                ),
                 ))
             }
         };
         if let Some((key, _)) = present.iter().find(|(k, p)| *p && !allowed.contains(k)) {
-            return Err(self.loc.at(
-                e.span(),
-                format!("`{key}` does not apply to a `{kind}` element"),
-            ));
+            return Err(self.loc.at(e.span(), format!("`{key}` does not apply to a `{kind}` element")));
         }
-        let name = s
-            .name
-            .clone()
-            .unwrap_or_else(|| format!("{kind}{}", position + 1));
+        let name = s.name.clone().unwrap_or_else(|| format!("{kind}{}", position + 1));
         match kind {
             "fixed" => {
-                let f =
-                    self.transform(&s.translation, &s.rotation_axis, &s.rotation_deg, e.span())?;
+                let f = self.transform(&s.translation, &s.rotation_axis, &s.rotation_deg, e.span())?;
                 parts.elements.push(Element::Fixed(f));
             }
             "prismatic" | "revolute" => {
-                let jk = if kind == "prismatic" {
-                    JointKind::Prismatic
-                } else {
-                    JointKind::Revolute
-                };
+                let jk = if kind == "prismatic" { JointKind::Prismatic } else { JointKind::Revolute };
                 let axis = match &s.axis {
                     Some(a) => self.axis(a)?,
-                    None => {
-                        return Err(self
-                            .loc
-                            .at(e.span(), format!("a `{kind}` joint needs an `axis`")))
-                    }
+                    None => return Err(self.loc.at(e.span(), format!("a `{kind}` joint needs an `axis`"))),
                 };
                 let role = s.role.as_ref().ok_or_else(|| {
-                    self.loc.at(
-                        e.span(),
-                        format!("a `{kind}` joint needs a `role`: actuated, passive or elastic"),
-                    )
+                    self.loc.at(e.span(), format!("a `{kind}` joint needs a `role`: actuated, passive or elastic"))
                 })?;
                 let stiffness = match &s.stiffness {
                     Some(k) => Some(self.positive(k, "stiffness")?),
@@ -393,34 +312,22 @@ impl Builder<'_> {
                     }
                     ("passive", None) => parts.joint(jk, axis, Role::Passive),
                     ("passive", Some(_)) => {
-                        return Err(self.loc.at(
-                            e.span(),
-                            "a passive joint has no stiffness: use role = \"elastic\"",
-                        ))
+                        return Err(self.loc.at(e.span(), "a passive joint has no stiffness: use role = \"elastic\""))
                     }
                     ("elastic", Some(k)) => spring(parts, k),
-                    ("elastic", None) => {
+                    ("elastic", None) => return Err(self.loc.at(e.span(), "an elastic joint needs a `stiffness`")),
+                    (other, _) => {
                         return Err(self
                             .loc
-                            .at(e.span(), "an elastic joint needs a `stiffness`"))
-                    }
-                    (other, _) => {
-                        return Err(self.loc.at(
-                            role.span(),
-                            format!("unknown role `{other}`: use actuated, passive or elastic"),
-                        ))
+                            .at(role.span(), format!("unknown role `{other}`: use actuated, passive or elastic")))
                     }
                 }
             }
             "universal" => {
-                let axes = s
-                    .axes
-                    .as_ref()
-                    .ok_or_else(|| self.loc.at(e.span(), "a universal joint needs two `axes`"))?;
+                let axes =
+                    s.axes.as_ref().ok_or_else(|| self.loc.at(e.span(), "a universal joint needs two `axes`"))?;
                 if axes.get_ref().len() != 2 {
-                    return Err(self
-                        .loc
-                        .at(axes.span(), "a universal joint has exactly two axes"));
+                    return Err(self.loc.at(axes.span(), "a universal joint has exactly two axes"));
                 }
                 for a in axes.get_ref() {
                     parts.joint(JointKind::Revolute, self.axis(a)?, Role::Passive);
@@ -443,20 +350,12 @@ impl Builder<'_> {
                         ))
                     }
                 };
-                let compliance = compliance.ok_or_else(|| {
-                    self.loc
-                        .at(e.span(), "the spring's matrix cannot be inverted")
-                })?;
-                let stiffness = compliance.try_inverse().ok_or_else(|| {
-                    self.loc
-                        .at(e.span(), "the spring's matrix cannot be inverted")
-                })?;
-                parts.spring(
-                    name,
-                    &SIX_DOF,
-                    (stiffness + stiffness.transpose()) * 0.5,
-                    compliance,
-                );
+                let compliance =
+                    compliance.ok_or_else(|| self.loc.at(e.span(), "the spring's matrix cannot be inverted"))?;
+                let stiffness = compliance
+                    .try_inverse()
+                    .ok_or_else(|| self.loc.at(e.span(), "the spring's matrix cannot be inverted"))?;
+                parts.spring(name, &SIX_DOF, (stiffness + stiffness.transpose()) * 0.5, compliance);
             }
             _ => unreachable!("element types are checked above"),
         }
@@ -466,17 +365,12 @@ impl Builder<'_> {
     fn manipulator(&self, file: &ModelFile) -> Result<Manipulator, InputError> {
         let mut legs = Vec::new();
         if file.legs.get_ref().is_empty() {
-            return Err(self
-                .loc
-                .at(file.legs.span(), "a manipulator needs at least one [[leg]]"));
+            return Err(self.loc.at(file.legs.span(), "a manipulator needs at least one [[leg]]"));
         }
         for leg_spec in file.legs.get_ref() {
             let spec = leg_spec.get_ref();
             if spec.chain.get_ref().is_empty() {
-                return Err(self.loc.at(
-                    spec.chain.span(),
-                    format!("leg `{}` has an empty chain", spec.name),
-                ));
+                return Err(self.loc.at(spec.chain.span(), format!("leg `{}` has an empty chain", spec.name)));
             }
             let mut parts = ChainParts::default();
             for (i, e) in spec.chain.get_ref().iter().enumerate() {
@@ -484,11 +378,9 @@ impl Builder<'_> {
             }
             let chain = Chain::new(std::mem::take(&mut parts.elements));
             let attachment = match &spec.attachment {
-                Some(TransformSpec {
-                    translation,
-                    rotation_axis,
-                    rotation_deg,
-                }) => self.transform(translation, rotation_axis, rotation_deg, leg_spec.span())?,
+                Some(TransformSpec { translation, rotation_axis, rotation_deg }) => {
+                    self.transform(translation, rotation_axis, rotation_deg, leg_spec.span())?
+                }
                 None => Frame::IDENTITY,
             };
             let length_scale = chain.length_scale().max(1.0);
@@ -498,21 +390,14 @@ impl Builder<'_> {
                 spec.copies
                     .iter()
                     .map(|c| {
-                        let f = self.transform(
-                            &c.translation,
-                            &c.rotation_axis,
-                            &c.rotation_deg,
-                            leg_spec.span(),
-                        )?;
+                        let f = self.transform(&c.translation, &c.rotation_axis, &c.rotation_deg, leg_spec.span())?;
                         Ok((format!("{}.{}", spec.name, c.name), f))
                     })
                     .collect::<Result<_, InputError>>()?
             };
             for (name, place) in copies {
                 if legs.iter().any(|l: &Leg| l.name() == name) {
-                    return Err(self
-                        .loc
-                        .at(leg_spec.span(), format!("two legs are named `{name}`")));
+                    return Err(self.loc.at(leg_spec.span(), format!("two legs are named `{name}`")));
                 }
                 legs.push(Leg::Vjm(VjmLeg {
                     name,
@@ -529,10 +414,6 @@ impl Builder<'_> {
                 Leg::Vjm(v) => v.length_scale,
             })
             .fold(1.0, f64::max);
-        Ok(Manipulator {
-            name: file.name.clone(),
-            legs,
-            length_scale,
-        })
+        Ok(Manipulator { name: file.name.clone(), legs, length_scale })
     }
 }

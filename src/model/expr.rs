@@ -46,9 +46,7 @@ pub trait Scope {
 
 impl Scope for BTreeMap<String, f64> {
     fn lookup(&mut self, name: &str) -> Result<f64, String> {
-        self.get(name)
-            .copied()
-            .ok_or_else(|| format!("unknown parameter `{name}`"))
+        self.get(name).copied().ok_or_else(|| format!("unknown parameter `{name}`"))
     }
 }
 
@@ -64,11 +62,7 @@ impl ExprSrc {
 /// Evaluates a formula: + - * / ^, parentheses, parameters, `pi`, and the functions sqrt, abs, sin, cos,
 /// tan, asin, acos, atan, atan2, deg (degrees to radians).
 pub fn evaluate(text: &str, scope: &mut dyn Scope) -> Result<f64, String> {
-    let mut p = Parser {
-        s: text.as_bytes(),
-        i: 0,
-        scope,
-    };
+    let mut p = Parser { s: text.as_bytes(), i: 0, scope };
     let v = p.expr()?;
     p.skip_ws();
     if p.i != p.s.len() {
@@ -154,14 +148,10 @@ impl Parser<'_> {
             Some(c) if c.is_ascii_digit() || c == b'.' => self.number(),
             Some(c) if c.is_ascii_alphabetic() || c == b'_' => {
                 let start = self.i;
-                while self.i < self.s.len()
-                    && (self.s[self.i].is_ascii_alphanumeric() || self.s[self.i] == b'_')
-                {
+                while self.i < self.s.len() && (self.s[self.i].is_ascii_alphanumeric() || self.s[self.i] == b'_') {
                     self.i += 1;
                 }
-                let name = std::str::from_utf8(&self.s[start..self.i])
-                    .unwrap()
-                    .to_string();
+                let name = std::str::from_utf8(&self.s[start..self.i]).unwrap().to_string();
                 if self.eat(b'(') {
                     let mut args = vec![self.expr()?];
                     while self.eat(b',') {
@@ -230,8 +220,7 @@ mod tests {
 
     #[test]
     fn formulas_follow_usual_precedence() {
-        let mut p: BTreeMap<String, f64> =
-            [("L".to_string(), 2.0), ("f_x".to_string(), 3.0)].into();
+        let mut p: BTreeMap<String, f64> = [("L".to_string(), 2.0), ("f_x".to_string(), 3.0)].into();
         assert_eq!(evaluate("-(L + f_x) * 2", &mut p).unwrap(), -10.0);
         assert_eq!(evaluate("L^3 / 4 - -1", &mut p).unwrap(), 3.0);
         assert_eq!(evaluate("-L^2", &mut p).unwrap(), -4.0);

@@ -89,16 +89,10 @@ impl BoxGrid {
             p[k] = if self.steps[k] == 1 {
                 self.from[k]
             } else {
-                self.from[k]
-                    + (self.to[k] - self.from[k]) * idx[k] as f64 / (self.steps[k] - 1) as f64
+                self.from[k] + (self.to[k] - self.from[k]) * idx[k] as f64 / (self.steps[k] - 1) as f64
             };
         }
-        PosePoint {
-            name: None,
-            position: p,
-            rotation: self.rotation,
-            wrench: self.wrench,
-        }
+        PosePoint { name: None, position: p, rotation: self.rotation, wrench: self.wrench }
     }
 }
 
@@ -114,17 +108,8 @@ struct CsvColumns {
 }
 
 enum Source {
-    Grid {
-        grid: Option<BoxGrid>,
-        named: Vec<PosePoint>,
-        next: u64,
-    },
-    Csv {
-        path: PathBuf,
-        reader: csv::Reader<File>,
-        columns: CsvColumns,
-        record: csv::StringRecord,
-    },
+    Grid { grid: Option<BoxGrid>, named: Vec<PosePoint>, next: u64 },
+    Csv { path: PathBuf, reader: csv::Reader<File>, columns: CsvColumns, record: csv::StringRecord },
 }
 
 /// A stream of poses, read in blocks.
@@ -142,10 +127,7 @@ impl PointSet {
     /// A grid file (TOML): a `[box]`, named `[[point]]`s, or both (box points first).
     pub fn from_grid_file(path: &Path) -> Result<Self, InputError> {
         let source = read_text(path)?;
-        let loc = Locator {
-            path,
-            source: &source,
-        };
+        let loc = Locator { path, source: &source };
         let file: GridFile = toml::from_str(&source).map_err(|e| loc.syntax(e))?;
         let grid = match &file.boxgrid {
             None => None,
@@ -155,16 +137,12 @@ impl PointSet {
                 for k in 0..3 {
                     let n = s.steps.get_ref()[k];
                     if n < 1 {
-                        return Err(loc.at(
-                            s.steps.span(),
-                            format!("steps must be at least 1 along each axis, got {n}"),
-                        ));
+                        return Err(
+                            loc.at(s.steps.span(), format!("steps must be at least 1 along each axis, got {n}"))
+                        );
                     }
                     if n == 1 && s.from[k] != s.to[k] {
-                        return Err(loc.at(
-                            s.steps.span(),
-                            "one step along an axis needs `from` equal to `to` on it",
-                        ));
+                        return Err(loc.at(s.steps.span(), "one step along an axis needs `from` equal to `to` on it"));
                     }
                     steps[k] = n as usize;
                 }
@@ -191,49 +169,24 @@ impl PointSet {
             return Err(loc.whole("a grid needs a [box] or at least one [[point]]"));
         }
         let b = file.boxgrid.as_ref().map(|b| b.get_ref());
-        let has_orientation = b.is_some_and(|b| b.orientation.is_some())
-            || file.points.iter().any(|p| p.orientation.is_some());
-        let has_wrench =
-            b.is_some_and(|b| b.wrench.is_some()) || file.points.iter().any(|p| p.wrench.is_some());
+        let has_orientation =
+            b.is_some_and(|b| b.orientation.is_some()) || file.points.iter().any(|p| p.orientation.is_some());
+        let has_wrench = b.is_some_and(|b| b.wrench.is_some()) || file.points.iter().any(|p| p.wrench.is_some());
         let len = grid.as_ref().map_or(0, |g| g.len()) + named.len() as u64;
-        Ok(Self {
-            has_orientation,
-            has_wrench,
-            len: Some(len),
-            source: Source::Grid {
-                grid,
-                named,
-                next: 0,
-            },
-        })
+        Ok(Self { has_orientation, has_wrench, len: Some(len), source: Source::Grid { grid, named, next: 0 } })
     }
 
     /// A CSV with columns `x_mm,y_mm,z_mm`, optionally `name`, `pose_rx_rad,pose_ry_rad,pose_rz_rad` and
     /// `Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm`.
     pub fn from_points_csv(path: &Path) -> Result<Self, InputError> {
-        let file = File::open(path).map_err(|source| InputError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        let mut reader = csv::ReaderBuilder::new()
-            .trim(csv::Trim::All)
-            .comment(Some(b'#'))
-            .from_reader(file);
-        let whole = |m: String| InputError::Whole {
-            path: path.to_path_buf(),
-            message: m,
-        };
-        let headers = reader
-            .headers()
-            .map_err(|e| whole(format!("cannot read the header: {e}")))?
-            .clone();
+        let file = File::open(path).map_err(|source| InputError::Read { path: path.to_path_buf(), source })?;
+        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(file);
+        let whole = |m: String| InputError::Whole { path: path.to_path_buf(), message: m };
+        let headers = reader.headers().map_err(|e| whole(format!("cannot read the header: {e}")))?.clone();
         let find = |n: &str| headers.iter().position(|h| h == n);
         let need = |n: &str| {
             find(n).ok_or_else(|| {
-                whole(format!(
-                    "no column `{n}` (columns: {})",
-                    headers.iter().collect::<Vec<_>>().join(",")
-                ))
+                whole(format!("no column `{n}` (columns: {})", headers.iter().collect::<Vec<_>>().join(",")))
             })
         };
         let xyz = [need("x_mm")?, need("y_mm")?, need("z_mm")?];
@@ -242,30 +195,17 @@ impl PointSet {
             match found.iter().filter(|f| f.is_some()).count() {
                 0 => Ok(None),
                 n if n == names.len() => Ok(Some(found.into_iter().flatten().collect())),
-                _ => Err(whole(format!(
-                    "give all of the columns {} or none",
-                    names.join(",")
-                ))),
+                _ => Err(whole(format!("give all of the columns {} or none", names.join(",")))),
             }
         };
         let orientation = group(&ORIENTATION_COLUMNS)?.map(|v| [v[0], v[1], v[2]]);
         let wrench = group(&WRENCH_COLUMNS)?.map(|v| [v[0], v[1], v[2], v[3], v[4], v[5]]);
-        let columns = CsvColumns {
-            name: find("name"),
-            xyz,
-            orientation,
-            wrench,
-        };
+        let columns = CsvColumns { name: find("name"), xyz, orientation, wrench };
         Ok(Self {
             has_orientation: columns.orientation.is_some(),
             has_wrench: columns.wrench.is_some(),
             len: None,
-            source: Source::Csv {
-                path: path.to_path_buf(),
-                reader,
-                columns,
-                record: csv::StringRecord::new(),
-            },
+            source: Source::Csv { path: path.to_path_buf(), reader, columns, record: csv::StringRecord::new() },
         })
     }
 
@@ -286,12 +226,7 @@ impl PointSet {
                 *next = end;
                 Ok(added)
             }
-            Source::Csv {
-                path,
-                reader,
-                columns,
-                record,
-            } => {
+            Source::Csv { path, reader, columns, record } => {
                 let mut added = 0;
                 while added < n {
                     let line = reader.position().line() + 1;
@@ -321,11 +256,7 @@ impl PointSet {
                             _ => Err(at(i + 1, format!("`{t}` is not a finite number"))),
                         }
                     };
-                    let position = Vec3::new(
-                        field(columns.xyz[0])?,
-                        field(columns.xyz[1])?,
-                        field(columns.xyz[2])?,
-                    );
+                    let position = Vec3::new(field(columns.xyz[0])?, field(columns.xyz[1])?, field(columns.xyz[2])?);
                     let rotation = match &columns.orientation {
                         Some(c) => Vec3::new(field(c[0])?, field(c[1])?, field(c[2])?),
                         None => Vec3::zeros(),
@@ -341,12 +272,7 @@ impl PointSet {
                         None => None,
                     };
                     let name = columns.name.and_then(|i| record.get(i)).map(str::to_string);
-                    out.push(PosePoint {
-                        name,
-                        position,
-                        rotation,
-                        wrench,
-                    });
+                    out.push(PosePoint { name, position, rotation, wrench });
                     added += 1;
                 }
                 Ok(added)

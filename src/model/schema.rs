@@ -151,9 +151,7 @@ impl<'de> Deserialize<'de> for AxisSpec {
                     out.push(e);
                 }
                 let n = out.len();
-                out.try_into()
-                    .map(AxisSpec::Vector)
-                    .map_err(|_| de::Error::invalid_length(n, &"three components"))
+                out.try_into().map(AxisSpec::Vector).map_err(|_| de::Error::invalid_length(n, &"three components"))
             }
         }
         d.deserialize_any(V)

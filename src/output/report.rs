@@ -23,12 +23,8 @@ fn matrix(out: &mut String, title: &str, m: &Mat6, rows: [&str; 6], cols: [&str;
     out.push('\n');
 }
 
-const TWIST: [&str; 6] = [
-    "dx [mm]", "dy [mm]", "dz [mm]", "rx [rad]", "ry [rad]", "rz [rad]",
-];
-const WRENCH: [&str; 6] = [
-    "Fx [N]", "Fy [N]", "Fz [N]", "Mx [Nmm]", "My [Nmm]", "Mz [Nmm]",
-];
+const TWIST: [&str; 6] = ["dx [mm]", "dy [mm]", "dz [mm]", "rx [rad]", "ry [rad]", "rz [rad]"];
+const WRENCH: [&str; 6] = ["Fx [N]", "Fy [N]", "Fz [N]", "Mx [Nmm]", "My [Nmm]", "Mz [Nmm]"];
 
 /// The report of `stiff point`.
 pub fn point_report(model: &str, p: &PosePoint, r: &PointResult) -> String {
@@ -42,16 +38,16 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult) -> String {
     );
     let _ = writeln!(out, "status: {}, rank {}\n", r.status.as_str(), r.rank);
     if let Some(k) = &r.stiffness {
-        matrix(&mut out, "Stiffness K: wrench (rows) per displacement (columns) at the reference point, base frame", k, WRENCH, TWIST);
-    }
-    if let Some(c) = &r.compliance {
         matrix(
             &mut out,
-            "Compliance C = K^-1: displacement (rows) per wrench (columns)",
-            c,
-            TWIST,
+            "Stiffness K: wrench (rows) per displacement (columns) at the reference point, base frame",
+            k,
             WRENCH,
+            TWIST,
         );
+    }
+    if let Some(c) = &r.compliance {
+        matrix(&mut out, "Compliance C = K^-1: displacement (rows) per wrench (columns)", c, TWIST, WRENCH);
     }
     if let Some(pc) = &r.principal {
         let _ = writeln!(
@@ -61,18 +57,10 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult) -> String {
         );
     }
     if let (Some(d), Some(w)) = (&r.deflection, &p.wrench) {
-        let _ = writeln!(
-            out,
-            "deflection under the reference wrench {}: {}",
-            fmt6(w),
-            fmt6(d)
-        );
+        let _ = writeln!(out, "deflection under the reference wrench {}: {}", fmt6(w), fmt6(d));
     }
     if !r.free.is_empty() {
-        let _ = writeln!(
-            out,
-            "free directions (unit twists dx dy dz [mm], rx ry rz [rad]):"
-        );
+        let _ = writeln!(out, "free directions (unit twists dx dy dz [mm], rx ry rz [rad]):");
         for f in &r.free {
             let _ = writeln!(out, "  {}", fmt6(f));
         }
@@ -81,8 +69,5 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult) -> String {
 }
 
 fn fmt6(v: &Vec6) -> String {
-    v.iter()
-        .map(|x| format!("{x:.4e}"))
-        .collect::<Vec<_>>()
-        .join(" ")
+    v.iter().map(|x| format!("{x:.4e}")).collect::<Vec<_>>().join(" ")
 }

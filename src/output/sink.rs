@@ -8,10 +8,7 @@ use anyhow::{Context, Result};
 
 pub enum Sink {
     Stdout(BufWriter<io::Stdout>),
-    File {
-        temp: BufWriter<tempfile::NamedTempFile>,
-        path: PathBuf,
-    },
+    File { temp: BufWriter<tempfile::NamedTempFile>, path: PathBuf },
 }
 
 impl Sink {
@@ -29,26 +26,16 @@ impl Sink {
                 if p.is_dir() {
                     anyhow::bail!("cannot write {}: it is a folder", p.display());
                 }
-                let temp = tempfile::Builder::new()
-                    .prefix(".stiff-")
-                    .suffix(".partial")
-                    .tempfile_in(&dir)
-                    .with_context(|| {
-                        format!(
-                            "cannot write {}: cannot create a file in {}",
-                            p.display(),
-                            dir.display()
-                        )
-                    })?;
-                Ok(Sink::File {
-                    temp: BufWriter::with_capacity(1 << 20, temp),
-                    path: p.to_path_buf(),
-                })
+                let temp =
+                    tempfile::Builder::new().prefix(".stiff-").suffix(".partial").tempfile_in(&dir).with_context(
+                        || format!("cannot write {}: cannot create a file in {}", p.display(), dir.display()),
+                    )?;
+                Ok(Sink::File { temp: BufWriter::with_capacity(1 << 20, temp), path: p.to_path_buf() })
             }
         }
     }
 
-    pub fn writer(&mut self) -> &mut dyn Write {
+    pub fn writer(&mut self) -> &mut (dyn Write + Send) {
         match self {
             Sink::Stdout(w) => w,
             Sink::File { temp, .. } => temp,

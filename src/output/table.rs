@@ -40,38 +40,14 @@ pub struct MapColumns {
 }
 
 pub fn map_header(c: &MapColumns) -> String {
-    let mut h: Vec<String> = vec![
-        "index".into(),
-        "name".into(),
-        "x_mm".into(),
-        "y_mm".into(),
-        "z_mm".into(),
-    ];
+    let mut h: Vec<String> = vec!["index".into(), "name".into(), "x_mm".into(), "y_mm".into(), "z_mm".into()];
     if c.orientation {
         h.extend(["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"].map(String::from));
     }
     h.extend(["status", "rank"].map(String::from));
-    h.extend(
-        [
-            "c_tran_max_mm_per_N",
-            "c_tran_min_mm_per_N",
-            "c_rot_max_rad_per_Nmm",
-        ]
-        .map(String::from),
-    );
+    h.extend(["c_tran_max_mm_per_N", "c_tran_min_mm_per_N", "c_rot_max_rad_per_Nmm"].map(String::from));
     if c.deflection {
-        h.extend(
-            [
-                "dx_mm",
-                "dy_mm",
-                "dz_mm",
-                "rx_rad",
-                "ry_rad",
-                "rz_rad",
-                "deflection_mm",
-            ]
-            .map(String::from),
-        );
+        h.extend(["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad", "deflection_mm"].map(String::from));
     }
     h.extend(upper_triangle().map(|(i, j)| format!("C{i}{j}_{}", compliance_unit(i, j))));
     if c.stiffness {

@@ -33,16 +33,12 @@ pub fn analyse(k: &Mat6, length_scale: f64) -> Analysis {
     if largest_diag > 0.0 {
         if let Some(ch) = ks.cholesky() {
             let l = ch.l_dirty();
-            let smallest_pivot = (0..6)
-                .map(|i| l[(i, i)] * l[(i, i)])
-                .fold(f64::INFINITY, f64::min);
+            let smallest_pivot = (0..6).map(|i| l[(i, i)] * l[(i, i)]).fold(f64::INFINITY, f64::min);
             if smallest_pivot > RANK_TOLERANCE * largest_diag {
                 let inv_scaled = ch.inverse();
                 // C = K^-1 = D (D K D)^-1 D
                 let c = scaled(&inv_scaled, length_scale);
-                return Analysis::Regular {
-                    compliance: (c + c.transpose()) * 0.5,
-                };
+                return Analysis::Regular { compliance: (c + c.transpose()) * 0.5 };
             }
         }
     }
@@ -78,9 +74,5 @@ pub fn principal(c: &Mat6) -> PrincipalCompliance {
     let r: Mat3 = c.fixed_view::<3, 3>(3, 3).into();
     let et = symmetric_eigenvalues3(&t);
     let er = symmetric_eigenvalues3(&r);
-    PrincipalCompliance {
-        translation_max: et[2],
-        translation_min: et[0],
-        rotation_max: er[2],
-    }
+    PrincipalCompliance { translation_max: et[2], translation_min: et[0], rotation_max: er[2] }
 }

@@ -3,8 +3,8 @@
 //! and in the base frame. Aggregation and every study talk to legs only through this.
 
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
-use crate::kinematics::frame::{point_shift, Frame, Mat6, Vec6};
-use crate::kinematics::ik;
+use crate::kinematics::frame::{shift_stiffness, Frame, Mat6, Vec6};
+use crate::kinematics::ik::{self, IkWorkspace};
 use crate::vjm::spring::SpringGroup;
 use crate::vjm::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 
@@ -48,6 +48,9 @@ pub struct LegState {
     pub coords: Coordinates,
     /// True when `coords` holds a solved configuration usable as a warm start.
     pub warm: bool,
+    /// The configuration before a warm-started attempt, restored if that attempt fails.
+    saved: Coordinates,
+    ik: IkWorkspace,
     jac: ChainJacobians,
 }
 
@@ -68,6 +71,8 @@ impl Leg {
             Leg::Vjm(l) => LegState {
                 coords: Coordinates::zeros(&l.chain),
                 warm: false,
+                saved: Coordinates::zeros(&l.chain),
+                ik: IkWorkspace::default(),
                 jac: ChainJacobians::default(),
             },
         }
@@ -83,11 +88,7 @@ impl Leg {
 
     /// The leg's answer at the pose it was placed for, with springs at rest: zero wrench and the unloaded
     /// stiffness of paper 001 eq (9), moved to the reference point by paper 000 eq (54)-(55).
-    pub fn respond_unloaded(
-        &self,
-        platform: &Frame,
-        state: &mut LegState,
-    ) -> Result<LegResponse, LegFailure> {
+    pub fn respond_unloaded(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
         match self {
             Leg::Vjm(l) => l.respond_unloaded(platform, state),
         }
@@ -103,28 +104,20 @@ impl VjmLeg {
         let target = self.target(platform);
         state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
         if state.warm {
-            let saved = state.coords.clone();
-            match ik::solve(
-                &self.chain,
-                &target,
-                &mut state.coords,
-                &mut state.jac,
-                self.length_scale,
-            ) {
+            state.saved.clone_from(&state.coords);
+            match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
                 Ok(n) => return Ok(n),
-                Err(_) => state.coords = saved,
+                Err(_) => {
+                    state.coords.clone_from(&state.saved);
+                    state.ik.invalidate();
+                }
             }
         }
         // Cold start from home.
+        state.ik.invalidate();
         state.coords.actuated.iter_mut().for_each(|t| *t = 0.0);
         state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
-        match ik::solve(
-            &self.chain,
-            &target,
-            &mut state.coords,
-            &mut state.jac,
-            self.length_scale,
-        ) {
+        match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
             Ok(n) => {
                 state.warm = true;
                 Ok(n)
@@ -136,21 +129,24 @@ impl VjmLeg {
         }
     }
 
-    fn respond_unloaded(
-        &self,
-        platform: &Frame,
-        state: &mut LegState,
-    ) -> Result<LegResponse, LegFailure> {
-        self.chain.evaluate(&state.coords, true, &mut state.jac);
-        let s = spring_compliance_at_end(&state.jac.virtual_, &self.springs);
-        let range = passive_range(&state.jac.passive, self.length_scale);
+    fn respond_unloaded(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
+        // Inverse kinematics leaves the Jacobians at its solution; evaluate only if the state moved since.
+        let jac = match state.ik.solution() {
+            Some(j) => j,
+            None => {
+                self.chain.evaluate(&state.coords, &mut state.jac);
+                state.jac.fill_virtual();
+                &state.jac
+            }
+        };
+        let s = spring_compliance_at_end(&jac.virtual_, &self.springs);
+        let range = passive_range(&jac.passive, self.length_scale);
         let k_end = leg_stiffness(&s, &range).ok_or(LegFailure::SingularChain)?;
         // Move from the leg's end point EP to the reference point RP: K_RP = A^T K_EP A, v = EP - RP.
-        let v = state.jac.end.pos - platform.pos;
-        let a = point_shift(&v);
+        let stiffness = shift_stiffness(&k_end, &(jac.end.pos - platform.pos));
         Ok(LegResponse {
             wrench: Vec6::zeros(),
-            stiffness: a.transpose() * k_end * a,
+            stiffness,
             passive_rank: range.rank,
             passive_pivot_ratio: range.smallest_pivot_ratio,
         })

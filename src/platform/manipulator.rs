@@ -1,6 +1,6 @@
 //! A parallel manipulator: legs summed at the platform reference point (paper 001 s. 3.3, paper 000 eq 54).
 
-use super::leg::{Leg, LegFailure, LegResponse, LegState};
+use super::leg::{Leg, LegFailure, LegState};
 use crate::kinematics::frame::{Frame, Mat6, Vec6};
 
 #[derive(Clone, Debug)]
@@ -18,11 +18,12 @@ pub struct ManipulatorState {
 }
 
 /// The sum over legs at one pose.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug)]
 pub struct Aggregate {
     pub wrench: Vec6,
     pub stiffness: Mat6,
-    pub legs: Vec<LegResponse>,
+    /// The smallest passive-joint pivot ratio over the legs (the rank tolerance actually met).
+    pub passive_pivot_ratio: f64,
 }
 
 /// Which leg failed, and how.
@@ -34,39 +35,26 @@ pub struct PoseFailure {
 
 impl Manipulator {
     pub fn new_state(&self) -> ManipulatorState {
-        ManipulatorState {
-            legs: self.legs.iter().map(Leg::new_state).collect(),
-        }
+        ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect() }
     }
 
     /// Places every leg for the commanded pose (inverse kinematics).
     pub fn place(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<(), PoseFailure> {
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
-            leg.place(platform, s)
-                .map_err(|failure| PoseFailure { leg: i, failure })?;
+            leg.place(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
         }
         Ok(())
     }
 
     /// Unloaded stiffness at a commanded pose: K = sum_i K_i at the reference point.
-    pub fn unloaded(
-        &self,
-        platform: &Frame,
-        state: &mut ManipulatorState,
-    ) -> Result<Aggregate, PoseFailure> {
+    pub fn unloaded(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<Aggregate, PoseFailure> {
         self.place(platform, state)?;
-        let mut total = Aggregate {
-            wrench: Vec6::zeros(),
-            stiffness: Mat6::zeros(),
-            legs: Vec::with_capacity(self.legs.len()),
-        };
+        let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros(), passive_pivot_ratio: 1.0 };
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
-            let r = leg
-                .respond_unloaded(platform, s)
-                .map_err(|failure| PoseFailure { leg: i, failure })?;
+            let r = leg.respond_unloaded(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
             total.wrench += r.wrench;
             total.stiffness += r.stiffness;
-            total.legs.push(r);
+            total.passive_pivot_ratio = total.passive_pivot_ratio.min(r.passive_pivot_ratio);
         }
         Ok(total)
     }

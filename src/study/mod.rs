@@ -1,3 +1,4 @@
 //! Batch jobs that turn a request into rows: one point, a map.
 pub mod map;
 pub mod point;
+pub mod stream;

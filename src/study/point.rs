@@ -45,15 +45,7 @@ pub struct PointResult {
 
 impl PointResult {
     fn failed(status: Status) -> Self {
-        Self {
-            status,
-            rank: 0,
-            stiffness: None,
-            compliance: None,
-            principal: None,
-            deflection: None,
-            free: Vec::new(),
-        }
+        Self { status, rank: 0, stiffness: None, compliance: None, principal: None, deflection: None, free: Vec::new() }
     }
 }
 

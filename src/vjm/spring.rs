@@ -36,14 +36,7 @@ impl BeamSection {
     pub fn round(e: f64, g: f64, d: f64) -> Self {
         let area = std::f64::consts::PI * d * d / 4.0;
         let i = std::f64::consts::PI * d.powi(4) / 64.0;
-        Self {
-            e,
-            g,
-            area,
-            iy: i,
-            iz: i,
-            j: 2.0 * i,
-        }
+        Self { e, g, area, iy: i, iz: i, j: 2.0 * i }
     }
 }
 
@@ -69,11 +62,7 @@ pub fn cantilever_compliance(s: &BeamSection, l: f64) -> Mat6 {
 /// perpendicular to it in a fixed way (irrelevant for round sections).
 pub fn frame_along(direction: &Vec3) -> Mat3 {
     let x = direction.normalize();
-    let helper = if x.z.abs() < 0.9 {
-        Vec3::z()
-    } else {
-        Vec3::x()
-    };
+    let helper = if x.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
     let y = helper.cross(&x).normalize();
     let z = x.cross(&y);
     Mat3::from_columns(&[x, y, z])
@@ -99,14 +88,7 @@ mod tests {
 
     #[test]
     fn beam_along_x_keeps_the_local_compliance() {
-        let s = BeamSection {
-            e: 2e5,
-            g: 8e4,
-            area: 100.0,
-            iy: 900.0,
-            iz: 400.0,
-            j: 1300.0,
-        };
+        let s = BeamSection { e: 2e5, g: 8e4, area: 100.0, iy: 900.0, iz: 400.0, j: 1300.0 };
         let c0 = cantilever_compliance(&s, 250.0);
         let c1 = beam_compliance(&s, 250.0, &Vec3::new(3.0, 0.0, 0.0));
         assert!((c0 - c1).abs().max() < 1e-15 * c0.abs().max());

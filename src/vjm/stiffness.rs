@@ -3,7 +3,7 @@
 use nalgebra::{Matrix6xX, SMatrix};
 
 use super::spring::SpringGroup;
-use crate::kinematics::frame::{Mat6, Vec6};
+use crate::kinematics::frame::{Mat3, Mat6, Vec3, Vec6};
 
 /// Relative pivot below which a passive-joint direction is taken as dependent on the others.
 pub const PASSIVE_RANK_TOLERANCE: f64 = 1e-9;
@@ -12,67 +12,166 @@ pub const PASSIVE_RANK_TOLERANCE: f64 = 1e-9;
 pub fn spring_compliance_at_end(j_virtual: &[Vec6], springs: &[SpringGroup]) -> Mat6 {
     let mut s = Mat6::zeros();
     for g in springs {
-        let mut j = Mat6::zeros();
-        for k in 0..g.dim {
-            j.set_column(k, &j_virtual[g.first + k]);
+        let cols = &j_virtual[g.first..g.first + g.dim];
+        if g.dim == 1 {
+            s += cols[0] * cols[0].transpose() * g.compliance[(0, 0)];
+        } else if g.dim == 6 && cols[..3].iter().all(|c| c.fixed_rows::<3>(3) == Vec3::zeros()) {
+            s += six_dof_spring_compliance(cols, &g.compliance);
+        } else {
+            let mut j = Mat6::zeros();
+            for (k, c) in cols.iter().enumerate() {
+                j.set_column(k, c);
+            }
+            s += j * g.compliance * j.transpose();
         }
-        s += j * g.compliance * j.transpose();
     }
     (s + s.transpose()) * 0.5
 }
 
-/// An independent basis of the range of the passive-joint Jacobian J_q, with the rank decision made on
-/// columns whose rotational rows are weighted by `length_scale` (mm/rad) so that mm and rad compare.
+/// `J C J^T` for a 6-dof spring whose first three coordinates are translations, so that
+/// `J = [[A, B], [0, D]]` by 3x3 blocks: the product by blocks skips the zero block (hot path).
+fn six_dof_spring_compliance(cols: &[Vec6], c: &Mat6) -> Mat6 {
+    let a = Mat3::from_fn(|i, k| cols[k][i]);
+    let b = Mat3::from_fn(|i, k| cols[3 + k][i]);
+    let d = Mat3::from_fn(|i, k| cols[3 + k][3 + i]);
+    let c11: Mat3 = c.fixed_view::<3, 3>(0, 0).into();
+    let c12: Mat3 = c.fixed_view::<3, 3>(0, 3).into();
+    let c21: Mat3 = c.fixed_view::<3, 3>(3, 0).into();
+    let c22: Mat3 = c.fixed_view::<3, 3>(3, 3).into();
+    // M = J C = [[A C11 + B C21, A C12 + B C22], [D C21, D C22]]
+    let m11 = a * c11 + b * c21;
+    let m12 = a * c12 + b * c22;
+    let m21 = d * c21;
+    let m22 = d * c22;
+    let top = m11 * a.transpose() + m12 * b.transpose();
+    let off = m12 * d.transpose();
+    let bottom = m22 * d.transpose();
+    let _ = m21;
+    let mut s = Mat6::zeros();
+    s.fixed_view_mut::<3, 3>(0, 0).copy_from(&top);
+    s.fixed_view_mut::<3, 3>(0, 3).copy_from(&off);
+    s.fixed_view_mut::<3, 3>(3, 0).copy_from(&off.transpose());
+    s.fixed_view_mut::<3, 3>(3, 3).copy_from(&bottom);
+    s
+}
+
+/// An independent basis of the range of the passive-joint Jacobian J_q and a basis of the wrenches the
+/// passive joints transmit (J_q^T F = 0), with the rank decision made on columns whose rotational rows are
+/// weighted by `length_scale` (mm/rad) so that mm and rad compare.
 ///
 /// Where passive axes become collinear J_q loses rank and the bordered matrix of eq 9 is singular although
 /// the stiffness is well defined; replacing J_q by a basis of its range is exact (shared/reference/errata.md).
 #[derive(Clone, Copy, Debug)]
 pub struct PassiveRange {
+    /// `basis[..rank]` spans range(J_q).
     pub basis: [Vec6; 6],
+    /// `transmitted[..6 - rank]` spans the wrenches F with J_q^T F = 0.
+    pub transmitted: [Vec6; 6],
     pub rank: usize,
     /// Smallest accepted pivot over the largest column norm (1 when there are no passive joints).
     pub smallest_pivot_ratio: f64,
 }
 
+#[inline]
+fn weigh_rotations(v: &Vec6, f: f64) -> Vec6 {
+    Vec6::new(v[0], v[1], v[2], v[3] * f, v[4] * f, v[5] * f)
+}
+
+/// Modified Gram-Schmidt with column pivoting (a rank-revealing QR) in the weighted metric, then completed
+/// to an orthonormal basis of R^6 whose last 6 - rank vectors give the transmitted wrenches.
 pub fn passive_range(j_passive: &[Vec6], length_scale: f64) -> PassiveRange {
-    let w = |v: &Vec6, f: f64| Vec6::new(v[0], v[1], v[2], v[3] * f, v[4] * f, v[5] * f);
-    let mut cols: Vec<Vec6> = j_passive.iter().map(|c| w(c, length_scale)).collect();
-    let largest = cols.iter().map(|c| c.norm()).fold(0.0, f64::max);
-    let mut out = PassiveRange {
-        basis: [Vec6::zeros(); 6],
-        rank: 0,
-        smallest_pivot_ratio: 1.0,
+    let mut stack = [Vec6::zeros(); 16];
+    let mut heap = Vec::new();
+    let cols: &mut [Vec6] = if j_passive.len() <= stack.len() {
+        &mut stack[..j_passive.len()]
+    } else {
+        heap.resize(j_passive.len(), Vec6::zeros());
+        &mut heap
     };
-    if largest == 0.0 {
-        return out;
+    for (c, j) in cols.iter_mut().zip(j_passive) {
+        *c = weigh_rotations(j, length_scale);
     }
-    // Modified Gram-Schmidt with column pivoting (a rank-revealing QR).
-    while out.rank < 6 && !cols.is_empty() {
-        let (best, norm) = cols
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (i, c.norm()))
-            .fold((0, -1.0), |a, b| if b.1 > a.1 { b } else { a });
+    let largest = cols.iter().map(|c| c.norm()).fold(0.0, f64::max);
+    let mut q = [Vec6::zeros(); 6];
+    let mut out = PassiveRange { basis: q, transmitted: q, rank: 0, smallest_pivot_ratio: 1.0 };
+    let mut live = cols.len();
+    while out.rank < 6 && live > 0 && largest > 0.0 {
+        let (best, norm) = (0..live).map(|i| (i, cols[i].norm())).fold((0, -1.0), |a, b| if b.1 > a.1 { b } else { a });
         if norm <= PASSIVE_RANK_TOLERANCE * largest {
             break;
         }
-        let q = cols.swap_remove(best) / norm;
-        for c in cols.iter_mut() {
-            *c -= q * q.dot(c);
+        let v = cols[best] / norm;
+        cols.swap(best, live - 1);
+        live -= 1;
+        for c in cols[..live].iter_mut() {
+            *c -= v * v.dot(c);
         }
-        out.basis[out.rank] = w(&q, 1.0 / length_scale);
+        q[out.rank] = v;
+        out.basis[out.rank] = weigh_rotations(&v, 1.0 / length_scale);
         out.smallest_pivot_ratio = norm / largest;
         out.rank += 1;
+    }
+    // Complete to a basis of R^6 from the projector onto the orthogonal complement of the range: its
+    // columns span the complement; take them largest first and orthonormalise.
+    let mut p = Mat6::identity();
+    for v in &q[..out.rank] {
+        p -= v * v.transpose();
+    }
+    let mut n = out.rank;
+    while n < 6 {
+        let (mut best, mut best_norm) = (Vec6::zeros(), -1.0);
+        for k in 0..6 {
+            let mut e: Vec6 = p.column(k).into();
+            for v in &q[out.rank..n] {
+                e -= v * v.dot(&e);
+            }
+            let en = e.norm_squared();
+            if en > best_norm {
+                best = e;
+                best_norm = en;
+            }
+        }
+        q[n] = best / best_norm.sqrt();
+        // A wrench F with J_q^T F = 0 is W g with g orthogonal (weighted) to range(W J_q).
+        out.transmitted[n - out.rank] = weigh_rotations(&q[n], length_scale);
+        n += 1;
     }
     out
 }
 
-/// Paper 001 eq (9): the leg's stiffness is the upper-left 6x6 block of the inverse of the bordered matrix
+/// The leg's stiffness on the hot path: the upper-left block of the inverse of the bordered matrix of
+/// paper 001 eq (9) in closed form. With N a basis of the wrenches the passive joints transmit,
+/// `K = N (N^T S N)^-1 N^T` (the Schur complement of the zero block), a (6 - rank)-sized SPD solve.
+/// Returns None where N^T S N is singular (springs that do not restrain what the passive joints leave).
+pub fn leg_stiffness(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
+    match 6 - range.rank {
+        0 => Some(Mat6::zeros()),
+        1 => schur::<1>(s, range),
+        2 => schur::<2>(s, range),
+        3 => schur::<3>(s, range),
+        4 => schur::<4>(s, range),
+        5 => schur::<5>(s, range),
+        _ => schur::<6>(s, range),
+    }
+}
+
+fn schur<const D: usize>(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
+    let n = SMatrix::<f64, 6, D>::from_fn(|i, j| range.transmitted[j][i]);
+    let m = n.transpose() * s * n;
+    let inv = m.cholesky()?.inverse();
+    let k = n * inv * n.transpose();
+    if !k.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    Some((k + k.transpose()) * 0.5)
+}
+
+/// Paper 001 eq (9) as printed, a test oracle for `leg_stiffness`: the leg's stiffness is the upper-left 6x6 block of the inverse of the bordered matrix
 /// `[[S, U], [U^T, 0]]`, U a basis of range(J_q). The system is padded to a fixed 12x12 with an identity so it
 /// stays on the stack; U is scaled to S's magnitude, which leaves that block unchanged but keeps the
 /// factorisation well balanced. Returns None where the bordered matrix is singular (springs that do not
 /// restrain every direction the passive joints leave).
-pub fn leg_stiffness(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
+pub fn leg_stiffness_bordered(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
     let scale = s.abs().max();
     if scale == 0.0 {
         return None;
@@ -105,11 +204,7 @@ pub fn leg_stiffness(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
 /// the passive joints let through (J_q^T F = 0), `K = N (N^T S N)^-1 N^T` (the Schur complement of eq 9).
 pub fn leg_stiffness_by_null_space(s: &Mat6, j_passive: &[Vec6]) -> Option<Mat6> {
     let jq = Matrix6xX::from_columns(j_passive);
-    let jjt: Mat6 = if j_passive.is_empty() {
-        Mat6::zeros()
-    } else {
-        &jq * jq.transpose()
-    };
+    let jjt: Mat6 = if j_passive.is_empty() { Mat6::zeros() } else { &jq * jq.transpose() };
     let eig = jjt.symmetric_eigen();
     let largest = eig.eigenvalues.max().max(0.0);
     let cols: Vec<Vec6> = (0..6)

@@ -1,0 +1,124 @@
+//! The streaming skeleton shared by batch studies.
+//!
+//! A reader thread cuts the input into runs of `RUN` consecutive points; the worker pool solves runs in
+//! parallel (each run in order, so warm starts carry from point to point); a writer thread puts the rows
+//! back in input order. Runs are fixed by the input, never by the thread count, so the bytes written are
+//! the same for any number of threads. At most `WINDOW_PER_THREAD` runs per worker are in flight, so
+//! memory stays bounded whatever the number of points, and no worker ever waits on a block barrier.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::sync::mpsc::{channel, sync_channel};
+
+use anyhow::{anyhow, Result};
+use indicatif::ProgressBar;
+
+use crate::model::grid::{PointSet, PosePoint};
+
+/// Consecutive points solved by one worker with warm starts.
+pub const RUN: usize = 256;
+/// Runs in flight (being solved or waiting for their turn to be written) per worker thread.
+pub const WINDOW_PER_THREAD: usize = 4;
+
+/// Counts a study adds up over its rows.
+pub trait Tally: Default + Send {
+    fn merge(&mut self, other: &Self);
+}
+
+/// Writes `header`, then for every run of points the text `solve_run(first_index, points)` returns, in
+/// input order.
+pub fn stream_rows<T, F>(
+    pool: &rayon::ThreadPool,
+    points: &mut PointSet,
+    header: &str,
+    out: &mut (dyn Write + Send),
+    progress: &ProgressBar,
+    solve_run: F,
+) -> Result<T>
+where
+    T: Tally,
+    F: Fn(u64, &[PosePoint]) -> (String, T) + Sync,
+{
+    out.write_all(header.as_bytes())?;
+    let window = WINDOW_PER_THREAD * pool.current_num_threads();
+    let (run_tx, run_rx) = sync_channel::<Result<Vec<PosePoint>>>(window);
+    let (done_tx, done_rx) = channel::<(usize, String, T)>();
+    let (token_tx, token_rx) = sync_channel::<()>(window);
+    for _ in 0..window {
+        token_tx.send(()).expect("the token channel holds the window");
+    }
+    std::thread::scope(|threads| -> Result<T> {
+        let reader = threads.spawn(move || loop {
+            let mut run = Vec::with_capacity(RUN);
+            match points.next_block(RUN, &mut run) {
+                Ok(0) => break,
+                Ok(_) => {
+                    if run_tx.send(Ok(run)).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => {
+                    let _ = run_tx.send(Err(e.into()));
+                    break;
+                }
+            }
+        });
+        let writer = threads.spawn(move || -> Result<T> {
+            let mut tally = T::default();
+            let mut pending: BTreeMap<usize, (String, T)> = BTreeMap::new();
+            let mut next = 0usize;
+            let mut failure: Option<std::io::Error> = None;
+            for (index, text, t) in done_rx {
+                pending.insert(index, (text, t));
+                while let Some((text, t)) = pending.remove(&next) {
+                    // After a write error keep draining, so that workers and the dispatcher never block.
+                    if failure.is_none() {
+                        if let Err(e) = out.write_all(text.as_bytes()) {
+                            failure = Some(e);
+                        }
+                    }
+                    tally.merge(&t);
+                    progress.inc(text.lines().count() as u64);
+                    next += 1;
+                    let _ = token_tx.send(());
+                }
+            }
+            match failure {
+                Some(e) => Err(e.into()),
+                None => Ok(tally),
+            }
+        });
+        let mut read_failure: Option<anyhow::Error> = None;
+        let solve_run = &solve_run;
+        pool.in_place_scope(|scope| {
+            let mut first_index = 0u64;
+            for (index, run) in run_rx.iter().enumerate() {
+                let run = match run {
+                    Ok(r) => r,
+                    Err(e) => {
+                        read_failure = Some(e);
+                        break;
+                    }
+                };
+                if token_rx.recv().is_err() {
+                    break;
+                }
+                let done = done_tx.clone();
+                let first = first_index;
+                first_index += run.len() as u64;
+                scope.spawn(move |_| {
+                    let (text, t) = solve_run(first, &run);
+                    let _ = done.send((index, text, t));
+                });
+            }
+            drop(run_rx);
+        });
+        drop(done_tx);
+        let tally = writer.join().map_err(|_| anyhow!("the writer thread panicked"))?;
+        reader.join().map_err(|_| anyhow!("the reader thread panicked"))?;
+        if let Some(e) = read_failure {
+            return Err(e);
+        }
+        tally
+    })
+}
