@@ -229,26 +229,17 @@ impl PointSet {
             Source::Csv { path, reader, columns, record } => {
                 let mut added = 0;
                 while added < n {
-                    let line = reader.position().line() + 1;
-                    let at = |column: usize, message: String| InputError::At {
-                        path: path.clone(),
-                        line: line as usize,
-                        column,
-                        message,
-                    };
                     match reader.read_record(record) {
                         Ok(false) => break,
                         Ok(true) => {}
                         Err(e) => {
-                            let line = e.position().map_or(line, |p| p.line());
-                            return Err(InputError::At {
-                                path: path.clone(),
-                                line: line as usize,
-                                column: 1,
-                                message: e.to_string(),
-                            });
+                            let line = e.position().map_or(0, |p| p.line()) as usize;
+                            return Err(InputError::At { path: path.clone(), line, column: 1, message: e.to_string() });
                         }
                     }
+                    let line = record.position().map_or(0, |p| p.line()) as usize;
+                    let at =
+                        |column: usize, message: String| InputError::At { path: path.clone(), line, column, message };
                     let field = |i: usize| -> Result<f64, InputError> {
                         let t = record.get(i).unwrap_or("");
                         match t.parse::<f64>() {

@@ -4,7 +4,7 @@
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 
 pub enum Sink {
     Stdout(BufWriter<io::Stdout>),
@@ -15,24 +15,27 @@ impl Sink {
     /// `None` or `-` is stdout. The temporary file is created at once, so an unwritable path fails before
     /// any work is done.
     pub fn create(path: Option<&Path>) -> Result<Self> {
-        match path {
-            None => Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
-            Some(p) if p.as_os_str() == "-" => Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
-            Some(p) => {
-                let dir = match p.parent() {
-                    Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-                    _ => PathBuf::from("."),
-                };
-                if p.is_dir() {
-                    anyhow::bail!("cannot write {}: it is a folder", p.display());
-                }
-                let temp =
-                    tempfile::Builder::new().prefix(".stiff-").suffix(".partial").tempfile_in(&dir).with_context(
-                        || format!("cannot write {}: cannot create a file in {}", p.display(), dir.display()),
-                    )?;
-                Ok(Sink::File { temp: BufWriter::with_capacity(1 << 20, temp), path: p.to_path_buf() })
-            }
+        let p = match path {
+            None => return Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
+            Some(p) if p.as_os_str() == "-" => return Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
+            Some(p) => p,
+        };
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if p.is_dir() {
+            bail!("cannot write {}: it is a folder", p.display());
         }
+        if !dir.is_dir() {
+            bail!("cannot write {}: the folder {} does not exist", p.display(), dir.display());
+        }
+        let temp = tempfile::Builder::new()
+            .prefix(".stiff-")
+            .suffix(".partial")
+            .tempfile_in(&dir)
+            .map_err(|e| anyhow!("cannot write {}: {}", p.display(), e.kind()))?;
+        Ok(Sink::File { temp: BufWriter::with_capacity(1 << 20, temp), path: p.to_path_buf() })
     }
 
     pub fn writer(&mut self) -> &mut (dyn Write + Send) {
@@ -42,7 +45,7 @@ impl Sink {
         }
     }
 
-    /// Flushes and moves the file into place.
+    /// Flushes and moves the file into place (readable by others, as a plain file would be).
     pub fn finish(self) -> Result<()> {
         match self {
             Sink::Stdout(mut w) => w.flush().context("cannot write to stdout"),
@@ -51,7 +54,11 @@ impl Sink {
                     .into_inner()
                     .map_err(|e| e.into_error())
                     .with_context(|| format!("cannot write {}", path.display()))?;
-                temp.as_file().sync_all().ok();
+                #[cfg(unix)]
+                {
+                    use std::os::unix::fs::PermissionsExt;
+                    let _ = temp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644));
+                }
                 temp.persist(&path)
                     .map_err(|e| e.error)
                     .with_context(|| format!("cannot move the result to {}", path.display()))?;

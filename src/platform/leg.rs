@@ -3,7 +3,7 @@
 //! and in the base frame. Aggregation and every study talk to legs only through this.
 
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
-use crate::kinematics::frame::{shift_stiffness, Frame, Mat6, Vec6};
+use crate::kinematics::frame::{point_shift, shift_stiffness, Frame, Mat6, Vec6};
 use crate::kinematics::ik::{self, IkWorkspace};
 use crate::vjm::spring::SpringGroup;
 use crate::vjm::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
@@ -95,7 +95,33 @@ impl Leg {
     }
 }
 
+impl Leg {
+    /// After `place`: the platform twist at the reference point that a unit change of each actuated
+    /// coordinate would cause if it alone moved the leg's end (its end-point error per unit actuator offset,
+    /// paper 000 s. 4.2), in the base frame.
+    pub fn actuator_twists(&self, platform: &Frame, state: &mut LegState) -> Vec<Vec6> {
+        match self {
+            Leg::Vjm(l) => {
+                let jac = l.evaluation(state);
+                // A twist at EP seen at RP: inverse of point_shift(v), v = EP - RP.
+                let back = point_shift(&(platform.pos - jac.end.pos));
+                jac.actuated.iter().map(|t| back * t).collect()
+            }
+        }
+    }
+}
+
 impl VjmLeg {
+    /// The chain's Jacobians at the state's configuration, reusing inverse kinematics' last evaluation.
+    fn evaluation<'a>(&self, state: &'a mut LegState) -> &'a ChainJacobians {
+        if state.ik.solution().is_some() {
+            return state.ik.solution().expect("checked just above");
+        }
+        self.chain.evaluate(&state.coords, &mut state.jac);
+        state.jac.fill_virtual();
+        &state.jac
+    }
+
     fn target(&self, platform: &Frame) -> Frame {
         platform.compose(&self.attachment)
     }
@@ -130,15 +156,7 @@ impl VjmLeg {
     }
 
     fn respond_unloaded(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
-        // Inverse kinematics leaves the Jacobians at its solution; evaluate only if the state moved since.
-        let jac = match state.ik.solution() {
-            Some(j) => j,
-            None => {
-                self.chain.evaluate(&state.coords, &mut state.jac);
-                state.jac.fill_virtual();
-                &state.jac
-            }
-        };
+        let jac = self.evaluation(state);
         let s = spring_compliance_at_end(&jac.virtual_, &self.springs);
         let range = passive_range(&jac.passive, self.length_scale);
         let k_end = leg_stiffness(&s, &range).ok_or(LegFailure::SingularChain)?;

@@ -1,6 +1,6 @@
 //! A parallel manipulator: legs summed at the platform reference point (paper 001 s. 3.3, paper 000 eq 54).
 
-use super::leg::{Leg, LegFailure, LegState};
+use super::leg::{Leg, LegFailure, LegResponse, LegState};
 use crate::kinematics::frame::{Frame, Mat6, Vec6};
 
 #[derive(Clone, Debug)]
@@ -48,6 +48,16 @@ impl Manipulator {
 
     /// Unloaded stiffness at a commanded pose: K = sum_i K_i at the reference point.
     pub fn unloaded(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<Aggregate, PoseFailure> {
+        self.unloaded_each(platform, state, |_, _| {})
+    }
+
+    /// As `unloaded`, also handing each leg's own answer to `each(leg_index, response)`.
+    pub fn unloaded_each(
+        &self,
+        platform: &Frame,
+        state: &mut ManipulatorState,
+        mut each: impl FnMut(usize, &LegResponse),
+    ) -> Result<Aggregate, PoseFailure> {
         self.place(platform, state)?;
         let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros(), passive_pivot_ratio: 1.0 };
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
@@ -55,6 +65,7 @@ impl Manipulator {
             total.wrench += r.wrench;
             total.stiffness += r.stiffness;
             total.passive_pivot_ratio = total.passive_pivot_ratio.min(r.passive_pivot_ratio);
+            each(i, &r);
         }
         Ok(total)
     }

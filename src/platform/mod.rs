@@ -1,4 +1,5 @@
 //! The leg seam and the sum over legs at the platform.
+pub mod assembly;
 pub mod compliance;
 pub mod leg;
 pub mod manipulator;

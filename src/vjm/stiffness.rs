@@ -203,8 +203,7 @@ pub fn leg_stiffness_bordered(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
 /// The same stiffness by an independent route, used as a test oracle: with N a basis of the wrenches that
 /// the passive joints let through (J_q^T F = 0), `K = N (N^T S N)^-1 N^T` (the Schur complement of eq 9).
 pub fn leg_stiffness_by_null_space(s: &Mat6, j_passive: &[Vec6]) -> Option<Mat6> {
-    let jq = Matrix6xX::from_columns(j_passive);
-    let jjt: Mat6 = if j_passive.is_empty() { Mat6::zeros() } else { &jq * jq.transpose() };
+    let jjt: Mat6 = j_passive.iter().map(|c| c * c.transpose()).sum();
     let eig = jjt.symmetric_eigen();
     let largest = eig.eigenvalues.max().max(0.0);
     let cols: Vec<Vec6> = (0..6)

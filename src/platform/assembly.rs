@@ -1,0 +1,28 @@
+//! Assembly of legs whose free end points miss the platform (paper 000 s. 4.2), linear version
+//! (eq 57-65): each leg, deformed from its own end point t0 + eps_i to the common platform pose t0 + dt,
+//! pushes back with w_i = -K_i (dt - eps_i); equilibrium sum_i w_i = 0 gives dt = K^-1 sum_i K_i eps_i.
+
+use super::compliance::{analyse, Analysis};
+use super::leg::LegResponse;
+use crate::kinematics::frame::Vec6;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearAssembly {
+    /// Platform displacement at the reference point (mm, rad).
+    pub displacement: Vec6,
+    /// Wrench each leg exerts on the platform (N, N mm); they sum to zero.
+    pub leg_wrenches: Vec<Vec6>,
+}
+
+/// `eps[i]`: leg i's end-point error as a twist at the reference point. None where the manipulator's
+/// stiffness is singular.
+pub fn linear_assembly(legs: &[LegResponse], eps: &[Vec6], length_scale: f64) -> Option<LinearAssembly> {
+    let k: nalgebra::Matrix6<f64> = legs.iter().map(|l| l.stiffness).sum();
+    let Analysis::Regular { compliance } = analyse(&k, length_scale) else {
+        return None;
+    };
+    let load: Vec6 = legs.iter().zip(eps).map(|(l, e)| l.stiffness * e).sum();
+    let displacement = compliance * load;
+    let leg_wrenches = legs.iter().zip(eps).map(|(l, e)| -(l.stiffness * (displacement - e))).collect();
+    Some(LinearAssembly { displacement, leg_wrenches })
+}

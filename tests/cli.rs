@@ -1,0 +1,212 @@
+//! The `stiff` command from the outside: golden output, thread independence, streaming edge cases and
+//! refusal of bad input (clear message, non-zero exit, no output left behind).
+
+use std::path::{Path, PathBuf};
+
+use assert_cmd::Command;
+use clap::CommandFactory;
+
+const MODEL: &str = "manipulators/orthoglide-3puu.toml";
+
+fn stiff() -> Command {
+    Command::cargo_bin("stiff").unwrap()
+}
+
+fn temp_dir() -> tempfile::TempDir {
+    tempfile::tempdir().unwrap()
+}
+
+fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    (header, lines.map(|l| l.split(',').map(String::from).collect()).collect())
+}
+
+#[test]
+fn command_line_definition_is_consistent() {
+    stiff::cli::Cli::command().debug_assert();
+}
+
+/// Regression guard for a small grid, established after the closed-form and Table 1 tests pass
+/// (scripts/regenerate-golden): every number within 1e-9 relative of the golden file.
+#[test]
+fn small_grid_matches_golden_file() {
+    let dir = temp_dir();
+    let out = dir.path().join("small.csv");
+    stiff()
+        .args(["map", MODEL, "--grid", "manipulators/grids/orthoglide-small.toml", "--stiffness", "-q", "-o"])
+        .arg(&out)
+        .assert()
+        .success();
+    let (h1, r1) = read_csv(&out);
+    let (h0, r0) = read_csv(Path::new("tests/golden/orthoglide-3puu-small.csv"));
+    assert_eq!(h1, h0);
+    assert_eq!(r1.len(), 125);
+    assert_eq!(r1.len(), r0.len());
+    for (a, b) in r1.iter().zip(&r0) {
+        for (k, (x, y)) in a.iter().zip(b).enumerate() {
+            match (x.parse::<f64>(), y.parse::<f64>()) {
+                (Ok(x), Ok(y)) => {
+                    // Entries are compared on the scale of their column's block, not their own size, so
+                    // that round-off in near-zero couplings does not count.
+                    let scale = y.abs().max(1e-12);
+                    assert!((x - y).abs() <= 1e-9 * scale + 1e-15, "{}: {x} vs golden {y}", h0[k]);
+                }
+                _ => assert_eq!(x, y, "column {}", h0[k]),
+            }
+        }
+    }
+}
+
+#[test]
+fn the_map_is_the_same_for_one_and_two_threads() {
+    let dir = temp_dir();
+    let grid = dir.path().join("g.toml");
+    // 2,601 points: several runs of warm starts, some of them unreachable (beyond the legs' reach).
+    std::fs::write(&grid, "[box]\nfrom = [-80, -80, 0]\nto = [400, 130, 0]\nsteps = [51, 51, 1]\n").unwrap();
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("t{threads}.csv"));
+        stiff()
+            .args(["map", MODEL, "--grid"])
+            .arg(&grid)
+            .args(["--threads", threads, "-q", "-o"])
+            .arg(&out)
+            .assert()
+            .success();
+        outputs.push(std::fs::read(&out).unwrap());
+    }
+    assert_eq!(outputs[0], outputs[1]);
+    let text = String::from_utf8(outputs.remove(0)).unwrap();
+    assert!(text.contains(",unreachable,"), "the grid reaches past the workspace");
+    assert!(text.contains(",ok,"));
+    assert_eq!(text.lines().count(), 2602);
+}
+
+#[test]
+fn points_csv_keeps_input_order_names_and_reports_unreachable_points_as_rows() {
+    let dir = temp_dir();
+    let pts = dir.path().join("p.csv");
+    std::fs::write(&pts, "name,x_mm,y_mm,z_mm\nQ2,126.35,126.35,126.35\n\"far, away\",900,0,0\nQ0,0,0,0\n").unwrap();
+    let output = stiff().args(["map", MODEL, "--points"]).arg(&pts).arg("-q").output().unwrap();
+    assert!(output.status.success());
+    let text = String::from_utf8(output.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].starts_with("index,name,x_mm,y_mm,z_mm,status,rank,c_tran_max_mm_per_N"));
+    assert!(
+        lines[0].contains(",C11_mm_per_N,")
+            && lines[0].contains(",C14_mm_per_Nmm,")
+            && lines[0].contains(",C66_rad_per_Nmm")
+    );
+    assert!(lines[1].starts_with("0,Q2,126.35,126.35,126.35,ok,6,"));
+    assert!(lines[2].starts_with("1,\"far, away\",900.0,0.0,0.0,unreachable,0,,,"));
+    assert!(lines[3].starts_with("2,Q0,0.0,0.0,0.0,ok,6,"));
+}
+
+#[test]
+fn point_prints_both_matrices_with_units() {
+    let out = stiff().args(["point", MODEL, "--at", "0,0,0"]).output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("Stiffness K") && text.contains("Compliance C"));
+    assert!(text.contains("Fx [N]") && text.contains("rx [rad]") && text.contains("Mz [Nmm]"));
+    assert!(text.contains("2.7945e-4"), "{text}");
+}
+
+fn model_with(edit: impl Fn(&str) -> String) -> (tempfile::TempDir, PathBuf) {
+    let dir = temp_dir();
+    let path = dir.path().join("model.toml");
+    std::fs::write(&path, edit(&std::fs::read_to_string(MODEL).unwrap())).unwrap();
+    (dir, path)
+}
+
+/// Runs a map that must fail; returns stderr after checking the exit code and that no output is left.
+fn refused(model: &Path, grid_args: &[&str], out_dir: &Path) -> String {
+    let out = out_dir.join("result.csv");
+    let o = stiff().arg("map").arg(model).args(grid_args).arg("-q").arg("-o").arg(&out).output().unwrap();
+    assert!(!o.status.success(), "accepted");
+    assert!(!out.exists(), "an output file was left behind");
+    let leftovers: Vec<_> = std::fs::read_dir(out_dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left behind");
+    String::from_utf8(o.stderr).unwrap()
+}
+
+const GRID: [&str; 2] = ["--grid", "manipulators/grids/orthoglide-q.toml"];
+
+#[test]
+fn malformed_toml_is_refused_with_its_line_and_column() {
+    let (dir, m) = model_with(|t| t.replace("k_act = 20491", "k_act = 20491 ["));
+    let e = refused(&m, &GRID, dir.path());
+    assert!(e.contains("model.toml") && e.contains("line 18, column 15"), "{e}");
+}
+
+#[test]
+fn unknown_key_is_refused_with_its_line() {
+    let (dir, m) = model_with(|t| format!("{t}\nthis_key_does_not_exist = 3\n"));
+    let e = refused(&m, &GRID, dir.path());
+    assert!(e.contains("unknown field `this_key_does_not_exist`") && e.contains("line 57"), "{e}");
+}
+
+#[test]
+fn missing_parameter_is_refused_where_it_is_used() {
+    let (dir, m) = model_with(|t| t.replace("stiffness = \"k_act\"", "stiffness = \"k_actuator\""));
+    let e = refused(&m, &GRID, dir.path());
+    assert!(e.contains("unknown parameter `k_actuator`") && e.contains("line 42, column"), "{e}");
+}
+
+#[test]
+fn spring_matrices_must_be_symmetric_positive_definite() {
+    let bad_row = "{ type = \"spring6\", name = \"leg\", stiffness_matrix = [[1,2,0,0,0,0],[2,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,0,1]] },";
+    let leg_line = |t: &str| t.lines().find(|l| l.contains("name = \"leg\", beam")).unwrap().to_string();
+    let (dir, m) = model_with(|t| t.replace(&leg_line(t), bad_row));
+    let e = refused(&m, &GRID, dir.path());
+    assert!(e.contains("not positive definite") && e.contains("line 50"), "{e}");
+    let unsym = bad_row.replace("[2,1,0,0,0,0]", "[0,1,0,0,0,0]");
+    let (dir, m) = model_with(|t| t.replace(&leg_line(t), &unsym));
+    let e = refused(&m, &GRID, dir.path());
+    assert!(e.contains("not symmetric"), "{e}");
+}
+
+#[test]
+fn a_grid_with_zero_steps_is_refused() {
+    let dir = temp_dir();
+    let grid = dir.path().join("zero.toml");
+    std::fs::write(&grid, "[box]\nfrom = [0, 0, 0]\nto = [1, 1, 1]\nsteps = [2, 0, 2]\n").unwrap();
+    let e = refused(Path::new(MODEL), &["--grid", grid.to_str().unwrap()], dir.path());
+    assert!(e.contains("zero.toml, line 4") && e.contains("steps must be at least 1"), "{e}");
+}
+
+#[test]
+fn a_bad_number_in_a_points_file_is_refused_with_its_line() {
+    let dir = temp_dir();
+    let pts = dir.path().join("p.csv");
+    std::fs::write(&pts, "x_mm,y_mm,z_mm\n0,0,0\n1,nan,2\n").unwrap();
+    let e = refused(Path::new(MODEL), &["--points", pts.to_str().unwrap()], dir.path());
+    assert!(e.contains("p.csv, line 3, column 2"), "{e}");
+    std::fs::write(&pts, "x_mm,y_mm\n0,0\n").unwrap();
+    let e = refused(Path::new(MODEL), &["--points", pts.to_str().unwrap()], dir.path());
+    assert!(e.contains("no column `z_mm`"), "{e}");
+}
+
+#[test]
+fn an_unwritable_output_path_is_refused_before_any_work() {
+    let o = stiff().args(["map", MODEL, "--grid", GRID[1], "-q", "-o", "/nonexistent-folder/x.csv"]).output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8(o.stderr).unwrap().contains("does not exist"));
+}
+
+#[test]
+fn an_existing_output_is_replaced_only_on_success() {
+    let dir = temp_dir();
+    let out = dir.path().join("keep.csv");
+    std::fs::write(&out, "previous result\n").unwrap();
+    let (_d, bad) = model_with(|t| format!("{t}\noops = 1\n"));
+    let o = stiff().arg("map").arg(&bad).args(GRID).arg("-q").arg("-o").arg(&out).output().unwrap();
+    assert!(!o.status.success());
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "previous result\n");
+}
