@@ -64,6 +64,9 @@ impl Joint {
 pub enum Element {
     Fixed(Frame),
     Joint(Joint),
+    /// A point mass (kg) at `centre` in the current frame: under the model's gravity it is an auxiliary
+    /// load G_j at an intermediate node (paper 000 eq 28-31).
+    Mass { kg: f64, centre: Vec3 },
 }
 
 /// Values of a chain's coordinates, by role.
@@ -117,6 +120,14 @@ impl PlacedJoint {
     }
 }
 
+/// A mass's place in the base frame during one evaluation, and how many joints lie before it.
+#[derive(Clone, Copy, Debug)]
+struct PlacedMass {
+    kg: f64,
+    point: Vec3,
+    upstream: usize,
+}
+
 /// The end frame and the Jacobian columns of one evaluation; buffers are reused between calls.
 #[derive(Clone, Debug, Default)]
 pub struct ChainJacobians {
@@ -127,9 +138,104 @@ pub struct ChainJacobians {
     pub virtual_: Vec<Vec6>,
     virtual_filled: bool,
     placed: Vec<PlacedJoint>,
+    masses: Vec<PlacedMass>,
+}
+
+/// Where a coordinate sits among the unknowns of an equilibrium: passive coordinates first, then virtual
+/// ones; actuated coordinates are held fixed and have no place.
+#[inline]
+fn unknown_index(j: &Joint, n_passive: usize) -> Option<usize> {
+    match j.role {
+        Role::Actuated => None,
+        Role::Passive => Some(j.index),
+        Role::Virtual => Some(n_passive + j.index),
+    }
 }
 
 impl ChainJacobians {
+    /// The points where masses sit in this evaluation, with their masses (kg).
+    pub fn mass_points(&self) -> impl Iterator<Item = (f64, Vec3)> + '_ {
+        self.masses.iter().map(|m| (m.kg, m.point))
+    }
+
+    /// Generalised forces on the unknowns (passive, then virtual coordinates) of a wrench `w` (force,
+    /// moment) acting on the chain's end and of the weights `kg * gravity` (N, gravity in m/s^2) of its
+    /// masses: `J^T w + sum_j J_j^T G_j` (paper 000 eq 28-29). Added into `out`.
+    pub fn add_generalised_forces(&self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut [f64]) {
+        let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
+        self.add_point_forces(&self.end.pos, &f, &m, self.placed.len(), n_passive, out);
+        if *gravity != Vec3::zeros() {
+            for pm in &self.masses {
+                self.add_point_forces(&pm.point, &(gravity * pm.kg), &Vec3::zeros(), pm.upstream, n_passive, out);
+            }
+        }
+    }
+
+    fn add_point_forces(&self, x: &Vec3, f: &Vec3, m: &Vec3, upto: usize, n_passive: usize, out: &mut [f64]) {
+        for pj in &self.placed[..upto] {
+            let Some(k) = unknown_index(&pj.joint, n_passive) else { continue };
+            let w = pj.axis_world;
+            out[k] += pj.joint.gain
+                * match pj.joint.kind {
+                    JointKind::Revolute => w.dot(&(m + (x - pj.origin_world).cross(f))),
+                    JointKind::Prismatic => w.dot(f),
+                };
+        }
+    }
+
+    /// The derivative of `add_generalised_forces` with respect to the unknowns, the loads held fixed in the
+    /// base frame: the Hessians H_qq, H_q theta, H_theta q, H_theta theta of paper 000 eq (41)-(44), exact
+    /// for twist Jacobians (a joint moves the axes, origins and load points downstream of it). Added into
+    /// `out` (rows: generalised force, columns: coordinate).
+    pub fn add_load_hessian(&self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
+        let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
+        self.add_point_hessian(&self.end.pos, &f, &m, self.placed.len(), n_passive, out);
+        if *gravity != Vec3::zeros() {
+            for pm in &self.masses {
+                self.add_point_hessian(&pm.point, &(gravity * pm.kg), &Vec3::zeros(), pm.upstream, n_passive, out);
+            }
+        }
+    }
+
+    fn add_point_hessian(
+        &self,
+        x: &Vec3,
+        f: &Vec3,
+        m: &Vec3,
+        upto: usize,
+        n_passive: usize,
+        out: &mut nalgebra::DMatrix<f64>,
+    ) {
+        let joints = &self.placed[..upto];
+        for (a, pk) in joints.iter().enumerate() {
+            let Some(row) = unknown_index(&pk.joint, n_passive) else { continue };
+            let (wk, ok) = (pk.axis_world, pk.origin_world);
+            let arm = x - ok;
+            for (b, pl) in joints.iter().enumerate() {
+                let Some(col) = unknown_index(&pl.joint, n_passive) else { continue };
+                let (wl, ol) = (pl.axis_world, pl.origin_world);
+                let revolute_l = pl.joint.kind == JointKind::Revolute;
+                // Motion of joint l, unit rate: rotation about (wl, ol) or translation along wl.
+                let dx = if revolute_l { wl.cross(&(x - ol)) } else { wl };
+                let (dwk, darm) = if b < a {
+                    // Joint l carries joint k: its axis turns, its origin moves with the load point.
+                    if revolute_l {
+                        (wl.cross(&wk), wl.cross(&arm))
+                    } else {
+                        (Vec3::zeros(), Vec3::zeros())
+                    }
+                } else {
+                    (Vec3::zeros(), dx)
+                };
+                let d = match pk.joint.kind {
+                    JointKind::Revolute => dwk.dot(&(m + arm.cross(f))) + wk.dot(&darm.cross(f)),
+                    JointKind::Prismatic => dwk.dot(f),
+                };
+                out[(row, col)] += pk.joint.gain * pl.joint.gain * d;
+            }
+        }
+    }
+
     /// Computes the Jacobian columns of the virtual coordinates from the last evaluation.
     pub fn fill_virtual(&mut self) {
         if self.virtual_filled {
@@ -209,6 +315,7 @@ impl Chain {
         for e in &self.elements {
             match e {
                 Element::Fixed(t) => f = f.compose(t),
+                Element::Mass { .. } => {}
                 Element::Joint(j) => {
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
@@ -226,10 +333,14 @@ impl Chain {
     /// its solution.
     pub fn evaluate(&self, c: &Coordinates, out: &mut ChainJacobians) {
         out.placed.clear();
+        out.masses.clear();
         let mut f = Frame::IDENTITY;
         for e in &self.elements {
             match e {
                 Element::Fixed(t) => f = f.compose(t),
+                Element::Mass { kg, centre } => {
+                    out.masses.push(PlacedMass { kg: *kg, point: f.transform_point(centre), upstream: out.placed.len() })
+                }
                 Element::Joint(j) => {
                     out.placed.push(PlacedJoint { joint: *j, axis_world: f.rot * j.axis, origin_world: f.pos });
                     let v = j.gain * c.get(j.role, j.index);
@@ -261,7 +372,7 @@ impl Chain {
             .iter()
             .map(|e| match e {
                 Element::Fixed(t) => t.pos.norm(),
-                Element::Joint(_) => 0.0,
+                Element::Joint(_) | Element::Mass { .. } => 0.0,
             })
             .sum()
     }

@@ -76,6 +76,7 @@ struct Builder<'a> {
 struct ChainParts {
     elements: Vec<Element>,
     springs: Vec<SpringGroup>,
+    preload: Vec<f64>,
     n_actuated: usize,
     n_passive: usize,
     n_virtual: usize,
@@ -94,8 +95,9 @@ impl ChainParts {
     }
 
     /// Virtual joints for a spring group of `dim` coordinates with the given stiffness block.
-    fn spring(&mut self, name: String, joints: &[(JointKind, Vec3)], stiffness: Mat6, compliance: Mat6) {
+    fn spring(&mut self, name: String, joints: &[(JointKind, Vec3)], stiffness: Mat6, compliance: Mat6, preload: &[f64]) {
         let first = self.n_virtual;
+        self.preload.extend_from_slice(preload);
         for (kind, axis) in joints {
             self.joint(*kind, *axis, Role::Virtual);
         }
@@ -257,18 +259,22 @@ impl Builder<'_> {
             ("stiffness_matrix", s.stiffness_matrix.is_some()),
             ("compliance_matrix", s.compliance_matrix.is_some()),
             ("beam", s.beam.is_some()),
+            ("preload", s.preload.is_some()),
+            ("mass_kg", s.mass_kg.is_some()),
+            ("centre", s.centre.is_some()),
         ];
         let allowed: &[&str] = match kind {
             "fixed" => &["translation", "rotation_axis", "rotation_deg"],
-            "prismatic" | "revolute" => &["axis", "role", "stiffness"],
+            "prismatic" | "revolute" => &["axis", "role", "stiffness", "preload"],
+            "mass" => &["mass_kg", "centre"],
             "universal" => &["axes"],
             "spherical" => &[],
-            "spring6" => &["stiffness_matrix", "compliance_matrix", "beam"],
+            "spring6" => &["stiffness_matrix", "compliance_matrix", "beam", "preload"],
             other => {
                 return Err(self.loc.at(
                     s.kind.span(),
                     format!(
-                    "unknown element type `{other}`: use fixed, prismatic, revolute, universal, spherical or spring6"
+                    "unknown element type `{other}`: use fixed, prismatic, revolute, universal, spherical, spring6 or mass"
                 ),
                 ))
             }
@@ -277,6 +283,13 @@ impl Builder<'_> {
             return Err(self.loc.at(e.span(), format!("`{key}` does not apply to a `{kind}` element")));
         }
         let name = s.name.clone().unwrap_or_else(|| format!("{kind}{}", position + 1));
+        let preload = |dim: usize| -> Result<Vec<f64>, InputError> {
+            match &s.preload {
+                None => Ok(vec![0.0; dim]),
+                Some(p) if p.get_ref().len() == dim => p.get_ref().iter().map(|v| self.num(v)).collect(),
+                Some(p) => Err(self.loc.at(p.span(), format!("`preload` needs {dim} values, one per spring coordinate"))),
+            }
+        };
         match kind {
             "fixed" => {
                 let f = self.transform(&s.translation, &s.rotation_axis, &s.rotation_deg, e.span())?;
@@ -295,12 +308,16 @@ impl Builder<'_> {
                     Some(k) => Some(self.positive(k, "stiffness")?),
                     None => None,
                 };
+                if s.preload.is_some() && stiffness.is_none() {
+                    return Err(self.loc.at(e.span(), "`preload` applies to a joint's spring: give a `stiffness`"));
+                }
+                let theta0 = preload(1)?;
                 let spring = |parts: &mut ChainParts, k: f64| {
                     let mut km = Mat6::zeros();
                     km[(0, 0)] = k;
                     let mut cm = Mat6::zeros();
                     cm[(0, 0)] = 1.0 / k;
-                    parts.spring(name.clone(), &[(jk, axis)], km, cm);
+                    parts.spring(name.clone(), &[(jk, axis)], km, cm, &theta0);
                 };
                 match (role.get_ref().as_str(), stiffness) {
                     // V_a(q + theta): the actuator and its control-loop spring move along one axis (eq 1).
@@ -333,6 +350,17 @@ impl Builder<'_> {
                     parts.joint(JointKind::Revolute, self.axis(a)?, Role::Passive);
                 }
             }
+            "mass" => {
+                let kg = match &s.mass_kg {
+                    Some(m) => self.positive(m, "mass_kg")?,
+                    None => return Err(self.loc.at(e.span(), "a mass needs `mass_kg`")),
+                };
+                let centre = match &s.centre {
+                    Some(c) => self.vec3(c)?,
+                    None => Vec3::zeros(),
+                };
+                parts.elements.push(Element::Mass { kg, centre });
+            }
             "spherical" => {
                 for (_, a) in &SIX_DOF[3..] {
                     parts.joint(JointKind::Revolute, *a, Role::Passive);
@@ -355,7 +383,7 @@ impl Builder<'_> {
                 let stiffness = compliance
                     .try_inverse()
                     .ok_or_else(|| self.loc.at(e.span(), "the spring's matrix cannot be inverted"))?;
-                parts.spring(name, &SIX_DOF, (stiffness + stiffness.transpose()) * 0.5, compliance);
+                parts.spring(name, &SIX_DOF, (stiffness + stiffness.transpose()) * 0.5, compliance, &preload(6)?);
             }
             _ => unreachable!("element types are checked above"),
         }
@@ -363,6 +391,10 @@ impl Builder<'_> {
     }
 
     fn manipulator(&self, file: &ModelFile) -> Result<Manipulator, InputError> {
+        let gravity = match &file.gravity {
+            Some(g) => self.vec3(g)?,
+            None => Vec3::zeros(),
+        };
         let mut legs = Vec::new();
         if file.legs.get_ref().is_empty() {
             return Err(self.loc.at(file.legs.span(), "a manipulator needs at least one [[leg]]"));
@@ -401,6 +433,8 @@ impl Builder<'_> {
                 }
                 legs.push(Leg::Vjm(VjmLeg {
                     name,
+                    preload: parts.preload.clone(),
+                    gravity,
                     chain: chain.prepended(place),
                     attachment: place.compose(&attachment),
                     springs: parts.springs.clone(),

@@ -21,6 +21,9 @@ pub struct ModelFile {
     /// Named numbers, usable in any formula of the file (and in each other).
     #[serde(default)]
     pub parameters: BTreeMap<String, Num>,
+    /// Gravity acting on the chains' masses, m/s^2 (default: none).
+    #[serde(default)]
+    pub gravity: Option<[Num; 3]>,
     #[serde(rename = "leg")]
     pub legs: Spanned<Vec<Spanned<LegSpec>>>,
 }
@@ -95,6 +98,14 @@ pub struct ElementSpec {
     pub compliance_matrix: Option<Spanned<Vec<Vec<Num>>>>,
     #[serde(default)]
     pub beam: Option<Spanned<BeamSpec>>,
+    /// Spring preload: the rest values theta0 of the spring's coordinates (mm, rad), one per coordinate.
+    #[serde(default)]
+    pub preload: Option<Spanned<Vec<Num>>>,
+    // mass
+    #[serde(default)]
+    pub mass_kg: Option<Num>,
+    #[serde(default)]
+    pub centre: Option<[Num; 3]>,
 }
 
 /// A beam whose clamped-free compliance gives a 6-dof spring: material, section and length (N, mm).

@@ -3,8 +3,9 @@
 //! and in the base frame. Aggregation and every study talk to legs only through this.
 
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
-use crate::kinematics::frame::{point_shift, shift_stiffness, Frame, Mat6, Vec6};
+use crate::kinematics::frame::{point_shift, shift_stiffness, skew, Frame, Mat3, Mat6, Vec3, Vec6};
 use crate::kinematics::ik::{self, IkWorkspace};
+use crate::vjm::equilibrium::{EquilibriumFailure, EquilibriumWorkspace, LoadedChain};
 use crate::vjm::spring::SpringGroup;
 use crate::vjm::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 
@@ -13,11 +14,16 @@ use crate::vjm::stiffness::{leg_stiffness, passive_range, spring_compliance_at_e
 pub struct LegResponse {
     /// Wrench the leg exerts on the platform, at the reference point (N, N mm).
     pub wrench: Vec6,
-    /// Tangent stiffness at the reference point, base frame (singular on its own, never inverted).
+    /// Tangent stiffness at the reference point, base frame: minus the derivative of `wrench` with respect
+    /// to the platform's displacement (singular on its own, never inverted).
     pub stiffness: Mat6,
     /// Rank of the passive-joint Jacobian, and its smallest pivot ratio (the rank tolerance in use).
     pub passive_rank: usize,
     pub passive_pivot_ratio: f64,
+    /// The leg's equilibrium is stable with its end held (always true unloaded).
+    pub stable: bool,
+    /// Newton iterations of the equilibrium (0 unloaded).
+    pub iterations: usize,
 }
 
 /// Why a leg could not answer at a pose.
@@ -27,6 +33,8 @@ pub enum LegFailure {
     Unreachable(ik::IkFailure),
     /// The springs do not restrain the directions the passive joints leave (eq 9 bordered matrix singular).
     SingularChain,
+    /// The loaded equilibrium was not found, even with continuation.
+    NotConverged { iterations: usize, residual: f64 },
 }
 
 /// A VJM leg: a serial chain from the base to the leg's end frame, and where that frame sits on the platform.
@@ -38,20 +46,30 @@ pub struct VjmLeg {
     /// The leg's end frame in the platform frame (the platform frame's origin is the reference point).
     pub attachment: Frame,
     pub springs: Vec<SpringGroup>,
+    /// Rest values theta0 of the virtual coordinates (spring preload), one per virtual coordinate.
+    pub preload: Vec<f64>,
+    /// Gravity (m/s^2) acting on the chain's masses.
+    pub gravity: Vec3,
     /// mm per rad, to weigh rotations against translations.
     pub length_scale: f64,
 }
 
-/// Per-leg state carried from one pose to the next: the warm start of inverse kinematics and buffers.
+/// Per-leg state carried from one pose to the next: warm starts of inverse kinematics and of the loaded
+/// equilibrium, and buffers.
 #[derive(Clone, Debug)]
 pub struct LegState {
     pub coords: Coordinates,
     /// True when `coords` holds a solved configuration usable as a warm start.
     pub warm: bool,
+    /// Wrench the platform applies to the leg's end at the last equilibrium (N, N mm, at the end point).
+    pub end_wrench: Vec6,
+    /// The leg-end frame of the last solved equilibrium (or placement), the start of a continuation.
+    last_target: Frame,
     /// The configuration before a warm-started attempt, restored if that attempt fails.
     saved: Coordinates,
     ik: IkWorkspace,
     jac: ChainJacobians,
+    equilibrium: EquilibriumWorkspace,
 }
 
 #[derive(Clone, Debug)]
@@ -71,18 +89,30 @@ impl Leg {
             Leg::Vjm(l) => LegState {
                 coords: Coordinates::zeros(&l.chain),
                 warm: false,
+                end_wrench: Vec6::zeros(),
+                last_target: Frame::IDENTITY,
                 saved: Coordinates::zeros(&l.chain),
                 ik: IkWorkspace::default(),
                 jac: ChainJacobians::default(),
+                equilibrium: EquilibriumWorkspace::default(),
             },
         }
     }
 
     /// Places the leg for a commanded platform pose: inverse kinematics of the rigid leg (springs at rest),
-    /// warm-started from the state's previous solution, else from the home configuration (all zero).
+    /// warm-started from the state's previous solution, else from the home configuration (all zero). Fixes
+    /// the actuated coordinates for the loaded answers that follow.
     pub fn place(&self, platform: &Frame, state: &mut LegState) -> Result<usize, LegFailure> {
         match self {
             Leg::Vjm(l) => l.place(platform, state),
+        }
+    }
+
+    /// True when the leg carries no load at the pose it was placed for (no preload, no weight), so that
+    /// `respond_unloaded` is its exact answer there.
+    pub fn unloaded_at_placement(&self) -> bool {
+        match self {
+            Leg::Vjm(l) => l.preload.iter().all(|t| *t == 0.0) && (l.gravity == Vec3::zeros() || !l.has_masses()),
         }
     }
 
@@ -93,9 +123,16 @@ impl Leg {
             Leg::Vjm(l) => l.respond_unloaded(platform, state),
         }
     }
-}
 
-impl Leg {
+    /// The leg's answer with the platform at `platform` (displaced from where the leg was placed): its
+    /// loaded equilibrium with the actuators held (paper 000 eq 32-36), the wrench it exerts and its
+    /// tangent stiffness (eq 45-47), warm-started from the state's last equilibrium.
+    pub fn respond(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
+        match self {
+            Leg::Vjm(l) => l.respond(platform, state),
+        }
+    }
+
     /// After `place`: the platform twist at the reference point that a unit change of each actuated
     /// coordinate would cause if it alone moved the leg's end (its end-point error per unit actuator offset,
     /// paper 000 s. 4.2), in the base frame.
@@ -112,6 +149,24 @@ impl Leg {
 }
 
 impl VjmLeg {
+    fn target(&self, platform: &Frame) -> Frame {
+        platform.compose(&self.attachment)
+    }
+
+    fn has_masses(&self) -> bool {
+        self.chain.elements().iter().any(|e| matches!(e, crate::kinematics::chain::Element::Mass { .. }))
+    }
+
+    fn loaded_chain(&self) -> LoadedChain<'_> {
+        LoadedChain {
+            chain: &self.chain,
+            springs: &self.springs,
+            gravity: self.gravity,
+            preload: &self.preload,
+            length_scale: self.length_scale,
+        }
+    }
+
     /// The chain's Jacobians at the state's configuration, reusing inverse kinematics' last evaluation.
     fn evaluation<'a>(&self, state: &'a mut LegState) -> &'a ChainJacobians {
         if state.ik.solution().is_some() {
@@ -122,13 +177,14 @@ impl VjmLeg {
         &state.jac
     }
 
-    fn target(&self, platform: &Frame) -> Frame {
-        platform.compose(&self.attachment)
-    }
-
     fn place(&self, platform: &Frame, state: &mut LegState) -> Result<usize, LegFailure> {
         let target = self.target(platform);
-        state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
+        state.end_wrench = Vec6::zeros();
+        state.last_target = target;
+        if state.coords.virtual_ != self.preload {
+            state.coords.virtual_.copy_from_slice(&self.preload);
+            state.ik.invalidate();
+        }
         if state.warm {
             state.saved.clone_from(&state.coords);
             match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
@@ -167,6 +223,93 @@ impl VjmLeg {
             stiffness,
             passive_rank: range.rank,
             passive_pivot_ratio: range.smallest_pivot_ratio,
+            stable: true,
+            iterations: 0,
         })
     }
+
+    fn respond(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
+        let target = self.target(platform);
+        state.ik.invalidate();
+        let loaded = self.loaded_chain();
+        state.saved.clone_from(&state.coords);
+        let saved_wrench = state.end_wrench;
+        let answer = match loaded.solve(&target, &mut state.coords, &mut state.end_wrench, &mut state.equilibrium) {
+            Ok(a) => a,
+            Err(_) => {
+                // Continuation (paper 000 s. 3.3): t_i = a_i t + (1 - a_i) t_last, a_i rising to 1.
+                state.coords.clone_from(&state.saved);
+                state.end_wrench = saved_wrench;
+                self.continuation(&loaded, &target, state)?
+            }
+        };
+        state.last_target = target;
+        // The wrench the leg exerts on the platform is minus what the platform applies to it; moved to the
+        // reference point with v = EP - RP. The arm v turns with the platform, which adds [F]x [v]x to the
+        // rotational block of the tangent stiffness.
+        let v = answer.end - platform.pos;
+        let f: Vec3 = answer.wrench.fixed_rows::<3>(0).into();
+        let m: Vec3 = answer.wrench.fixed_rows::<3>(3).into();
+        let m_rp = m + v.cross(&f);
+        let mut stiffness = shift_stiffness(&answer.stiffness, &v);
+        let geometric: Mat3 = skew(&f) * skew(&v);
+        let mut block = stiffness.fixed_view_mut::<3, 3>(3, 3);
+        block += geometric;
+        Ok(LegResponse {
+            wrench: -Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z),
+            stiffness,
+            passive_rank: self.chain.n_passive,
+            passive_pivot_ratio: 1.0,
+            stable: answer.stable,
+            iterations: answer.iterations,
+        })
+    }
+
+    fn continuation(
+        &self,
+        loaded: &LoadedChain<'_>,
+        target: &Frame,
+        state: &mut LegState,
+    ) -> Result<crate::vjm::equilibrium::LoadedAnswer, LegFailure> {
+        let start = state.last_target;
+        let delta = start.error_to(target);
+        let mut last_failure = EquilibriumFailure::Singular;
+        for &pieces in &[4usize, 16, 64] {
+            let (coords0, wrench0) = (state.coords.clone(), state.end_wrench);
+            let mut result = None;
+            for i in 1..=pieces {
+                let a = i as f64 / pieces as f64;
+                let t = interpolate(&start, &delta, a);
+                match loaded.solve(&t, &mut state.coords, &mut state.end_wrench, &mut state.equilibrium) {
+                    Ok(ans) => result = Some(ans),
+                    Err(e) => {
+                        last_failure = e;
+                        result = None;
+                        break;
+                    }
+                }
+            }
+            if let Some(ans) = result {
+                return Ok(ans);
+            }
+            state.coords = coords0;
+            state.end_wrench = wrench0;
+        }
+        Err(match last_failure {
+            EquilibriumFailure::NotConverged { iterations, residual } => LegFailure::NotConverged { iterations, residual },
+            EquilibriumFailure::Singular => LegFailure::SingularChain,
+        })
+    }
+}
+
+/// The frame a fraction `a` of the way along the twist `delta` from `start` (rotation about a fixed axis).
+pub fn interpolate(start: &Frame, delta: &Vec6, a: f64) -> Frame {
+    apply_twist(start, &(delta * a))
+}
+
+/// `start` moved by a small displacement (translation, base-frame rotation vector): the inverse of
+/// `Frame::error_to`.
+pub fn apply_twist(start: &Frame, d: &Vec6) -> Frame {
+    let r = crate::kinematics::frame::rotation_from_vector(&Vec3::new(d[3], d[4], d[5]));
+    Frame::new(r * start.rot, start.pos + Vec3::new(d[0], d[1], d[2]))
 }

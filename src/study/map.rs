@@ -24,6 +24,7 @@ pub struct MapSummary {
     pub ok: u64,
     pub unreachable: u64,
     pub singular: u64,
+    pub not_converged: u64,
 }
 
 impl MapSummary {
@@ -33,6 +34,7 @@ impl MapSummary {
             Status::Ok => self.ok += 1,
             Status::Unreachable => self.unreachable += 1,
             Status::Singular | Status::SingularLeg => self.singular += 1,
+            Status::NotConverged => self.not_converged += 1,
         }
     }
 }
@@ -43,6 +45,7 @@ impl Tally for MapSummary {
         self.ok += o.ok;
         self.unreachable += o.unreachable;
         self.singular += o.singular;
+        self.not_converged += o.not_converged;
     }
 }
 

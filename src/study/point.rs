@@ -16,6 +16,8 @@ pub enum Status {
     Singular,
     /// A leg's springs do not restrain what its passive joints leave free.
     SingularLeg,
+    /// The loaded equilibrium was not found.
+    NotConverged,
 }
 
 impl Status {
@@ -25,6 +27,7 @@ impl Status {
             Status::Unreachable => "unreachable",
             Status::Singular => "singular",
             Status::SingularLeg => "singular_leg",
+            Status::NotConverged => "not_converged",
         }
     }
 }
@@ -56,6 +59,7 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
             return PointResult::failed(match e.failure {
                 LegFailure::Unreachable(_) => Status::Unreachable,
                 LegFailure::SingularChain => Status::SingularLeg,
+                LegFailure::NotConverged { .. } => Status::NotConverged,
             })
         }
     };
