@@ -7,11 +7,12 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use crate::kinematics::frame::{Vec3, Vec6};
+use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::grid::{PointSet, PosePoint};
 use crate::model::load_manipulator;
 use crate::output::report::point_report;
 use crate::output::sink::Sink;
+use crate::study::curve::{critical_load_factor, push_curve_row, run_curve, Control, CURVE_HEADER};
 use crate::study::map::{run_map, MapOptions};
 use crate::study::point::unloaded_point;
 
@@ -28,6 +29,8 @@ pub enum Command {
     Map(MapArgs),
     /// Stiffness and compliance matrices at one pose, printed with units.
     Point(PointArgs),
+    /// Force-deflection curve at one pose (loaded mode), as CSV.
+    Curve(CurveArgs),
 }
 
 #[derive(Args, Debug)]
@@ -46,8 +49,45 @@ pub struct MapArgs {
     /// Also write the 21 entries of the stiffness matrix (K11..K66).
     #[arg(long)]
     pub stiffness: bool,
+    /// Loaded mode: at every point, the equilibrium under this wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm) at the
+    /// reference point; the map then reports its displacement and the tangent compliance there.
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true, conflicts_with = "loaded")]
+    pub wrench: Option<Vec6>,
+    /// Loaded mode under each point's reference wrench (from the grid or the points file).
+    #[arg(long)]
+    pub loaded: bool,
     #[command(flatten)]
     pub run: RunArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct CurveArgs {
+    /// Manipulator description (TOML).
+    pub model: PathBuf,
+    /// Commanded platform reference point x,y,z in mm.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub at: Vec3,
+    /// Commanded orientation as a rotation vector rx,ry,rz in rad (default 0,0,0).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub orientation: Option<Vec3>,
+    /// Force control: the wrench is load_factor * W (Fx,Fy,Fz in N, Mx,My,Mz in N mm).
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true, conflicts_with = "displacement_direction", required_unless_present = "displacement_direction")]
+    pub wrench_direction: Option<Vec6>,
+    /// Displacement control: the displacement is load_factor * D (dx,dy,dz in mm, rx,ry,rz in rad).
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
+    pub displacement_direction: Option<Vec6>,
+    /// Largest load factor.
+    #[arg(long)]
+    pub max: f64,
+    /// Number of steps from 0 to --max.
+    #[arg(long, default_value_t = 50)]
+    pub steps: usize,
+    /// Output CSV; `-` or absent: stdout.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// No summary on stderr.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -96,6 +136,7 @@ pub fn run() -> Result<()> {
     match cli.command {
         Command::Map(a) => map(a),
         Command::Point(a) => point(a),
+        Command::Curve(a) => curve(a),
     }
 }
 
@@ -137,13 +178,17 @@ fn map(a: MapArgs) -> Result<()> {
     let pool = thread_pool(a.run.threads)?;
     let mut sink = Sink::create(a.output.as_deref())?;
     let bar = progress_bar(points.len, a.run.quiet);
-    let summary = run_map(&pool, &model, &mut points, MapOptions { stiffness: a.stiffness }, sink.writer(), &bar)?;
+    if a.loaded && !points.has_wrench {
+        bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
+    }
+    let options = MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded };
+    let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
     sink.finish()?;
     bar.finish_and_clear();
     if !a.run.quiet {
         eprintln!(
-            "{} points: {} ok, {} unreachable, {} singular",
-            summary.points, summary.ok, summary.unreachable, summary.singular
+            "{} points: {} ok, {} unreachable, {} singular, {} not converged, {} unstable",
+            summary.points, summary.ok, summary.unreachable, summary.singular, summary.not_converged, summary.unstable
         );
     }
     Ok(())
@@ -156,5 +201,35 @@ fn point(a: PointArgs) -> Result<()> {
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
     print!("{}", point_report(&model.name, &p, &r));
+    Ok(())
+}
+
+fn curve(a: CurveArgs) -> Result<()> {
+    let model = load_manipulator(&a.model)?;
+    let at = Frame::from_position_rotvec(a.at, a.orientation.unwrap_or_else(Vec3::zeros));
+    let control = match (a.wrench_direction, a.displacement_direction) {
+        (Some(w), None) => Control::Force(w),
+        (None, Some(d)) => Control::Displacement(d),
+        _ => bail!("give exactly one of --wrench-direction and --displacement-direction"),
+    };
+    let mut sink = Sink::create(a.output.as_deref())?;
+    let rows = run_curve(&model, &at, control, a.max, a.steps)?;
+    let mut text = String::from(CURVE_HEADER);
+    for r in &rows {
+        push_curve_row(&mut text, r);
+    }
+    sink.writer().write_all(text.as_bytes())?;
+    sink.finish()?;
+    if !a.quiet {
+        match critical_load_factor(&rows) {
+            Some(c) => {
+                eprintln!("the tangent stiffness stops being positive definite at load factor {c:.6} (interpolated)")
+            }
+            None => eprintln!("the tangent stiffness stays positive definite up to load factor {}", a.max),
+        }
+        if let Some(r) = rows.iter().find(|r| r.event == "limit_point") {
+            eprintln!("limit point near load factor {}: continued by displacement control", r.load_factor);
+        }
+    }
     Ok(())
 }

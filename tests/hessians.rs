@@ -60,7 +60,11 @@ fn load_hessian_matches_central_differences_on_random_chains() {
             for row in 0..n {
                 let fd = (plus[row] - minus[row]) / (2.0 * step);
                 let scale = h.abs().max().max(1.0);
-                assert!((h[(row, col)] - fd).abs() < 1e-6 * scale, "trial {trial}: H[{row},{col}] = {} vs {fd}", h[(row, col)]);
+                assert!(
+                    (h[(row, col)] - fd).abs() < 1e-6 * scale,
+                    "trial {trial}: H[{row},{col}] = {} vs {fd}",
+                    h[(row, col)]
+                );
             }
         }
     }

@@ -66,7 +66,10 @@ pub enum Element {
     Joint(Joint),
     /// A point mass (kg) at `centre` in the current frame: under the model's gravity it is an auxiliary
     /// load G_j at an intermediate node (paper 000 eq 28-31).
-    Mass { kg: f64, centre: Vec3 },
+    Mass {
+        kg: f64,
+        centre: Vec3,
+    },
 }
 
 /// Values of a chain's coordinates, by role.
@@ -338,9 +341,11 @@ impl Chain {
         for e in &self.elements {
             match e {
                 Element::Fixed(t) => f = f.compose(t),
-                Element::Mass { kg, centre } => {
-                    out.masses.push(PlacedMass { kg: *kg, point: f.transform_point(centre), upstream: out.placed.len() })
-                }
+                Element::Mass { kg, centre } => out.masses.push(PlacedMass {
+                    kg: *kg,
+                    point: f.transform_point(centre),
+                    upstream: out.placed.len(),
+                }),
                 Element::Joint(j) => {
                     out.placed.push(PlacedJoint { joint: *j, axis_world: f.rot * j.axis, origin_world: f.pos });
                     let v = j.gain * c.get(j.role, j.index);

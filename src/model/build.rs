@@ -95,7 +95,14 @@ impl ChainParts {
     }
 
     /// Virtual joints for a spring group of `dim` coordinates with the given stiffness block.
-    fn spring(&mut self, name: String, joints: &[(JointKind, Vec3)], stiffness: Mat6, compliance: Mat6, preload: &[f64]) {
+    fn spring(
+        &mut self,
+        name: String,
+        joints: &[(JointKind, Vec3)],
+        stiffness: Mat6,
+        compliance: Mat6,
+        preload: &[f64],
+    ) {
         let first = self.n_virtual;
         self.preload.extend_from_slice(preload);
         for (kind, axis) in joints {
@@ -287,7 +294,9 @@ impl Builder<'_> {
             match &s.preload {
                 None => Ok(vec![0.0; dim]),
                 Some(p) if p.get_ref().len() == dim => p.get_ref().iter().map(|v| self.num(v)).collect(),
-                Some(p) => Err(self.loc.at(p.span(), format!("`preload` needs {dim} values, one per spring coordinate"))),
+                Some(p) => {
+                    Err(self.loc.at(p.span(), format!("`preload` needs {dim} values, one per spring coordinate")))
+                }
             }
         };
         match kind {

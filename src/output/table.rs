@@ -37,6 +37,9 @@ pub struct MapColumns {
     pub orientation: bool,
     pub stiffness: bool,
     pub deflection: bool,
+    /// Loaded mode: the compliance is the tangent compliance at the loaded equilibrium, the deflection
+    /// that equilibrium's displacement; adds the Newton iteration count.
+    pub loaded: bool,
 }
 
 pub fn map_header(c: &MapColumns) -> String {
@@ -45,6 +48,9 @@ pub fn map_header(c: &MapColumns) -> String {
         h.extend(["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"].map(String::from));
     }
     h.extend(["status", "rank"].map(String::from));
+    if c.loaded {
+        h.push("iterations".into());
+    }
     h.extend(["c_tran_max_mm_per_N", "c_tran_min_mm_per_N", "c_rot_max_rad_per_Nmm"].map(String::from));
     if c.deflection {
         h.extend(["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad", "deflection_mm"].map(String::from));
@@ -112,6 +118,10 @@ pub fn push_map_row(out: &mut String, c: &MapColumns, index: u64, p: &PosePoint,
     out.push_str(r.status.as_str());
     out.push(',');
     out.push_str(itoa::Buffer::new().format(r.rank));
+    if c.loaded {
+        out.push(',');
+        out.push_str(itoa::Buffer::new().format(r.iterations));
+    }
     let pc = r.principal;
     push_optional(out, pc.map(|p| p.translation_max));
     push_optional(out, pc.map(|p| p.translation_min));

@@ -3,8 +3,10 @@
 
 use crate::kinematics::frame::{symmetric_eigenvalues3, Mat3, Mat6, Vec6};
 
-/// Relative eigenvalue (or Cholesky pivot) of the length-scaled stiffness below which a direction is free.
-pub const RANK_TOLERANCE: f64 = 1e-10;
+/// Relative eigenvalue (or Cholesky pivot) of the length-scaled stiffness below which a direction is free:
+/// a few hundred times round-off, so that models with springs 1e12 times stiffer than others (a common way
+/// to write "rigid") stay regular.
+pub const RANK_TOLERANCE: f64 = 1e-13;
 
 #[derive(Clone, Debug)]
 pub enum Analysis {

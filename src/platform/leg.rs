@@ -99,7 +99,7 @@ impl Leg {
         }
     }
 
-    /// Places the leg for a commanded platform pose: inverse kinematics of the rigid leg (springs at rest),
+    /// Places the leg for a commanded platform pose: inverse kinematics of the rigid leg (springs undeformed),
     /// warm-started from the state's previous solution, else from the home configuration (all zero). Fixes
     /// the actuated coordinates for the loaded answers that follow.
     pub fn place(&self, platform: &Frame, state: &mut LegState) -> Result<usize, LegFailure> {
@@ -181,8 +181,10 @@ impl VjmLeg {
         let target = self.target(platform);
         state.end_wrench = Vec6::zeros();
         state.last_target = target;
-        if state.coords.virtual_ != self.preload {
-            state.coords.virtual_.copy_from_slice(&self.preload);
+        // Placement is the nominal geometry (springs undeformed, theta = 0): the actuators are set for the
+        // nominal legs; a preload theta0 then acts through the equilibrium, K (theta - theta0).
+        if state.coords.virtual_.iter().any(|t| *t != 0.0) {
+            state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
             state.ik.invalidate();
         }
         if state.warm {
@@ -296,7 +298,9 @@ impl VjmLeg {
             state.end_wrench = wrench0;
         }
         Err(match last_failure {
-            EquilibriumFailure::NotConverged { iterations, residual } => LegFailure::NotConverged { iterations, residual },
+            EquilibriumFailure::NotConverged { iterations, residual } => {
+                LegFailure::NotConverged { iterations, residual }
+            }
             EquilibriumFailure::Singular => LegFailure::SingularChain,
         })
     }

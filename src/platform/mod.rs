@@ -2,4 +2,5 @@
 pub mod assembly;
 pub mod compliance;
 pub mod leg;
+pub mod loaded;
 pub mod manipulator;

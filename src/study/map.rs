@@ -5,8 +5,9 @@ use std::io::Write;
 use anyhow::Result;
 use indicatif::ProgressBar;
 
-use super::point::{unloaded_point, Status};
+use super::point::{loaded_point, unloaded_point, Status};
 use super::stream::{stream_rows, Tally};
+use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
 use crate::output::table::{map_header, push_map_row, MapColumns};
 use crate::platform::manipulator::Manipulator;
@@ -15,6 +16,10 @@ use crate::platform::manipulator::Manipulator;
 pub struct MapOptions {
     /// Also write the 21 entries of the stiffness matrix.
     pub stiffness: bool,
+    /// Loaded mode: the equilibrium under this wrench at every point (or, with `use_point_wrench`, under
+    /// each point's reference wrench).
+    pub wrench: Option<Vec6>,
+    pub use_point_wrench: bool,
 }
 
 /// How many points ended with each status.
@@ -25,6 +30,7 @@ pub struct MapSummary {
     pub unreachable: u64,
     pub singular: u64,
     pub not_converged: u64,
+    pub unstable: u64,
 }
 
 impl MapSummary {
@@ -35,6 +41,7 @@ impl MapSummary {
             Status::Unreachable => self.unreachable += 1,
             Status::Singular | Status::SingularLeg => self.singular += 1,
             Status::NotConverged => self.not_converged += 1,
+            Status::Unstable => self.unstable += 1,
         }
     }
 }
@@ -46,6 +53,7 @@ impl Tally for MapSummary {
         self.unreachable += o.unreachable;
         self.singular += o.singular;
         self.not_converged += o.not_converged;
+        self.unstable += o.unstable;
     }
 }
 
@@ -57,14 +65,25 @@ pub fn run_map(
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<MapSummary> {
-    let columns =
-        MapColumns { orientation: points.has_orientation, stiffness: options.stiffness, deflection: points.has_wrench };
+    let loaded = options.wrench.is_some() || options.use_point_wrench;
+    let columns = MapColumns {
+        orientation: points.has_orientation,
+        stiffness: options.stiffness,
+        deflection: points.has_wrench || loaded,
+        loaded,
+    };
     stream_rows(pool, points, &map_header(&columns), out, progress, |first_index, run| {
         let mut state = m.new_state();
         let mut text = String::with_capacity(run.len() * 700);
         let mut summary = MapSummary::default();
+        let mut previous = None;
         for (k, p) in run.iter().enumerate() {
-            let r = unloaded_point(m, p, &mut state);
+            let wrench = if options.use_point_wrench { p.wrench } else { options.wrench };
+            let r = match (loaded, wrench) {
+                (false, _) => unloaded_point(m, p, &mut state),
+                (true, Some(w)) => loaded_point(m, p, &w, &mut state, &mut previous),
+                (true, None) => loaded_point(m, p, &Vec6::zeros(), &mut state, &mut previous),
+            };
             summary.add(r.status);
             push_map_row(&mut text, &columns, first_index + k as u64, p, &r);
         }

@@ -1,10 +1,12 @@
-//! One pose of a study: the manipulator's unloaded stiffness there and what follows from it.
+//! One pose of a study: the manipulator's stiffness there (unloaded, or at its loaded equilibrium under a
+//! wrench) and what follows from it.
 
 use crate::kinematics::frame::{Mat6, Vec6};
 use crate::model::grid::PosePoint;
 use crate::platform::compliance::{analyse, principal, Analysis, PrincipalCompliance};
-use crate::platform::leg::LegFailure;
-use crate::platform::manipulator::{Manipulator, ManipulatorState};
+use crate::platform::leg::{apply_twist, LegFailure};
+use crate::platform::loaded::DeflectionFailure;
+use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 
 /// The outcome of one point, as the map reports it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,6 +20,9 @@ pub enum Status {
     SingularLeg,
     /// The loaded equilibrium was not found.
     NotConverged,
+    /// The loaded equilibrium was found but is unstable (tangent stiffness not positive definite, or a leg
+    /// unstable with its end held).
+    Unstable,
 }
 
 impl Status {
@@ -28,6 +33,15 @@ impl Status {
             Status::Singular => "singular",
             Status::SingularLeg => "singular_leg",
             Status::NotConverged => "not_converged",
+            Status::Unstable => "unstable",
+        }
+    }
+
+    fn of(e: &PoseFailure) -> Self {
+        match e.failure {
+            LegFailure::Unreachable(_) => Status::Unreachable,
+            LegFailure::SingularChain => Status::SingularLeg,
+            LegFailure::NotConverged { .. } => Status::NotConverged,
         }
     }
 }
@@ -40,47 +54,101 @@ pub struct PointResult {
     pub stiffness: Option<Mat6>,
     pub compliance: Option<Mat6>,
     pub principal: Option<PrincipalCompliance>,
-    /// Linear deflection C w under the point's reference wrench.
+    /// Deflection under the point's wrench: linear (C w) unloaded, the loaded equilibrium's displacement
+    /// in loaded mode.
     pub deflection: Option<Vec6>,
     /// Free directions of a singular manipulator.
     pub free: Vec<Vec6>,
+    /// Manipulator-level Newton iterations (loaded mode).
+    pub iterations: usize,
 }
 
 impl PointResult {
     fn failed(status: Status) -> Self {
-        Self { status, rank: 0, stiffness: None, compliance: None, principal: None, deflection: None, free: Vec::new() }
+        Self {
+            status,
+            rank: 0,
+            stiffness: None,
+            compliance: None,
+            principal: None,
+            deflection: None,
+            free: Vec::new(),
+            iterations: 0,
+        }
+    }
+
+    /// A result from a stiffness matrix: compliance, rank and principal compliances.
+    fn from_stiffness(k: Mat6, length_scale: f64) -> Self {
+        match analyse(&k, length_scale) {
+            Analysis::Regular { compliance } => PointResult {
+                status: Status::Ok,
+                rank: 6,
+                stiffness: Some(k),
+                compliance: Some(compliance),
+                principal: Some(principal(&compliance)),
+                deflection: None,
+                free: Vec::new(),
+                iterations: 0,
+            },
+            Analysis::Singular { rank, free } => {
+                PointResult { rank, stiffness: Some(k), free, ..PointResult::failed(Status::Singular) }
+            }
+        }
     }
 }
 
 pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorState) -> PointResult {
     let agg = match m.unloaded(&p.frame(), state) {
         Ok(a) => a,
-        Err(e) => {
-            return PointResult::failed(match e.failure {
-                LegFailure::Unreachable(_) => Status::Unreachable,
-                LegFailure::SingularChain => Status::SingularLeg,
-                LegFailure::NotConverged { .. } => Status::NotConverged,
-            })
-        }
+        Err(e) => return PointResult::failed(Status::of(&e)),
     };
-    match analyse(&agg.stiffness, m.length_scale) {
-        Analysis::Regular { compliance } => PointResult {
-            status: Status::Ok,
-            rank: 6,
-            stiffness: Some(agg.stiffness),
-            compliance: Some(compliance),
-            principal: Some(principal(&compliance)),
-            deflection: p.wrench.map(|w| compliance * w),
-            free: Vec::new(),
-        },
-        Analysis::Singular { rank, free } => PointResult {
-            status: Status::Singular,
-            rank,
-            stiffness: Some(agg.stiffness),
-            compliance: None,
-            principal: None,
-            deflection: None,
-            free,
-        },
+    let mut r = PointResult::from_stiffness(agg.stiffness, m.length_scale);
+    r.deflection = match (&r.compliance, &p.wrench) {
+        (Some(c), Some(w)) => Some(c * w),
+        _ => None,
+    };
+    r
+}
+
+/// The loaded equilibrium under `wrench` at a commanded pose: where the platform settles (its displacement
+/// is the compliance error paper 000 computes for milling) and the tangent compliance there.
+/// `previous` carries the last point's displacement as the warm start of the next.
+pub fn loaded_point(
+    m: &Manipulator,
+    p: &PosePoint,
+    wrench: &Vec6,
+    state: &mut ManipulatorState,
+    previous: &mut Option<Vec6>,
+) -> PointResult {
+    let commanded = p.frame();
+    if let Err(e) = m.place(&commanded, state) {
+        *previous = None;
+        return PointResult::failed(Status::of(&e));
+    }
+    let start = previous.map(|d| apply_twist(&commanded, &d));
+    let mut attempt = m.deflect(&commanded, wrench, start.as_ref(), state);
+    if attempt.is_err() && start.is_some() {
+        m.place(&commanded, state).ok();
+        attempt = m.deflect(&commanded, wrench, None, state);
+    }
+    match attempt {
+        Ok(d) => {
+            *previous = Some(d.displacement);
+            let mut r = PointResult::from_stiffness(d.held.stiffness, m.length_scale);
+            r.deflection = Some(d.displacement);
+            r.iterations = d.iterations;
+            if r.status == Status::Ok && !d.stable {
+                r.status = Status::Unstable;
+            }
+            r
+        }
+        Err(DeflectionFailure::Leg(e)) => {
+            *previous = None;
+            PointResult::failed(Status::of(&e))
+        }
+        Err(DeflectionFailure::NotConverged { .. }) => {
+            *previous = None;
+            PointResult::failed(Status::NotConverged)
+        }
     }
 }

@@ -1,0 +1,145 @@
+//! The manipulator under load: the force-deflection relation F = sum_i f_i(t | t0) (paper 000 eq 66-67),
+//! its tangent stiffness, stability, and its inverse, the deflection under a given wrench by Newton's
+//! method with load continuation (eq 73-75).
+
+use super::compliance::RANK_TOLERANCE;
+use super::leg::{apply_twist, LegFailure};
+use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
+use crate::kinematics::frame::{Frame, Mat6, Vec6};
+
+/// The manipulator held at a platform pose, its legs placed for the commanded pose before.
+#[derive(Clone, Copy, Debug)]
+pub struct Held {
+    /// The external wrench (N, N mm, at the reference point) that holds the platform there: sum_i f_i.
+    pub force: Vec6,
+    /// Tangent stiffness dF/dt at the reference point.
+    pub stiffness: Mat6,
+    /// Every leg's equilibrium is stable with its end held.
+    pub legs_stable: bool,
+    /// Most Newton iterations over the legs.
+    pub iterations: usize,
+}
+
+/// Smallest and largest eigenvalues of the symmetric part of a stiffness, rotations weighted by
+/// `length_scale` so that every entry is in N/mm. The smallest is positive exactly where the stiffness is
+/// positive definite.
+pub fn eigenvalue_range(k: &Mat6, length_scale: f64) -> (f64, f64) {
+    let d = Vec6::new(1.0, 1.0, 1.0, 1.0 / length_scale, 1.0 / length_scale, 1.0 / length_scale);
+    let s = Mat6::from_fn(|i, j| 0.5 * (k[(i, j)] + k[(j, i)]) * d[i] * d[j]);
+    let e = s.symmetric_eigen().eigenvalues;
+    (e.min(), e.max())
+}
+
+/// Positive definite, with a tolerance relative to the largest eigenvalue.
+pub fn positive_definite(k: &Mat6, length_scale: f64) -> bool {
+    let (lo, hi) = eigenvalue_range(k, length_scale);
+    lo > RANK_TOLERANCE * hi.abs()
+}
+
+/// The deflection under an external wrench.
+#[derive(Clone, Copy, Debug)]
+pub struct Deflection {
+    /// Where the platform settles.
+    pub pose: Frame,
+    /// Its displacement from the commanded pose (mm, base-frame rotation vector).
+    pub displacement: Vec6,
+    pub held: Held,
+    /// Stable under force control: tangent stiffness positive definite and every leg stable.
+    pub stable: bool,
+    /// Newton iterations at the manipulator level, over all load steps.
+    pub iterations: usize,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DeflectionFailure {
+    Leg(PoseFailure),
+    /// Newton's method found no equilibrium even with load continuation (e.g. past a limit point).
+    NotConverged {
+        load_fraction: f64,
+    },
+}
+
+const MAX_NEWTON: usize = 30;
+/// Largest platform step in one Newton iteration, in mm (rotations weighted by the length scale).
+const MAX_STEP_MM: f64 = 5.0;
+
+impl Manipulator {
+    /// The external wrench that holds the platform at `platform`, and the tangent stiffness there.
+    pub fn hold(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<Held, PoseFailure> {
+        let mut held = Held { force: Vec6::zeros(), stiffness: Mat6::zeros(), legs_stable: true, iterations: 0 };
+        for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
+            let r = leg.respond(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
+            held.force -= r.wrench;
+            held.stiffness += r.stiffness;
+            held.legs_stable &= r.stable;
+            held.iterations = held.iterations.max(r.iterations);
+        }
+        Ok(held)
+    }
+
+    fn weighted_norm(&self, v: &Vec6, divide_rotations: bool) -> f64 {
+        let l = if divide_rotations { 1.0 / self.length_scale } else { self.length_scale };
+        (v.fixed_rows::<3>(0).norm_squared() + (v.fixed_rows::<3>(3) * l).norm_squared()).sqrt()
+    }
+
+    /// Newton's method for `hold(t).force = load`, from the pose in `t`.
+    fn newton(&self, load: &Vec6, t: &mut Frame, state: &mut ManipulatorState) -> Result<(Held, usize), PoseFailure> {
+        let scale = self.weighted_norm(load, true).max(1e-3);
+        for it in 0..MAX_NEWTON {
+            let held = self.hold(t, state)?;
+            let residual = load - held.force;
+            let Some(step) = held.stiffness.lu().solve(&residual) else {
+                return Err(PoseFailure { leg: 0, failure: LegFailure::SingularChain });
+            };
+            let step_size = self.weighted_norm(&step, false);
+            if self.weighted_norm(&residual, true) <= 1e-10 * scale || step_size <= 1e-11 * self.length_scale {
+                return Ok((held, it));
+            }
+            let damping = if step_size > MAX_STEP_MM { MAX_STEP_MM / step_size } else { 1.0 };
+            *t = apply_twist(t, &(step * damping));
+        }
+        Err(PoseFailure { leg: 0, failure: LegFailure::NotConverged { iterations: MAX_NEWTON, residual: f64::NAN } })
+    }
+
+    /// The deflection of the platform under `wrench` (N, N mm at the reference point), the legs placed for
+    /// `commanded` before (eq 73-75). Starts from `start` (a neighbouring solution) or the commanded pose,
+    /// and cuts the load into smaller steps where a direct Newton solve fails.
+    pub fn deflect(
+        &self,
+        commanded: &Frame,
+        wrench: &Vec6,
+        start: Option<&Frame>,
+        state: &mut ManipulatorState,
+    ) -> Result<Deflection, DeflectionFailure> {
+        let mut t = *start.unwrap_or(commanded);
+        let (mut done, mut step) = (0.0f64, 1.0f64);
+        let mut total_iterations = 0;
+        let mut last: Option<Held> = None;
+        while done < 1.0 {
+            let target = (done + step).min(1.0);
+            let (saved_t, saved_state) = (t, state.clone());
+            match self.newton(&(wrench * target), &mut t, state) {
+                Ok((held, its)) => {
+                    total_iterations += its;
+                    last = Some(held);
+                    done = target;
+                    step = (step * 2.0).min(1.0);
+                }
+                Err(e) => {
+                    t = saved_t;
+                    *state = saved_state;
+                    step /= 4.0;
+                    if step < 1.0 / 4096.0 {
+                        return Err(match e.failure {
+                            LegFailure::Unreachable(_) => DeflectionFailure::Leg(e),
+                            _ => DeflectionFailure::NotConverged { load_fraction: done },
+                        });
+                    }
+                }
+            }
+        }
+        let held = last.expect("the loop ran at least once");
+        let stable = held.legs_stable && positive_definite(&held.stiffness, self.length_scale);
+        Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations: total_iterations })
+    }
+}

@@ -1,0 +1,232 @@
+//! Loaded mode (paper 000 s. 3-4, paper 001 s. 3): zero-load agreement with eq (9), the loaded stiffness
+//! against finite differences of equilibria, paper 001 Table 1 loaded rows and Table 3, a closed-form
+//! buckling load, a cantilever under its own weight, and spring preload.
+
+mod common;
+use common::*;
+use stiff::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
+use stiff::platform::leg::apply_twist;
+use stiff::platform::manipulator::Manipulator;
+use stiff::study::curve::{critical_load_factor, run_curve, Control};
+
+/// Places the legs for `commanded` and holds the platform at `actual`: the external wrench and tangent
+/// stiffness there.
+fn held(m: &Manipulator, commanded: &Frame, actual: &Frame) -> (Vec6, Mat6) {
+    let mut s = m.new_state();
+    m.place(commanded, &mut s).unwrap();
+    let h = m.hold(actual, &mut s).unwrap();
+    (h.force, h.stiffness)
+}
+
+fn model(text: &str) -> Manipulator {
+    stiff::model::parse_manipulator(std::path::Path::new("test.toml"), text).unwrap()
+}
+
+fn orthoglide_attached_at_u2() -> Manipulator {
+    let text = std::fs::read_to_string("manipulators/orthoglide-3puu.toml").unwrap();
+    let tool_line = text.lines().find(|l| l.contains("name = \"tool\"")).unwrap();
+    model(&text.replace(tool_line, "").replace(
+        "name = \"chain\"\n",
+        "name = \"chain\"\nattachment = { translation = [\"-t_x\", \"-t_y\", \"-t_z\"] }\n",
+    ))
+}
+
+/// With no load the loaded equilibrium is the placement itself, its wrench zero, and eq (45) reduces to
+/// eq (9): the loaded stiffness equals the unloaded one to round-off.
+#[test]
+fn at_zero_load_the_loaded_answer_is_the_unloaded_one() {
+    for m in [orthoglide(), orthoglide_attached_at_u2()] {
+        for x in [0.0, -73.65, 126.35, 40.0] {
+            let pose = Frame::translation(Vec3::new(x, -0.3 * x, 0.5 * x));
+            let (f, k) = held(&m, &pose, &pose);
+            let k0 = m.unloaded(&pose, &mut m.new_state()).unwrap().stiffness;
+            // Equilibrium tolerance: 1e-10 of the leg size in pose, a few 1e-5 N at these stiffnesses.
+            assert!(f.norm() < 1e-3, "{f}");
+            assert!(scaled_rel_diff(&k, &k0, 300.0) < 1e-9, "{k}\n{k0}");
+        }
+    }
+}
+
+/// The tangent stiffness of the loaded manipulator against central differences of the force-deflection
+/// relation between nearby equilibria, at displaced (loaded) poses, for legs that end at the reference
+/// point and for legs attached away from it (the turning lever arm adds [F]x[v]x).
+#[test]
+fn loaded_stiffness_matches_differences_of_equilibria() {
+    for m in [orthoglide(), orthoglide_attached_at_u2()] {
+        for (x, d) in
+            [(0.0, Vec6::new(0.5, 0.5, 0.5, 0.0, 0.0, 0.0)), (-73.65, Vec6::new(0.3, -0.8, 0.2, 0.004, -0.002, 0.003))]
+        {
+            let commanded = Frame::translation(Vec3::new(x, x, x));
+            let actual = apply_twist(&commanded, &d);
+            let mut s = m.new_state();
+            m.place(&commanded, &mut s).unwrap();
+            let k = m.hold(&actual, &mut s).unwrap().stiffness;
+            let mut fd = Mat6::zeros();
+            for c in 0..6 {
+                let h = if c < 3 { 1e-4 } else { 1e-7 };
+                let mut e = Vec6::zeros();
+                e[c] = h;
+                let plus = m.hold(&apply_twist(&actual, &e), &mut s).unwrap().force;
+                let minus = m.hold(&apply_twist(&actual, &-e), &mut s).unwrap().force;
+                fd.set_column(c, &((plus - minus) / (2.0 * h)));
+            }
+            assert!(scaled_rel_diff(&k, &fd, 300.0) < 1e-5, "at {x}: {k}\nvs differences\n{fd}");
+            // A real load: the loaded stiffness differs from the unloaded one.
+            let k0 = m.unloaded(&commanded, &mut m.new_state()).unwrap().stiffness;
+            assert!(scaled_rel_diff(&k, &k0, 300.0) > 1e-3);
+        }
+    }
+}
+
+/// Paper 001 Table 1, loaded rows (platform displaced by (0.5, 0.5, 0.5) mm, no rotation) and Table 3 (F,
+/// one component of F = (f, f, f)). Predicted, not fitted (the link parameters were fitted to unloaded
+/// rows). Reached: Q0 within 0.5%, Q1 within 1.5%, Q2 k_tran within 2.4% and k_rot diagonal 2.2%; the Q2
+/// k_rot off-diagonal is -2.53e-7 against -0.7e-7 (the independent model of orthoglide-geometry.md gets
+/// -2.51e-7; a small difference of large terms, sensitive to geometry). Table 3: 1828 / 230 / 3962 N against
+/// 1823 / 234 / 4104 N (3.5% at Q2). The printed moments M (lever arms under 2 mm) are not reproduced.
+#[test]
+fn table_1_loaded_rows_and_table_3_forces() {
+    let m = orthoglide();
+    // (x, k_tran diag, k_tran off, k_rot diag, k_rot off (None: gap reported), F, tolerance)
+    let rows = [
+        (0.0, 2.74e-4, None, 16.7e-7, None, 1823.0, 0.01),
+        (-73.65, 10.5e-4, Some(5.3e-4), 22.0e-7, Some(6.0e-7), 234.0, 0.02),
+        (126.35, 39.1e-4, Some(-18.9e-4), 15.4e-7, None, 4104.0, 0.04),
+    ];
+    for (x, td, to, rd, ro, f, tol) in rows {
+        let commanded = Frame::translation(Vec3::new(x, x, x));
+        let actual = Frame::translation(Vec3::new(x + 0.5, x + 0.5, x + 0.5));
+        let (force, k) = held(&m, &commanded, &actual);
+        let c = k.try_inverse().unwrap();
+        let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+        assert!(rel(c[(0, 0)], td) < tol, "{x}: k_tran {:e} vs {td:e}", c[(0, 0)]);
+        assert!(rel(c[(3, 3)], rd) < tol, "{x}: k_rot {:e} vs {rd:e}", c[(3, 3)]);
+        if let Some(to) = to {
+            assert!(rel(c[(0, 1)], to) < tol, "{x}: k_tran off {:e} vs {to:e}", c[(0, 1)]);
+        }
+        if let Some(ro) = ro {
+            assert!(rel(c[(3, 4)], ro) < tol, "{x}: k_rot off {:e} vs {ro:e}", c[(3, 4)]);
+        }
+        assert!(rel(force[0], f) < tol, "{x}: F {} vs {f}", force[0]);
+        assert!((force[0] - force[1]).abs() < 1e-6 * f && (force[0] - force[2]).abs() < 1e-6 * f);
+    }
+}
+
+/// An inverted pendulum: a rigid link of length L on a rotational spring k, loaded by a vertical force P at
+/// its tip, buckles at P = k / L. A second leg holds every direction but x and z, so the manipulator's
+/// stiffness along x is k / L^2 - P / L. `stiff curve` under force control must locate the loss of
+/// positive definiteness within 1% and go on past it, flagging the unstable branch.
+#[test]
+fn inverted_pendulum_buckles_at_k_over_l() {
+    let (k, l) = (2.0e6, 250.0);
+    let m = model(&format!(
+        r#"
+name = "inverted pendulum"
+[parameters]
+k = {k}
+L = {l}
+[[leg]]
+name = "pendulum"
+chain = [
+  {{ type = "fixed", translation = [0, 0, "-L"] }},
+  {{ type = "revolute", axis = "y", role = "elastic", stiffness = "k" }},
+  {{ type = "fixed", translation = [0, 0, "L"] }},
+  {{ type = "prismatic", axis = "z", role = "elastic", stiffness = 1e7 }},
+  {{ type = "prismatic", axis = "y", role = "passive" }},
+  {{ type = "spherical" }},
+]
+[[leg]]
+name = "guide"
+chain = [
+  {{ type = "prismatic", axis = "x", role = "passive" }},
+  {{ type = "prismatic", axis = "z", role = "passive" }},
+  {{ type = "spring6", stiffness_matrix = [[1e4,0,0,0,0,0],[0,1e4,0,0,0,0],[0,0,1e4,0,0,0],[0,0,0,1e8,0,0],[0,0,0,0,1e8,0],[0,0,0,0,0,1e8]] }},
+]
+"#
+    ));
+    let p_cr = k / l;
+    let rows =
+        run_curve(&m, &Frame::IDENTITY, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.5 * p_cr, 30)
+            .unwrap();
+    let found = critical_load_factor(&rows).expect("a buckling point");
+    assert!((found - p_cr).abs() < 0.01 * p_cr, "found {found}, closed form {p_cr}");
+    let flagged = rows.iter().find(|r| r.event == "buckling").unwrap();
+    assert!(flagged.load_factor >= p_cr && !flagged.stable);
+    assert!(rows.last().unwrap().load_factor == 1.5 * p_cr && !rows.last().unwrap().stable, "continues past it");
+    assert!(rows.iter().filter(|r| r.load_factor < p_cr).all(|r| r.stable));
+}
+
+/// A horizontal rigid link of length L on a rotational spring k, with its mass m at mid-length, under
+/// gravity g: the equilibrium angle solves k theta = m g (L / 2) cos(theta) (closed form, solved here by
+/// bisection); the tip drops by L sin(theta). Every other direction is held by stiff springs.
+#[test]
+fn cantilever_under_its_own_weight() {
+    let (k, l, mass, g) = (3.0e5, 400.0, 2.5, 9.81);
+    let m = model(&format!(
+        r#"
+name = "cantilever"
+gravity = [0, 0, -{g}]
+[[leg]]
+name = "beam"
+chain = [
+  {{ type = "fixed", translation = [-{l}, 0, 0] }},
+  {{ type = "spring6", stiffness_matrix = [[1e9,0,0,0,0,0],[0,1e9,0,0,0,0],[0,0,1e9,0,0,0],[0,0,0,1e12,0,0],[0,0,0,0,{k},0],[0,0,0,0,0,1e12]] }},
+  {{ type = "fixed", translation = [{half}, 0, 0] }},
+  {{ type = "mass", mass_kg = {mass} }},
+  {{ type = "fixed", translation = [{half}, 0, 0] }},
+]
+"#,
+        half = l / 2.0
+    ));
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if k * mid < mass * g * l / 2.0 * mid.cos() {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let theta = 0.5 * (lo + hi);
+    let mut s = m.new_state();
+    m.place(&Frame::IDENTITY, &mut s).unwrap();
+    let d = m.deflect(&Frame::IDENTITY, &Vec6::zeros(), None, &mut s).unwrap();
+    let drop = -d.displacement[2];
+    assert!((drop - l * theta.sin()).abs() < 1e-6 * l * theta.sin(), "drop {drop}, closed form {}", l * theta.sin());
+    assert!((d.displacement[4] - theta).abs() < 1e-6 * theta);
+    assert!(d.stable);
+}
+
+/// Two axial springs in parallel between the base and the platform, one preloaded (rest length shifted by
+/// p): the platform settles at x = k1 p / (k1 + k2), and the springs carry k2 x each way.
+#[test]
+fn preloaded_spring_shifts_the_platform() {
+    let (k1, k2, p) = (3000.0, 5000.0, 0.2);
+    let m = model(&format!(
+        r#"
+name = "preloaded pair"
+[[leg]]
+name = "a"
+chain = [
+  {{ type = "prismatic", axis = "x", role = "elastic", stiffness = {k1}, preload = [{p}] }},
+  {{ type = "prismatic", axis = "y", role = "passive" }},
+  {{ type = "prismatic", axis = "z", role = "passive" }},
+  {{ type = "spherical" }},
+]
+[[leg]]
+name = "b"
+chain = [
+  {{ type = "prismatic", axis = "x", role = "elastic", stiffness = {k2} }},
+  {{ type = "spring6", stiffness_matrix = [[1e9,0,0,0,0,0],[0,1e4,0,0,0,0],[0,0,1e4,0,0,0],[0,0,0,1e7,0,0],[0,0,0,0,1e7,0],[0,0,0,0,0,1e7]] }},
+]
+"#
+    ));
+    let mut s = m.new_state();
+    m.place(&Frame::IDENTITY, &mut s).unwrap();
+    let d = m.deflect(&Frame::IDENTITY, &Vec6::zeros(), None, &mut s).unwrap();
+    // Leg b's axial spring in series with its 6-dof spring (1e9 N/mm along x).
+    let k2_series = 1.0 / (1.0 / k2 + 1.0 / 1e9);
+    let expected = k1 * p / (k1 + k2_series);
+    assert!((d.displacement[0] - expected).abs() < 1e-9 * expected, "{} vs {expected}", d.displacement[0]);
+    assert!(d.displacement.fixed_rows::<5>(1).norm() < 1e-9);
+}
