@@ -5,7 +5,7 @@
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{point_shift, shift_stiffness, skew, Frame, Mat3, Mat6, Vec3, Vec6};
 use crate::kinematics::ik::{self, IkWorkspace};
-use crate::vjm::equilibrium::{EquilibriumFailure, EquilibriumWorkspace, LoadedChain};
+use crate::vjm::equilibrium::{EquilibriumFailure, EquilibriumWorkspace, Linearization, LoadedChain};
 use crate::vjm::spring::SpringGroup;
 use crate::vjm::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 
@@ -133,6 +133,51 @@ impl Leg {
         }
     }
 
+    /// Linearises the leg's equilibrium with the platform at `platform` (Newton on the whole manipulator).
+    pub fn linearize(&self, platform: &Frame, state: &mut LegState) -> Result<LegLinear, LegFailure> {
+        match self {
+            Leg::Vjm(l) => {
+                state.ik.invalidate();
+                let target = l.target(platform);
+                let loaded = l.loaded_chain();
+                let lin = loaded
+                    .linearize(&target, &state.coords, &state.end_wrench, &mut state.equilibrium)
+                    .ok_or(LegFailure::SingularChain)?;
+                let v = lin.end - platform.pos;
+                let corrected = lin.wrench + Vec6::from_fn(|r, _| lin.correction[lin.correction.len() - 6 + r]);
+                let (corrected_force, _) = at_reference_point(&corrected, &Mat6::zeros(), &v);
+                let (_, stiffness) = at_reference_point(&lin.wrench, &lin.stiffness(), &v);
+                let at_equilibrium = loaded.at_equilibrium(&lin, &lin.end_error);
+                Ok(LegLinear { shift: point_shift(&v), corrected_force, stiffness, at_equilibrium, lin })
+            }
+        }
+    }
+
+    /// The fraction of a Newton step (platform twist `platform_step`) that keeps the leg's coordinate
+    /// changes within the solver's largest step.
+    pub fn step_fraction(&self, lin: &LegLinear, platform_step: &Vec6) -> f64 {
+        match self {
+            Leg::Vjm(l) => l.loaded_chain().damping(&lin.lin, &(lin.shift * platform_step)),
+        }
+    }
+
+    /// Applies `fraction` of the Newton step in which the platform moves by `platform_step`.
+    pub fn advance(&self, lin: &LegLinear, platform_step: &Vec6, fraction: f64, state: &mut LegState) {
+        match self {
+            Leg::Vjm(l) => {
+                let end_twist = lin.shift * platform_step;
+                l.loaded_chain().advance(&lin.lin, &end_twist, fraction, &mut state.coords, &mut state.end_wrench);
+            }
+        }
+    }
+
+    /// Stability of the leg's linearised equilibrium with its end held.
+    pub fn stable(&self, lin: &LegLinear) -> bool {
+        match self {
+            Leg::Vjm(l) => l.loaded_chain().stable(&lin.lin),
+        }
+    }
+
     /// After `place`: the platform twist at the reference point that a unit change of each actuated
     /// coordinate would cause if it alone moved the leg's end (its end-point error per unit actuator offset,
     /// paper 000 s. 4.2), in the base frame.
@@ -246,19 +291,9 @@ impl VjmLeg {
             }
         };
         state.last_target = target;
-        // The wrench the leg exerts on the platform is minus what the platform applies to it; moved to the
-        // reference point with v = EP - RP. The arm v turns with the platform, which adds [F]x [v]x to the
-        // rotational block of the tangent stiffness.
-        let v = answer.end - platform.pos;
-        let f: Vec3 = answer.wrench.fixed_rows::<3>(0).into();
-        let m: Vec3 = answer.wrench.fixed_rows::<3>(3).into();
-        let m_rp = m + v.cross(&f);
-        let mut stiffness = shift_stiffness(&answer.stiffness, &v);
-        let geometric: Mat3 = skew(&f) * skew(&v);
-        let mut block = stiffness.fixed_view_mut::<3, 3>(3, 3);
-        block += geometric;
+        let (force, stiffness) = at_reference_point(&answer.wrench, &answer.stiffness, &(answer.end - platform.pos));
         Ok(LegResponse {
-            wrench: -Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z),
+            wrench: -force,
             stiffness,
             passive_rank: self.chain.n_passive,
             passive_pivot_ratio: 1.0,
@@ -304,6 +339,36 @@ impl VjmLeg {
             EquilibriumFailure::Singular => LegFailure::SingularChain,
         })
     }
+}
+
+/// A wrench the platform applies at a leg's end point, and the leg's tangent stiffness there, seen at the
+/// reference point RP, with `v = EP - RP`: the force is unchanged, the moment gains v x F, and the stiffness
+/// is A^T K A (paper 000 eq 54-55) plus [F]x [v]x in its rotational block, because the lever arm v turns
+/// with the platform.
+pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> (Vec6, Mat6) {
+    let f: Vec3 = wrench.fixed_rows::<3>(0).into();
+    let m: Vec3 = wrench.fixed_rows::<3>(3).into();
+    let m_rp = m + v.cross(&f);
+    let mut stiffness = shift_stiffness(k_end, v);
+    let geometric: Mat3 = skew(&f) * skew(v);
+    let mut block = stiffness.fixed_view_mut::<3, 3>(3, 3);
+    block += geometric;
+    (Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z), stiffness)
+}
+
+/// A leg's linearised equilibrium seen from the platform: one Newton step of the whole manipulator
+/// (platform pose and every leg's configuration together) is built from these.
+#[derive(Clone, Debug)]
+pub struct LegLinear {
+    lin: Linearization,
+    /// point_shift(v): a platform twist at the reference point as a twist of the leg's end.
+    shift: Mat6,
+    /// Wrench the platform applies to the leg once the leg's own correction is made, at the reference point.
+    pub corrected_force: Vec6,
+    /// Tangent stiffness at the reference point.
+    pub stiffness: Mat6,
+    /// The configuration linearised is already the leg's equilibrium.
+    pub at_equilibrium: bool,
 }
 
 /// The frame a fraction `a` of the way along the twist `delta` from `start` (rotation about a fixed axis).

@@ -82,23 +82,48 @@ impl Manipulator {
         (v.fixed_rows::<3>(0).norm_squared() + (v.fixed_rows::<3>(3) * l).norm_squared()).sqrt()
     }
 
-    /// Newton's method for `hold(t).force = load`, from the pose in `t`.
+    /// Newton's method on the whole manipulator for `sum_i f_i(t) = load`: the platform pose and every
+    /// leg's configuration and end wrench move together, each step built from the legs' linearised
+    /// equilibria (eq 45) and the sum of their stiffnesses, so no leg is solved to convergence at a pose
+    /// the platform then leaves (the nested scheme of eq 73-75 costs several times more).
     fn newton(&self, load: &Vec6, t: &mut Frame, state: &mut ManipulatorState) -> Result<(Held, usize), PoseFailure> {
-        let scale = self.weighted_norm(load, true).max(1e-3);
+        let mut lins = Vec::with_capacity(self.legs.len());
         for it in 0..MAX_NEWTON {
-            let held = self.hold(t, state)?;
-            let residual = load - held.force;
-            let Some(step) = held.stiffness.lu().solve(&residual) else {
+            lins.clear();
+            for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
+                lins.push(leg.linearize(t, s).map_err(|failure| PoseFailure { leg: i, failure })?);
+            }
+            let stiffness: Mat6 = lins.iter().map(|l| l.stiffness).sum();
+            let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum();
+            let Some(step) = stiffness.lu().solve(&(load - force)) else {
                 return Err(PoseFailure { leg: 0, failure: LegFailure::SingularChain });
             };
             let step_size = self.weighted_norm(&step, false);
-            if self.weighted_norm(&residual, true) <= 1e-10 * scale || step_size <= 1e-11 * self.length_scale {
-                return Ok((held, it));
+            if step_size <= 1e-10 * self.length_scale && lins.iter().all(|l| l.at_equilibrium) {
+                let legs_stable = self.legs.iter().zip(&lins).all(|(leg, l)| leg.stable(l));
+                return Ok((Held { force, stiffness, legs_stable, iterations: it }, it));
             }
-            let damping = if step_size > MAX_STEP_MM { MAX_STEP_MM / step_size } else { 1.0 };
-            *t = apply_twist(t, &(step * damping));
+            let mut fraction = if step_size > MAX_STEP_MM { MAX_STEP_MM / step_size } else { 1.0 };
+            for (leg, l) in self.legs.iter().zip(&lins) {
+                fraction = fraction.min(leg.step_fraction(l, &step));
+            }
+            for ((leg, l), s) in self.legs.iter().zip(&lins).zip(state.legs.iter_mut()) {
+                leg.advance(l, &step, fraction, s);
+            }
+            *t = apply_twist(t, &(step * fraction));
         }
         Err(PoseFailure { leg: 0, failure: LegFailure::NotConverged { iterations: MAX_NEWTON, residual: f64::NAN } })
+    }
+
+    /// The platform pose the unloaded compliance predicts under `wrench`, a start for Newton's method
+    /// (None where the legs are loaded at placement, or the manipulator is singular).
+    fn linear_prediction(&self, commanded: &Frame, wrench: &Vec6, state: &mut ManipulatorState) -> Option<Frame> {
+        if !self.legs.iter().all(|l| l.unloaded_at_placement()) {
+            return None;
+        }
+        let k = self.unloaded(commanded, state).ok()?.stiffness;
+        let step = k.lu().solve(wrench)?;
+        Some(apply_twist(commanded, &step))
     }
 
     /// The deflection of the platform under `wrench` (N, N mm at the reference point), the legs placed for
@@ -111,7 +136,10 @@ impl Manipulator {
         start: Option<&Frame>,
         state: &mut ManipulatorState,
     ) -> Result<Deflection, DeflectionFailure> {
-        let mut t = *start.unwrap_or(commanded);
+        let mut t = match start {
+            Some(s) => *s,
+            None => self.linear_prediction(commanded, wrench, state).unwrap_or(*commanded),
+        };
         let (mut done, mut step) = (0.0f64, 1.0f64);
         let mut total_iterations = 0;
         let mut last: Option<Held> = None;

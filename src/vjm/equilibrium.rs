@@ -36,9 +36,6 @@ pub struct LoadedAnswer {
     pub wrench: Vec6,
     /// Tangent stiffness dF/dt at the end point (eq 45-47).
     pub stiffness: Mat6,
-    /// Sensitivities of the passive and virtual coordinates to the end displacement (eq 46).
-    pub k_cq: DMatrix<f64>,
-    pub k_ctheta: DMatrix<f64>,
     /// The chain is stable with its end held: the energy's Hessian is positive definite on the motions
     /// that keep the end fixed (paper 000 eq 14, reduced form).
     pub stable: bool,
@@ -62,11 +59,41 @@ pub struct EquilibriumWorkspace {
     generalised: Vec<f64>,
 }
 
+/// The linearised equilibrium of eq (45) at the current configuration: one factorisation serves the Newton
+/// correction at a fixed end, the response to a moving end, the tangent stiffness and the stability test.
+#[derive(Clone, Debug)]
+pub struct Linearization {
+    /// `M^-1 [e; -r]`: the change of (q, theta, F) that restores equilibrium with the end where it is asked.
+    pub correction: DVector<f64>,
+    /// `M^-1 [I6; 0]`: the change of (q, theta, F) per unit displacement of the end (N x 6). Its F rows are
+    /// the tangent stiffness K_C, its q and theta rows K_Cq and K_Ctheta (eq 46).
+    pub sensitivity: DMatrix<f64>,
+    /// End point (base frame) and wrench at the configuration linearised.
+    pub end: Vec3,
+    pub wrench: Vec6,
+    /// Where the end is minus where it was asked (translation, rotation vector).
+    pub end_error: Vec6,
+    matrix: DMatrix<f64>,
+}
+
+impl Linearization {
+    pub fn stiffness(&self) -> Mat6 {
+        let o = self.sensitivity.nrows() - 6;
+        Mat6::from_fn(|r, c| self.sensitivity[(o + r, c)])
+    }
+
+    /// Largest change of a coordinate (rad or mm) in the correction.
+    fn coordinate_correction(&self) -> f64 {
+        let o = self.correction.len() - 6;
+        self.correction.rows(0, o).amax()
+    }
+}
+
 /// Tolerance on the end's pose error (times the length scale) and on the Newton step (rad or mm).
 const POSE_TOLERANCE: f64 = 1e-10;
-const STEP_TOLERANCE: f64 = 1e-11;
+pub const STEP_TOLERANCE: f64 = 1e-11;
 /// Largest change of a coordinate in one Newton step (rad or mm): a damped step, not a line search.
-const MAX_STEP: f64 = 0.2;
+pub const MAX_STEP: f64 = 0.2;
 
 impl LoadedChain<'_> {
     fn sizes(&self) -> (usize, usize) {
@@ -81,15 +108,17 @@ impl LoadedChain<'_> {
         wrench: &Vec6,
         target: &Frame,
         ws: &mut EquilibriumWorkspace,
-    ) -> (DMatrix<f64>, DVector<f64>) {
+    ) -> (DMatrix<f64>, DMatrix<f64>) {
         let (n, m) = self.sizes();
         let size = n + m + 6;
         let jac = &ws.jac;
         let mut a = DMatrix::zeros(size, size);
-        let mut rhs = DVector::zeros(size);
+        // Right-hand sides: the residuals, then a unit displacement of the end along each axis.
+        let mut rhs = DMatrix::zeros(size, 7);
         let e = jac.end.error_to(target);
         for r in 0..6 {
-            rhs[r] = e[r];
+            rhs[(r, 0)] = e[r];
+            rhs[(r, 1 + r)] = 1.0;
             for (k, c) in jac.passive.iter().enumerate() {
                 a[(r, k)] = c[r];
                 a[(6 + k, n + m + r)] = c[r];
@@ -106,20 +135,81 @@ impl LoadedChain<'_> {
         ws.generalised.resize(n + m, 0.0);
         jac.add_generalised_forces(wrench, &self.gravity, n, &mut ws.generalised);
         for (k, g) in ws.generalised.iter().enumerate() {
-            rhs[6 + k] = -g;
+            rhs[(6 + k, 0)] = -g;
         }
         for s in self.springs {
             for i in 0..s.dim {
                 let mut reaction = 0.0;
                 for j in 0..s.dim {
-                    let col = n + s.first + j;
-                    a[(6 + n + s.first + i, col)] -= s.stiffness[(i, j)];
+                    a[(6 + n + s.first + i, n + s.first + j)] -= s.stiffness[(i, j)];
                     reaction += s.stiffness[(i, j)] * (coords.virtual_[s.first + j] - self.preload[s.first + j]);
                 }
-                rhs[6 + n + s.first + i] += reaction;
+                rhs[(6 + n + s.first + i, 0)] += reaction;
             }
         }
         (a, rhs)
+    }
+
+    /// Linearises the equilibrium with the chain's end asked at `target`.
+    pub fn linearize(
+        &self,
+        target: &Frame,
+        coords: &Coordinates,
+        wrench: &Vec6,
+        ws: &mut EquilibriumWorkspace,
+    ) -> Option<Linearization> {
+        self.chain.evaluate(coords, &mut ws.jac);
+        ws.jac.fill_virtual();
+        let (a, rhs) = self.assemble(coords, wrench, target, ws);
+        let x = a.clone().lu().solve(&rhs)?;
+        if !x.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        Some(Linearization {
+            correction: x.column(0).into_owned(),
+            sensitivity: x.columns(1, 6).into_owned(),
+            end: ws.jac.end.pos,
+            wrench: *wrench,
+            end_error: target.error_to(&ws.jac.end),
+            matrix: a,
+        })
+    }
+
+    /// Moves (q, theta, F) by the linearisation's correction plus its response to an end displacement
+    /// `end_twist` (at the end point), scaled by `fraction` (1 for a full Newton step).
+    pub fn advance(&self, lin: &Linearization, end_twist: &Vec6, fraction: f64, coords: &mut Coordinates, wrench: &mut Vec6) {
+        let (n, m) = self.sizes();
+        let delta = &lin.correction + &lin.sensitivity * DVector::from_column_slice(end_twist.as_slice());
+        for k in 0..n {
+            coords.passive[k] += fraction * delta[k];
+        }
+        for k in 0..m {
+            coords.virtual_[k] += fraction * delta[n + k];
+        }
+        for r in 0..6 {
+            wrench[r] += fraction * delta[n + m + r];
+        }
+    }
+
+    /// The fraction of a Newton step that keeps every coordinate change within `MAX_STEP`.
+    pub fn damping(&self, lin: &Linearization, end_twist: &Vec6) -> f64 {
+        let (n, m) = self.sizes();
+        let delta = &lin.correction + &lin.sensitivity * DVector::from_column_slice(end_twist.as_slice());
+        let largest = delta.rows(0, n + m).amax();
+        if largest > MAX_STEP {
+            MAX_STEP / largest
+        } else {
+            1.0
+        }
+    }
+
+    /// True when the configuration linearised is an equilibrium: its correction is below the step
+    /// tolerance and the end is where it was asked (within the pose tolerance).
+    pub fn at_equilibrium(&self, lin: &Linearization, end_error: &Vec6) -> bool {
+        let pose_error = (end_error.fixed_rows::<3>(0).norm_squared()
+            + (end_error.fixed_rows::<3>(3) * self.length_scale).norm_squared())
+        .sqrt();
+        lin.coordinate_correction() <= STEP_TOLERANCE && pose_error <= POSE_TOLERANCE * self.length_scale
     }
 
     /// Newton iterations from the given configuration and wrench (the warm start) to the equilibrium with
@@ -131,100 +221,70 @@ impl LoadedChain<'_> {
         wrench: &mut Vec6,
         ws: &mut EquilibriumWorkspace,
     ) -> Result<LoadedAnswer, EquilibriumFailure> {
-        let (n, m) = self.sizes();
-        let mut converged = false;
         for iteration in 0..MAX_ITERATIONS {
-            self.chain.evaluate(coords, &mut ws.jac);
-            ws.jac.fill_virtual();
-            let (a, rhs) = self.assemble(coords, wrench, target, ws);
-            let lu = a.clone().lu();
-            if converged {
-                return self.answer(&a, lu, wrench, iteration, ws.jac.end.pos).ok_or(EquilibriumFailure::Singular);
+            let lin = self.linearize(target, coords, wrench, ws).ok_or(EquilibriumFailure::Singular)?;
+            if self.at_equilibrium(&lin, &lin.end_error) {
+                return Ok(LoadedAnswer {
+                    wrench: *wrench,
+                    stiffness: lin.stiffness(),
+                    stable: self.stable(&lin),
+                    iterations: iteration,
+                    end: lin.end,
+                });
             }
-            let Some(step) = lu.solve(&rhs) else {
-                return Err(EquilibriumFailure::Singular);
-            };
-            let largest = step.rows(0, n + m).amax();
-            let damping = if largest > MAX_STEP { MAX_STEP / largest } else { 1.0 };
-            for k in 0..n {
-                coords.passive[k] += damping * step[k];
-            }
-            for k in 0..m {
-                coords.virtual_[k] += damping * step[n + k];
-            }
-            for r in 0..6 {
-                wrench[r] += damping * step[n + m + r];
-            }
-            let pose_error = {
-                let e = ws.jac.end.error_to(target);
-                (e.fixed_rows::<3>(0).norm_squared() + (e.fixed_rows::<3>(3) * self.length_scale).norm_squared()).sqrt()
-            };
-            if damping == 1.0 && largest <= STEP_TOLERANCE && pose_error <= POSE_TOLERANCE * self.length_scale {
-                converged = true;
-            }
+            let fraction = self.damping(&lin, &Vec6::zeros());
+            self.advance(&lin, &Vec6::zeros(), fraction, coords, wrench);
         }
         let e = ws.jac.end.error_to(target);
         Err(EquilibriumFailure::NotConverged { iterations: MAX_ITERATIONS, residual: e.norm() })
     }
 
-    /// The tangent stiffness and sensitivities from the factorised matrix of eq (45) at the equilibrium.
-    fn answer(
-        &self,
-        a: &DMatrix<f64>,
-        lu: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
-        wrench: &Vec6,
-        iterations: usize,
-        end: Vec3,
-    ) -> Option<LoadedAnswer> {
-        let (n, m) = self.sizes();
-        let size = n + m + 6;
-        let mut unit = DMatrix::zeros(size, 6);
-        for r in 0..6 {
-            unit[(r, r)] = 1.0;
-        }
-        let x = lu.solve(&unit)?;
-        if !x.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        let stiffness = Mat6::from_fn(|r, c| x[(n + m + r, c)]);
-        Some(LoadedAnswer {
-            wrench: *wrench,
-            stiffness,
-            k_cq: x.view((0, 0), (n, 6)).into_owned(),
-            k_ctheta: x.view((n, 0), (m, 6)).into_owned(),
-            stable: self.stable(a),
-            iterations,
-            end,
-        })
-    }
-
     /// Stability with the end held: the Hessian of the energy (minus the load block of eq 45, spring
     /// stiffness included) positive definite on the null space of the constraint Jacobian [J_q J_theta].
-    fn stable(&self, a: &DMatrix<f64>) -> bool {
+    /// The null space comes from a QR factorisation of the Jacobian's transpose; positive definiteness
+    /// from a Cholesky factorisation of the reduced Hessian.
+    pub fn stable(&self, lin: &Linearization) -> bool {
         let (n, m) = self.sizes();
         let k = n + m;
-        let j = a.view((0, 0), (6, k)).into_owned();
+        let a = &lin.matrix;
+        let jt = a.view((0, 0), (6, k)).transpose();
         let hess = -(a.view((6, 0), (k, k)).into_owned());
         let hess = (&hess + hess.transpose()) * 0.5;
-        let svd = j.svd(false, true);
-        let Some(vt) = svd.v_t else { return false };
-        let smax = svd.singular_values.max();
+        let qr = jt.clone().qr();
+        let q = qr.q();
+        let r = qr.r();
+        // Full Q: complete the thin factor with the projector's complement.
+        let scale = r.diagonal().amax();
         let mut projector = DMatrix::<f64>::identity(k, k);
-        for (i, sv) in svd.singular_values.iter().enumerate() {
-            if *sv > 1e-10 * smax {
-                let v = vt.row(i).transpose();
+        for c in 0..q.ncols() {
+            if r[(c, c)].abs() > 1e-10 * scale {
+                let v = q.column(c);
                 projector -= &v * v.transpose();
             }
         }
-        let eig = projector.symmetric_eigen();
-        let z_cols: Vec<DVector<f64>> =
-            (0..k).filter(|&i| eig.eigenvalues[i] > 0.5).map(|i| eig.eigenvectors.column(i).into_owned()).collect();
-        if z_cols.is_empty() {
+        // Columns of the projector span the null space; orthonormalise them (Gram-Schmidt, pivoting on norms).
+        let mut basis: Vec<DVector<f64>> = Vec::new();
+        let mut cols: Vec<DVector<f64>> = (0..k).map(|c| projector.column(c).into_owned()).collect();
+        loop {
+            let (best, norm) = cols.iter().enumerate().map(|(i, c)| (i, c.norm())).fold((0, 0.0), |x, y| if y.1 > x.1 { y } else { x });
+            if norm < 1e-8 {
+                break;
+            }
+            let v = cols.swap_remove(best) / norm;
+            for c in cols.iter_mut() {
+                let d = v.dot(c);
+                *c -= &v * d;
+            }
+            basis.push(v);
+        }
+        if basis.is_empty() {
             return true;
         }
-        let z = DMatrix::from_columns(&z_cols);
+        let z = DMatrix::from_columns(&basis);
         let reduced = z.transpose() * hess * &z;
-        let scale = reduced.amax().max(f64::MIN_POSITIVE);
-        reduced.symmetric_eigen().eigenvalues.iter().all(|ev| *ev > -1e-9 * scale)
+        let reduced = (&reduced + reduced.transpose()) * 0.5;
+        let tol = 1e-12 * reduced.amax().max(f64::MIN_POSITIVE);
+        let shifted = reduced - DMatrix::identity(basis.len(), basis.len()) * tol;
+        shifted.cholesky().is_some()
     }
 }
