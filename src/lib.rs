@@ -1,6 +1,7 @@
 //! stiff: stiffness of parallel robots by the Virtual Joint Method (see ARCHITECTURE.md).
 pub mod cli;
 pub mod kinematics;
+pub mod linalg;
 pub mod model;
 pub mod output;
 pub mod platform;

@@ -67,6 +67,8 @@ pub struct LegState {
     last_target: Frame,
     /// The configuration before a warm-started attempt, restored if that attempt fails.
     saved: Coordinates,
+    /// The rigid configuration found by `place`.
+    placed: Coordinates,
     ik: IkWorkspace,
     jac: ChainJacobians,
     equilibrium: EquilibriumWorkspace,
@@ -92,6 +94,7 @@ impl Leg {
                 end_wrench: Vec6::zeros(),
                 last_target: Frame::IDENTITY,
                 saved: Coordinates::zeros(&l.chain),
+                placed: Coordinates::zeros(&l.chain),
                 ik: IkWorkspace::default(),
                 jac: ChainJacobians::default(),
                 equilibrium: EquilibriumWorkspace::default(),
@@ -171,10 +174,10 @@ impl Leg {
         }
     }
 
-    /// Stability of the leg's linearised equilibrium with its end held.
-    pub fn stable(&self, lin: &LegLinear) -> bool {
+    /// Stability with its end held of the leg's last linearised equilibrium (in its state).
+    pub fn stable(&self, state: &LegState) -> bool {
         match self {
-            Leg::Vjm(l) => l.loaded_chain().stable(&lin.lin),
+            Leg::Vjm(l) => l.loaded_chain().stable(&state.equilibrium),
         }
     }
 
@@ -235,7 +238,10 @@ impl VjmLeg {
         if state.warm {
             state.saved.clone_from(&state.coords);
             match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
-                Ok(n) => return Ok(n),
+                Ok(n) => {
+                    state.placed.clone_from(&state.coords);
+                    return Ok(n);
+                }
                 Err(_) => {
                     state.coords.clone_from(&state.saved);
                     state.ik.invalidate();
@@ -249,6 +255,7 @@ impl VjmLeg {
         match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
             Ok(n) => {
                 state.warm = true;
+                state.placed.clone_from(&state.coords);
                 Ok(n)
             }
             Err(e) => {
@@ -338,6 +345,40 @@ impl VjmLeg {
             }
             EquilibriumFailure::Singular => LegFailure::SingularChain,
         })
+    }
+}
+
+/// How a leg's loaded equilibrium departs from its placement: carried from one point of a map to the
+/// next, it starts the next equilibrium where the last one ended (neighbouring points load the legs
+/// alike), which saves Newton iterations over starting from the unloaded placement.
+#[derive(Clone, Debug, Default)]
+pub struct LoadedOffsets {
+    passive: Vec<f64>,
+    virtual_: Vec<f64>,
+    wrench: Vec6,
+}
+
+impl LegState {
+    /// After a loaded answer: its departure from the placement.
+    pub fn loaded_offsets(&self) -> LoadedOffsets {
+        LoadedOffsets {
+            passive: self.coords.passive.iter().zip(&self.placed.passive).map(|(a, b)| a - b).collect(),
+            virtual_: self.coords.virtual_.clone(),
+            wrench: self.end_wrench,
+        }
+    }
+
+    /// After `place`: start the loaded equilibrium from the placement plus `offsets`.
+    pub fn apply_loaded_offsets(&mut self, offsets: &LoadedOffsets) {
+        if offsets.passive.len() != self.coords.passive.len() || offsets.virtual_.len() != self.coords.virtual_.len() {
+            return;
+        }
+        for (q, d) in self.coords.passive.iter_mut().zip(&offsets.passive) {
+            *q += d;
+        }
+        self.coords.virtual_.copy_from_slice(&offsets.virtual_);
+        self.end_wrench = offsets.wrench;
+        self.ik.invalidate();
     }
 }
 

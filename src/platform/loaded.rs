@@ -99,13 +99,19 @@ impl Manipulator {
                 return Err(PoseFailure { leg: 0, failure: LegFailure::SingularChain });
             };
             let step_size = self.weighted_norm(&step, false);
+            if std::env::var("STIFF_DEBUG").is_ok() {
+                eprintln!("it {it} step {step_size:e} eq {:?} resid {:e}", lins.iter().map(|l| l.at_equilibrium).collect::<Vec<_>>(), (load - force).norm());
+            }
             if step_size <= 1e-10 * self.length_scale && lins.iter().all(|l| l.at_equilibrium) {
-                let legs_stable = self.legs.iter().zip(&lins).all(|(leg, l)| leg.stable(l));
+                let legs_stable = self.legs.iter().zip(&state.legs).all(|(leg, s)| leg.stable(s));
                 return Ok((Held { force, stiffness, legs_stable, iterations: it }, it));
             }
             let mut fraction = if step_size > MAX_STEP_MM { MAX_STEP_MM / step_size } else { 1.0 };
             for (leg, l) in self.legs.iter().zip(&lins) {
                 fraction = fraction.min(leg.step_fraction(l, &step));
+            }
+            if std::env::var("STIFF_DEBUG").is_ok() {
+                eprintln!("   fraction {fraction}");
             }
             for ((leg, l), s) in self.legs.iter().zip(&lins).zip(state.legs.iter_mut()) {
                 leg.advance(l, &step, fraction, s);

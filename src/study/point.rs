@@ -4,7 +4,7 @@
 use crate::kinematics::frame::{Mat6, Vec6};
 use crate::model::grid::PosePoint;
 use crate::platform::compliance::{analyse, principal, Analysis, PrincipalCompliance};
-use crate::platform::leg::{apply_twist, LegFailure};
+use crate::platform::leg::{apply_twist, LegFailure, LoadedOffsets};
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 
@@ -112,20 +112,26 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
 
 /// The loaded equilibrium under `wrench` at a commanded pose: where the platform settles (its displacement
 /// is the compliance error paper 000 computes for milling) and the tangent compliance there.
-/// `previous` carries the last point's displacement as the warm start of the next.
+/// `previous` carries the last point's solution (displacement and legs' departures from placement) as the
+/// warm start of the next.
 pub fn loaded_point(
     m: &Manipulator,
     p: &PosePoint,
     wrench: &Vec6,
     state: &mut ManipulatorState,
-    previous: &mut Option<Vec6>,
+    previous: &mut Option<(Vec6, Vec<LoadedOffsets>)>,
 ) -> PointResult {
     let commanded = p.frame();
     if let Err(e) = m.place(&commanded, state) {
         *previous = None;
         return PointResult::failed(Status::of(&e));
     }
-    let start = previous.map(|d| apply_twist(&commanded, &d));
+    let start = previous.as_ref().map(|(d, offsets)| {
+        for (s, o) in state.legs.iter_mut().zip(offsets) {
+            s.apply_loaded_offsets(o);
+        }
+        apply_twist(&commanded, d)
+    });
     let mut attempt = m.deflect(&commanded, wrench, start.as_ref(), state);
     if attempt.is_err() && start.is_some() {
         m.place(&commanded, state).ok();
@@ -133,7 +139,7 @@ pub fn loaded_point(
     }
     match attempt {
         Ok(d) => {
-            *previous = Some(d.displacement);
+            *previous = Some((d.displacement, state.legs.iter().map(|s| s.loaded_offsets()).collect()));
             let mut r = PointResult::from_stiffness(d.held.stiffness, m.length_scale);
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;

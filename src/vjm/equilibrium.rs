@@ -14,6 +14,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::spring::SpringGroup;
+use crate::linalg::DenseLu;
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 
@@ -57,6 +58,12 @@ pub const MAX_ITERATIONS: usize = 40;
 pub struct EquilibriumWorkspace {
     jac: ChainJacobians,
     generalised: Vec<f64>,
+    /// The matrix of eq (45) at the last linearisation (kept for the stability test), its right-hand
+    /// sides, the load Hessian, and the factorisation.
+    matrix: DMatrix<f64>,
+    rhs: DMatrix<f64>,
+    hessian: DMatrix<f64>,
+    lu: DenseLu,
 }
 
 /// The linearised equilibrium of eq (45) at the current configuration: one factorisation serves the Newton
@@ -73,7 +80,6 @@ pub struct Linearization {
     pub wrench: Vec6,
     /// Where the end is minus where it was asked (translation, rotation vector).
     pub end_error: Vec6,
-    matrix: DMatrix<f64>,
 }
 
 impl Linearization {
@@ -100,21 +106,16 @@ impl LoadedChain<'_> {
         (self.chain.n_passive, self.chain.n_virtual)
     }
 
-    /// Builds the Newton matrix of eq (45) at the current evaluation, and the residuals.
-    /// Unknown order: (q, theta, F); equation order: (kinematics, q-statics, theta-statics).
-    fn assemble(
-        &self,
-        coords: &Coordinates,
-        wrench: &Vec6,
-        target: &Frame,
-        ws: &mut EquilibriumWorkspace,
-    ) -> (DMatrix<f64>, DMatrix<f64>) {
+    /// Builds the Newton matrix of eq (45) at the current evaluation, and the residuals, into the
+    /// workspace. Unknown order: (q, theta, F); equation order: (kinematics, q-statics, theta-statics).
+    /// Right-hand sides: the residuals, then a unit displacement of the end along each axis.
+    fn assemble(&self, coords: &Coordinates, wrench: &Vec6, target: &Frame, ws: &mut EquilibriumWorkspace) {
         let (n, m) = self.sizes();
         let size = n + m + 6;
-        let jac = &ws.jac;
-        let mut a = DMatrix::zeros(size, size);
-        // Right-hand sides: the residuals, then a unit displacement of the end along each axis.
-        let mut rhs = DMatrix::zeros(size, 7);
+        let EquilibriumWorkspace { jac, generalised, matrix: a, rhs, hessian: h, .. } = ws;
+        resize_zeroed(a, size, size);
+        resize_zeroed(rhs, size, 7);
+        resize_zeroed(h, n + m, n + m);
         let e = jac.end.error_to(target);
         for r in 0..6 {
             rhs[(r, 0)] = e[r];
@@ -128,13 +129,12 @@ impl LoadedChain<'_> {
                 a[(6 + n + k, n + m + r)] = c[r];
             }
         }
-        let mut h = DMatrix::zeros(n + m, n + m);
-        jac.add_load_hessian(wrench, &self.gravity, n, &mut h);
-        a.view_mut((6, 0), (n + m, n + m)).copy_from(&h);
-        ws.generalised.clear();
-        ws.generalised.resize(n + m, 0.0);
-        jac.add_generalised_forces(wrench, &self.gravity, n, &mut ws.generalised);
-        for (k, g) in ws.generalised.iter().enumerate() {
+        jac.add_load_hessian(wrench, &self.gravity, n, h);
+        a.view_mut((6, 0), (n + m, n + m)).copy_from(h);
+        generalised.clear();
+        generalised.resize(n + m, 0.0);
+        jac.add_generalised_forces(wrench, &self.gravity, n, generalised);
+        for (k, g) in generalised.iter().enumerate() {
             rhs[(6 + k, 0)] = -g;
         }
         for s in self.springs {
@@ -147,7 +147,6 @@ impl LoadedChain<'_> {
                 rhs[(6 + n + s.first + i, 0)] += reaction;
             }
         }
-        (a, rhs)
     }
 
     /// Linearises the equilibrium with the chain's end asked at `target`.
@@ -160,18 +159,23 @@ impl LoadedChain<'_> {
     ) -> Option<Linearization> {
         self.chain.evaluate(coords, &mut ws.jac);
         ws.jac.fill_virtual();
-        let (a, rhs) = self.assemble(coords, wrench, target, ws);
-        let x = a.clone().lu().solve(&rhs)?;
-        if !x.iter().all(|v| v.is_finite()) {
+        self.assemble(coords, wrench, target, ws);
+        let size = ws.matrix.nrows();
+        if !ws.lu.factor(ws.matrix.as_slice(), size) {
+            return None;
+        }
+        for c in 0..7 {
+            ws.lu.solve_in_place(ws.rhs.column_mut(c).as_mut_slice());
+        }
+        if !ws.rhs.iter().all(|v| v.is_finite()) {
             return None;
         }
         Some(Linearization {
-            correction: x.column(0).into_owned(),
-            sensitivity: x.columns(1, 6).into_owned(),
+            correction: ws.rhs.column(0).into_owned(),
+            sensitivity: ws.rhs.columns(1, 6).into_owned(),
             end: ws.jac.end.pos,
             wrench: *wrench,
             end_error: target.error_to(&ws.jac.end),
-            matrix: a,
         })
     }
 
@@ -227,7 +231,7 @@ impl LoadedChain<'_> {
                 return Ok(LoadedAnswer {
                     wrench: *wrench,
                     stiffness: lin.stiffness(),
-                    stable: self.stable(&lin),
+                    stable: self.stable(ws),
                     iterations: iteration,
                     end: lin.end,
                 });
@@ -239,52 +243,74 @@ impl LoadedChain<'_> {
         Err(EquilibriumFailure::NotConverged { iterations: MAX_ITERATIONS, residual: e.norm() })
     }
 
-    /// Stability with the end held: the Hessian of the energy (minus the load block of eq 45, spring
-    /// stiffness included) positive definite on the null space of the constraint Jacobian [J_q J_theta].
-    /// The null space comes from a QR factorisation of the Jacobian's transpose; positive definiteness
-    /// from a Cholesky factorisation of the reduced Hessian.
-    pub fn stable(&self, lin: &Linearization) -> bool {
+    /// Stability with the end held, at the last linearisation in `ws`: the Hessian of the energy (minus
+    /// the load block of eq 45, spring stiffness included) positive definite on the null space of the
+    /// constraint Jacobian J = [J_q J_theta]. The null space is spanned by Z = [I; -B^-1 N] over six basic
+    /// columns B of J chosen by complete pivoting (any basis serves a definiteness test); definiteness by a
+    /// Cholesky factorisation of Z^T H Z.
+    pub fn stable(&self, ws: &EquilibriumWorkspace) -> bool {
         let (n, m) = self.sizes();
         let k = n + m;
-        let a = &lin.matrix;
-        let jt = a.view((0, 0), (6, k)).transpose();
+        let a = &ws.matrix;
         let hess = -(a.view((6, 0), (k, k)).into_owned());
         let hess = (&hess + hess.transpose()) * 0.5;
-        let qr = jt.clone().qr();
-        let q = qr.q();
-        let r = qr.r();
-        // Full Q: complete the thin factor with the projector's complement.
-        let scale = r.diagonal().amax();
-        let mut projector = DMatrix::<f64>::identity(k, k);
-        for c in 0..q.ncols() {
-            if r[(c, c)].abs() > 1e-10 * scale {
-                let v = q.column(c);
-                projector -= &v * v.transpose();
+        // Basic columns by Gaussian elimination with complete pivoting on a copy of J.
+        let mut j = a.view((0, 0), (6, k)).into_owned();
+        let largest = j.amax();
+        let mut basic: Vec<usize> = Vec::with_capacity(6);
+        let mut rows_left: Vec<usize> = (0..6).collect();
+        for _ in 0..6 {
+            let mut best = (0usize, 0usize, 0.0f64);
+            for &r in &rows_left {
+                for c in (0..k).filter(|c| !basic.contains(c)) {
+                    if j[(r, c)].abs() > best.2 {
+                        best = (r, c, j[(r, c)].abs());
+                    }
+                }
             }
-        }
-        // Columns of the projector span the null space; orthonormalise them (Gram-Schmidt, pivoting on norms).
-        let mut basis: Vec<DVector<f64>> = Vec::new();
-        let mut cols: Vec<DVector<f64>> = (0..k).map(|c| projector.column(c).into_owned()).collect();
-        loop {
-            let (best, norm) = cols.iter().enumerate().map(|(i, c)| (i, c.norm())).fold((0, 0.0), |x, y| if y.1 > x.1 { y } else { x });
-            if norm < 1e-8 {
+            if best.2 <= 1e-12 * largest {
                 break;
             }
-            let v = cols.swap_remove(best) / norm;
-            for c in cols.iter_mut() {
-                let d = v.dot(c);
-                *c -= &v * d;
+            let (pr, pc, _) = best;
+            for &r in &rows_left {
+                if r != pr {
+                    let f = j[(r, pc)] / j[(pr, pc)];
+                    for c in 0..k {
+                        let v = j[(pr, c)];
+                        j[(r, c)] -= f * v;
+                    }
+                }
             }
-            basis.push(v);
+            rows_left.retain(|&r| r != pr);
+            basic.push(pc);
         }
-        if basis.is_empty() {
+        let free: Vec<usize> = (0..k).filter(|c| !basic.contains(c)).collect();
+        if free.is_empty() {
             return true;
         }
-        let z = DMatrix::from_columns(&basis);
-        let reduced = z.transpose() * hess * &z;
+        let jb = DMatrix::from_fn(6, basic.len(), |r, c| a[(r, basic[c])]);
+        let jn = DMatrix::from_fn(6, free.len(), |r, c| a[(r, free[c])]);
+        // Least squares handles a J of rank below 6 (rows that only constrain nothing).
+        let Some(x) = jb.clone().svd(true, true).solve(&jn, 1e-12) .ok() else { return false };
+        let mut z = DMatrix::zeros(k, free.len());
+        for (c, &f) in free.iter().enumerate() {
+            z[(f, c)] = 1.0;
+            for (r, &b) in basic.iter().enumerate() {
+                z[(b, c)] = -x[(r, c)];
+            }
+        }
+        let reduced = z.transpose() * (hess * &z);
         let reduced = (&reduced + reduced.transpose()) * 0.5;
         let tol = 1e-12 * reduced.amax().max(f64::MIN_POSITIVE);
-        let shifted = reduced - DMatrix::identity(basis.len(), basis.len()) * tol;
+        let shifted = reduced - DMatrix::identity(free.len(), free.len()) * tol;
         shifted.cholesky().is_some()
+    }
+}
+
+fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
+    if m.nrows() != rows || m.ncols() != cols {
+        *m = DMatrix::zeros(rows, cols);
+    } else {
+        m.fill(0.0);
     }
 }

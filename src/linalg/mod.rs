@@ -1,0 +1,114 @@
+//! Small dense linear algebra the hot paths need beyond nalgebra's fixed-size types: an in-place LU
+//! factorisation with partial pivoting on a reused buffer (the loaded equilibrium factorises a
+//! (n + m + 6)-square matrix several times per point, and allocating or going through generic dynamic
+//! dimensions there costs more than the arithmetic).
+
+/// LU factorisation with partial pivoting of a column-major square matrix, kept in place.
+#[derive(Clone, Debug, Default)]
+pub struct DenseLu {
+    n: usize,
+    a: Vec<f64>,
+    pivots: Vec<usize>,
+}
+
+impl DenseLu {
+    /// Factorises the n x n column-major matrix `m` (copied into the buffer). False where a pivot is
+    /// exactly zero or an entry is not finite. No relative threshold: in the equilibrium's matrix the
+    /// multiplier columns' pivots are compliances, legitimately 1e-15 of their column's entries with stiff
+    /// springs; callers judge the result (a near-singular system shows as a Newton method that fails).
+    pub fn factor(&mut self, m: &[f64], n: usize) -> bool {
+        assert_eq!(m.len(), n * n);
+        self.n = n;
+        self.a.clear();
+        self.a.extend_from_slice(m);
+        self.pivots.clear();
+        self.pivots.resize(n, 0);
+        let a = &mut self.a;
+        if !a.iter().all(|v| v.is_finite()) {
+            return false;
+        }
+
+        for k in 0..n {
+            let (mut p, mut best) = (k, a[k * n + k].abs());
+            for i in k + 1..n {
+                let v = a[k * n + i].abs();
+                if v > best {
+                    best = v;
+                    p = i;
+                }
+            }
+            if best == 0.0 {
+                return false;
+            }
+            self.pivots[k] = p;
+            if p != k {
+                for j in 0..n {
+                    a.swap(j * n + k, j * n + p);
+                }
+            }
+            let d = a[k * n + k];
+            for i in k + 1..n {
+                a[k * n + i] /= d;
+            }
+            for j in k + 1..n {
+                let f = a[j * n + k];
+                if f != 0.0 {
+                    let (left, right) = a.split_at_mut(j * n);
+                    let lcol = &left[k * n + k + 1..k * n + n];
+                    for (x, l) in right[k + 1..n].iter_mut().zip(lcol) {
+                        *x -= l * f;
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// Solves in place for one right-hand side of length n.
+    pub fn solve_in_place(&self, b: &mut [f64]) {
+        let (n, a) = (self.n, &self.a);
+        for k in 0..n {
+            let p = self.pivots[k];
+            if p != k {
+                b.swap(k, p);
+            }
+        }
+        for k in 0..n {
+            let bk = b[k];
+            if bk != 0.0 {
+                for i in k + 1..n {
+                    b[i] -= a[k * n + i] * bk;
+                }
+            }
+        }
+        for k in (0..n).rev() {
+            b[k] /= a[k * n + k];
+            let bk = b[k];
+            for i in 0..k {
+                b[i] -= a[k * n + i] * bk;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    #[test]
+    fn solves_like_nalgebra_with_pivoting() {
+        let n = 9;
+        let m = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 13) % 11) as f64 - 5.0 + if i == (j + 3) % n { 9.0 } else { 0.0 });
+        let b = DVector::from_fn(n, |i, _| i as f64 - 2.5);
+        let expected = m.clone().lu().solve(&b).unwrap();
+        let mut lu = DenseLu::default();
+        assert!(lu.factor(m.as_slice(), n));
+        let mut x = b.as_slice().to_vec();
+        lu.solve_in_place(&mut x);
+        for i in 0..n {
+            assert!((x[i] - expected[i]).abs() < 1e-12 * expected.amax());
+        }
+        assert!(!lu.factor(DMatrix::<f64>::zeros(3, 3).as_slice(), 3));
+    }
+}
