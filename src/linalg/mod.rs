@@ -67,25 +67,31 @@ impl DenseLu {
     /// Solves in place for one right-hand side of length n.
     pub fn solve_in_place(&self, b: &mut [f64]) {
         let (n, a) = (self.n, &self.a);
-        for k in 0..n {
-            let p = self.pivots[k];
+        let b = &mut b[..n];
+        for (k, &p) in self.pivots.iter().enumerate() {
             if p != k {
                 b.swap(k, p);
             }
         }
+        // Forward substitution with the unit lower triangle, column by column.
         for k in 0..n {
             let bk = b[k];
             if bk != 0.0 {
-                for i in k + 1..n {
-                    b[i] -= a[k * n + i] * bk;
+                let col = &a[k * n + k + 1..k * n + n];
+                for (x, l) in b[k + 1..].iter_mut().zip(col) {
+                    *x -= l * bk;
                 }
             }
         }
+        // Back substitution with the upper triangle.
         for k in (0..n).rev() {
-            b[k] /= a[k * n + k];
+            let col = &a[k * n..k * n + k + 1];
+            b[k] /= col[k];
             let bk = b[k];
-            for i in 0..k {
-                b[i] -= a[k * n + i] * bk;
+            if bk != 0.0 {
+                for (x, u) in b[..k].iter_mut().zip(&col[..k]) {
+                    *x -= u * bk;
+                }
             }
         }
     }

@@ -290,8 +290,19 @@ impl LoadedChain<'_> {
         }
         let jb = DMatrix::from_fn(6, basic.len(), |r, c| a[(r, basic[c])]);
         let jn = DMatrix::from_fn(6, free.len(), |r, c| a[(r, free[c])]);
-        // Least squares handles a J of rank below 6 (rows that only constrain nothing).
-        let Some(x) = jb.clone().svd(true, true).solve(&jn, 1e-12) .ok() else { return false };
+        // With six basic columns B is square and regular; with fewer (J of rank below 6: directions the
+        // chain cannot move at all) least squares gives the same null space.
+        let x = if basic.len() == 6 {
+            match jb.lu().solve(&jn) {
+                Some(x) => x,
+                None => return false,
+            }
+        } else {
+            match jb.svd(true, true).solve(&jn, 1e-12) {
+                Ok(x) => x,
+                Err(_) => return false,
+            }
+        };
         let mut z = DMatrix::zeros(k, free.len());
         for (c, &f) in free.iter().enumerate() {
             z[(f, c)] = 1.0;
@@ -311,6 +322,6 @@ fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
     if m.nrows() != rows || m.ncols() != cols {
         *m = DMatrix::zeros(rows, cols);
     } else {
-        m.fill(0.0);
+        m.as_mut_slice().fill(0.0);
     }
 }
