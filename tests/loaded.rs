@@ -146,7 +146,7 @@ chain = [
     ));
     let p_cr = k / l;
     let rows =
-        run_curve(&m, &Frame::IDENTITY, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.5 * p_cr, 30)
+        run_curve(&m, &Frame::IDENTITY, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.5 * p_cr, 37)
             .unwrap();
     let found = critical_load_factor(&rows).expect("a buckling point");
     assert!((found - p_cr).abs() < 0.01 * p_cr, "found {found}, closed form {p_cr}");

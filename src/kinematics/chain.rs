@@ -209,32 +209,44 @@ impl ChainJacobians {
         n_passive: usize,
         out: &mut nalgebra::DMatrix<f64>,
     ) {
+        // For a joint k, phi_k = w_k . (m + (x - o_k) x f) (revolute) or w_k . f (prismatic). A unit motion of
+        // joint l moves x by dx_l = w_l x (x - o_l) (revolute) or w_l (prismatic); if l comes before k it also
+        // turns w_k by w_l x w_k and carries o_k with x (revolute l). Hence, with per-joint vectors,
+        //   l before k, l revolute:  dphi_k = w_l . u_k,  u_k = w_k x c_k + (x - o_k) x (f x w_k)  (revolute k)
+        //                                                 u_k = w_k x f                             (prismatic k)
+        //   l before k, l prismatic: dphi_k = 0
+        //   l at or after k:         dphi_k = dx_l . (f x w_k) (revolute k), 0 (prismatic k)
+        // where c_k = m + (x - o_k) x f: one dot product per pair.
         let joints = &self.placed[..upto];
         for (a, pk) in joints.iter().enumerate() {
             let Some(row) = unknown_index(&pk.joint, n_passive) else { continue };
-            let (wk, ok) = (pk.axis_world, pk.origin_world);
-            let arm = x - ok;
+            let wk = pk.axis_world;
+            let revolute_k = pk.joint.kind == JointKind::Revolute;
+            let (u, s) = if revolute_k {
+                let arm = x - pk.origin_world;
+                let fxw = f.cross(&wk);
+                (wk.cross(&(m + arm.cross(f))) + arm.cross(&fxw), fxw)
+            } else {
+                (wk.cross(f), Vec3::zeros())
+            };
+            let gk = pk.joint.gain;
             for (b, pl) in joints.iter().enumerate() {
                 let Some(col) = unknown_index(&pl.joint, n_passive) else { continue };
-                let (wl, ol) = (pl.axis_world, pl.origin_world);
+                let wl = pl.axis_world;
                 let revolute_l = pl.joint.kind == JointKind::Revolute;
-                // Motion of joint l, unit rate: rotation about (wl, ol) or translation along wl.
-                let dx = if revolute_l { wl.cross(&(x - ol)) } else { wl };
-                let (dwk, darm) = if b < a {
-                    // Joint l carries joint k: its axis turns, its origin moves with the load point.
+                let d = if b < a {
                     if revolute_l {
-                        (wl.cross(&wk), wl.cross(&arm))
+                        wl.dot(&u)
                     } else {
-                        (Vec3::zeros(), Vec3::zeros())
+                        0.0
                     }
+                } else if revolute_k {
+                    let dx = if revolute_l { wl.cross(&(x - pl.origin_world)) } else { wl };
+                    dx.dot(&s)
                 } else {
-                    (Vec3::zeros(), dx)
+                    0.0
                 };
-                let d = match pk.joint.kind {
-                    JointKind::Revolute => dwk.dot(&(m + arm.cross(f))) + wk.dot(&darm.cross(f)),
-                    JointKind::Prismatic => dwk.dot(f),
-                };
-                out[(row, col)] += pk.joint.gain * pl.joint.gain * d;
+                out[(row, col)] += gk * pl.joint.gain * d;
             }
         }
     }

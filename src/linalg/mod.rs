@@ -105,7 +105,9 @@ mod tests {
     #[test]
     fn solves_like_nalgebra_with_pivoting() {
         let n = 9;
-        let m = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 13) % 11) as f64 - 5.0 + if i == (j + 3) % n { 9.0 } else { 0.0 });
+        let m = DMatrix::from_fn(n, n, |i, j| {
+            ((i * 7 + j * 13) % 11) as f64 - 5.0 + if i == (j + 3) % n { 9.0 } else { 0.0 }
+        });
         let b = DVector::from_fn(n, |i, _| i as f64 - 2.5);
         let expected = m.clone().lu().solve(&b).unwrap();
         let mut lu = DenseLu::default();

@@ -150,8 +150,8 @@ impl Leg {
                 let corrected = lin.wrench + Vec6::from_fn(|r, _| lin.correction[lin.correction.len() - 6 + r]);
                 let (corrected_force, _) = at_reference_point(&corrected, &Mat6::zeros(), &v);
                 let (_, stiffness) = at_reference_point(&lin.wrench, &lin.stiffness(), &v);
-                let at_equilibrium = loaded.at_equilibrium(&lin, &lin.end_error);
-                Ok(LegLinear { shift: point_shift(&v), corrected_force, stiffness, at_equilibrium, lin })
+                let distance = lin.distance_from_equilibrium(l.length_scale);
+                Ok(LegLinear { shift: point_shift(&v), corrected_force, stiffness, distance, lin })
             }
         }
     }
@@ -408,8 +408,9 @@ pub struct LegLinear {
     pub corrected_force: Vec6,
     /// Tangent stiffness at the reference point.
     pub stiffness: Mat6,
-    /// The configuration linearised is already the leg's equilibrium.
-    pub at_equilibrium: bool,
+    /// How far the configuration linearised is from the leg's equilibrium (rad or mm, see
+    /// `Linearization::distance_from_equilibrium`).
+    pub distance: f64,
 }
 
 /// The frame a fraction `a` of the way along the twist `delta` from `start` (rotation about a fixed axis).

@@ -60,6 +60,9 @@ pub enum DeflectionFailure {
 }
 
 const MAX_NEWTON: usize = 30;
+/// Convergence of the manipulator-level Newton method: the last step below this times the length scale
+/// (mm, rotations weighted) and every leg within this of its equilibrium (rad or mm).
+const NEWTON_TOLERANCE: f64 = 1e-8;
 /// Largest platform step in one Newton iteration, in mm (rotations weighted by the length scale).
 const MAX_STEP_MM: f64 = 5.0;
 
@@ -99,19 +102,23 @@ impl Manipulator {
                 return Err(PoseFailure { leg: 0, failure: LegFailure::SingularChain });
             };
             let step_size = self.weighted_norm(&step, false);
-            if std::env::var("STIFF_DEBUG").is_ok() {
-                eprintln!("it {it} step {step_size:e} eq {:?} resid {:e}", lins.iter().map(|l| l.at_equilibrium).collect::<Vec<_>>(), (load - force).norm());
-            }
-            if step_size <= 1e-10 * self.length_scale && lins.iter().all(|l| l.at_equilibrium) {
+            if step_size <= NEWTON_TOLERANCE * self.length_scale && lins.iter().all(|l| l.distance <= NEWTON_TOLERANCE)
+            {
+                // Quadratic convergence: after this last full step the error is of the order of its square.
+                // The stiffness is the one linearised just before it, 1e-8 (relative) away.
                 let legs_stable = self.legs.iter().zip(&state.legs).all(|(leg, s)| leg.stable(s));
-                return Ok((Held { force, stiffness, legs_stable, iterations: it }, it));
+                for ((leg, l), s) in self.legs.iter().zip(&lins).zip(state.legs.iter_mut()) {
+                    leg.advance(l, &step, 1.0, s);
+                }
+                *t = apply_twist(t, &step);
+                return Ok((
+                    Held { force: force + stiffness * step, stiffness, legs_stable, iterations: it + 1 },
+                    it + 1,
+                ));
             }
             let mut fraction = if step_size > MAX_STEP_MM { MAX_STEP_MM / step_size } else { 1.0 };
             for (leg, l) in self.legs.iter().zip(&lins) {
                 fraction = fraction.min(leg.step_fraction(l, &step));
-            }
-            if std::env::var("STIFF_DEBUG").is_ok() {
-                eprintln!("   fraction {fraction}");
             }
             for ((leg, l), s) in self.legs.iter().zip(&lins).zip(state.legs.iter_mut()) {
                 leg.advance(l, &step, fraction, s);

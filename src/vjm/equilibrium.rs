@@ -14,9 +14,9 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::spring::SpringGroup;
-use crate::linalg::DenseLu;
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
+use crate::linalg::DenseLu;
 
 /// What a loaded chain needs besides its kinematics.
 pub struct LoadedChain<'a> {
@@ -86,6 +86,15 @@ impl Linearization {
     pub fn stiffness(&self) -> Mat6 {
         let o = self.sensitivity.nrows() - 6;
         Mat6::from_fn(|r, c| self.sensitivity[(o + r, c)])
+    }
+
+    /// How far the configuration linearised is from equilibrium: the larger of the largest coordinate
+    /// correction (rad or mm) and the end's pose error (rotations weighted by `length_scale`) over
+    /// `length_scale`.
+    pub fn distance_from_equilibrium(&self, length_scale: f64) -> f64 {
+        let e = &self.end_error;
+        let pose = (e.fixed_rows::<3>(0).norm_squared() + (e.fixed_rows::<3>(3) * length_scale).norm_squared()).sqrt();
+        self.coordinate_correction().max(pose / length_scale)
     }
 
     /// Largest change of a coordinate (rad or mm) in the correction.
@@ -181,7 +190,14 @@ impl LoadedChain<'_> {
 
     /// Moves (q, theta, F) by the linearisation's correction plus its response to an end displacement
     /// `end_twist` (at the end point), scaled by `fraction` (1 for a full Newton step).
-    pub fn advance(&self, lin: &Linearization, end_twist: &Vec6, fraction: f64, coords: &mut Coordinates, wrench: &mut Vec6) {
+    pub fn advance(
+        &self,
+        lin: &Linearization,
+        end_twist: &Vec6,
+        fraction: f64,
+        coords: &mut Coordinates,
+        wrench: &mut Vec6,
+    ) {
         let (n, m) = self.sizes();
         let delta = &lin.correction + &lin.sensitivity * DVector::from_column_slice(end_twist.as_slice());
         for k in 0..n {
