@@ -268,8 +268,6 @@ impl LoadedChain<'_> {
         let (n, m) = self.sizes();
         let k = n + m;
         let a = &ws.matrix;
-        let hess = -(a.view((6, 0), (k, k)).into_owned());
-        let hess = (&hess + hess.transpose()) * 0.5;
         // Basic columns by Gaussian elimination with complete pivoting on a copy of J.
         let mut j = a.view((0, 0), (6, k)).into_owned();
         let largest = j.amax();
@@ -319,15 +317,14 @@ impl LoadedChain<'_> {
                 Err(_) => return false,
             }
         };
-        let mut z = DMatrix::zeros(k, free.len());
-        for (c, &f) in free.iter().enumerate() {
-            z[(f, c)] = 1.0;
-            for (r, &b) in basic.iter().enumerate() {
-                z[(b, c)] = -x[(r, c)];
-            }
-        }
-        let reduced = z.transpose() * (hess * &z);
-        let reduced = (&reduced + reduced.transpose()) * 0.5;
+        // Z = [I; -X] on (free; basic) coordinates: Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X, with
+        // H the energy Hessian, minus the symmetrised load block of eq (45).
+        let hess = |r: usize, c: usize| -0.5 * (a[(6 + r, c)] + a[(6 + c, r)]);
+        let h_ff = DMatrix::from_fn(free.len(), free.len(), |r, c| hess(free[r], free[c]));
+        let h_fb = DMatrix::from_fn(free.len(), basic.len(), |r, c| hess(free[r], basic[c]));
+        let h_bb = DMatrix::from_fn(basic.len(), basic.len(), |r, c| hess(basic[r], basic[c]));
+        let fb_x = &h_fb * &x;
+        let reduced = h_ff - &fb_x - fb_x.transpose() + x.transpose() * (h_bb * &x);
         let tol = 1e-12 * reduced.amax().max(f64::MIN_POSITIVE);
         let shifted = reduced - DMatrix::identity(free.len(), free.len()) * tol;
         shifted.cholesky().is_some()
