@@ -210,3 +210,66 @@ fn an_existing_output_is_replaced_only_on_success() {
     assert!(!o.status.success());
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "previous result\n");
 }
+
+/// `stiff curve` under displacement control at Q0: units in the header, a row per step, and an initial
+/// slope equal to the map's K11 (the loaded stiffness starts at the unloaded one).
+#[test]
+fn curve_starts_at_the_unloaded_stiffness() {
+    let dir = temp_dir();
+    let out = dir.path().join("c.csv");
+    stiff()
+        .args(["curve", MODEL, "--at", "0,0,0", "--displacement-direction", "1,0,0,0,0,0", "--max", "0.5"])
+        .args(["--steps", "10", "-q", "-o"])
+        .arg(&out)
+        .assert()
+        .success();
+    let (h, rows) = read_csv(&out);
+    assert_eq!(h.join(","), stiff::study::curve::CURVE_HEADER.trim_end());
+    assert_eq!(rows.len(), 11);
+    let fx: f64 = rows[1][3].parse().unwrap();
+    let dx: f64 = rows[1][9].parse().unwrap();
+    let k = stiff::model::load_manipulator(Path::new(MODEL)).unwrap();
+    let k11 = k.unloaded(&stiff::kinematics::frame::Frame::IDENTITY, &mut k.new_state()).unwrap().stiffness[(0, 0)];
+    assert!(((fx / dx) - k11).abs() < 0.01 * k11, "slope {} vs K11 {k11}", fx / dx);
+    assert!(rows.iter().all(|r| r[16] == "true"));
+}
+
+/// A loaded map under the milling wrench: every point solved, the displacement columns present, and the
+/// same bytes for one and two threads.
+#[test]
+fn loaded_map_is_thread_independent() {
+    let dir = temp_dir();
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("l{threads}.csv"));
+        stiff()
+            .args([
+                "map",
+                MODEL,
+                "--grid",
+                "manipulators/grids/orthoglide-small.toml",
+                "--wrench",
+                "215,-10,-25,1000,21500,0",
+            ])
+            .args(["--threads", threads, "-q", "-o"])
+            .arg(&out)
+            .assert()
+            .success();
+        outputs.push(std::fs::read_to_string(&out).unwrap());
+    }
+    assert_eq!(outputs[0], outputs[1]);
+    let lines: Vec<&str> = outputs[0].lines().collect();
+    assert!(lines[0].contains(",iterations,") && lines[0].contains(",dx_mm,dy_mm,dz_mm,rx_rad,ry_rad,rz_rad,"));
+    assert_eq!(lines.len(), 126);
+    assert!(lines[1..].iter().all(|l| l.contains(",ok,6,")));
+}
+
+#[test]
+fn loaded_without_reference_wrenches_is_refused() {
+    let pts = temp_dir();
+    let p = pts.path().join("p.csv");
+    std::fs::write(&p, "x_mm,y_mm,z_mm\n0,0,0\n").unwrap();
+    let o = stiff().args(["map", MODEL, "--points"]).arg(&p).args(["--loaded", "-q"]).output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8(o.stderr).unwrap().contains("--loaded needs reference wrenches"));
+}
