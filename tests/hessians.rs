@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use rand::Rng;
-use stiff::kinematics::chain::{ChainJacobians, Coordinates, Element, JointKind, Role};
+use stiff::kinematics::chain::{ChainJacobians, Coordinates};
 use stiff::kinematics::frame::{Vec3, Vec6};
 
 fn forces(chain: &stiff::kinematics::chain::Chain, c: &Coordinates, w: &Vec6, g: &Vec3) -> Vec<f64> {
@@ -19,23 +19,8 @@ fn forces(chain: &stiff::kinematics::chain::Chain, c: &Coordinates, w: &Vec6, g:
 fn load_hessian_matches_central_differences_on_random_chains() {
     let mut r = rng(21);
     for trial in 0..30 {
-        let mut b = ChainBuilder::default();
-        b.fixed(random_frame(&mut r, 100.0));
-        for _ in 0..r.random_range(2..7) {
-            let kind = if r.random_bool(0.6) { JointKind::Revolute } else { JointKind::Prismatic };
-            let role = [Role::Actuated, Role::Passive, Role::Virtual][r.random_range(0..3)];
-            let axis = unit_vector(&mut r);
-            match role {
-                Role::Virtual => b.elastic(kind, axis, 1e3),
-                _ => b.joint(kind, axis, role),
-            };
-            b.fixed(random_frame(&mut r, 150.0));
-            if r.random_bool(0.5) {
-                b.elements.push(Element::Mass { kg: r.random_range(0.1..5.0), centre: unit_vector(&mut r) * 40.0 });
-            }
-        }
-        b.spring6(random_spring(&mut r));
-        b.fixed(random_frame(&mut r, 80.0));
+        let joints = r.random_range(2..7);
+        let b = random_chain(&mut r, joints, true);
         let chain = b.chain();
         let c = random_coords(&mut r, &chain, 0.7);
         let w = Vec6::from_fn(|i, _| r.random_range(-1.0..1.0) * if i < 3 { 100.0 } else { 1e4 });

@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use rand::Rng;
-use stiff::kinematics::chain::{ChainJacobians, Coordinates, JointKind, Role};
+use stiff::kinematics::chain::{ChainJacobians, Coordinates, Role};
 use stiff::kinematics::frame::Vec6;
 
 fn finite_difference(chain: &stiff::kinematics::chain::Chain, c: &Coordinates, role: Role, i: usize) -> Vec6 {
@@ -26,20 +26,8 @@ fn finite_difference(chain: &stiff::kinematics::chain::Chain, c: &Coordinates, r
 fn analytic_jacobians_match_central_differences_on_random_chains() {
     let mut r = rng(7);
     for trial in 0..40 {
-        let mut b = ChainBuilder::default();
-        b.fixed(random_frame(&mut r, 100.0));
-        for _ in 0..r.random_range(3..9) {
-            let kind = if r.random_bool(0.5) { JointKind::Revolute } else { JointKind::Prismatic };
-            let role = [Role::Actuated, Role::Passive, Role::Virtual][r.random_range(0..3)];
-            let axis = unit_vector(&mut r);
-            match role {
-                Role::Virtual => b.elastic(kind, axis, 1e3),
-                _ => b.joint(kind, axis, role),
-            };
-            b.fixed(random_frame(&mut r, 150.0));
-        }
-        b.spring6(random_spring(&mut r));
-        b.fixed(random_frame(&mut r, 80.0));
+        let joints = r.random_range(3..9);
+        let b = random_chain(&mut r, joints, false);
         let chain = b.chain();
         let c = random_coords(&mut r, &chain, 0.8);
         let mut j = ChainJacobians::default();

@@ -132,3 +132,27 @@ pub fn scaled_eigenvalues(k: &Mat6, l: f64) -> Vec<f64> {
     e.sort_by(f64::total_cmp);
     e
 }
+
+/// A random chain: a base transform, `joints` joints of random kind, axis and role (actuated, passive, or
+/// elastic) separated by random links, optionally masses on the links, then a random 6-dof spring and a
+/// tool transform. Every kind of coordinate appears in general.
+pub fn random_chain(r: &mut StdRng, joints: usize, masses: bool) -> ChainBuilder {
+    let mut b = ChainBuilder::default();
+    b.fixed(random_frame(r, 100.0));
+    for _ in 0..joints {
+        let kind = if r.random_bool(0.55) { JointKind::Revolute } else { JointKind::Prismatic };
+        let role = [Role::Actuated, Role::Passive, Role::Virtual][r.random_range(0..3)];
+        let axis = unit_vector(r);
+        match role {
+            Role::Virtual => b.elastic(kind, axis, 1e3),
+            _ => b.joint(kind, axis, role),
+        };
+        b.fixed(random_frame(r, 150.0));
+        if masses && r.random_bool(0.5) {
+            b.elements.push(Element::Mass { kg: r.random_range(0.1..5.0), centre: unit_vector(r) * 40.0 });
+        }
+    }
+    b.spring6(random_spring(r));
+    b.fixed(random_frame(r, 80.0));
+    b
+}
