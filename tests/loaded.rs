@@ -230,3 +230,62 @@ chain = [
     assert!((d.displacement[0] - expected).abs() < 1e-9 * expected, "{} vs {expected}", d.displacement[0]);
     assert!(d.displacement.fixed_rows::<5>(1).norm() < 1e-9);
 }
+
+/// A shallow two-bar truss (von Mises truss): bars from (+-a, 0, 0) to the apex (0, 0, h), pinned at both
+/// ends, axial stiffness k. Under a vertical load the apex goes down by w with P(w) = 2 k (L0 - L) (h - w) / L,
+/// L = sqrt(a^2 + (h - w)^2), which peaks at a limit point and then falls (snap-through). Force control
+/// cannot pass the peak: `stiff curve` must flag it and go on by displacement control along the falling,
+/// unstable branch. A guide leg holds y and the rotations. (Each bar: a spherical joint at the base and a
+/// universal joint at the apex, so no passive freedom is redundant.)
+#[test]
+fn snap_through_limit_point_switches_to_displacement_control() {
+    let (a, h, k) = (100.0f64, 20.0f64, 1000.0f64);
+    let l0 = (a * a + h * h).sqrt();
+    let load = |w: f64| {
+        let l = (a * a + (h - w) * (h - w)).sqrt();
+        2.0 * k * (l0 - l) * (h - w) / l
+    };
+    let p_max = (0..200_000).map(|i| load(h * i as f64 / 200_000.0)).fold(0.0, f64::max);
+    let m = model(&format!(
+        r#"
+name = "von Mises truss"
+[parameters]
+a = {a}
+h = {h}
+k = {k}
+[[leg]]
+name = "bar"
+copies = [{{ name = "left", rotation_axis = "z", rotation_deg = 0 }}, {{ name = "right", rotation_axis = "z", rotation_deg = 180 }}]
+chain = [
+  {{ type = "fixed", translation = ["-a", 0, 0] }},
+  {{ type = "spherical" }},
+  {{ type = "prismatic", axis = ["a", 0, "h"], role = "elastic", stiffness = "k" }},
+  {{ type = "fixed", translation = ["a", 0, "h"] }},
+  {{ type = "universal", axes = ["y", ["h", 0, "-a"]] }},
+]
+[[leg]]
+name = "guide"
+chain = [
+  {{ type = "prismatic", axis = "z", role = "passive" }},
+  {{ type = "spring6", stiffness_matrix = [[1e2,0,0,0,0,0],[0,1e5,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1e8,0,0],[0,0,0,0,1e8,0],[0,0,0,0,0,1e8]] }},
+]
+"#
+    ));
+    let at = Frame::translation(Vec3::new(0.0, 0.0, h));
+    let rows = run_curve(&m, &at, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.3 * p_max, 40).unwrap();
+    let switch = rows.iter().position(|r| r.event == "limit_point").expect("a limit point");
+    assert!(rows[..switch].iter().all(|r| r.control == "force" && r.load_factor < p_max && r.stable));
+    assert!(rows[switch..].iter().all(|r| r.control == "displacement"));
+    assert!(rows[switch - 1].load_factor > 0.9 * p_max, "force control went to {}", rows[switch - 1].load_factor);
+    // Every row lies on the closed-form curve: the load factor is the vertical force, the drop is w.
+    for r in &rows {
+        let w = -r.displacement[2];
+        assert!((r.load_factor - load(w)).abs() < 1e-6 * p_max, "w {w}: {} vs {}", r.load_factor, load(w));
+    }
+    let peak = rows.iter().map(|r| r.load_factor).fold(0.0, f64::max);
+    assert!(peak <= p_max * (1.0 + 1e-9));
+    // Past the peak the load falls as the apex goes down, and that branch is unstable under force control.
+    let last = rows.last().unwrap();
+    assert!(last.load_factor < rows[switch].load_factor || !last.stable);
+    assert!(rows[switch..].iter().any(|r| !r.stable));
+}
