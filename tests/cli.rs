@@ -93,14 +93,14 @@ fn points_csv_keeps_input_order_names_and_reports_unreachable_points_as_rows() {
     assert!(output.status.success());
     let text = String::from_utf8(output.stdout).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert!(lines[0].starts_with("index,name,x_mm,y_mm,z_mm,status,rank,c_tran_max_mm_per_N"));
+    assert!(lines[0].starts_with("index,name,x_mm,y_mm,z_mm,status,rank,free_directions,c_tran_max_mm_per_N"));
     assert!(
         lines[0].contains(",C11_mm_per_N,")
             && lines[0].contains(",C14_mm_per_Nmm,")
             && lines[0].contains(",C66_rad_per_Nmm")
     );
-    assert!(lines[1].starts_with("0,Q2,126.35,126.35,126.35,ok,6,"));
-    assert!(lines[2].starts_with("1,\"far, away\",900.0,0.0,0.0,unreachable,0,,,"));
+    assert!(lines[1].starts_with("0,Q2,126.35,126.35,126.35,ok,6,,"));
+    assert!(lines[2].starts_with("1,\"far, away\",900.0,0.0,0.0,unreachable,0,,,,"));
     assert!(lines[3].starts_with("2,Q0,0.0,0.0,0.0,ok,6,"));
 }
 

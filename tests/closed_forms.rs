@@ -6,7 +6,8 @@ use rand::Rng;
 use stiff::kinematics::chain::{ChainJacobians, Coordinates, JointKind, Role};
 use stiff::kinematics::frame::{rotation_about, Frame, Mat6, Vec3, Vec6};
 use stiff::vjm::stiffness::{
-    leg_stiffness, leg_stiffness_bordered, leg_stiffness_by_null_space, passive_range, spring_compliance_at_end,
+    leg_stiffness, leg_stiffness_bordered, leg_stiffness_by_null_space, leg_stiffness_recursive, passive_range,
+    spring_compliance_at_end,
 };
 
 /// An actuated prismatic joint with a spring k along x, the other five directions freed by passive joints:
@@ -122,8 +123,9 @@ fn collinear_passive_axes_are_handled() {
     assert_eq!(zero, 1);
 }
 
-/// Three routes to the same leg stiffness: the Schur form on the hot path, eq (9)'s bordered matrix
-/// inverted as printed, and the null space of J_q^T from an eigendecomposition.
+/// Four routes to the same leg stiffness: the Schur form on the hot path, eq (9)'s bordered matrix
+/// inverted as printed, the null space of J_q^T from an eigendecomposition, and paper 002's recursive
+/// elimination of one passive joint at a time (eq 4/7).
 #[test]
 fn schur_form_equals_bordered_inverse_and_null_space_route() {
     let mut r = rng(3);
@@ -148,7 +150,9 @@ fn schur_form_equals_bordered_inverse_and_null_space_route() {
         let hot = leg_stiffness(&s, &range).unwrap();
         let bordered = leg_stiffness_bordered(&s, &range).unwrap();
         let null = leg_stiffness_by_null_space(&s, &j.passive).unwrap();
+        let recursive = leg_stiffness_recursive(&s, &j.passive).unwrap();
         assert!(scaled_rel_diff(&hot, &bordered, 300.0) < 1e-9, "{hot}\n{bordered}");
+        assert!(scaled_rel_diff(&hot, &recursive, 300.0) < 1e-8, "{hot}\n{recursive}");
         assert!(scaled_rel_diff(&hot, &null, 300.0) < 1e-8, "{hot}\n{null}");
         // And S itself against the plain product J_theta K_theta^-1 J_theta^T.
         let jt = nalgebra::Matrix6xX::from_columns(&j.virtual_);

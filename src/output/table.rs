@@ -47,7 +47,7 @@ pub fn map_header(c: &MapColumns) -> String {
     if c.orientation {
         h.extend(["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"].map(String::from));
     }
-    h.extend(["status", "rank"].map(String::from));
+    h.extend(["status", "rank", "free_directions"].map(String::from));
     if c.loaded {
         h.push("iterations".into());
     }
@@ -71,6 +71,23 @@ pub fn push_number(out: &mut String, v: f64) {
         out.push_str(b.format_finite(v));
     } else {
         out.push_str("nan");
+    }
+}
+
+/// The free directions of a singular manipulator in one field: unit twists `dx dy dz rx ry rz` (mm and
+/// rad, scaled alike by the model's length scale before normalising) separated by `;`. Empty where K is
+/// regular.
+pub fn push_free_directions(out: &mut String, free: &[Vec6]) {
+    for (i, t) in free.iter().enumerate() {
+        if i > 0 {
+            out.push(';');
+        }
+        for (k, v) in t.iter().enumerate() {
+            if k > 0 {
+                out.push(' ');
+            }
+            push_number(out, *v);
+        }
     }
 }
 
@@ -118,6 +135,8 @@ pub fn push_map_row(out: &mut String, c: &MapColumns, index: u64, p: &PosePoint,
     out.push_str(r.status.as_str());
     out.push(',');
     out.push_str(itoa::Buffer::new().format(r.rank));
+    out.push(',');
+    push_free_directions(out, &r.free);
     if c.loaded {
         out.push(',');
         out.push_str(itoa::Buffer::new().format(r.iterations));

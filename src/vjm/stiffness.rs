@@ -219,3 +219,23 @@ pub fn leg_stiffness_by_null_space(s: &Mat6, j_passive: &[Vec6]) -> Option<Mat6>
     let k: Mat6 = &n * inv * n.transpose();
     Some((k + k.transpose()) * 0.5)
 }
+
+/// Paper 002 eq (4)/(7): the leg's stiffness by eliminating one passive joint at a time from the stiffness
+/// of the chain without passive joints, `K0 = S^-1` (which needs at least six independent springs,
+/// Remark 1): `K <- K - u u^T / mu`, `u = K j`, `mu = j^T K j`, one rank-1 update per passive joint. A column
+/// already annihilated by the previous ones (mu ~ 0: a redundant passive joint) is skipped. Where the joint
+/// is trivial (its column a unit vector, eq 8) the update reads `K_jk - K_jp K_pk / K_pp`, which this form
+/// computes without a special case. None where S is singular.
+pub fn leg_stiffness_recursive(s: &Mat6, j_passive: &[Vec6]) -> Option<Mat6> {
+    let mut k = s.cholesky()?.inverse();
+    let scale = k.abs().max();
+    for j in j_passive {
+        let u = k * j;
+        let mu = j.dot(&u);
+        if mu.abs() <= 1e-12 * scale * j.norm_squared() {
+            continue;
+        }
+        k -= u * u.transpose() / mu;
+    }
+    Some((k + k.transpose()) * 0.5)
+}
