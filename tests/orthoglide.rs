@@ -162,3 +162,30 @@ fn rigid_motion_of_the_whole_description() {
         assert!(scaled_rel_diff(&k_moved, &(b * k * b.transpose()), 300.0) < 1e-8);
     }
 }
+
+/// The 3-PRPaR (paper 001 Table 2) with parameter set J unchanged and the parallelogram spring derived from
+/// its two bars (196 mm apart, each half the leg's area): Q0 k_tran 2.7403e-4 (-1.43% vs 2.78e-4), k_rot
+/// 1.9267e-7 (-0.69% vs 1.94e-7), about ten times stiffer in rotation than the 3-PUU, as the paper finds.
+/// Q1 and Q2 predicted within 5.9% (largest gaps: Q1 off-diagonals, k_tran +5.2%, k_rot -5.9%). Pinned at
+/// the tolerances reached, rounded up: 1.5% at Q0, 7% elsewhere. (Q0 within 1% would need a refit:
+/// scripts/fit-3prpar finds it only with bars 7.5 mm thick and 271 mm apart, which worsens Q1 and Q2.)
+#[test]
+fn prpar_against_table_2() {
+    let m = stiff::model::load_manipulator(std::path::Path::new("manipulators/orthoglide-3prpar.toml")).unwrap();
+    let published = [
+        (0.0, [2.78e-4, 0.0, 1.94e-7, 0.0], 0.015),
+        (-73.65, [9.86e-4, 5.80e-4, 2.06e-7, -0.32e-7], 0.07),
+        (126.35, [21.2e-4, -10.2e-4, 2.65e-7, 1.14e-7], 0.07),
+    ];
+    for (x, [td, to, rd, ro], tol) in published {
+        let c = compliance_at(&m, Vec3::new(x, x, x));
+        assert!(rel(c[(0, 0)], td) < tol && rel(c[(3, 3)], rd) < tol, "at {x}: {:e} {:e}", c[(0, 0)], c[(3, 3)]);
+        if to != 0.0 {
+            assert!(rel(c[(0, 1)], to) < tol && rel(c[(3, 4)], ro) < tol, "at {x}: {:e} {:e}", c[(0, 1)], c[(3, 4)]);
+        }
+        assert!(rel(c[(1, 1)], c[(0, 0)]) < 1e-9 && rel(c[(4, 4)], c[(3, 3)]) < 1e-9);
+    }
+    let puu = compliance_at(&orthoglide(), Vec3::zeros());
+    let prpar = compliance_at(&m, Vec3::zeros());
+    assert!(puu[(3, 3)] / prpar[(3, 3)] > 9.0, "the parallelograms stiffen rotations about tenfold");
+}

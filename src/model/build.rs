@@ -8,11 +8,12 @@ use toml::Spanned;
 
 use super::error::{read_text, InputError, Locator};
 use super::expr::Scope;
-use super::schema::{AxisSpec, BeamSpec, ElementSpec, ModelFile, Num, TransformSpec};
+use super::schema::{AxisSpec, BeamSpec, ElementSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::Manipulator;
+use crate::vjm::parallelogram::Parallelogram;
 use crate::vjm::spring::{beam_compliance, BeamSection, SpringGroup};
 
 /// Reads and validates a manipulator description.
@@ -77,12 +78,18 @@ struct ChainParts {
     elements: Vec<Element>,
     springs: Vec<SpringGroup>,
     preload: Vec<f64>,
+    /// Passive joints by name, with their coordinate index (for `follows` and parallelogram angles).
+    passive_names: Vec<(String, usize)>,
     n_actuated: usize,
     n_passive: usize,
     n_virtual: usize,
 }
 
 impl ChainParts {
+    fn passive_index(&self, name: &Spanned<String>) -> Option<usize> {
+        self.passive_names.iter().find(|(n, _)| n == name.get_ref()).map(|(_, i)| *i)
+    }
+
     fn joint(&mut self, kind: JointKind, axis: Vec3, role: Role) {
         let counter = match role {
             Role::Actuated => &mut self.n_actuated,
@@ -102,13 +109,14 @@ impl ChainParts {
         stiffness: Mat6,
         compliance: Mat6,
         preload: &[f64],
+        posture: Option<Parallelogram>,
     ) {
         let first = self.n_virtual;
         self.preload.extend_from_slice(preload);
         for (kind, axis) in joints {
             self.joint(*kind, *axis, Role::Virtual);
         }
-        self.springs.push(SpringGroup { name, first, dim: joints.len(), stiffness, compliance });
+        self.springs.push(SpringGroup { name, first, dim: joints.len(), stiffness, compliance, posture });
     }
 }
 
@@ -252,6 +260,41 @@ impl Builder<'_> {
         Ok(beam_compliance(&section, length, &direction))
     }
 
+    fn shear_modulus(
+        &self,
+        e: f64,
+        g: &Option<Num>,
+        nu: &Option<Num>,
+        span: std::ops::Range<usize>,
+    ) -> Result<f64, InputError> {
+        match (g, nu) {
+            (Some(g), None) => self.positive(g, "G"),
+            (None, Some(nu_spec)) => {
+                let nu = self.num(nu_spec)?;
+                if !(-1.0 < nu && nu < 0.5) {
+                    return Err(self.loc.at(nu_spec.span(), format!("nu must lie in (-1, 0.5), got {nu}")));
+                }
+                Ok(e / (2.0 * (1.0 + nu)))
+            }
+            _ => Err(self.loc.at(span, "give exactly one of `G` and `nu`")),
+        }
+    }
+
+    fn parallelogram(&self, p: &Spanned<ParallelogramSpec>, parts: &ChainParts) -> Result<Parallelogram, InputError> {
+        let s = p.get_ref();
+        let e = self.positive(&s.e, "E")?;
+        let g = self.shear_modulus(e, &s.g, &s.nu, p.span())?;
+        let angle = parts.passive_index(&s.angle).ok_or_else(|| {
+            self.loc.at(s.angle.span(), format!("no passive joint named `{}` before this spring", s.angle.get_ref()))
+        })?;
+        Ok(Parallelogram {
+            bar: BeamSection::round(e, g, self.positive(&s.bar_diameter, "bar_diameter")?),
+            length: self.positive(&s.length, "length")?,
+            separation: self.positive(&s.separation, "separation")?,
+            angle,
+        })
+    }
+
     fn element(&self, e: &Spanned<ElementSpec>, position: usize, parts: &mut ChainParts) -> Result<(), InputError> {
         let s = e.get_ref();
         let kind = s.kind.get_ref().as_str();
@@ -269,14 +312,17 @@ impl Builder<'_> {
             ("preload", s.preload.is_some()),
             ("mass_kg", s.mass_kg.is_some()),
             ("centre", s.centre.is_some()),
+            ("follows", s.follows.is_some()),
+            ("gain", s.gain.is_some()),
+            ("parallelogram", s.parallelogram.is_some()),
         ];
         let allowed: &[&str] = match kind {
             "fixed" => &["translation", "rotation_axis", "rotation_deg"],
-            "prismatic" | "revolute" => &["axis", "role", "stiffness", "preload"],
+            "prismatic" | "revolute" => &["axis", "role", "stiffness", "preload", "follows", "gain"],
             "mass" => &["mass_kg", "centre"],
             "universal" => &["axes"],
             "spherical" => &[],
-            "spring6" => &["stiffness_matrix", "compliance_matrix", "beam", "preload"],
+            "spring6" => &["stiffness_matrix", "compliance_matrix", "beam", "parallelogram", "preload"],
             other => {
                 return Err(self.loc.at(
                     s.kind.span(),
@@ -326,7 +372,7 @@ impl Builder<'_> {
                     km[(0, 0)] = k;
                     let mut cm = Mat6::zeros();
                     cm[(0, 0)] = 1.0 / k;
-                    parts.spring(name.clone(), &[(jk, axis)], km, cm, &theta0);
+                    parts.spring(name.clone(), &[(jk, axis)], km, cm, &theta0, None);
                 };
                 match (role.get_ref().as_str(), stiffness) {
                     // V_a(q + theta): the actuator and its control-loop spring move along one axis (eq 1).
@@ -336,7 +382,31 @@ impl Builder<'_> {
                             spring(parts, k);
                         }
                     }
-                    ("passive", None) => parts.joint(jk, axis, Role::Passive),
+                    ("passive", None) => match &s.follows {
+                        None => {
+                            parts.passive_names.push((name.clone(), parts.n_passive));
+                            parts.joint(jk, axis, Role::Passive)
+                        }
+                        Some(leader) => {
+                            let index = parts.passive_index(leader).ok_or_else(|| {
+                                self.loc.at(
+                                    leader.span(),
+                                    format!("no passive joint named `{}` before this one", leader.get_ref()),
+                                )
+                            })?;
+                            let gain = match &s.gain {
+                                Some(g) => self.num(g)?,
+                                None => 1.0,
+                            };
+                            parts.elements.push(Element::Joint(Joint {
+                                kind: jk,
+                                axis,
+                                role: Role::Passive,
+                                index,
+                                gain,
+                            }));
+                        }
+                    },
                     ("passive", Some(_)) => {
                         return Err(self.loc.at(e.span(), "a passive joint has no stiffness: use role = \"elastic\""))
                     }
@@ -376,14 +446,21 @@ impl Builder<'_> {
                 }
             }
             "spring6" => {
-                let compliance = match (&s.stiffness_matrix, &s.compliance_matrix, &s.beam) {
-                    (Some(k), None, None) => self.matrix6(k, "stiffness_matrix")?.try_inverse(),
-                    (None, Some(c), None) => Some(self.matrix6(c, "compliance_matrix")?),
-                    (None, None, Some(b)) => Some(self.beam(b)?),
+                let mut posture = None;
+                let compliance = match (&s.stiffness_matrix, &s.compliance_matrix, &s.beam, &s.parallelogram) {
+                    (Some(k), None, None, None) => self.matrix6(k, "stiffness_matrix")?.try_inverse(),
+                    (None, Some(c), None, None) => Some(self.matrix6(c, "compliance_matrix")?),
+                    (None, None, Some(b), None) => Some(self.beam(b)?),
+                    (None, None, None, Some(p)) => {
+                        let spec = self.parallelogram(p, parts)?;
+                        let k = spec.stiffness(0.0);
+                        posture = Some(spec);
+                        k.try_inverse()
+                    }
                     _ => {
                         return Err(self.loc.at(
                             e.span(),
-                            "a spring6 needs exactly one of `stiffness_matrix`, `compliance_matrix` and `beam`",
+                            "a spring6 needs exactly one of `stiffness_matrix`, `compliance_matrix`, `beam` and `parallelogram`",
                         ))
                     }
                 };
@@ -392,7 +469,14 @@ impl Builder<'_> {
                 let stiffness = compliance
                     .try_inverse()
                     .ok_or_else(|| self.loc.at(e.span(), "the spring's matrix cannot be inverted"))?;
-                parts.spring(name, &SIX_DOF, (stiffness + stiffness.transpose()) * 0.5, compliance, &preload(6)?);
+                parts.spring(
+                    name,
+                    &SIX_DOF,
+                    (stiffness + stiffness.transpose()) * 0.5,
+                    compliance,
+                    &preload(6)?,
+                    posture,
+                );
             }
             _ => unreachable!("element types are checked above"),
         }

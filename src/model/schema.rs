@@ -88,6 +88,12 @@ pub struct ElementSpec {
     pub role: Option<Spanned<String>>,
     #[serde(default)]
     pub stiffness: Option<Num>,
+    /// A passive joint driven by another passive joint's coordinate (named), times `gain`: a parallelogram's
+    /// q3 = -q2 (paper 001 eq 22).
+    #[serde(default)]
+    pub follows: Option<Spanned<String>>,
+    #[serde(default)]
+    pub gain: Option<Num>,
     // universal
     #[serde(default)]
     pub axes: Option<Spanned<Vec<Spanned<AxisSpec>>>>,
@@ -98,6 +104,8 @@ pub struct ElementSpec {
     pub compliance_matrix: Option<Spanned<Vec<Vec<Num>>>>,
     #[serde(default)]
     pub beam: Option<Spanned<BeamSpec>>,
+    #[serde(default)]
+    pub parallelogram: Option<Spanned<ParallelogramSpec>>,
     /// Spring preload: the rest values theta0 of the spring's coordinates (mm, rad), one per coordinate.
     #[serde(default)]
     pub preload: Option<Spanned<Vec<Num>>>,
@@ -136,6 +144,27 @@ pub struct BeamSpec {
     /// The beam's axis in the spring's frame (default x).
     #[serde(default)]
     pub direction: Option<Spanned<AxisSpec>>,
+}
+
+/// A parallelogram link's spring, derived from its two bars (round beams) at the current parallelogram angle:
+/// bars along local x at angle 0, turning about local z, separated along local y.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParallelogramSpec {
+    #[serde(rename = "E")]
+    pub e: Num,
+    #[serde(rename = "G", default)]
+    pub g: Option<Num>,
+    #[serde(default)]
+    pub nu: Option<Num>,
+    /// Diameter of each (round, solid) bar, mm.
+    pub bar_diameter: Num,
+    /// Bar length, mm.
+    pub length: Num,
+    /// Distance between the bars, mm.
+    pub separation: Num,
+    /// Name of the passive joint whose coordinate is the parallelogram angle.
+    pub angle: Spanned<String>,
 }
 
 /// An axis: "x", "-y", ... or a vector of three numbers or formulas.

@@ -147,11 +147,14 @@ impl LoadedChain<'_> {
             rhs[(6 + k, 0)] = -g;
         }
         for s in self.springs {
+            // A posture-dependent spring enters with its value at the current posture; its derivative with
+            // respect to the posture is not in the Newton matrix (a frozen-spring approximation).
+            let (stiffness, _) = s.at(&coords.passive);
             for i in 0..s.dim {
                 let mut reaction = 0.0;
                 for j in 0..s.dim {
-                    a[(6 + n + s.first + i, n + s.first + j)] -= s.stiffness[(i, j)];
-                    reaction += s.stiffness[(i, j)] * (coords.virtual_[s.first + j] - self.preload[s.first + j]);
+                    a[(6 + n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
+                    reaction += stiffness[(i, j)] * (coords.virtual_[s.first + j] - self.preload[s.first + j]);
                 }
                 rhs[(6 + n + s.first + i, 0)] += reaction;
             }

@@ -13,6 +13,24 @@ pub struct SpringGroup {
     pub stiffness: Mat6,
     /// Its inverse, computed once (K_theta^-1 of paper 001 eq 9).
     pub compliance: Mat6,
+    /// Where the spring depends on the posture (a parallelogram's angle), how; `stiffness` and
+    /// `compliance` then hold its value at the nominal posture.
+    pub posture: Option<super::parallelogram::Parallelogram>,
+}
+
+impl SpringGroup {
+    /// Stiffness and compliance at the given passive coordinates.
+    pub fn at(&self, passive: &[f64]) -> (Mat6, Mat6) {
+        match &self.posture {
+            None => (self.stiffness, self.compliance),
+            Some(p) => {
+                let q = passive.get(p.angle).copied().unwrap_or(0.0);
+                let k = p.stiffness(q);
+                let c = k.try_inverse().unwrap_or(self.compliance);
+                (k, (c + c.transpose()) * 0.5)
+            }
+        }
+    }
 }
 
 /// Cross-section and material of a straight beam; units N, mm.

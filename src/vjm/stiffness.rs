@@ -9,20 +9,28 @@ use crate::kinematics::frame::{Mat3, Mat6, Vec3, Vec6};
 pub const PASSIVE_RANK_TOLERANCE: f64 = 1e-9;
 
 /// `S_theta = J_theta K_theta^-1 J_theta^T`: the springs' compliance seen at the end point (paper 001 eq 9).
-pub fn spring_compliance_at_end(j_virtual: &[Vec6], springs: &[SpringGroup]) -> Mat6 {
+/// `passive` holds the passive coordinates, on which a posture-dependent spring depends.
+pub fn spring_compliance_at_end(j_virtual: &[Vec6], springs: &[SpringGroup], passive: &[f64]) -> Mat6 {
     let mut s = Mat6::zeros();
     for g in springs {
         let cols = &j_virtual[g.first..g.first + g.dim];
+        let varying;
+        let compliance = if g.posture.is_some() {
+            varying = g.at(passive).1;
+            &varying
+        } else {
+            &g.compliance
+        };
         if g.dim == 1 {
-            s += cols[0] * cols[0].transpose() * g.compliance[(0, 0)];
+            s += cols[0] * cols[0].transpose() * compliance[(0, 0)];
         } else if g.dim == 6 && cols[..3].iter().all(|c| c.fixed_rows::<3>(3) == Vec3::zeros()) {
-            s += six_dof_spring_compliance(cols, &g.compliance);
+            s += six_dof_spring_compliance(cols, compliance);
         } else {
             let mut j = Mat6::zeros();
             for (k, c) in cols.iter().enumerate() {
                 j.set_column(k, c);
             }
-            s += j * g.compliance * j.transpose();
+            s += j * compliance * j.transpose();
         }
     }
     (s + s.transpose()) * 0.5

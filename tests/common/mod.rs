@@ -73,7 +73,14 @@ impl ChainBuilder {
         km[(0, 0)] = k;
         let mut cm = Mat6::zeros();
         cm[(0, 0)] = 1.0 / k;
-        self.springs.push(SpringGroup { name: format!("s{first}"), first, dim: 1, stiffness: km, compliance: cm });
+        self.springs.push(SpringGroup {
+            name: format!("s{first}"),
+            first,
+            dim: 1,
+            stiffness: km,
+            compliance: cm,
+            posture: None,
+        });
         self
     }
     /// A 6-dof spring Tx Ty Tz Rx Ry Rz with stiffness k.
@@ -90,7 +97,14 @@ impl ChainBuilder {
             self.joint(kind, axis, Role::Virtual);
         }
         let c = k.try_inverse().unwrap();
-        self.springs.push(SpringGroup { name: format!("s{first}"), first, dim: 6, stiffness: k, compliance: c });
+        self.springs.push(SpringGroup {
+            name: format!("s{first}"),
+            first,
+            dim: 6,
+            stiffness: k,
+            compliance: c,
+            posture: None,
+        });
         self
     }
     pub fn chain(&self) -> Chain {
@@ -112,7 +126,7 @@ pub fn chain_stiffness(chain: &Chain, springs: &[SpringGroup], c: &Coordinates, 
     let mut j = ChainJacobians::default();
     chain.evaluate(c, &mut j);
     j.fill_virtual();
-    let s = spring_compliance_at_end(&j.virtual_, springs);
+    let s = spring_compliance_at_end(&j.virtual_, springs, &c.passive);
     leg_stiffness(&s, &passive_range(&j.passive, length_scale))
 }
 
