@@ -361,6 +361,18 @@ pub struct LoadedOffsets {
     wrench: Vec6,
 }
 
+impl LoadedOffsets {
+    /// The linear extrapolation `2 self - older` (the next of three equally spaced points).
+    pub fn extrapolate(&self, older: &LoadedOffsets) -> LoadedOffsets {
+        let lin = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| 2.0 * x - y).collect();
+        LoadedOffsets {
+            passive: lin(&self.passive, &older.passive),
+            virtual_: lin(&self.virtual_, &older.virtual_),
+            wrench: self.wrench * 2.0 - older.wrench,
+        }
+    }
+}
+
 impl LegState {
     /// After a loaded answer: its departure from the placement.
     pub fn loaded_offsets(&self) -> LoadedOffsets {

@@ -5,7 +5,7 @@ use std::io::Write;
 use anyhow::Result;
 use indicatif::ProgressBar;
 
-use super::point::{loaded_point, unloaded_point, Status};
+use super::point::{loaded_point, unloaded_point, LoadedHistory, Status};
 use super::stream::{stream_rows, Tally};
 use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
@@ -76,13 +76,13 @@ pub fn run_map(
         let mut state = m.new_state();
         let mut text = String::with_capacity(run.len() * 700);
         let mut summary = MapSummary::default();
-        let mut previous = None;
+        let mut history = LoadedHistory::default();
         for (k, p) in run.iter().enumerate() {
             let wrench = if options.use_point_wrench { p.wrench } else { options.wrench };
             let r = match (loaded, wrench) {
                 (false, _) => unloaded_point(m, p, &mut state),
-                (true, Some(w)) => loaded_point(m, p, &w, &mut state, &mut previous),
-                (true, None) => loaded_point(m, p, &Vec6::zeros(), &mut state, &mut previous),
+                (true, Some(w)) => loaded_point(m, p, &w, &mut state, &mut history),
+                (true, None) => loaded_point(m, p, &Vec6::zeros(), &mut state, &mut history),
             };
             summary.add(r.status);
             push_map_row(&mut text, &columns, first_index + k as u64, p, &r);

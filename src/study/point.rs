@@ -1,7 +1,7 @@
 //! One pose of a study: the manipulator's stiffness there (unloaded, or at its loaded equilibrium under a
 //! wrench) and what follows from it.
 
-use crate::kinematics::frame::{Mat6, Vec6};
+use crate::kinematics::frame::{Mat6, Vec3, Vec6};
 use crate::model::grid::PosePoint;
 use crate::platform::compliance::{analyse, principal, Analysis, PrincipalCompliance};
 use crate::platform::leg::{apply_twist, LegFailure, LoadedOffsets};
@@ -110,27 +110,64 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
     r
 }
 
+/// The last two loaded solutions of a run (commanded position, displacement, legs' departures from their
+/// placements), from which the next point's equilibrium starts: extrapolated linearly when the three points
+/// are equally spaced on a line (the rows of a grid), else the last solution as it is. A better start saves
+/// a Newton iteration per point.
+#[derive(Clone, Debug, Default)]
+pub struct LoadedHistory {
+    entries: Vec<(Vec3, Vec6, Vec<LoadedOffsets>)>,
+}
+
+impl LoadedHistory {
+    fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
+        match self.entries.as_slice() {
+            [] => None,
+            [(_, d1, o1)] => Some((*d1, o1.clone())),
+            [.., (p0, d0, o0), (p1, d1, o1)] => {
+                let step = p1 - p0;
+                let next = position - p1;
+                if (next - step).norm() <= 1e-9 * step.norm().max(1e-9) {
+                    Some((d1 * 2.0 - d0, o1.iter().zip(o0).map(|(a, b)| a.extrapolate(b)).collect()))
+                } else {
+                    Some((*d1, o1.clone()))
+                }
+            }
+        }
+    }
+
+    fn push(&mut self, position: Vec3, displacement: Vec6, offsets: Vec<LoadedOffsets>) {
+        if self.entries.len() == 2 {
+            self.entries.remove(0);
+        }
+        self.entries.push((position, displacement, offsets));
+    }
+
+    fn clear(&mut self) {
+        self.entries.clear();
+    }
+}
+
 /// The loaded equilibrium under `wrench` at a commanded pose: where the platform settles (its displacement
-/// is the compliance error paper 000 computes for milling) and the tangent compliance there.
-/// `previous` carries the last point's solution (displacement and legs' departures from placement) as the
-/// warm start of the next.
+/// is the compliance error paper 000 computes for milling) and the tangent compliance there. `history`
+/// carries the run's last solutions as the warm start of the next point.
 pub fn loaded_point(
     m: &Manipulator,
     p: &PosePoint,
     wrench: &Vec6,
     state: &mut ManipulatorState,
-    previous: &mut Option<(Vec6, Vec<LoadedOffsets>)>,
+    history: &mut LoadedHistory,
 ) -> PointResult {
     let commanded = p.frame();
     if let Err(e) = m.place(&commanded, state) {
-        *previous = None;
+        history.clear();
         return PointResult::failed(Status::of(&e));
     }
-    let start = previous.as_ref().map(|(d, offsets)| {
-        for (s, o) in state.legs.iter_mut().zip(offsets) {
+    let start = history.predict(&p.position).map(|(d, offsets)| {
+        for (s, o) in state.legs.iter_mut().zip(&offsets) {
             s.apply_loaded_offsets(o);
         }
-        apply_twist(&commanded, d)
+        apply_twist(&commanded, &d)
     });
     let mut attempt = m.deflect(&commanded, wrench, start.as_ref(), state);
     if attempt.is_err() && start.is_some() {
@@ -139,7 +176,7 @@ pub fn loaded_point(
     }
     match attempt {
         Ok(d) => {
-            *previous = Some((d.displacement, state.legs.iter().map(|s| s.loaded_offsets()).collect()));
+            history.push(p.position, d.displacement, state.legs.iter().map(|s| s.loaded_offsets()).collect());
             let mut r = PointResult::from_stiffness(d.held.stiffness, m.length_scale);
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;
@@ -149,11 +186,11 @@ pub fn loaded_point(
             r
         }
         Err(DeflectionFailure::Leg(e)) => {
-            *previous = None;
+            history.clear();
             PointResult::failed(Status::of(&e))
         }
         Err(DeflectionFailure::NotConverged { .. }) => {
-            *previous = None;
+            history.clear();
             PointResult::failed(Status::NotConverged)
         }
     }
