@@ -3,7 +3,7 @@
 //! method with load continuation (eq 73-75).
 
 use super::compliance::RANK_TOLERANCE;
-use super::leg::{apply_twist, LegFailure};
+use super::leg::apply_twist;
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::frame::{Frame, Mat6, Vec6};
 
@@ -52,11 +52,12 @@ pub struct Deflection {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DeflectionFailure {
+    /// A leg could not be linearised (its equilibrium matrix is singular).
     Leg(PoseFailure),
+    /// The manipulator's tangent stiffness became singular on the way.
+    SingularStiffness { load_fraction: f64 },
     /// Newton's method found no equilibrium even with load continuation (e.g. past a limit point).
-    NotConverged {
-        load_fraction: f64,
-    },
+    NotConverged { load_fraction: f64 },
 }
 
 const MAX_NEWTON: usize = 30;
@@ -89,17 +90,24 @@ impl Manipulator {
     /// leg's configuration and end wrench move together, each step built from the legs' linearised
     /// equilibria (eq 45) and the sum of their stiffnesses, so no leg is solved to convergence at a pose
     /// the platform then leaves (the nested scheme of eq 73-75 costs several times more).
-    fn newton(&self, load: &Vec6, t: &mut Frame, state: &mut ManipulatorState) -> Result<(Held, usize), PoseFailure> {
+    fn newton(
+        &self,
+        load: &Vec6,
+        t: &mut Frame,
+        state: &mut ManipulatorState,
+    ) -> Result<(Held, usize), DeflectionFailure> {
         let mut lins = Vec::with_capacity(self.legs.len());
         for it in 0..MAX_NEWTON {
             lins.clear();
             for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
-                lins.push(leg.linearize(t, s).map_err(|failure| PoseFailure { leg: i, failure })?);
+                lins.push(
+                    leg.linearize(t, s).map_err(|failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure }))?,
+                );
             }
             let stiffness: Mat6 = lins.iter().map(|l| l.stiffness).sum();
             let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum();
             let Some(step) = stiffness.lu().solve(&(load - force)) else {
-                return Err(PoseFailure { leg: 0, failure: LegFailure::SingularChain });
+                return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
             let step_size = self.weighted_norm(&step, false);
             if step_size <= NEWTON_TOLERANCE * self.length_scale && lins.iter().all(|l| l.distance <= NEWTON_TOLERANCE)
@@ -125,7 +133,7 @@ impl Manipulator {
             }
             *t = apply_twist(t, &(step * fraction));
         }
-        Err(PoseFailure { leg: 0, failure: LegFailure::NotConverged { iterations: MAX_NEWTON, residual: f64::NAN } })
+        Err(DeflectionFailure::NotConverged { load_fraction: f64::NAN })
     }
 
     /// The platform pose the unloaded compliance predicts under `wrench`, a start for Newton's method
@@ -171,9 +179,14 @@ impl Manipulator {
                     *state = saved_state;
                     step /= 4.0;
                     if step < 1.0 / 4096.0 {
-                        return Err(match e.failure {
-                            LegFailure::Unreachable(_) => DeflectionFailure::Leg(e),
-                            _ => DeflectionFailure::NotConverged { load_fraction: done },
+                        return Err(match e {
+                            DeflectionFailure::Leg(_) => e,
+                            DeflectionFailure::SingularStiffness { .. } => {
+                                DeflectionFailure::SingularStiffness { load_fraction: done }
+                            }
+                            DeflectionFailure::NotConverged { .. } => {
+                                DeflectionFailure::NotConverged { load_fraction: done }
+                            }
                         });
                     }
                 }

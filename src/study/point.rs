@@ -189,7 +189,7 @@ pub fn loaded_point(
             history.clear();
             PointResult::failed(Status::of(&e))
         }
-        Err(DeflectionFailure::NotConverged { .. }) => {
+        Err(DeflectionFailure::NotConverged { .. } | DeflectionFailure::SingularStiffness { .. }) => {
             history.clear();
             PointResult::failed(Status::NotConverged)
         }
