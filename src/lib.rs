@@ -3,6 +3,7 @@ pub mod cli;
 pub mod kinematics;
 pub mod linalg;
 pub mod model;
+pub mod msa;
 pub mod output;
 pub mod platform;
 pub mod study;

@@ -1,0 +1,207 @@
+//! Matrix structural analysis (paper 003 s. 2) against beam closed forms, a portal frame solved by hand, and
+//! the VJM model of the same Orthoglide leg.
+
+mod common;
+use common::*;
+use nalgebra::DMatrix;
+use stiff::kinematics::chain::{Chain, Element as ChainElement, JointKind, Role};
+use stiff::kinematics::frame::{block_rotation, Frame, Mat6, Vec3, Vec6};
+use stiff::msa::{beam_stiffness, link_stiffness, Connection, Element, Structure};
+use stiff::platform::leg::Leg;
+use stiff::vjm::spring::BeamSection;
+
+fn section() -> BeamSection {
+    BeamSection { e: 210000.0, g: 80769.0, area: 120.0, iy: 1500.0, iz: 900.0, j: 2100.0 }
+}
+
+/// A cantilever along x, clamped at node 0: the tip compliance is F L^3 / 3 E Iz (y), F L^3 / 3 E Iy (z),
+/// F L / E A (x), T L / G J (torsion).
+#[test]
+fn cantilever_tip_deflections() {
+    let s = section();
+    let l = 400.0;
+    let (p0, p1) = (Vec3::zeros(), Vec3::new(l, 0.0, 0.0));
+    let st = Structure {
+        nodes: vec![p0, p1],
+        elements: vec![
+            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1) },
+            Element::Base { node: 0, connection: Connection::Rigid },
+        ],
+        end: 1,
+    };
+    let c = st.end_stiffness().unwrap().try_inverse().unwrap();
+    let rel = |a: f64, b: f64| (a - b).abs() / b;
+    assert!(rel(c[(0, 0)], l / (s.e * s.area)) < 1e-9);
+    assert!(rel(c[(1, 1)], l.powi(3) / (3.0 * s.e * s.iz)) < 1e-9);
+    assert!(rel(c[(2, 2)], l.powi(3) / (3.0 * s.e * s.iy)) < 1e-9);
+    assert!(rel(c[(3, 3)], l / (s.g * s.j)) < 1e-9);
+}
+
+/// Two beams in series through a middle node give exactly the one-beam answer (Euler-Bernoulli beams are
+/// exact between nodes), in any direction.
+#[test]
+fn beams_in_series_equal_one_beam() {
+    let s = section();
+    let (p0, p2) = (Vec3::new(10.0, -5.0, 3.0), Vec3::new(250.0, 120.0, -80.0));
+    let p1 = (p0 + p2) * 0.5;
+    let one = Structure {
+        nodes: vec![p0, p2],
+        elements: vec![
+            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p2) },
+            Element::Base { node: 0, connection: Connection::Rigid },
+        ],
+        end: 1,
+    };
+    let two = Structure {
+        nodes: vec![p0, p1, p2],
+        elements: vec![
+            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1) },
+            Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p1, &p2) },
+            Element::Base { node: 0, connection: Connection::Rigid },
+        ],
+        end: 2,
+    };
+    let (a, b) = (one.end_stiffness().unwrap(), two.end_stiffness().unwrap());
+    assert!((a - b).abs().max() < 1e-9 * a.abs().max());
+}
+
+/// A portal frame solved by hand: two columns of height H clamped at the base, their tops joined rigidly
+/// (a rigid beam), axially rigid in practice (huge A): each column sways as a clamped-guided beam, so the
+/// frame's lateral stiffness is 2 x 12 E I / H^3.
+#[test]
+fn portal_frame_lateral_stiffness() {
+    let s = BeamSection { e: 210000.0, g: 80769.0, area: 1e12, iy: 2000.0, iz: 2000.0, j: 3000.0 };
+    let (h, b) = (500.0, 300.0);
+    let nodes = vec![Vec3::zeros(), Vec3::new(b, 0.0, 0.0), Vec3::new(0.0, 0.0, h), Vec3::new(b, 0.0, h)];
+    let st = Structure {
+        elements: vec![
+            Element::Flexible { i: 0, j: 2, k: beam_stiffness(&s, &nodes[0], &nodes[2]) },
+            Element::Flexible { i: 1, j: 3, k: beam_stiffness(&s, &nodes[1], &nodes[3]) },
+            Element::Rigid { i: 2, j: 3 },
+            Element::Base { node: 0, connection: Connection::Rigid },
+            Element::Base { node: 1, connection: Connection::Rigid },
+        ],
+        nodes,
+        end: 2,
+    };
+    let k = st.end_stiffness().unwrap();
+    let expected = 24.0 * s.e * s.iy / h.powi(3);
+    assert!((k[(0, 0)] - expected).abs() < 1e-6 * expected, "{} vs {expected}", k[(0, 0)]);
+}
+
+/// A passive revolute joint removes exactly its direction: a cantilever with a pin (free rotation about z)
+/// at its root has no stiffness against the tip's motion the pin allows, and rank 5.
+#[test]
+fn a_pin_removes_one_direction() {
+    let s = section();
+    let (p0, p1) = (Vec3::zeros(), Vec3::new(300.0, 0.0, 0.0));
+    let st = Structure {
+        nodes: vec![p0, p0, p1],
+        elements: vec![
+            Element::Base { node: 0, connection: Connection::Rigid },
+            Element::Joint {
+                i: 0,
+                j: 1,
+                connection: Connection::Passive(vec![Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]),
+            },
+            Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p0, &p1) },
+        ],
+        end: 2,
+    };
+    let k = st.end_stiffness().unwrap();
+    let allowed = Vec6::new(0.0, 300.0, 0.0, 0.0, 0.0, 1.0); // rotation about z at the root, seen at the tip
+    assert!((k * allowed).norm() < 1e-9 * k.abs().max());
+    let e = scaled_eigenvalues(&k, 300.0);
+    assert!(e[0].abs() < 1e-9 * e[5] && e[1] > 1e-6 * e[5], "{e:?}");
+}
+
+/// The Orthoglide 3-PUU's first leg at Q0 as an MSA structure: the actuator's carriage on an elastic base
+/// connection (k_act along the axis), the foot and the leg as beams with the VJM springs' tip stiffness,
+/// the U-joints as passive joints, the tool as a rigid link. Its stiffness at the reference point equals
+/// the VJM leg's (paper 001 eq 9) to 1e-8: the two methods agree on a structure both describe.
+#[test]
+fn msa_equals_vjm_on_an_orthoglide_leg() {
+    let m = orthoglide();
+    let pose = Frame::IDENTITY;
+    let mut state = m.new_state();
+    let mut vjm = Vec::new();
+    m.unloaded_each(&pose, &mut state, |_, r| vjm.push(r.stiffness)).unwrap();
+    let Leg::Vjm(leg) = &m.legs[0];
+    let coords = &state.legs[0].coords;
+    let elements = leg.chain.elements();
+    // Frames after each element.
+    let frame_after = |k: usize| Chain::new(elements[..=k].to_vec()).end_frame(coords);
+    let mut nodes: Vec<Vec3> = Vec::new();
+    let mut msa: Vec<Element> = Vec::new();
+    let mut current: Option<usize> = None;
+    let mut k = 0;
+    let mut spring_index = 0;
+    while k < elements.len() {
+        match &elements[k] {
+            ChainElement::Joint(j) if j.role == Role::Actuated => {
+                // Actuator and its spring along the same axis: the carriage on an elastic base connection.
+                let f = frame_after(k);
+                let axis = f.rot * j.axis;
+                nodes.push(f.pos);
+                let kact = leg.springs[spring_index].stiffness[(0, 0)];
+                spring_index += 1;
+                msa.push(Element::Base {
+                    node: nodes.len() - 1,
+                    connection: Connection::Elastic {
+                        directions: vec![Vec6::new(axis.x, axis.y, axis.z, 0.0, 0.0, 0.0)],
+                        stiffness: DMatrix::from_element(1, 1, kact),
+                    },
+                });
+                current = Some(nodes.len() - 1);
+                k += 2;
+            }
+            ChainElement::Fixed(_) if matches!(elements.get(k + 1), Some(ChainElement::Joint(j)) if j.role == Role::Virtual) =>
+            {
+                // A link and its 6-dof spring: a flexible link with the spring's stiffness at its tip.
+                let f = frame_after(k);
+                let (start, i) = (nodes[current.unwrap()], current.unwrap());
+                nodes.push(f.pos);
+                let spring = &leg.springs[spring_index];
+                spring_index += 1;
+                let b = block_rotation(&f.rot);
+                let kjj: Mat6 = b * spring.stiffness * b.transpose();
+                msa.push(Element::Flexible { i, j: nodes.len() - 1, k: link_stiffness(&kjj, &start, &f.pos) });
+                current = Some(nodes.len() - 1);
+                k += 7;
+            }
+            ChainElement::Fixed(_) => {
+                let f = frame_after(k);
+                match current {
+                    None => {}
+                    Some(i) => {
+                        nodes.push(f.pos);
+                        msa.push(Element::Rigid { i, j: nodes.len() - 1 });
+                        current = Some(nodes.len() - 1);
+                    }
+                }
+                k += 1;
+            }
+            ChainElement::Joint(j) if j.role == Role::Passive => {
+                // A passive revolute: free rotation about its axis at the node.
+                assert_eq!(j.kind, JointKind::Revolute);
+                let before = if k == 0 { Frame::IDENTITY } else { frame_after(k - 1) };
+                let axis = before.rot * j.axis;
+                let i = current.unwrap();
+                nodes.push(nodes[i]);
+                msa.push(Element::Joint {
+                    i,
+                    j: nodes.len() - 1,
+                    connection: Connection::Passive(vec![Vec6::new(0.0, 0.0, 0.0, axis.x, axis.y, axis.z)]),
+                });
+                current = Some(nodes.len() - 1);
+                k += 1;
+            }
+            other => panic!("unexpected element {other:?}"),
+        }
+    }
+    let end = current.unwrap();
+    assert!((nodes[end] - pose.pos).norm() < 1e-9, "the chain ends at the reference point");
+    let st = Structure { nodes, elements: msa, end };
+    let k_msa = st.end_stiffness().unwrap();
+    assert!(scaled_rel_diff(&k_msa, &vjm[0], 300.0) < 1e-8, "{k_msa}\nvs VJM\n{}", vjm[0]);
+}
