@@ -114,17 +114,6 @@ impl Structure {
             let mut v = k.view_mut((6 * a, 6 * b), (6, 6));
             v += m;
         };
-        let relative = |i: Option<usize>, j: usize, dir: &Vec6| {
-            // dir . (t_j - t_i)
-            let mut row = DVector::zeros(dof);
-            for c in 0..6 {
-                row[6 * j + c] = dir[c];
-                if let Some(i) = i {
-                    row[6 * i + c] = -dir[c];
-                }
-            }
-            row
-        };
         for e in &self.elements {
             match e {
                 Element::Flexible { i, j, k: kk } => {
@@ -145,12 +134,8 @@ impl Structure {
                         constraints.push(row);
                     }
                 }
-                Element::Joint { i, j, connection } => {
-                    self.connect(Some(*i), *j, connection, &mut k, &mut constraints, &relative)
-                }
-                Element::Base { node, connection } => {
-                    self.connect(None, *node, connection, &mut k, &mut constraints, &relative)
-                }
+                Element::Joint { i, j, connection } => connect(Some(*i), *j, connection, &mut k, &mut constraints),
+                Element::Base { node, connection } => connect(None, *node, connection, &mut k, &mut constraints),
             }
         }
         // Unknowns: every node but the end one, then the multipliers; the end node's twist is prescribed.
@@ -209,51 +194,62 @@ impl Structure {
         }
         Ok((out + out.transpose()) * 0.5)
     }
+}
 
-    fn connect(
-        &self,
-        i: Option<usize>,
-        j: usize,
-        connection: &Connection,
-        k: &mut DMatrix<f64>,
-        constraints: &mut Vec<DVector<f64>>,
-        relative: &dyn Fn(Option<usize>, usize, &Vec6) -> DVector<f64>,
-    ) {
-        match connection {
-            Connection::Rigid => {
-                for r in 0..6 {
-                    let mut d = Vec6::zeros();
-                    d[r] = 1.0;
-                    constraints.push(relative(i, j, &d));
-                }
+/// A constraint row `dir . (t_j - t_i)` (or `dir . t_j` against the base) over all `dof` displacements.
+fn relative_row(dof: usize, i: Option<usize>, j: usize, dir: &Vec6) -> DVector<f64> {
+    let mut row = DVector::zeros(dof);
+    for c in 0..6 {
+        row[6 * j + c] = dir[c];
+        if let Some(i) = i {
+            row[6 * i + c] = -dir[c];
+        }
+    }
+    row
+}
+
+/// Adds a connection between node i (or the base) and node j: constraints on its rigid directions, and
+/// the stiffness of its elastic ones.
+fn connect(
+    i: Option<usize>,
+    j: usize,
+    connection: &Connection,
+    k: &mut DMatrix<f64>,
+    constraints: &mut Vec<DVector<f64>>,
+) {
+    match connection {
+        Connection::Rigid => {
+            for r in 0..6 {
+                let mut d = Vec6::zeros();
+                d[r] = 1.0;
+                constraints.push(relative_row(k.nrows(), i, j, &d));
             }
-            Connection::Passive(free) => {
-                let (_, rigid) = split_directions(free);
-                for d in &rigid {
-                    constraints.push(relative(i, j, d));
-                }
+        }
+        Connection::Passive(free) => {
+            let (_, rigid) = split_directions(free);
+            for d in &rigid {
+                constraints.push(relative_row(k.nrows(), i, j, d));
             }
-            Connection::Elastic { directions, stiffness } => {
-                let (elastic, rigid) = split_directions(directions);
-                for d in &rigid {
-                    constraints.push(relative(i, j, d));
-                }
-                // Energy 1/2 (L dt)^T K_e (L dt) with L's rows the elastic directions (as given: the
-                // stiffness is expressed in them), dt = t_j - t_i.
-                let _ = elastic;
-                let l = DMatrix::from_fn(directions.len(), 6, |r, c| directions[r][c]);
-                let ke = l.transpose() * stiffness * &l;
-                let ke = Mat6::from_fn(|r, c| ke[(r, c)]);
-                let mut add = |a: usize, b: usize, m: Mat6| {
-                    let mut v = k.view_mut((6 * a, 6 * b), (6, 6));
-                    v += m;
-                };
-                add(j, j, ke);
-                if let Some(i) = i {
-                    add(i, i, ke);
-                    add(i, j, -ke);
-                    add(j, i, -ke);
-                }
+        }
+        Connection::Elastic { directions, stiffness } => {
+            let (_, rigid) = split_directions(directions);
+            for d in &rigid {
+                constraints.push(relative_row(k.nrows(), i, j, d));
+            }
+            // Energy 1/2 (L dt)^T K_e (L dt) with L's rows the elastic directions (as given: the
+            // stiffness is expressed in them), dt = t_j - t_i.
+            let l = DMatrix::from_fn(directions.len(), 6, |r, c| directions[r][c]);
+            let ke = l.transpose() * stiffness * &l;
+            let ke = Mat6::from_fn(|r, c| ke[(r, c)]);
+            let mut add = |a: usize, b: usize, m: Mat6| {
+                let mut v = k.view_mut((6 * a, 6 * b), (6, 6));
+                v += m;
+            };
+            add(j, j, ke);
+            if let Some(i) = i {
+                add(i, i, ke);
+                add(i, j, -ke);
+                add(j, i, -ke);
             }
         }
     }
