@@ -14,7 +14,7 @@ use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::Manipulator;
 use crate::vjm::parallelogram::Parallelogram;
-use crate::vjm::spring::{beam_compliance, BeamSection, SpringGroup};
+use crate::vjm::spring::{beam_compliance, BeamSection, SpringGroup, SIX_DOF};
 
 /// Reads and validates a manipulator description.
 pub fn load_manipulator(path: &Path) -> Result<Manipulator, InputError> {
@@ -120,15 +120,6 @@ impl ChainParts {
     }
 }
 
-const SIX_DOF: [(JointKind, Vec3); 6] = [
-    (JointKind::Prismatic, Vec3::new(1.0, 0.0, 0.0)),
-    (JointKind::Prismatic, Vec3::new(0.0, 1.0, 0.0)),
-    (JointKind::Prismatic, Vec3::new(0.0, 0.0, 1.0)),
-    (JointKind::Revolute, Vec3::new(1.0, 0.0, 0.0)),
-    (JointKind::Revolute, Vec3::new(0.0, 1.0, 0.0)),
-    (JointKind::Revolute, Vec3::new(0.0, 0.0, 1.0)),
-];
-
 impl Builder<'_> {
     fn num(&self, n: &Num) -> Result<f64, InputError> {
         let mut scope = self.params.clone();
@@ -223,19 +214,7 @@ impl Builder<'_> {
     fn beam(&self, b: &Spanned<BeamSpec>) -> Result<Mat6, InputError> {
         let s = b.get_ref();
         let e = self.positive(&s.e, "E")?;
-        let g = match (&s.g, &s.nu) {
-            (Some(g), None) => self.positive(g, "G")?,
-            (None, Some(nu)) => {
-                let nu = self.num(nu)?;
-                if !(-1.0 < nu && nu < 0.5) {
-                    return Err(self
-                        .loc
-                        .at(s.nu.as_ref().unwrap().span(), format!("nu must lie in (-1, 0.5), got {nu}")));
-                }
-                e / (2.0 * (1.0 + nu))
-            }
-            _ => return Err(self.loc.at(b.span(), "a beam needs exactly one of `G` and `nu`")),
-        };
+        let g = self.shear_modulus(e, &s.g, &s.nu, b.span())?;
         let section = match (&s.diameter, &s.area, &s.iy, &s.iz, &s.j) {
             (Some(d), None, None, None, None) => BeamSection::round(e, g, self.positive(d, "diameter")?),
             (None, Some(a), Some(iy), Some(iz), Some(j)) => BeamSection {

@@ -6,8 +6,8 @@
 //! its passive joint pair Rz(q) ... Rz(-q); a stiffness along that motion is added only to make the spring
 //! invertible, and cancels out of every result (tested). The spring depends on the parallelogram angle q.
 
-use super::spring::SpringGroup;
 use super::spring::{beam_compliance, BeamSection};
+use super::spring::{push_six_dof, SpringGroup};
 use super::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3, Vec6};
@@ -44,15 +44,7 @@ impl Parallelogram {
                 Element::Fixed(Frame::new(rotation_about(&z, q), Vec3::zeros())),
                 Element::Fixed(Frame::translation(Vec3::new(self.length, 0.0, 0.0))),
             ];
-            for (k, (kind, axis)) in SIX_DOF.iter().enumerate() {
-                elements.push(Element::Joint(Joint {
-                    kind: *kind,
-                    axis: *axis,
-                    role: Role::Virtual,
-                    index: k,
-                    gain: 1.0,
-                }));
-            }
+            push_six_dof(&mut elements, 0);
             elements.push(Element::Joint(Joint {
                 kind: JointKind::Revolute,
                 axis: z,
@@ -76,15 +68,6 @@ impl Parallelogram {
         (total + total.transpose()) * 0.5
     }
 }
-
-const SIX_DOF: [(JointKind, Vec3); 6] = [
-    (JointKind::Prismatic, Vec3::new(1.0, 0.0, 0.0)),
-    (JointKind::Prismatic, Vec3::new(0.0, 1.0, 0.0)),
-    (JointKind::Prismatic, Vec3::new(0.0, 0.0, 1.0)),
-    (JointKind::Revolute, Vec3::new(1.0, 0.0, 0.0)),
-    (JointKind::Revolute, Vec3::new(0.0, 1.0, 0.0)),
-    (JointKind::Revolute, Vec3::new(0.0, 0.0, 1.0)),
-];
 
 #[cfg(test)]
 mod tests {
@@ -124,15 +107,7 @@ mod tests {
                 Element::Fixed(Frame::translation(Vec3::new(p.length, 0.0, 0.0))),
                 Element::Joint(Joint { kind: JointKind::Revolute, axis: z, role: Role::Passive, index: 0, gain: -1.0 }),
             ];
-            for (k, (kind, axis)) in SIX_DOF.iter().enumerate() {
-                elements.push(Element::Joint(Joint {
-                    kind: *kind,
-                    axis: *axis,
-                    role: Role::Virtual,
-                    index: k,
-                    gain: 1.0,
-                }));
-            }
+            push_six_dof(&mut elements, 0);
             elements.push(Element::Fixed(Frame::translation(Vec3::new(30.0, 5.0, -2.0))));
             let chain = Chain::new(elements);
             let mut coords = Coordinates::zeros(&chain);

@@ -1,6 +1,7 @@
 //! Virtual springs: a group of virtual coordinates with a stiffness matrix K_theta block (paper 001 eq 6),
 //! and the compliance of a clamped-free beam, the simplest source of a link's 6-dof spring (paper 001 s. 4.2).
 
+use crate::kinematics::chain::{Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{block_rotation, Mat3, Mat6, Vec3};
 
 /// A block of K_theta: `dim` consecutive virtual coordinates starting at `first`.
@@ -30,6 +31,30 @@ impl SpringGroup {
                 (k, (c + c.transpose()) * 0.5)
             }
         }
+    }
+}
+
+/// The elementary joints of a 6-dof spring, in order: translations along the frame's x, y, z, then
+/// rotations about them (paper 001 eq 1, V_s(theta1..theta6)).
+pub const SIX_DOF: [(JointKind, Vec3); 6] = [
+    (JointKind::Prismatic, Vec3::new(1.0, 0.0, 0.0)),
+    (JointKind::Prismatic, Vec3::new(0.0, 1.0, 0.0)),
+    (JointKind::Prismatic, Vec3::new(0.0, 0.0, 1.0)),
+    (JointKind::Revolute, Vec3::new(1.0, 0.0, 0.0)),
+    (JointKind::Revolute, Vec3::new(0.0, 1.0, 0.0)),
+    (JointKind::Revolute, Vec3::new(0.0, 0.0, 1.0)),
+];
+
+/// Appends the six virtual joints of a 6-dof spring whose coordinates start at `first`.
+pub fn push_six_dof(elements: &mut Vec<Element>, first: usize) {
+    for (k, (kind, axis)) in SIX_DOF.iter().enumerate() {
+        elements.push(Element::Joint(Joint {
+            kind: *kind,
+            axis: *axis,
+            role: Role::Virtual,
+            index: first + k,
+            gain: 1.0,
+        }));
     }
 }
 
