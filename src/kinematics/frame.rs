@@ -68,6 +68,14 @@ impl Frame {
     }
 }
 
+/// A small displacement (or wrench) with its rotational part multiplied by `factor`: with a length scale
+/// l (mm/rad), `weigh_rotations(t, l)` puts a twist's rotations in mm, so that a norm or a rank decision
+/// compares mm with rad fairly.
+#[inline]
+pub fn weigh_rotations(v: &Vec6, factor: f64) -> Vec6 {
+    Vec6::new(v[0], v[1], v[2], v[3] * factor, v[4] * factor, v[5] * factor)
+}
+
 /// Rotation about a unit axis by an angle (Rodrigues).
 pub fn rotation_about(axis: &Vec3, angle: f64) -> Mat3 {
     Rotation3::from_axis_angle(&Unit::new_unchecked(*axis), angle).into_inner()

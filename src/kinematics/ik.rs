@@ -2,7 +2,7 @@
 //! target frame, by a damped Newton (Gauss-Newton with back-tracking) solve, warm-started by the caller.
 
 use super::chain::{Chain, ChainJacobians, Coordinates};
-use super::frame::{Frame, Mat6, Vec6};
+use super::frame::{weigh_rotations, Frame, Mat6, Vec6};
 
 /// Why inverse kinematics gave up, with the numbers a user needs to judge it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,12 +45,6 @@ impl IkWorkspace {
     }
 }
 
-/// Weighted pose error: rotations (rad) times `length_scale` (mm/rad), so both parts are in mm.
-#[inline]
-fn weighted(e: &Vec6, length_scale: f64) -> Vec6 {
-    Vec6::new(e[0], e[1], e[2], e[3] * length_scale, e[4] * length_scale, e[5] * length_scale)
-}
-
 /// Solves `end_frame(coords) = target` for the actuated and passive coordinates; virtual coordinates are
 /// left as they are. Returns the number of iterations; `ws.current` then holds the evaluation at the solution.
 ///
@@ -70,14 +64,14 @@ pub fn solve(
         chain.evaluate(coords, &mut ws.current);
     }
     ws.current_is_valid = false;
-    let mut err = weighted(&ws.current.end.error_to(target), length_scale);
+    let mut err = weigh_rotations(&ws.current.end.error_to(target), length_scale);
     let mut norm = err.norm();
     for iteration in 0..MAX_ITERATIONS {
         if norm <= tolerance {
             ws.current_is_valid = true;
             return Ok(iteration);
         }
-        let jw = |j: &Vec6| weighted(j, length_scale);
+        let jw = |j: &Vec6| weigh_rotations(j, length_scale);
         let mut a = Mat6::zeros();
         for j in ws.current.actuated.iter().chain(ws.current.passive.iter()) {
             let w = jw(j);
@@ -103,7 +97,7 @@ pub fn solve(
                 t.passive[k] = coords.passive[k] + step * jw(j).dot(&y);
             }
             chain.evaluate(t, &mut ws.trial);
-            let trial_err = weighted(&ws.trial.end.error_to(target), length_scale);
+            let trial_err = weigh_rotations(&ws.trial.end.error_to(target), length_scale);
             let trial_norm = trial_err.norm();
             if trial_norm < norm {
                 coords.actuated.copy_from_slice(&t.actuated);

@@ -1,7 +1,7 @@
 //! From the manipulator's stiffness to what a designer reads: compliance where K is invertible, its rank
 //! and free directions where it is not, and the principal compliances.
 
-use crate::kinematics::frame::{symmetric_eigenvalues3, Mat3, Mat6, Vec6};
+use crate::kinematics::frame::{symmetric_eigenvalues3, weigh_rotations, Mat3, Mat6, Vec6};
 
 /// Relative eigenvalue (or Cholesky pivot) of the length-scaled stiffness below which a direction is free:
 /// a few hundred times round-off, so that models with springs 1e12 times stiffer than others (a common way
@@ -21,11 +21,8 @@ pub enum Analysis {
 }
 
 /// `D K D` with `D = diag(1, 1, 1, 1/l, 1/l, 1/l)`: every entry in N/mm, so that eigenvalues compare.
-fn scaled(k: &Mat6, length_scale: f64) -> Mat6 {
-    let mut d = Vec6::repeat(1.0);
-    for i in 3..6 {
-        d[i] = 1.0 / length_scale;
-    }
+pub fn scaled(k: &Mat6, length_scale: f64) -> Mat6 {
+    let d = weigh_rotations(&Vec6::repeat(1.0), 1.0 / length_scale);
     Mat6::from_fn(|i, j| k[(i, j)] * d[i] * d[j])
 }
 

@@ -17,9 +17,6 @@ pub struct LegResponse {
     /// Tangent stiffness at the reference point, base frame: minus the derivative of `wrench` with respect
     /// to the platform's displacement (singular on its own, never inverted).
     pub stiffness: Mat6,
-    /// Rank of the passive-joint Jacobian, and its smallest pivot ratio (the rank tolerance in use).
-    pub passive_rank: usize,
-    pub passive_pivot_ratio: f64,
     /// The leg's equilibrium is stable with its end held (always true unloaded).
     pub stable: bool,
     /// Newton iterations of the equilibrium (0 unloaded).
@@ -275,14 +272,7 @@ impl VjmLeg {
         let k_end = leg_stiffness(&s, &range).ok_or(LegFailure::SingularChain)?;
         // Move from the leg's end point EP to the reference point RP: K_RP = A^T K_EP A, v = EP - RP.
         let stiffness = shift_stiffness(&k_end, &(jac.end.pos - platform.pos));
-        Ok(LegResponse {
-            wrench: Vec6::zeros(),
-            stiffness,
-            passive_rank: range.rank,
-            passive_pivot_ratio: range.smallest_pivot_ratio,
-            stable: true,
-            iterations: 0,
-        })
+        Ok(LegResponse { wrench: Vec6::zeros(), stiffness, stable: true, iterations: 0 })
     }
 
     fn respond(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
@@ -302,14 +292,7 @@ impl VjmLeg {
         };
         state.last_target = target;
         let (force, stiffness) = at_reference_point(&answer.wrench, &answer.stiffness, &(answer.end - platform.pos));
-        Ok(LegResponse {
-            wrench: -force,
-            stiffness,
-            passive_rank: self.chain.n_passive,
-            passive_pivot_ratio: 1.0,
-            stable: answer.stable,
-            iterations: answer.iterations,
-        })
+        Ok(LegResponse { wrench: -force, stiffness, stable: answer.stable, iterations: answer.iterations })
     }
 
     fn continuation(

@@ -2,10 +2,10 @@
 //! its tangent stiffness, stability, and its inverse, the deflection under a given wrench by Newton's
 //! method with load continuation (eq 73-75).
 
-use super::compliance::RANK_TOLERANCE;
+use super::compliance::{scaled, RANK_TOLERANCE};
 use super::leg::apply_twist;
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
-use crate::kinematics::frame::{Frame, Mat6, Vec6};
+use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
 
 /// The manipulator held at a platform pose, its legs placed for the commanded pose before.
 #[derive(Clone, Copy, Debug)]
@@ -24,9 +24,7 @@ pub struct Held {
 /// `length_scale` so that every entry is in N/mm. The smallest is positive exactly where the stiffness is
 /// positive definite.
 pub fn eigenvalue_range(k: &Mat6, length_scale: f64) -> (f64, f64) {
-    let d = Vec6::new(1.0, 1.0, 1.0, 1.0 / length_scale, 1.0 / length_scale, 1.0 / length_scale);
-    let s = Mat6::from_fn(|i, j| 0.5 * (k[(i, j)] + k[(j, i)]) * d[i] * d[j]);
-    let e = s.symmetric_eigen().eigenvalues;
+    let e = scaled(&((k + k.transpose()) * 0.5), length_scale).symmetric_eigen().eigenvalues;
     (e.min(), e.max())
 }
 
@@ -81,11 +79,6 @@ impl Manipulator {
         Ok(held)
     }
 
-    fn weighted_norm(&self, v: &Vec6, divide_rotations: bool) -> f64 {
-        let l = if divide_rotations { 1.0 / self.length_scale } else { self.length_scale };
-        (v.fixed_rows::<3>(0).norm_squared() + (v.fixed_rows::<3>(3) * l).norm_squared()).sqrt()
-    }
-
     /// Newton's method on the whole manipulator for `sum_i f_i(t) = load`: the platform pose and every
     /// leg's configuration and end wrench move together, each step built from the legs' linearised
     /// equilibria (eq 45) and the sum of their stiffnesses, so no leg is solved to convergence at a pose
@@ -109,7 +102,7 @@ impl Manipulator {
             let Some(step) = stiffness.lu().solve(&(load - force)) else {
                 return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
-            let step_size = self.weighted_norm(&step, false);
+            let step_size = weigh_rotations(&step, self.length_scale).norm();
             if step_size <= NEWTON_TOLERANCE * self.length_scale && lins.iter().all(|l| l.distance <= NEWTON_TOLERANCE)
             {
                 // Quadratic convergence: after this last full step the error is of the order of its square.

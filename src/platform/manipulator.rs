@@ -22,8 +22,6 @@ pub struct ManipulatorState {
 pub struct Aggregate {
     pub wrench: Vec6,
     pub stiffness: Mat6,
-    /// The smallest passive-joint pivot ratio over the legs (the rank tolerance actually met).
-    pub passive_pivot_ratio: f64,
 }
 
 /// Which leg failed, and how.
@@ -59,12 +57,11 @@ impl Manipulator {
         mut each: impl FnMut(usize, &LegResponse),
     ) -> Result<Aggregate, PoseFailure> {
         self.place(platform, state)?;
-        let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros(), passive_pivot_ratio: 1.0 };
+        let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros() };
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
             let r = leg.respond_unloaded(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
             total.wrench += r.wrench;
             total.stiffness += r.stiffness;
-            total.passive_pivot_ratio = total.passive_pivot_ratio.min(r.passive_pivot_ratio);
             each(i, &r);
         }
         Ok(total)

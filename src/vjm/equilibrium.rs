@@ -15,7 +15,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::spring::SpringGroup;
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
-use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
+use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec3, Vec6};
 use crate::linalg::DenseLu;
 
 /// What a loaded chain needs besides its kinematics.
@@ -92,8 +92,7 @@ impl Linearization {
     /// correction (rad or mm) and the end's pose error (rotations weighted by `length_scale`) over
     /// `length_scale`.
     pub fn distance_from_equilibrium(&self, length_scale: f64) -> f64 {
-        let e = &self.end_error;
-        let pose = (e.fixed_rows::<3>(0).norm_squared() + (e.fixed_rows::<3>(3) * length_scale).norm_squared()).sqrt();
+        let pose = weigh_rotations(&self.end_error, length_scale).norm();
         self.coordinate_correction().max(pose / length_scale)
     }
 
@@ -229,9 +228,7 @@ impl LoadedChain<'_> {
     /// True when the configuration linearised is an equilibrium: its correction is below the step
     /// tolerance and the end is where it was asked (within the pose tolerance).
     pub fn at_equilibrium(&self, lin: &Linearization, end_error: &Vec6) -> bool {
-        let pose_error = (end_error.fixed_rows::<3>(0).norm_squared()
-            + (end_error.fixed_rows::<3>(3) * self.length_scale).norm_squared())
-        .sqrt();
+        let pose_error = weigh_rotations(end_error, self.length_scale).norm();
         lin.coordinate_correction() <= STEP_TOLERANCE && pose_error <= POSE_TOLERANCE * self.length_scale
     }
 

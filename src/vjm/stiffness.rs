@@ -3,7 +3,7 @@
 use nalgebra::{Matrix6xX, SMatrix};
 
 use super::spring::SpringGroup;
-use crate::kinematics::frame::{Mat3, Mat6, Vec3, Vec6};
+use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec3, Vec6};
 
 /// Relative pivot below which a passive-joint direction is taken as dependent on the others.
 pub const PASSIVE_RANK_TOLERANCE: f64 = 1e-9;
@@ -78,11 +78,6 @@ pub struct PassiveRange {
     pub rank: usize,
     /// Smallest accepted pivot over the largest column norm (1 when there are no passive joints).
     pub smallest_pivot_ratio: f64,
-}
-
-#[inline]
-fn weigh_rotations(v: &Vec6, f: f64) -> Vec6 {
-    Vec6::new(v[0], v[1], v[2], v[3] * f, v[4] * f, v[5] * f)
 }
 
 /// Modified Gram-Schmidt with column pivoting (a rank-revealing QR) in the weighted metric, then completed
