@@ -57,19 +57,109 @@ impl ExprSrc {
             ExprSrc::Formula(s) => evaluate(s, scope),
         }
     }
+
+    /// Parses once for evaluation at every pose (see `compile`).
+    pub fn compile(&self, resolve: &mut dyn FnMut(&str) -> Result<Expr, String>) -> Result<Expr, String> {
+        match self {
+            ExprSrc::Number(v) => Ok(Expr::Const(*v)),
+            ExprSrc::Formula(s) => compile(s, resolve),
+        }
+    }
 }
 
 /// Evaluates a formula: + - * / ^, parentheses, parameters, `pi`, and the functions sqrt, abs, sin, cos,
 /// tan, asin, acos, atan, atan2, deg (degrees to radians).
 pub fn evaluate(text: &str, scope: &mut dyn Scope) -> Result<f64, String> {
-    let mut p = Parser { s: text.as_bytes(), i: 0, scope };
+    let v = compile(text, &mut |name: &str| scope.lookup(name).map(Expr::Const))?.eval(&[]);
+    if !v.is_finite() {
+        return Err(format!("formula `{text}` is not a finite number"));
+    }
+    Ok(v)
+}
+
+/// A parsed formula, its names resolved: constants folded, per-pose quantities left as slots of a value
+/// table, so that formulas evaluated at every pose (MSA geometry) are parsed once.
+#[derive(Clone, Debug)]
+pub enum Expr {
+    Const(f64),
+    /// The value at this index of the table handed to `eval`.
+    Slot(usize),
+    Neg(Box<Expr>),
+    Binary(Op, Box<Expr>, Box<Expr>),
+    Call(fn(f64) -> f64, Box<Expr>),
+    Atan2(Box<Expr>, Box<Expr>),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Op {
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Pow,
+}
+
+impl Op {
+    fn apply(self, a: f64, b: f64) -> f64 {
+        match self {
+            Op::Add => a + b,
+            Op::Sub => a - b,
+            Op::Mul => a * b,
+            Op::Div => a / b,
+            Op::Pow => a.powf(b),
+        }
+    }
+}
+
+impl Expr {
+    /// The formula's value with `slots` holding the per-pose quantities (may be NaN or infinite: the
+    /// caller decides what a non-finite value means).
+    pub fn eval(&self, slots: &[f64]) -> f64 {
+        match self {
+            Expr::Const(v) => *v,
+            Expr::Slot(i) => slots[*i],
+            Expr::Neg(a) => -a.eval(slots),
+            Expr::Binary(op, a, b) => op.apply(a.eval(slots), b.eval(slots)),
+            Expr::Call(f, a) => f(a.eval(slots)),
+            Expr::Atan2(a, b) => a.eval(slots).atan2(b.eval(slots)),
+        }
+    }
+
+    /// Collects the slot indices the formula reads (to order per-pose quantities by dependency).
+    pub fn slots(&self, out: &mut Vec<usize>) {
+        match self {
+            Expr::Const(_) => {}
+            Expr::Slot(i) => out.push(*i),
+            Expr::Neg(a) | Expr::Call(_, a) => a.slots(out),
+            Expr::Binary(_, a, b) | Expr::Atan2(a, b) => {
+                a.slots(out);
+                b.slots(out);
+            }
+        }
+    }
+
+    fn binary(op: Op, a: Expr, b: Expr) -> Expr {
+        match (&a, &b) {
+            (Expr::Const(x), Expr::Const(y)) => Expr::Const(op.apply(*x, *y)),
+            _ => Expr::Binary(op, Box::new(a), Box::new(b)),
+        }
+    }
+
+    fn unary(f: fn(f64) -> f64, a: Expr) -> Expr {
+        match a {
+            Expr::Const(x) => Expr::Const(f(x)),
+            a => Expr::Call(f, Box::new(a)),
+        }
+    }
+}
+
+/// Parses a formula, resolving each name through `resolve` (a constant or a slot).
+pub fn compile(text: &str, resolve: &mut dyn FnMut(&str) -> Result<Expr, String>) -> Result<Expr, String> {
+    let mut p = Parser { s: text.as_bytes(), i: 0, resolve };
     let v = p.expr()?;
     p.skip_ws();
     if p.i != p.s.len() {
         return Err(format!("unexpected `{}` in formula `{text}`", &text[p.i..]));
-    }
-    if !v.is_finite() {
-        return Err(format!("formula `{text}` is not a finite number"));
     }
     Ok(v)
 }
@@ -77,7 +167,7 @@ pub fn evaluate(text: &str, scope: &mut dyn Scope) -> Result<f64, String> {
 struct Parser<'a> {
     s: &'a [u8],
     i: usize,
-    scope: &'a mut dyn Scope,
+    resolve: &'a mut dyn FnMut(&str) -> Result<Expr, String>,
 }
 
 impl Parser<'_> {
@@ -98,44 +188,47 @@ impl Parser<'_> {
             false
         }
     }
-    fn expr(&mut self) -> Result<f64, String> {
+    fn expr(&mut self) -> Result<Expr, String> {
         let mut v = self.term()?;
         loop {
             if self.eat(b'+') {
-                v += self.term()?;
+                v = Expr::binary(Op::Add, v, self.term()?);
             } else if self.eat(b'-') {
-                v -= self.term()?;
+                v = Expr::binary(Op::Sub, v, self.term()?);
             } else {
                 return Ok(v);
             }
         }
     }
-    fn term(&mut self) -> Result<f64, String> {
+    fn term(&mut self) -> Result<Expr, String> {
         let mut v = self.unary()?;
         loop {
             if self.eat(b'*') {
-                v *= self.unary()?;
+                v = Expr::binary(Op::Mul, v, self.unary()?);
             } else if self.eat(b'/') {
-                v /= self.unary()?;
+                v = Expr::binary(Op::Div, v, self.unary()?);
             } else {
                 return Ok(v);
             }
         }
     }
-    fn unary(&mut self) -> Result<f64, String> {
+    fn unary(&mut self) -> Result<Expr, String> {
         if self.eat(b'-') {
-            return Ok(-self.unary()?);
+            return Ok(match self.unary()? {
+                Expr::Const(x) => Expr::Const(-x),
+                a => Expr::Neg(Box::new(a)),
+            });
         }
         if self.eat(b'+') {
             return self.unary();
         }
         let base = self.primary()?;
         if self.eat(b'^') {
-            return Ok(base.powf(self.unary()?));
+            return Ok(Expr::binary(Op::Pow, base, self.unary()?));
         }
         Ok(base)
     }
-    fn primary(&mut self) -> Result<f64, String> {
+    fn primary(&mut self) -> Result<Expr, String> {
         match self.peek() {
             Some(b'(') => {
                 self.i += 1;
@@ -145,7 +238,7 @@ impl Parser<'_> {
                 }
                 Ok(v)
             }
-            Some(c) if c.is_ascii_digit() || c == b'.' => self.number(),
+            Some(c) if c.is_ascii_digit() || c == b'.' => self.number().map(Expr::Const),
             Some(c) if c.is_ascii_alphabetic() || c == b'_' => {
                 let start = self.i;
                 while self.i < self.s.len() && (self.s[self.i].is_ascii_alphanumeric() || self.s[self.i] == b'_') {
@@ -160,12 +253,12 @@ impl Parser<'_> {
                     if !self.eat(b')') {
                         return Err(format!("missing `)` after the arguments of `{name}`"));
                     }
-                    return call(&name, &args);
+                    return call(&name, args);
                 }
                 if name == "pi" {
-                    return Ok(std::f64::consts::PI);
+                    return Ok(Expr::Const(std::f64::consts::PI));
                 }
-                self.scope.lookup(&name)
+                (self.resolve)(&name)
             }
             Some(c) => Err(format!("unexpected `{}` in formula", c as char)),
             None => Err("formula ends too early".into()),
@@ -190,28 +283,32 @@ impl Parser<'_> {
     }
 }
 
-fn call(name: &str, a: &[f64]) -> Result<f64, String> {
-    let one = |f: fn(f64) -> f64| {
-        if a.len() == 1 {
-            Ok(f(a[0]))
-        } else {
-            Err(format!("`{name}` takes one argument, got {}", a.len()))
+fn call(name: &str, mut a: Vec<Expr>) -> Result<Expr, String> {
+    let f: fn(f64) -> f64 = match name {
+        "sqrt" => f64::sqrt,
+        "abs" => f64::abs,
+        "sin" => f64::sin,
+        "cos" => f64::cos,
+        "tan" => f64::tan,
+        "asin" => f64::asin,
+        "acos" => f64::acos,
+        "atan" => f64::atan,
+        "deg" => f64::to_radians,
+        "atan2" if a.len() == 2 => {
+            let x = a.pop().expect("two arguments");
+            let y = a.pop().expect("two arguments");
+            return Ok(match (&y, &x) {
+                (Expr::Const(y), Expr::Const(x)) => Expr::Const(y.atan2(*x)),
+                _ => Expr::Atan2(Box::new(y), Box::new(x)),
+            });
         }
+        "atan2" => return Err("`atan2` takes two arguments".into()),
+        _ => return Err(format!("unknown function `{name}`")),
     };
-    match name {
-        "sqrt" => one(f64::sqrt),
-        "abs" => one(f64::abs),
-        "sin" => one(f64::sin),
-        "cos" => one(f64::cos),
-        "tan" => one(f64::tan),
-        "asin" => one(f64::asin),
-        "acos" => one(f64::acos),
-        "atan" => one(f64::atan),
-        "deg" => one(f64::to_radians),
-        "atan2" if a.len() == 2 => Ok(a[0].atan2(a[1])),
-        "atan2" => Err("`atan2` takes two arguments".into()),
-        _ => Err(format!("unknown function `{name}`")),
+    if a.len() != 1 {
+        return Err(format!("`{name}` takes one argument, got {}", a.len()));
     }
+    Ok(Expr::unary(f, a.pop().expect("one argument")))
 }
 
 #[cfg(test)]
