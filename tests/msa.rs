@@ -25,7 +25,7 @@ fn cantilever_tip_deflections() {
         nodes: vec![p0, p1],
         elements: vec![
             Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1) },
-            Element::Base { node: 0, connection: Connection::Rigid },
+            Element::Base { node: 0, connection: Connection::rigid() },
         ],
         end: 1,
     };
@@ -48,7 +48,7 @@ fn beams_in_series_equal_one_beam() {
         nodes: vec![p0, p2],
         elements: vec![
             Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p2) },
-            Element::Base { node: 0, connection: Connection::Rigid },
+            Element::Base { node: 0, connection: Connection::rigid() },
         ],
         end: 1,
     };
@@ -57,7 +57,7 @@ fn beams_in_series_equal_one_beam() {
         elements: vec![
             Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1) },
             Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p1, &p2) },
-            Element::Base { node: 0, connection: Connection::Rigid },
+            Element::Base { node: 0, connection: Connection::rigid() },
         ],
         end: 2,
     };
@@ -78,8 +78,8 @@ fn portal_frame_lateral_stiffness() {
             Element::Flexible { i: 0, j: 2, k: beam_stiffness(&s, &nodes[0], &nodes[2]) },
             Element::Flexible { i: 1, j: 3, k: beam_stiffness(&s, &nodes[1], &nodes[3]) },
             Element::Rigid { i: 2, j: 3 },
-            Element::Base { node: 0, connection: Connection::Rigid },
-            Element::Base { node: 1, connection: Connection::Rigid },
+            Element::Base { node: 0, connection: Connection::rigid() },
+            Element::Base { node: 1, connection: Connection::rigid() },
         ],
         nodes,
         end: 2,
@@ -98,11 +98,11 @@ fn a_pin_removes_one_direction() {
     let st = Structure {
         nodes: vec![p0, p0, p1],
         elements: vec![
-            Element::Base { node: 0, connection: Connection::Rigid },
+            Element::Base { node: 0, connection: Connection::rigid() },
             Element::Joint {
                 i: 0,
                 j: 1,
-                connection: Connection::Passive(vec![Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]),
+                connection: Connection::passive(vec![Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]),
             },
             Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p0, &p1) },
         ],
@@ -147,10 +147,10 @@ fn msa_equals_vjm_on_an_orthoglide_leg() {
                 spring_index += 1;
                 msa.push(Element::Base {
                     node: nodes.len() - 1,
-                    connection: Connection::Elastic {
-                        directions: vec![Vec6::new(axis.x, axis.y, axis.z, 0.0, 0.0, 0.0)],
-                        stiffness: DMatrix::from_element(1, 1, kact),
-                    },
+                    connection: Connection::elastic(
+                        vec![Vec6::new(axis.x, axis.y, axis.z, 0.0, 0.0, 0.0)],
+                        DMatrix::from_element(1, 1, kact),
+                    ),
                 });
                 current = Some(nodes.len() - 1);
                 k += 2;
@@ -191,7 +191,7 @@ fn msa_equals_vjm_on_an_orthoglide_leg() {
                 msa.push(Element::Joint {
                     i,
                     j: nodes.len() - 1,
-                    connection: Connection::Passive(vec![Vec6::new(0.0, 0.0, 0.0, axis.x, axis.y, axis.z)]),
+                    connection: Connection::passive(vec![Vec6::new(0.0, 0.0, 0.0, axis.x, axis.y, axis.z)]),
                 });
                 current = Some(nodes.len() - 1);
                 k += 1;
@@ -204,4 +204,91 @@ fn msa_equals_vjm_on_an_orthoglide_leg() {
     let st = Structure { nodes, elements: msa, end };
     let k_msa = st.end_stiffness().unwrap();
     assert!(scaled_rel_diff(&k_msa, &vjm[0], 300.0) < 1e-8, "{k_msa}\nvs VJM\n{}", vjm[0]);
+}
+
+/// Two pins about the same axis in series leave the node between them free with the end held: a mechanism,
+/// reported with one free motion and the node it moves, not a garbage stiffness.
+#[test]
+fn a_redundant_pin_is_reported_as_a_mechanism() {
+    let s = section();
+    let (p0, p1) = (Vec3::zeros(), Vec3::new(300.0, 0.0, 0.0));
+    let pin = || Connection::passive(vec![Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]);
+    let st = Structure {
+        nodes: vec![p0, p0, p0, p1],
+        elements: vec![
+            Element::Base { node: 0, connection: Connection::rigid() },
+            Element::Joint { i: 0, j: 1, connection: pin() },
+            Element::Joint { i: 1, j: 2, connection: pin() },
+            Element::Flexible { i: 2, j: 3, k: beam_stiffness(&s, &p0, &p1) },
+        ],
+        end: 3,
+    };
+    assert_eq!(st.end_stiffness(), Err(stiff::msa::MsaFailure::Mechanism { free: 1, nodes: vec![1] }));
+}
+
+/// An elastic base connection with a preload s0 in series with a beam along the same axis: the end held in
+/// place needs the force -k1 kb s0 / (k1 + kb) (kb = E A / L), and the axial stiffness is k1 kb / (k1 + kb).
+#[test]
+fn an_elastic_joint_preload_loads_the_held_end() {
+    let s = section();
+    let l = 250.0;
+    let (p0, p1) = (Vec3::zeros(), Vec3::new(l, 0.0, 0.0));
+    let (k1, s0) = (3000.0, 0.02);
+    let mut spring =
+        Connection::elastic(vec![Vec6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0)], DMatrix::from_element(1, 1, k1));
+    spring.preload[0] = s0;
+    let st = Structure {
+        nodes: vec![p0, p1],
+        elements: vec![
+            Element::Base { node: 0, connection: spring },
+            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1) },
+        ],
+        end: 1,
+    };
+    let a = st.condense().unwrap();
+    let kb = s.e * s.area / l;
+    let series = k1 * kb / (k1 + kb);
+    assert!((a.stiffness[(0, 0)] - series).abs() < 1e-9 * series);
+    assert!((a.holding_wrench[0] + series * s0).abs() < 1e-9 * series * s0, "{}", a.holding_wrench);
+    assert!(a.holding_wrench.rows(1, 5).norm() < 1e-9 * series * s0);
+}
+
+/// A loop closed through a joint away from the forest (the same pin as a base connection written twice)
+/// changes nothing; a structure whose end is reached through the forest (a rigid base link to the end's
+/// neighbour) gives the same stiffness as with the end as a root.
+#[test]
+fn forest_choice_does_not_change_the_answer() {
+    let s = section();
+    let (p0, p1, p2) = (Vec3::zeros(), Vec3::new(200.0, 50.0, 0.0), Vec3::new(200.0, 50.0, 180.0));
+    let pin = Connection::passive(vec![Vec6::new(0.0, 0.0, 0.0, 0.0, 1.0, 0.0)]);
+    let beams = vec![
+        Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1) },
+        Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p1, &p2) },
+    ];
+    let mut single = beams.clone();
+    single.push(Element::Base { node: 0, connection: pin.clone() });
+    let mut doubled = single.clone();
+    doubled.push(Element::Base { node: 0, connection: pin });
+    let nodes = vec![p0, p1, p2];
+    let a = Structure { nodes: nodes.clone(), elements: single, end: 2 }.end_stiffness().unwrap();
+    let b = Structure { nodes: nodes.clone(), elements: doubled, end: 2 }.end_stiffness().unwrap();
+    assert!((a - b).abs().max() < 1e-9 * a.abs().max());
+    // The same cantilever seen from its other end: clamp node 2, load node 0 (reached through the forest
+    // only if the clamp is a rigid chain; here the end is a root and the base edge is met in reverse).
+    let mut reversed = beams;
+    reversed.push(Element::Base { node: 2, connection: Connection::rigid() });
+    let c = Structure { nodes, elements: reversed, end: 0 }.end_stiffness().unwrap();
+    let c_tip = c.try_inverse().unwrap();
+    // Compliance at node 0 of the clamped-at-2 structure = compliance at 2 of the clamped-at-0 one, moved.
+    let mut clamped0 = vec![
+        Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1) },
+        Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p1, &p2) },
+    ];
+    clamped0.push(Element::Base { node: 0, connection: Connection::rigid() });
+    let d = Structure { nodes: vec![p0, p1, p2], elements: clamped0, end: 2 }.end_stiffness().unwrap();
+    // Rigid-body invariance: the two are related by the shift between the ends.
+    let a02 = stiff::kinematics::frame::point_shift(&(p2 - p0));
+    let moved = a02 * c_tip * a02.transpose();
+    let d_tip = d.try_inverse().unwrap();
+    assert!((moved - d_tip).abs().max() < 1e-8 * d_tip.abs().max(), "{moved}\nvs\n{d_tip}");
 }

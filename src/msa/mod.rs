@@ -2,29 +2,62 @@
 //! rigid links (eq 3-5), rigid, passive and elastic joints (eq 6-10) and base connections (eq 11-13),
 //! condensed to the Cartesian stiffness at an end node (eq 15-17).
 //!
-//! Written in the displacement form: the unknowns are the nodes' small displacements (twists at the node
-//! points, base frame); links and elastic joints add stiffness, rigid links and the rigid directions of
-//! joints and base connections are linear constraints held by Lagrange multipliers (the link wrenches of
-//! eq 15). With the end node's displacement prescribed, the stationary point of this system gives the
-//! wrench at the end node, so K_C of eq (17) is the matrix of that map. Groundwork for issue 5: the NaVARo
-//! models and the leg seam's MSA variant build on it.
+//! The paper aggregates every node's wrench and displacement into one rectangular system and inverts it by
+//! a pseudo-inverse. Here the same equations are solved in reduced coordinates, which is exact and much
+//! smaller: the connections (joints, rigid links, base connections) form a graph; along a spanning forest of
+//! it each node's small displacement is a linear function of the forest's coordinates (a root's six, and
+//! each joint's free and elastic motions: t_j = A_ij t_i + F dq), as in a serial VJM chain. Connections
+//! outside the forest close loops: their rigid directions become constraints held by Lagrange multipliers
+//! (the internal wrenches of eq 15), their elastic directions springs on the relative displacement. The
+//! remaining system, symmetric and of the size of the structure's joint coordinates plus its loop
+//! constraints, is factorised once per pose with partial-pivoting LU and condensed onto the end node's six
+//! coordinates (eq 17). A singular system (a mechanism with the end held: a redundant passive joint, or a
+//! node left free) is reported with its number of free motions and the nodes they move.
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::kinematics::frame::{block_rotation, point_shift, Mat6, Vec3, Vec6};
+use crate::kinematics::frame::{block_rotation, point_shift, Mat3, Mat6, Vec3, Vec6};
 use crate::vjm::spring::{cantilever_compliance, frame_along, BeamSection};
 
-/// How two nodes (or a node and the base) are connected, by the directions they share.
+/// How two nodes (or a node and the base) are joined, at the second node's point: the relative small
+/// displacement `dt = t_j - A_ij t_i` (`A_ij` carries i's twist to j's point, so for coincident nodes
+/// `dt = t_j - t_i`) is zero in the rigid directions, free in the passive ones (the Lambda^p rows of eq 8-9)
+/// and resisted by springs in the elastic ones (eq 10, 13). Rigid directions are the complement of the others.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Connection {
+pub struct Connection {
+    /// Unit twists that move freely (a revolute joint about axis a: (0, a); a prismatic one along a: (a, 0)).
+    pub free: Vec<Vec6>,
+    /// Orthonormal unit twists carrying springs.
+    pub elastic: Vec<Vec6>,
+    /// Spring stiffness in the elastic directions' coordinates (elastic.len() square).
+    pub stiffness: DMatrix<f64>,
+    /// Rest values of the elastic coordinates (preload, eq 10): the spring's force is K (s - s0).
+    pub preload: DVector<f64>,
+}
+
+impl Connection {
     /// All six directions rigid (eq 6-7, 11).
-    Rigid,
-    /// The listed unit twists are free (a revolute joint about axis a at the node: (0, a); a prismatic
-    /// joint along a: (a, 0)); the rest rigid (eq 8-9, 12).
-    Passive(Vec<Vec6>),
-    /// The listed unit twists carry springs of the given stiffness (in those coordinates); the rest rigid
-    /// (eq 10, 13).
-    Elastic { directions: Vec<Vec6>, stiffness: DMatrix<f64> },
+    pub fn rigid() -> Connection {
+        Connection::passive(Vec::new())
+    }
+
+    /// The listed directions free, the rest rigid (eq 8-9, 12).
+    pub fn passive(free: Vec<Vec6>) -> Connection {
+        Connection { free, elastic: Vec::new(), stiffness: DMatrix::zeros(0, 0), preload: DVector::zeros(0) }
+    }
+
+    /// Springs of the given stiffness (and zero preload) in the listed orthonormal directions, the rest rigid.
+    pub fn elastic(elastic: Vec<Vec6>, stiffness: DMatrix<f64>) -> Connection {
+        let preload = DVector::zeros(elastic.len());
+        Connection { free: Vec::new(), elastic, stiffness, preload }
+    }
+
+    /// The directions that move (free, then elastic) and the rigid ones, an orthonormal basis of the rest.
+    fn moving_and_rigid(&self) -> (Vec<Vec6>, Vec<Vec6>) {
+        let moving: Vec<Vec6> = self.free.iter().chain(&self.elastic).copied().collect();
+        let rigid = complement(&moving);
+        (moving, rigid)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -34,7 +67,7 @@ pub enum Element {
     Flexible { i: usize, j: usize, k: [[Mat6; 2]; 2] },
     /// A rigid link from node i to node j (eq 3-5): the twist of j is the rigid transport of i's.
     Rigid { i: usize, j: usize },
-    /// A joint between nodes i and j at the same point.
+    /// A joint between nodes i and j, sitting at j's point (j's side rigidly carried by i elsewhere).
     Joint { i: usize, j: usize, connection: Connection },
     /// A node's connection to the base.
     Base { node: usize, connection: Connection },
@@ -51,23 +84,58 @@ pub struct Structure {
 /// Why a structure gives no stiffness.
 #[derive(Clone, Debug, PartialEq)]
 pub enum MsaFailure {
-    /// The system with the end node held is singular: an internal mechanism (a redundant passive joint, or
-    /// nodes left free).
-    Mechanism,
+    /// With the end node held the structure still moves: `free` independent motions (a redundant passive
+    /// joint, or nodes left free), moving the listed nodes.
+    Mechanism { free: usize, nodes: Vec<usize> },
+    /// An element names a node that does not exist.
+    BadNode(usize),
+}
+
+/// The end node's answer (eq 17): its Cartesian stiffness, and the wrench that holds it in place against
+/// the springs' preloads, both at the end node's point, base frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EndAnswer {
+    pub stiffness: Mat6,
+    /// Wrench applied to the end node from outside to keep its displacement zero (N, N mm).
+    pub holding_wrench: Vec6,
+}
+
+/// The size of the reduced system solved at one pose, for comparison with the paper's bookkeeping.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SystemSize {
+    pub nodes: usize,
+    /// Forest coordinates (root twists and joint motions) besides the end node's six.
+    pub coordinates: usize,
+    /// Loop-closure constraints (rigid directions of connections outside the forest).
+    pub constraints: usize,
 }
 
 /// The 12x12 stiffness of a straight beam from `pi` to `pj` (Euler-Bernoulli), built from the clamped-free
-/// compliance at j (the same beam the VJM springs use) and rigid-body invariance: K_jj = C^-1 (rotated to
-/// the base frame), K_ji = -K_jj A, K_ij = -A^T K_jj, K_ii = A^T K_jj A, with A carrying a twist at i to j.
+/// compliance at j (the same beam the VJM springs use) and rigid-body invariance. The section's y axis is
+/// the component of `y_hint` across the beam (default: `frame_along`'s choice, fine for round sections).
 pub fn beam_stiffness(section: &BeamSection, pi: &Vec3, pj: &Vec3) -> [[Mat6; 2]; 2] {
+    oriented_beam_stiffness(section, pi, pj, None)
+}
+
+/// As `beam_stiffness`, with the section's local y axis given (for sections with Iy != Iz).
+pub fn oriented_beam_stiffness(section: &BeamSection, pi: &Vec3, pj: &Vec3, y_hint: Option<Vec3>) -> [[Mat6; 2]; 2] {
     let d = pj - pi;
-    let r = block_rotation(&frame_along(&d));
+    let frame = match y_hint {
+        Some(h) => {
+            let x = d.normalize();
+            let y = (h - x * x.dot(&h)).normalize();
+            Mat3::from_columns(&[x, y, x.cross(&y)])
+        }
+        None => frame_along(&d),
+    };
+    let r = block_rotation(&frame);
     let c = r * cantilever_compliance(section, d.norm()) * r.transpose();
     link_stiffness(&c.try_inverse().expect("a beam's compliance is positive definite"), pi, pj)
 }
 
 /// The 12x12 stiffness of a link from its stiffness at j with i clamped (base frame, at j's point): the
-/// rest follows from rigid-body invariance, a rigid motion of both ends loading nothing.
+/// rest follows from rigid-body invariance, a rigid motion of both ends loading nothing:
+/// K_jj, K_ji = -K_jj A, K_ij = K_ji^T, K_ii = A^T K_jj A, with A carrying a twist at i to j.
 pub fn link_stiffness(kjj: &Mat6, pi: &Vec3, pj: &Vec3) -> [[Mat6; 2]; 2] {
     let kjj = (kjj + kjj.transpose()) * 0.5;
     let a = point_shift(&(pj - pi));
@@ -75,182 +143,405 @@ pub fn link_stiffness(kjj: &Mat6, pi: &Vec3, pj: &Vec3) -> [[Mat6; 2]; 2] {
     [[a.transpose() * kjj * a, kji.transpose()], [kji, kjj]]
 }
 
-/// An orthonormal basis of the complement of `free` (the rigid directions of a connection), with the
-/// free directions themselves orthonormalised.
-fn split_directions(free: &[Vec6]) -> (Vec<Vec6>, Vec<Vec6>) {
+/// An orthonormal basis of the complement of span(`moving`).
+fn complement(moving: &[Vec6]) -> Vec<Vec6> {
     let mut basis: Vec<Vec6> = Vec::new();
-    for f in free {
-        let mut v = *f;
-        for b in &basis {
-            v -= b * b.dot(&v);
+    let mut add = |v: Vec6, tol: f64, basis: &mut Vec<Vec6>| {
+        let mut v = v;
+        for _ in 0..2 {
+            for b in basis.iter() {
+                v -= b * b.dot(&v);
+            }
         }
-        if v.norm() > 1e-12 {
+        if v.norm() > tol {
             basis.push(v.normalize());
+            true
+        } else {
+            false
         }
+    };
+    for m in moving {
+        add(*m, 1e-12, &mut basis);
     }
-    let n_free = basis.len();
+    let n_moving = basis.len();
     for k in 0..6 {
-        let mut v = Vec6::zeros();
-        v[k] = 1.0;
-        for b in &basis {
-            v -= b * b.dot(&v);
-        }
-        if v.norm() > 1e-9 {
-            basis.push(v.normalize());
-        }
+        add(Vec6::from_fn(|r, _| if r == k { 1.0 } else { 0.0 }), 1e-9, &mut basis);
     }
-    let rigid = basis.split_off(n_free);
-    (basis, rigid)
+    basis.split_off(n_moving)
 }
+
+/// A connection as an edge of the graph: `dt = t_b - A_ab t_a`, a = None for the base.
+struct Edge<'a> {
+    a: Option<usize>,
+    b: usize,
+    connection: std::borrow::Cow<'a, Connection>,
+}
+
+/// How a node's twist depends on the coordinates: t = T z (6 x n_z).
+type Map = DMatrix<f64>;
 
 impl Structure {
     /// The Cartesian stiffness at the end node (eq 17), base frame, at the end node's point.
     pub fn end_stiffness(&self) -> Result<Mat6, MsaFailure> {
+        self.condense().map(|a| a.stiffness)
+    }
+
+    /// The reduced system's size (see `SystemSize`).
+    pub fn system_size(&self) -> Result<SystemSize, MsaFailure> {
+        let plan = self.plan()?;
+        Ok(SystemSize { nodes: self.nodes.len(), coordinates: plan.n_y, constraints: plan.n_constraints })
+    }
+
+    fn edges(&self) -> Result<Vec<Edge<'_>>, MsaFailure> {
         let n = self.nodes.len();
-        let dof = 6 * n;
-        let mut k = DMatrix::<f64>::zeros(dof, dof);
-        let mut constraints: Vec<DVector<f64>> = Vec::new();
-        let add_block = |k: &mut DMatrix<f64>, a: usize, b: usize, m: &Mat6| {
-            let mut v = k.view_mut((6 * a, 6 * b), (6, 6));
-            v += m;
-        };
+        let check = |i: usize| if i < n { Ok(i) } else { Err(MsaFailure::BadNode(i)) };
+        let mut edges = Vec::new();
         for e in &self.elements {
             match e {
-                Element::Flexible { i, j, k: kk } => {
-                    add_block(&mut k, *i, *i, &kk[0][0]);
-                    add_block(&mut k, *i, *j, &kk[0][1]);
-                    add_block(&mut k, *j, *i, &kk[1][0]);
-                    add_block(&mut k, *j, *j, &kk[1][1]);
+                Element::Flexible { i, j, .. } => {
+                    check(*i)?;
+                    check(*j)?;
                 }
-                Element::Rigid { i, j } => {
-                    // t_j = A t_i: six constraints.
-                    let a = point_shift(&(self.nodes[*j] - self.nodes[*i]));
-                    for r in 0..6 {
-                        let mut row = DVector::zeros(dof);
-                        row[6 * j + r] = 1.0;
-                        for c in 0..6 {
-                            row[6 * i + c] = -a[(r, c)];
+                Element::Rigid { i, j } => edges.push(Edge {
+                    a: Some(check(*i)?),
+                    b: check(*j)?,
+                    connection: std::borrow::Cow::Owned(Connection::rigid()),
+                }),
+                Element::Joint { i, j, connection } => edges.push(Edge {
+                    a: Some(check(*i)?),
+                    b: check(*j)?,
+                    connection: std::borrow::Cow::Borrowed(connection),
+                }),
+                Element::Base { node, connection } => {
+                    edges.push(Edge { a: None, b: check(*node)?, connection: std::borrow::Cow::Borrowed(connection) })
+                }
+            }
+        }
+        check(self.end)?;
+        Ok(edges)
+    }
+
+    /// The spanning forest: from the base first, then from the end node (whose six coordinates are the
+    /// prescribed ones), then from any node still unreached (a free root of six coordinates).
+    fn plan(&self) -> Result<Plan<'_>, MsaFailure> {
+        let n = self.nodes.len();
+        let edges = self.edges()?;
+        let mut adjacent: Vec<Vec<usize>> = vec![Vec::new(); n];
+        let mut from_base = Vec::new();
+        for (k, e) in edges.iter().enumerate() {
+            adjacent[e.b].push(k);
+            match e.a {
+                Some(a) => adjacent[a].push(k),
+                None => from_base.push(k),
+            }
+        }
+        let mut reached = vec![false; n];
+        let mut tree_edge = vec![false; edges.len()];
+        // Visiting order: (node, edge it was reached by, or None for a root), roots marked.
+        let mut order: Vec<(usize, Option<usize>)> = Vec::new();
+        let mut queue = std::collections::VecDeque::new();
+        let mut visit = |start_edges: &[usize],
+                         root: Option<usize>,
+                         reached: &mut Vec<bool>,
+                         tree_edge: &mut Vec<bool>,
+                         order: &mut Vec<(usize, Option<usize>)>| {
+            if let Some(r) = root {
+                reached[r] = true;
+                order.push((r, None));
+                queue.push_back(r);
+            }
+            for &k in start_edges {
+                let b = edges[k].b;
+                if !reached[b] {
+                    reached[b] = true;
+                    tree_edge[k] = true;
+                    order.push((b, Some(k)));
+                    queue.push_back(b);
+                }
+            }
+            while let Some(v) = queue.pop_front() {
+                for &k in &adjacent[v] {
+                    if tree_edge[k] {
+                        continue;
+                    }
+                    let e = &edges[k];
+                    let other = if e.b == v { e.a } else { Some(e.b) };
+                    if let Some(w) = other {
+                        if !reached[w] {
+                            reached[w] = true;
+                            tree_edge[k] = true;
+                            order.push((w, Some(k)));
+                            queue.push_back(w);
                         }
-                        constraints.push(row);
                     }
                 }
-                Element::Joint { i, j, connection } => connect(Some(*i), *j, connection, &mut k, &mut constraints),
-                Element::Base { node, connection } => connect(None, *node, connection, &mut k, &mut constraints),
+            }
+        };
+        visit(&from_base, None, &mut reached, &mut tree_edge, &mut order);
+        let end_is_root = !reached[self.end];
+        if end_is_root {
+            visit(&[], Some(self.end), &mut reached, &mut tree_edge, &mut order);
+        }
+        for v in 0..n {
+            if !reached[v] {
+                visit(&[], Some(v), &mut reached, &mut tree_edge, &mut order);
             }
         }
-        // Unknowns: every node but the end one, then the multipliers; the end node's twist is prescribed.
-        let others: Vec<usize> = (0..dof).filter(|d| d / 6 != self.end).collect();
-        let ends: Vec<usize> = (0..6).map(|c| 6 * self.end + c).collect();
-        let (no, nc) = (others.len(), constraints.len());
-        let size = no + nc;
-        let mut a = DMatrix::<f64>::zeros(size, size);
-        let mut rhs = DMatrix::<f64>::zeros(size, 6);
-        for (r, &gr) in others.iter().enumerate() {
-            for (c, &gc) in others.iter().enumerate() {
-                a[(r, c)] = k[(gr, gc)];
-            }
-            for (c, &ge) in ends.iter().enumerate() {
-                rhs[(r, c)] = -k[(gr, ge)];
-            }
-        }
-        for (m, row) in constraints.iter().enumerate() {
-            for (c, &gc) in others.iter().enumerate() {
-                a[(no + m, c)] = row[gc];
-                a[(c, no + m)] = row[gc];
-            }
-            for (c, &ge) in ends.iter().enumerate() {
-                rhs[(no + m, c)] = -row[ge];
-            }
-        }
-        // Scale the multiplier rows and columns to the stiffness' size, for a balanced factorisation.
-        let scale = k.amax().max(1.0);
-        for m in 0..nc {
-            for c in 0..size {
-                a[(no + m, c)] *= scale;
-                a[(c, no + m)] *= scale;
-            }
-            for c in 0..6 {
-                rhs[(no + m, c)] *= scale;
-            }
-        }
-        let lu = a.lu();
-        let x = lu.solve(&rhs).ok_or(MsaFailure::Mechanism)?;
-        if !x.iter().all(|v| v.is_finite()) {
-            return Err(MsaFailure::Mechanism);
-        }
-        // Wrench at the end node: K_eo x + K_ee u + C_e^T lambda (lambda = scale * multipliers).
-        let mut out = Mat6::zeros();
-        for (r, &ger) in ends.iter().enumerate() {
-            for col in 0..6 {
-                let mut w = k[(ger, ends[col])];
-                for (c, &gc) in others.iter().enumerate() {
-                    w += k[(ger, gc)] * x[(c, col)];
-                }
-                for (m, row) in constraints.iter().enumerate() {
-                    w += row[ger] * scale * x[(no + m, col)];
-                }
-                out[(r, col)] = w;
-            }
-        }
-        Ok((out + out.transpose()) * 0.5)
-    }
-}
-
-/// A constraint row `dir . (t_j - t_i)` (or `dir . t_j` against the base) over all `dof` displacements.
-fn relative_row(dof: usize, i: Option<usize>, j: usize, dir: &Vec6) -> DVector<f64> {
-    let mut row = DVector::zeros(dof);
-    for c in 0..6 {
-        row[6 * j + c] = dir[c];
-        if let Some(i) = i {
-            row[6 * i + c] = -dir[c];
-        }
-    }
-    row
-}
-
-/// Adds a connection between node i (or the base) and node j: constraints on its rigid directions, and
-/// the stiffness of its elastic ones.
-fn connect(
-    i: Option<usize>,
-    j: usize,
-    connection: &Connection,
-    k: &mut DMatrix<f64>,
-    constraints: &mut Vec<DVector<f64>>,
-) {
-    match connection {
-        Connection::Rigid => {
-            for r in 0..6 {
-                let mut d = Vec6::zeros();
-                d[r] = 1.0;
-                constraints.push(relative_row(k.nrows(), i, j, &d));
-            }
-        }
-        Connection::Passive(free) => {
-            let (_, rigid) = split_directions(free);
-            for d in &rigid {
-                constraints.push(relative_row(k.nrows(), i, j, d));
-            }
-        }
-        Connection::Elastic { directions, stiffness } => {
-            let (_, rigid) = split_directions(directions);
-            for d in &rigid {
-                constraints.push(relative_row(k.nrows(), i, j, d));
-            }
-            // Energy 1/2 (L dt)^T K_e (L dt) with L's rows the elastic directions (as given: the
-            // stiffness is expressed in them), dt = t_j - t_i.
-            let l = DMatrix::from_fn(directions.len(), 6, |r, c| directions[r][c]);
-            let ke = l.transpose() * stiffness * &l;
-            let ke = Mat6::from_fn(|r, c| ke[(r, c)]);
-            let mut add = |a: usize, b: usize, m: Mat6| {
-                let mut v = k.view_mut((6 * a, 6 * b), (6, 6));
-                v += m;
+        // Columns: every coordinate but the end's six, then those six (u).
+        let mut n_y = 0;
+        let mut first = vec![0usize; order.len()];
+        for (slot, (v, via)) in order.iter().enumerate() {
+            first[slot] = n_y;
+            n_y += match via {
+                None if *v == self.end => 0,
+                None => 6,
+                Some(k) => edges[*k].connection.free.len() + edges[*k].connection.elastic.len(),
             };
-            add(j, j, ke);
-            if let Some(i) = i {
-                add(i, i, ke);
-                add(i, j, -ke);
-                add(j, i, -ke);
+        }
+        let mut n_constraints = if end_is_root { 0 } else { 6 };
+        for (k, e) in edges.iter().enumerate() {
+            if !tree_edge[k] {
+                n_constraints += 6 - e.connection.free.len() - e.connection.elastic.len();
+            }
+        }
+        Ok(Plan { edges, tree_edge, order, first, n_y, n_constraints, end_is_root })
+    }
+
+    /// Solves the structure (eq 15-17): the end node's stiffness and the wrench holding it against preloads.
+    pub fn condense(&self) -> Result<EndAnswer, MsaFailure> {
+        let plan = self.plan()?;
+        let n = self.nodes.len();
+        let (n_y, nz) = (plan.n_y, plan.n_y + 6);
+        let mut t: Vec<Map> = vec![Map::zeros(0, 0); n];
+        let mut kz = DMatrix::<f64>::zeros(nz, nz);
+        let mut f = DVector::<f64>::zeros(nz);
+        let mut constraints: Vec<DVector<f64>> = Vec::with_capacity(plan.n_constraints);
+        let base = Map::zeros(6, nz);
+        let shift = |from: Option<usize>, to: usize| match from {
+            Some(a) => point_shift(&(self.nodes[to] - self.nodes[a])),
+            None => Mat6::identity(),
+        };
+        // Node maps along the forest, and the tree joints' springs on their own coordinates.
+        for (slot, &(v, via)) in plan.order.iter().enumerate() {
+            let c0 = plan.first[slot];
+            t[v] = match via {
+                None if v == self.end => {
+                    let mut m = Map::zeros(6, nz);
+                    m.view_mut((0, n_y), (6, 6)).fill_with_identity();
+                    m
+                }
+                None => {
+                    let mut m = Map::zeros(6, nz);
+                    m.view_mut((0, c0), (6, 6)).fill_with_identity();
+                    m
+                }
+                Some(k) => {
+                    let e = &plan.edges[k];
+                    let (moving, _) = e.connection.moving_and_rigid();
+                    let parent_is_a = e.b == v;
+                    let parent = if parent_is_a { e.a } else { Some(e.b) };
+                    let tp = match parent {
+                        Some(p) => &t[p],
+                        None => &base,
+                    };
+                    let mut m = if parent_is_a {
+                        // t_b = A_ab t_a + dt
+                        to_dmatrix(&shift(e.a, e.b)) * tp
+                    } else {
+                        // t_a = A_ba (t_b - dt)
+                        to_dmatrix(&point_shift(&(self.nodes[v] - self.nodes[e.b]))) * tp
+                    };
+                    let back = point_shift(&(self.nodes[v] - self.nodes[e.b]));
+                    for (c, d) in moving.iter().enumerate() {
+                        let col = if parent_is_a { *d } else { -(back * d) };
+                        m.view_mut((0, c0 + c), (6, 1)).copy_from(&col);
+                    }
+                    // Elastic coordinates follow the free ones: energy 1/2 (s - s0)^T K (s - s0).
+                    let ne = e.connection.elastic.len();
+                    if ne > 0 {
+                        let s0 = c0 + e.connection.free.len();
+                        let mut block = kz.view_mut((s0, s0), (ne, ne));
+                        block += &e.connection.stiffness;
+                        let mut rows = f.rows_mut(s0, ne);
+                        rows += &e.connection.stiffness * &e.connection.preload;
+                    }
+                    m
+                }
+            };
+        }
+        // Loop-closing connections: rigid directions constrained, elastic ones sprung on dt.
+        for (k, e) in plan.edges.iter().enumerate() {
+            if plan.tree_edge[k] {
+                continue;
+            }
+            let ta = match e.a {
+                Some(a) => &t[a],
+                None => &base,
+            };
+            let dt: Map = &t[e.b] - to_dmatrix(&shift(e.a, e.b)) * ta;
+            let (_, rigid) = e.connection.moving_and_rigid();
+            for d in &rigid {
+                constraints.push(dt.tr_mul(&DVector::from_column_slice(d.as_slice())));
+            }
+            let ne = e.connection.elastic.len();
+            if ne > 0 {
+                let l = DMatrix::from_fn(ne, 6, |r, c| e.connection.elastic[r][c]);
+                let b = l * &dt;
+                let kb = &e.connection.stiffness * &b;
+                kz += b.transpose() * &kb;
+                f += b.transpose() * (&e.connection.stiffness * &e.connection.preload);
+            }
+        }
+        if !plan.end_is_root {
+            // The end node reached through the forest: its twist must equal the prescribed u.
+            for r in 0..6 {
+                let mut row = t[self.end].row(r).transpose();
+                row[n_y + r] -= 1.0;
+                constraints.push(row);
+            }
+        }
+        // Flexible links (eq 1): energy 1/2 [t_i; t_j]^T K [t_i; t_j].
+        for e in &self.elements {
+            if let Element::Flexible { i, j, k } = e {
+                let mut tij = Map::zeros(12, nz);
+                tij.view_mut((0, 0), (6, nz)).copy_from(&t[*i]);
+                tij.view_mut((6, 0), (6, nz)).copy_from(&t[*j]);
+                let mut k12 = DMatrix::<f64>::zeros(12, 12);
+                for (r, row) in k.iter().enumerate() {
+                    for (c, block) in row.iter().enumerate() {
+                        k12.view_mut((6 * r, 6 * c), (6, 6)).copy_from(block);
+                    }
+                }
+                kz += tij.transpose() * (k12 * &tij);
+            }
+        }
+        let constraints = independent(constraints);
+        solve_condensed(&kz, &f, &constraints, n_y).map_err(|null| {
+            // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
+            let mut nodes: Vec<usize> =
+                (0..n).filter(|&v| null.iter().any(|y| (&t[v].columns(0, n_y) * y).norm() > 1e-6 * y.norm())).collect();
+            nodes.sort_unstable();
+            MsaFailure::Mechanism { free: null.len(), nodes }
+        })
+    }
+}
+
+struct Plan<'a> {
+    edges: Vec<Edge<'a>>,
+    tree_edge: Vec<bool>,
+    order: Vec<(usize, Option<usize>)>,
+    /// First column of each visited node's coordinates (same indexing as `order`).
+    first: Vec<usize>,
+    n_y: usize,
+    n_constraints: usize,
+    end_is_root: bool,
+}
+
+/// Drops constraint rows that repeat others (a loop of joints closed exactly, as in an over-constrained
+/// mechanism written with consistent geometry): they carry no information, and kept they make the
+/// system singular although the structure is not a mechanism.
+fn independent(rows: Vec<DVector<f64>>) -> Vec<DVector<f64>> {
+    let mut basis: Vec<DVector<f64>> = Vec::new();
+    let mut kept = Vec::new();
+    for row in rows {
+        let mut v = row.clone();
+        for _ in 0..2 {
+            for b in &basis {
+                let d = b.dot(&v);
+                v.axpy(-d, b, 1.0);
+            }
+        }
+        let n = v.norm();
+        if n > 1e-10 * row.norm() {
+            basis.push(v / n);
+            kept.push(row);
+        }
+    }
+    kept
+}
+
+fn to_dmatrix(m: &Mat6) -> DMatrix<f64> {
+    DMatrix::from_column_slice(6, 6, m.as_slice())
+}
+
+/// Condenses min 1/2 z^T K z - f^T z subject to C z = 0 onto the last six coordinates u (eq 17): returns the
+/// end stiffness and the holding wrench at u = 0, or the null space (as vectors over y) of a mechanism.
+fn solve_condensed(
+    kz: &DMatrix<f64>,
+    f: &DVector<f64>,
+    constraints: &[DVector<f64>],
+    n_y: usize,
+) -> Result<EndAnswer, Vec<DVector<f64>>> {
+    let m = constraints.len();
+    let size = n_y + m;
+    // Constraint rows scaled to the stiffness' size, for a balanced factorisation.
+    let scale = (0..kz.nrows()).map(|i| kz[(i, i)].abs()).fold(1.0, f64::max);
+    let mut a = DMatrix::<f64>::zeros(size, size);
+    a.view_mut((0, 0), (n_y, n_y)).copy_from(&kz.view((0, 0), (n_y, n_y)));
+    let mut rhs = DMatrix::<f64>::zeros(size, 7);
+    for c in 0..6 {
+        for r in 0..n_y {
+            rhs[(r, c)] = -kz[(r, n_y + c)];
+        }
+    }
+    for r in 0..n_y {
+        rhs[(r, 6)] = f[r];
+    }
+    for (row, g) in constraints.iter().enumerate() {
+        for c in 0..n_y {
+            a[(n_y + row, c)] = scale * g[c];
+            a[(c, n_y + row)] = scale * g[c];
+        }
+        for c in 0..6 {
+            rhs[(n_y + row, c)] = -scale * g[n_y + c];
+        }
+    }
+    let x = if size == 0 {
+        DMatrix::zeros(0, 7)
+    } else {
+        let lu = a.clone().lu();
+        let u = lu.u();
+        let pivots = (0..size).map(|i| u[(i, i)].abs());
+        let (lo, hi) = pivots.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
+        let solved = if lo > 1e-12 * hi { lu.solve(&rhs) } else { None };
+        match solved {
+            Some(x) if x.iter().all(|v| v.is_finite()) => x,
+            _ => return Err(null_space(&a, n_y)),
+        }
+    };
+    // Wrench at the end: dE/du = K_uy y + K_uu u + C_u^T lambda - f_u, lambda = scale * multipliers.
+    let mut stiffness = Mat6::zeros();
+    let mut holding = Vec6::zeros();
+    for r in 0..6 {
+        let ur = n_y + r;
+        for col in 0..7 {
+            let mut w = if col < 6 { kz[(ur, n_y + col)] } else { -f[ur] };
+            for c in 0..n_y {
+                w += kz[(ur, c)] * x[(c, col)];
+            }
+            for (row, g) in constraints.iter().enumerate() {
+                w += g[ur] * scale * x[(n_y + row, col)];
+            }
+            if col < 6 {
+                stiffness[(r, col)] = w;
+            } else {
+                holding[r] = w;
             }
         }
     }
+    Ok(EndAnswer { stiffness: (stiffness + stiffness.transpose()) * 0.5, holding_wrench: holding })
+}
+
+/// The null space of a singular reduced system, restricted to the coordinates y (the free motions).
+fn null_space(a: &DMatrix<f64>, n_y: usize) -> Vec<DVector<f64>> {
+    let svd = a.clone().svd(false, true);
+    let v_t = svd.v_t.expect("asked for V^T");
+    let top = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    svd.singular_values
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| **s <= 1e-11 * top)
+        .map(|(k, _)| v_t.row(k).columns(0, n_y).transpose())
+        .filter(|y| y.norm() > 1e-9)
+        .collect()
 }
