@@ -4,6 +4,7 @@
 mod common;
 use common::*;
 use nalgebra::DMatrix;
+use rand::Rng;
 use stiff::kinematics::chain::{Chain, Element as ChainElement, JointKind, Role};
 use stiff::kinematics::frame::{block_rotation, Frame, Mat6, Vec3, Vec6};
 use stiff::msa::{beam_stiffness, link_stiffness, Connection, Element, Structure};
@@ -126,7 +127,7 @@ fn msa_equals_vjm_on_an_orthoglide_leg() {
     let mut state = m.new_state();
     let mut vjm = Vec::new();
     m.unloaded_each(&pose, &mut state, |_, r| vjm.push(r.stiffness)).unwrap();
-    let Leg::Vjm(leg) = &m.legs[0];
+    let Leg::Vjm(leg) = &m.legs[0] else { panic!("a VJM leg") };
     let coords = &state.legs[0].coords;
     let elements = leg.chain.elements();
     // Frames after each element.
@@ -291,4 +292,39 @@ fn forest_choice_does_not_change_the_answer() {
     let moved = a02 * c_tip * a02.transpose();
     let d_tip = d.try_inverse().unwrap();
     assert!((moved - d_tip).abs().max() < 1e-8 * d_tip.abs().max(), "{moved}\nvs\n{d_tip}");
+}
+
+fn model(path: &str) -> stiff::platform::manipulator::Manipulator {
+    stiff::model::load_manipulator(std::path::Path::new(path)).unwrap()
+}
+
+fn stiffness_at(m: &stiff::platform::manipulator::Manipulator, pose: &Frame) -> Mat6 {
+    let mut state = m.new_state();
+    m.unloaded(pose, &mut state).unwrap().stiffness
+}
+
+/// The whole 3-PUU written as an MSA structure (manipulators/orthoglide-3puu-msa.toml: closed-form
+/// geometry from the pose, every node, beam and joint named) and as VJM chains (orthoglide-3puu.toml, inverse
+/// kinematics by Newton) agree to 1e-8 over the workspace: two methods, two geometry routes, one robot.
+#[test]
+fn msa_equals_vjm_on_the_whole_orthoglide() {
+    let (vjm, msa) = (orthoglide(), model("manipulators/orthoglide-3puu-msa.toml"));
+    let mut r = rng(11);
+    for _ in 0..40 {
+        let p = Vec3::new(r.random_range(-70.0..120.0), r.random_range(-70.0..120.0), r.random_range(-70.0..120.0));
+        let pose = Frame::translation(p);
+        let (a, b) = (stiffness_at(&vjm, &pose), stiffness_at(&msa, &pose));
+        assert!(scaled_rel_diff(&b, &a, 300.0) < 1e-8, "at {p}: {a}\n{b}");
+    }
+}
+
+/// A rotated platform is out of the translational leg's reach in the MSA description (status unreachable),
+/// as in the VJM one (no U-joint configuration reaches it).
+#[test]
+fn msa_orthoglide_refuses_a_rotated_platform() {
+    let msa = model("manipulators/orthoglide-3puu-msa.toml");
+    let mut state = msa.new_state();
+    let pose = Frame::from_position_rotvec(Vec3::zeros(), Vec3::new(0.0, 0.0, 0.05));
+    let e = msa.unloaded(&pose, &mut state).unwrap_err();
+    assert!(matches!(e.failure, stiff::platform::leg::LegFailure::OutOfReach { condition: Some(1) }), "{e:?}");
 }

@@ -151,7 +151,7 @@ fn rigid_motion_of_the_whole_description() {
         let t = random_frame(&mut r, 500.0);
         let mut moved = m.clone();
         for leg in moved.legs.iter_mut() {
-            let Leg::Vjm(v) = leg;
+            let Leg::Vjm(v) = leg else { panic!("a VJM leg") };
             v.chain = v.chain.prepended(t);
         }
         let p = Vec3::new(r.random_range(-60.0..60.0), r.random_range(-60.0..60.0), r.random_range(-60.0..60.0));

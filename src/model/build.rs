@@ -7,12 +7,14 @@ use std::path::Path;
 use toml::Spanned;
 
 use super::error::{read_text, InputError, Locator};
+use super::expr::ExprSrc;
 use super::expr::Scope;
-use super::schema::{AxisSpec, BeamSpec, ElementSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
+use super::schema::{AxisSpec, BeamSpec, ElementSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::Manipulator;
+use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
 use crate::vjm::spring::{beam_compliance, BeamSection, SpringGroup, SIX_DOF};
 
@@ -23,11 +25,44 @@ pub fn load_manipulator(path: &Path) -> Result<Manipulator, InputError> {
 }
 
 pub fn parse_manipulator(path: &Path, source: &str) -> Result<Manipulator, InputError> {
+    parse_with(path, source, &BTreeMap::new(), 0)
+}
+
+/// As `parse_manipulator`, with some parameters replaced by given values (a parametric study, or a leg
+/// taken `from` this file by another), `depth` files down a chain of `from`.
+pub fn parse_with(
+    path: &Path,
+    source: &str,
+    overrides: &BTreeMap<String, f64>,
+    depth: usize,
+) -> Result<Manipulator, InputError> {
     let loc = Locator { path, source };
     let file: ModelFile = toml::from_str(source).map_err(|e| loc.syntax(e))?;
-    let params = evaluate_parameters(&loc, &file.parameters)?;
+    let mut specs = file.parameters.clone();
+    if let Some(other) = &file.parameters_from {
+        let other_path = path.parent().unwrap_or(Path::new(".")).join(other.get_ref());
+        let other_source = read_text(&other_path)?;
+        let other_loc = Locator { path: &other_path, source: &other_source };
+        let other_file: ModelFile = toml::from_str(&other_source).map_err(|e| other_loc.syntax(e))?;
+        for (name, value) in evaluate_parameters(&other_loc, &other_file.parameters)? {
+            if let Some(mine) = specs.get(&name) {
+                return Err(
+                    loc.at(mine.span(), format!("parameter `{name}` is already given by `{}`", other.get_ref()))
+                );
+            }
+            specs.insert(name, Spanned::new(other.span(), ExprSrc::Number(value)));
+        }
+    }
+    for (name, value) in overrides {
+        let Some(spec) = specs.get(name) else {
+            return Err(loc.whole(format!("no parameter `{name}` to override")));
+        };
+        let span = spec.span();
+        specs.insert(name.clone(), Spanned::new(span, ExprSrc::Number(*value)));
+    }
+    let params = evaluate_parameters(&loc, &specs)?;
     let b = Builder { loc, params };
-    b.manipulator(&file)
+    b.manipulator(&file, depth)
 }
 
 /// Evaluates every parameter (parameters may use each other, in any order, without cycles).
@@ -67,9 +102,9 @@ fn evaluate_parameters(loc: &Locator, specs: &BTreeMap<String, Num>) -> Result<B
     Ok(p.done)
 }
 
-struct Builder<'a> {
-    loc: Locator<'a>,
-    params: BTreeMap<String, f64>,
+pub(super) struct Builder<'a> {
+    pub(super) loc: Locator<'a>,
+    pub(super) params: BTreeMap<String, f64>,
 }
 
 /// Coordinates and springs collected while walking one chain.
@@ -121,12 +156,12 @@ impl ChainParts {
 }
 
 impl Builder<'_> {
-    fn num(&self, n: &Num) -> Result<f64, InputError> {
+    pub(super) fn num(&self, n: &Num) -> Result<f64, InputError> {
         let mut scope = self.params.clone();
         n.get_ref().eval(&mut scope).map_err(|e| self.loc.at(n.span(), e))
     }
 
-    fn positive(&self, n: &Num, what: &str) -> Result<f64, InputError> {
+    pub(super) fn positive(&self, n: &Num, what: &str) -> Result<f64, InputError> {
         let v = self.num(n)?;
         if v > 0.0 {
             Ok(v)
@@ -139,7 +174,7 @@ impl Builder<'_> {
         Ok(Vec3::new(self.num(&v[0])?, self.num(&v[1])?, self.num(&v[2])?))
     }
 
-    fn axis(&self, a: &Spanned<AxisSpec>) -> Result<Vec3, InputError> {
+    pub(super) fn axis(&self, a: &Spanned<AxisSpec>) -> Result<Vec3, InputError> {
         let v = match a.get_ref() {
             AxisSpec::Named(n) => match n.as_str() {
                 "x" | "+x" => Vec3::x(),
@@ -189,7 +224,7 @@ impl Builder<'_> {
         Ok(Frame::new(rot, pos))
     }
 
-    fn matrix6(&self, m: &Spanned<Vec<Vec<Num>>>, what: &str) -> Result<Mat6, InputError> {
+    pub(super) fn matrix6(&self, m: &Spanned<Vec<Vec<Num>>>, what: &str) -> Result<Mat6, InputError> {
         let rows = m.get_ref();
         if rows.len() != 6 || rows.iter().any(|r| r.len() != 6) {
             return Err(self.loc.at(m.span(), format!("{what} must be 6 rows of 6 numbers")));
@@ -215,22 +250,7 @@ impl Builder<'_> {
         let s = b.get_ref();
         let e = self.positive(&s.e, "E")?;
         let g = self.shear_modulus(e, &s.g, &s.nu, b.span())?;
-        let section = match (&s.diameter, &s.area, &s.iy, &s.iz, &s.j) {
-            (Some(d), None, None, None, None) => BeamSection::round(e, g, self.positive(d, "diameter")?),
-            (None, Some(a), Some(iy), Some(iz), Some(j)) => BeamSection {
-                e,
-                g,
-                area: self.positive(a, "A")?,
-                iy: self.positive(iy, "Iy")?,
-                iz: self.positive(iz, "Iz")?,
-                j: self.positive(j, "J")?,
-            },
-            _ => {
-                return Err(self
-                    .loc
-                    .at(b.span(), "a beam's section is either `diameter` or all of `A`, `Iy`, `Iz`, `J`"))
-            }
-        };
+        let section = self.section(e, g, &s.diameter, [&s.area, &s.iy, &s.iz, &s.j], b.span())?;
         let length = self.positive(&s.length, "length")?;
         let direction = match &s.direction {
             Some(d) => self.axis(d)?,
@@ -239,7 +259,30 @@ impl Builder<'_> {
         Ok(beam_compliance(&section, length, &direction))
     }
 
-    fn shear_modulus(
+    /// A beam section: a round `diameter`, or all of A, Iy, Iz, J.
+    pub(super) fn section(
+        &self,
+        e: f64,
+        g: f64,
+        diameter: &Option<Num>,
+        [area, iy, iz, j]: [&Option<Num>; 4],
+        span: std::ops::Range<usize>,
+    ) -> Result<BeamSection, InputError> {
+        match (diameter, area, iy, iz, j) {
+            (Some(d), None, None, None, None) => Ok(BeamSection::round(e, g, self.positive(d, "diameter")?)),
+            (None, Some(a), Some(iy), Some(iz), Some(j)) => Ok(BeamSection {
+                e,
+                g,
+                area: self.positive(a, "A")?,
+                iy: self.positive(iy, "Iy")?,
+                iz: self.positive(iz, "Iz")?,
+                j: self.positive(j, "J")?,
+            }),
+            _ => Err(self.loc.at(span, "a beam's section is either `diameter` or all of `A`, `Iy`, `Iz`, `J`")),
+        }
+    }
+
+    pub(super) fn shear_modulus(
         &self,
         e: f64,
         g: &Option<Num>,
@@ -462,7 +505,7 @@ impl Builder<'_> {
         Ok(())
     }
 
-    fn manipulator(&self, file: &ModelFile) -> Result<Manipulator, InputError> {
+    fn manipulator(&self, file: &ModelFile, depth: usize) -> Result<Manipulator, InputError> {
         let gravity = match &file.gravity {
             Some(g) => self.vec3(g)?,
             None => Vec3::zeros(),
@@ -473,21 +516,13 @@ impl Builder<'_> {
         }
         for leg_spec in file.legs.get_ref() {
             let spec = leg_spec.get_ref();
-            if spec.chain.get_ref().is_empty() {
-                return Err(self.loc.at(spec.chain.span(), format!("leg `{}` has an empty chain", spec.name)));
-            }
-            let mut parts = ChainParts::default();
-            for (i, e) in spec.chain.get_ref().iter().enumerate() {
-                self.element(e, i, &mut parts)?;
-            }
-            let chain = Chain::new(std::mem::take(&mut parts.elements));
+            let body = self.leg_body(leg_spec, gravity, depth)?;
             let attachment = match &spec.attachment {
                 Some(TransformSpec { translation, rotation_axis, rotation_deg }) => {
                     self.transform(translation, rotation_axis, rotation_deg, leg_spec.span())?
                 }
                 None => Frame::IDENTITY,
             };
-            let length_scale = chain.length_scale().max(1.0);
             let copies: Vec<(String, Frame)> = if spec.copies.is_empty() {
                 vec![(spec.name.clone(), Frame::IDENTITY)]
             } else {
@@ -503,23 +538,90 @@ impl Builder<'_> {
                 if legs.iter().any(|l: &Leg| l.name() == name) {
                     return Err(self.loc.at(leg_spec.span(), format!("two legs are named `{name}`")));
                 }
-                legs.push(Leg::Vjm(VjmLeg {
-                    name,
-                    preload: parts.preload.clone(),
-                    gravity,
-                    chain: chain.prepended(place),
-                    attachment: place.compose(&attachment),
-                    springs: parts.springs.clone(),
-                    length_scale,
-                }));
+                let attachment = place.compose(&attachment);
+                legs.push(match &body {
+                    Leg::Vjm(v) => Leg::Vjm(VjmLeg { name, chain: v.chain.prepended(place), attachment, ..v.clone() }),
+                    Leg::Msa(m) => Leg::Msa(MsaLeg { name, place: place.compose(&m.place), attachment, ..m.clone() }),
+                });
             }
         }
-        let length_scale = legs
-            .iter()
-            .map(|l| match l {
-                Leg::Vjm(v) => v.length_scale,
-            })
-            .fold(1.0, f64::max);
+        let length_scale = legs.iter().map(Leg::length_scale).fold(1.0, f64::max);
         Ok(Manipulator { name: file.name.clone(), legs, length_scale })
+    }
+
+    /// One leg as written (a chain, an MSA structure, or the leg of another file), before copies.
+    fn leg_body(&self, leg_spec: &Spanned<LegSpec>, gravity: Vec3, depth: usize) -> Result<Leg, InputError> {
+        let spec = leg_spec.get_ref();
+        let given = [spec.chain.is_some(), spec.msa.is_some(), spec.from.is_some()];
+        if given.iter().filter(|g| **g).count() != 1 {
+            return Err(self
+                .loc
+                .at(leg_spec.span(), format!("leg `{}` needs exactly one of `chain`, `msa` and `from`", spec.name)));
+        }
+        if !spec.parameters.is_empty() && spec.from.is_none() {
+            return Err(self
+                .loc
+                .at(leg_spec.span(), "a leg's `parameters` override those of the file named by `from`"));
+        }
+        if let Some(chain_spec) = &spec.chain {
+            if chain_spec.get_ref().is_empty() {
+                return Err(self.loc.at(chain_spec.span(), format!("leg `{}` has an empty chain", spec.name)));
+            }
+            let mut parts = ChainParts::default();
+            for (i, e) in chain_spec.get_ref().iter().enumerate() {
+                self.element(e, i, &mut parts)?;
+            }
+            let chain = Chain::new(std::mem::take(&mut parts.elements));
+            let length_scale = chain.length_scale().max(1.0);
+            return Ok(Leg::Vjm(VjmLeg {
+                name: spec.name.clone(),
+                preload: parts.preload,
+                gravity,
+                chain,
+                attachment: Frame::IDENTITY,
+                springs: parts.springs,
+                length_scale,
+            }));
+        }
+        if let Some(msa) = &spec.msa {
+            let template = self.msa_leg(msa)?;
+            let mut leg = MsaLeg {
+                name: spec.name.clone(),
+                template,
+                place: Frame::IDENTITY,
+                attachment: Frame::IDENTITY,
+                length_scale: 1.0,
+            };
+            // Rotations weigh as the leg's size: its nodes' largest distance from the end at the home pose
+            // (platform at the origin), where the description should be reachable.
+            let home = leg.structure_at(&Frame::IDENTITY).map_err(|_| {
+                self.loc.at(msa.span(), format!("leg `{}` cannot be evaluated with the platform at the origin (home pose): check `reach` and the formulas", spec.name))
+            })?;
+            let end = home.nodes[home.end];
+            leg.length_scale = home.nodes.iter().map(|p| (p - end).norm()).fold(1.0, f64::max);
+            return Ok(Leg::Msa(leg));
+        }
+        let from = spec.from.as_ref().expect("one of the three is given");
+        if depth > 8 {
+            return Err(self.loc.at(from.span(), "`from` nests more than 8 files deep (a cycle?)"));
+        }
+        let path = self.loc.path.parent().unwrap_or(Path::new(".")).join(from.get_ref());
+        let overrides = spec
+            .parameters
+            .iter()
+            .map(|(n, v)| Ok((n.clone(), self.num(v)?)))
+            .collect::<Result<BTreeMap<_, _>, InputError>>()?;
+        let source = read_text(&path)?;
+        let other = parse_with(&path, &source, &overrides, depth + 1)?;
+        let mut legs = other.legs.into_iter();
+        match (legs.next(), legs.next()) {
+            (Some(leg), None) => Ok(match leg {
+                Leg::Vjm(v) => Leg::Vjm(VjmLeg { name: spec.name.clone(), gravity, ..v }),
+                Leg::Msa(m) => Leg::Msa(MsaLeg { name: spec.name.clone(), ..m }),
+            }),
+            _ => {
+                Err(self.loc.at(from.span(), format!("`{}` must describe exactly one leg (no copies)", from.get_ref())))
+            }
+        }
     }
 }

@@ -21,6 +21,10 @@ pub struct ModelFile {
     /// Named numbers, usable in any formula of the file (and in each other).
     #[serde(default)]
     pub parameters: BTreeMap<String, Num>,
+    /// Another model file (path relative to this one) whose parameters this file uses too (its own
+    /// `parameters` may add to them, not redefine them): one robot described twice shares its numbers.
+    #[serde(default)]
+    pub parameters_from: Option<Spanned<String>>,
     /// Gravity acting on the chains' masses, m/s^2 (default: none).
     #[serde(default)]
     pub gravity: Option<[Num; 3]>,
@@ -40,7 +44,114 @@ pub struct LegSpec {
     /// platform's reference point, platform axes).
     #[serde(default)]
     pub attachment: Option<TransformSpec>,
-    pub chain: Spanned<Vec<Spanned<ElementSpec>>>,
+    /// A VJM leg: a serial chain of elements.
+    #[serde(default)]
+    pub chain: Option<Spanned<Vec<Spanned<ElementSpec>>>>,
+    /// An MSA leg: nodes, links and joints (paper 003 Table 1).
+    #[serde(default)]
+    pub msa: Option<Spanned<MsaSpec>>,
+    /// The leg of another model file (path relative to this one), its parameters overridden by `parameters`.
+    #[serde(default)]
+    pub from: Option<Spanned<String>>,
+    /// With `from`: values (formulas over this file's parameters) replacing the other file's parameters.
+    #[serde(default)]
+    pub parameters: BTreeMap<String, Num>,
+}
+
+/// An MSA leg, written like paper 003 Table 1. Every formula may use the file's parameters, the leg's end
+/// point and orientation in the leg's own frame (`end_x`, `end_y`, `end_z` in mm, `end_rx`, `end_ry`, `end_rz`
+/// rotation vector in rad), and the per-pose quantities of `pose`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MsaSpec {
+    /// The node at the leg's end (where its stiffness is wanted).
+    pub end: Spanned<String>,
+    /// Per-pose quantities (eq 18-22), in any order, each a formula of the others.
+    #[serde(default)]
+    pub pose: BTreeMap<String, Num>,
+    /// Formulas that must be >= 0 at a reachable pose (eq 20); elsewhere the pose is unreachable.
+    #[serde(default)]
+    pub reach: Vec<Num>,
+    /// Node positions in the leg's frame (mm): three formulas, or the name of a node at the same point.
+    pub nodes: Spanned<BTreeMap<String, Spanned<NodeSpec>>>,
+    /// Named beam sections used by the links.
+    #[serde(default)]
+    pub sections: BTreeMap<String, Spanned<SectionSpec>>,
+    #[serde(default, rename = "link")]
+    pub links: Vec<Spanned<MsaLinkSpec>>,
+    #[serde(default, rename = "joint")]
+    pub joints: Vec<Spanned<MsaJointSpec>>,
+}
+
+/// A node's position: three formulas, or another node's name (the same point).
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum NodeSpec {
+    At([ExprSrc; 3]),
+    Same(String),
+}
+
+/// A beam section (N, mm): material and either a round diameter or A, Iy, Iz, J.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionSpec {
+    #[serde(rename = "E")]
+    pub e: Num,
+    #[serde(rename = "G", default)]
+    pub g: Option<Num>,
+    #[serde(default)]
+    pub nu: Option<Num>,
+    #[serde(default)]
+    pub diameter: Option<Num>,
+    #[serde(rename = "A", default)]
+    pub area: Option<Num>,
+    #[serde(rename = "Iy", default)]
+    pub iy: Option<Num>,
+    #[serde(rename = "Iz", default)]
+    pub iz: Option<Num>,
+    #[serde(rename = "J", default)]
+    pub j: Option<Num>,
+}
+
+/// A link between two nodes: `beam` (a section; `y_axis` orients a section with Iy != Iz), `rigid`
+/// (eq 3-5), or `link` with its 6x6 `stiffness_matrix` at the second node with the first clamped (leg frame).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MsaLinkSpec {
+    #[serde(rename = "type")]
+    pub kind: Spanned<String>,
+    pub nodes: Spanned<Vec<Spanned<String>>>,
+    #[serde(default)]
+    pub section: Option<Spanned<String>>,
+    #[serde(default)]
+    pub y_axis: Option<Spanned<AxisSpec>>,
+    #[serde(default)]
+    pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+}
+
+/// A joint between two nodes (at the second one's point), or a node's connection to the base when the
+/// first node is `base`. `type`: rigid, revolute (`axis`), prismatic (`axis`), universal (`axes`),
+/// spherical, free (`free`: the passive unit twists, Lambda^p of eq 8) or spring (`stiffness_matrix`, all
+/// six directions elastic). A revolute or prismatic joint with a `stiffness` (and optional `preload`) is
+/// elastic (eq 10); without, passive.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MsaJointSpec {
+    #[serde(rename = "type")]
+    pub kind: Spanned<String>,
+    pub nodes: Spanned<Vec<Spanned<String>>>,
+    #[serde(default)]
+    pub axis: Option<Spanned<AxisSpec>>,
+    #[serde(default)]
+    pub axes: Option<Spanned<Vec<Spanned<AxisSpec>>>>,
+    #[serde(default)]
+    pub free: Option<Spanned<Vec<[ExprSrc; 6]>>>,
+    #[serde(default)]
+    pub stiffness: Option<Num>,
+    #[serde(default)]
+    pub preload: Option<Num>,
+    #[serde(default)]
+    pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -14,6 +14,8 @@
 //! coordinates (eq 17). A singular system (a mechanism with the end held: a redundant passive joint, or a
 //! node left free) is reported with its number of free motions and the nodes they move.
 
+pub mod template;
+
 use nalgebra::{DMatrix, DVector};
 
 use crate::kinematics::frame::{block_rotation, point_shift, Mat3, Mat6, Vec3, Vec6};
@@ -146,7 +148,7 @@ pub fn link_stiffness(kjj: &Mat6, pi: &Vec3, pj: &Vec3) -> [[Mat6; 2]; 2] {
 /// An orthonormal basis of the complement of span(`moving`).
 fn complement(moving: &[Vec6]) -> Vec<Vec6> {
     let mut basis: Vec<Vec6> = Vec::new();
-    let mut add = |v: Vec6, tol: f64, basis: &mut Vec<Vec6>| {
+    let add = |v: Vec6, tol: f64, basis: &mut Vec<Vec6>| {
         let mut v = v;
         for _ in 0..2 {
             for b in basis.iter() {

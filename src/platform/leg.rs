@@ -9,6 +9,8 @@ use crate::vjm::equilibrium::{EquilibriumFailure, EquilibriumWorkspace, Lineariz
 use crate::vjm::spring::SpringGroup;
 use crate::vjm::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 
+use super::msa_leg::{MsaLeg, MsaState};
+
 /// What a leg answers for one platform pose.
 #[derive(Clone, Copy, Debug)]
 pub struct LegResponse {
@@ -28,6 +30,9 @@ pub struct LegResponse {
 pub enum LegFailure {
     /// Inverse kinematics found no configuration reaching the pose.
     Unreachable(ik::IkFailure),
+    /// An MSA leg's geometry has no value at the pose: a reach condition (its index) is negative (eq 20),
+    /// or a formula is not finite there.
+    OutOfReach { condition: Option<usize> },
     /// The springs do not restrain the directions the passive joints leave (eq 9 bordered matrix singular).
     SingularChain,
     /// The loaded equilibrium was not found, even with continuation.
@@ -69,33 +74,47 @@ pub struct LegState {
     ik: IkWorkspace,
     jac: ChainJacobians,
     equilibrium: EquilibriumWorkspace,
+    msa: MsaState,
 }
 
 #[derive(Clone, Debug)]
 pub enum Leg {
     Vjm(VjmLeg),
+    Msa(MsaLeg),
 }
 
 impl Leg {
     pub fn name(&self) -> &str {
         match self {
             Leg::Vjm(l) => &l.name,
+            Leg::Msa(l) => &l.name,
+        }
+    }
+
+    /// mm per rad: how this leg weighs rotations against translations.
+    pub fn length_scale(&self) -> f64 {
+        match self {
+            Leg::Vjm(l) => l.length_scale,
+            Leg::Msa(l) => l.length_scale,
         }
     }
 
     pub fn new_state(&self) -> LegState {
-        match self {
-            Leg::Vjm(l) => LegState {
-                coords: Coordinates::zeros(&l.chain),
-                warm: false,
-                end_wrench: Vec6::zeros(),
-                last_target: Frame::IDENTITY,
-                saved: Coordinates::zeros(&l.chain),
-                placed: Coordinates::zeros(&l.chain),
-                ik: IkWorkspace::default(),
-                jac: ChainJacobians::default(),
-                equilibrium: EquilibriumWorkspace::default(),
-            },
+        let zeros = match self {
+            Leg::Vjm(l) => Coordinates::zeros(&l.chain),
+            Leg::Msa(_) => Coordinates::default(),
+        };
+        LegState {
+            coords: zeros.clone(),
+            warm: false,
+            end_wrench: Vec6::zeros(),
+            last_target: Frame::IDENTITY,
+            saved: zeros.clone(),
+            placed: zeros,
+            ik: IkWorkspace::default(),
+            jac: ChainJacobians::default(),
+            equilibrium: EquilibriumWorkspace::default(),
+            msa: MsaState::default(),
         }
     }
 
@@ -105,6 +124,7 @@ impl Leg {
     pub fn place(&self, platform: &Frame, state: &mut LegState) -> Result<usize, LegFailure> {
         match self {
             Leg::Vjm(l) => l.place(platform, state),
+            Leg::Msa(l) => l.place(platform, &mut state.msa).map(|_| 0),
         }
     }
 
@@ -113,6 +133,7 @@ impl Leg {
     pub fn unloaded_at_placement(&self) -> bool {
         match self {
             Leg::Vjm(l) => l.preload.iter().all(|t| *t == 0.0) && (l.gravity == Vec3::zeros() || !l.has_masses()),
+            Leg::Msa(l) => l.template.unloaded(),
         }
     }
 
@@ -121,6 +142,7 @@ impl Leg {
     pub fn respond_unloaded(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
         match self {
             Leg::Vjm(l) => l.respond_unloaded(platform, state),
+            Leg::Msa(l) => l.respond(platform, &state.msa),
         }
     }
 
@@ -130,6 +152,7 @@ impl Leg {
     pub fn respond(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
         match self {
             Leg::Vjm(l) => l.respond(platform, state),
+            Leg::Msa(l) => l.respond(platform, &state.msa),
         }
     }
 
@@ -148,7 +171,18 @@ impl Leg {
                 let (corrected_force, _) = at_reference_point(&corrected, &Mat6::zeros(), &v);
                 let (_, stiffness) = at_reference_point(&lin.wrench, &lin.stiffness(), &v);
                 let distance = lin.distance_from_equilibrium(l.length_scale);
-                Ok(LegLinear { shift: point_shift(&v), corrected_force, stiffness, distance, lin })
+                Ok(LegLinear { shift: point_shift(&v), corrected_force, stiffness, distance, lin: Some(lin) })
+            }
+            // Linear: the answer at `platform` is exact, nothing inside the leg to correct.
+            Leg::Msa(l) => {
+                let r = l.respond(platform, &state.msa)?;
+                Ok(LegLinear {
+                    lin: None,
+                    shift: Mat6::identity(),
+                    corrected_force: -r.wrench,
+                    stiffness: r.stiffness,
+                    distance: 0.0,
+                })
             }
         }
     }
@@ -156,18 +190,17 @@ impl Leg {
     /// The fraction of a Newton step (platform twist `platform_step`) that keeps the leg's coordinate
     /// changes within the solver's largest step.
     pub fn step_fraction(&self, lin: &LegLinear, platform_step: &Vec6) -> f64 {
-        match self {
-            Leg::Vjm(l) => l.loaded_chain().damping(&lin.lin, &(lin.shift * platform_step)),
+        match (self, &lin.lin) {
+            (Leg::Vjm(l), Some(chain)) => l.loaded_chain().damping(chain, &(lin.shift * platform_step)),
+            _ => 1.0,
         }
     }
 
     /// Applies `fraction` of the Newton step in which the platform moves by `platform_step`.
     pub fn advance(&self, lin: &LegLinear, platform_step: &Vec6, fraction: f64, state: &mut LegState) {
-        match self {
-            Leg::Vjm(l) => {
-                let end_twist = lin.shift * platform_step;
-                l.loaded_chain().advance(&lin.lin, &end_twist, fraction, &mut state.coords, &mut state.end_wrench);
-            }
+        if let (Leg::Vjm(l), Some(chain)) = (self, &lin.lin) {
+            let end_twist = lin.shift * platform_step;
+            l.loaded_chain().advance(chain, &end_twist, fraction, &mut state.coords, &mut state.end_wrench);
         }
     }
 
@@ -175,6 +208,7 @@ impl Leg {
     pub fn stable(&self, state: &LegState) -> bool {
         match self {
             Leg::Vjm(l) => l.loaded_chain().stable(&state.equilibrium),
+            Leg::Msa(_) => true,
         }
     }
 
@@ -183,6 +217,9 @@ impl Leg {
     /// paper 000 s. 4.2), in the base frame.
     pub fn actuator_twists(&self, platform: &Frame, state: &mut LegState) -> Vec<Vec6> {
         match self {
+            // An MSA leg has no actuated coordinate: its actuators are elastic joints, whose offsets enter
+            // through their preload.
+            Leg::Msa(_) => Vec::new(),
             Leg::Vjm(l) => {
                 let jac = l.evaluation(state);
                 // A twist at EP seen at RP: inverse of point_shift(v), v = EP - RP.
@@ -399,7 +436,8 @@ pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> (Vec6, Mat6)
 /// (platform pose and every leg's configuration together) is built from these.
 #[derive(Clone, Debug)]
 pub struct LegLinear {
-    lin: Linearization,
+    /// The VJM chain's linearised equilibrium (None for a linear MSA leg).
+    lin: Option<Linearization>,
     /// point_shift(v): a platform twist at the reference point as a twist of the leg's end.
     shift: Mat6,
     /// Wrench the platform applies to the leg once the leg's own correction is made, at the reference point.

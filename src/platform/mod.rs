@@ -4,3 +4,4 @@ pub mod compliance;
 pub mod leg;
 pub mod loaded;
 pub mod manipulator;
+pub mod msa_leg;

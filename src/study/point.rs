@@ -39,7 +39,7 @@ impl Status {
 
     fn of(e: &PoseFailure) -> Self {
         match e.failure {
-            LegFailure::Unreachable(_) => Status::Unreachable,
+            LegFailure::Unreachable(_) | LegFailure::OutOfReach { .. } => Status::Unreachable,
             LegFailure::SingularChain => Status::SingularLeg,
             LegFailure::NotConverged { .. } => Status::NotConverged,
         }

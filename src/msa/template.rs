@@ -1,0 +1,153 @@
+//! An MSA structure whose geometry follows the pose (paper 003 s. 3.2-3.3): node positions and joint axes
+//! are formulas over per-pose quantities (leg length and angle by eq 18-19, pantograph angle by eq 21-22),
+//! themselves formulas of the leg's end point. Built once from the description (formulas parsed once),
+//! evaluated into a `Structure` at every pose.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::{link_stiffness, oriented_beam_stiffness, Connection, Element, Structure};
+use crate::kinematics::frame::{block_rotation, rotation_vector, Frame, Mat6, Vec3, Vec6};
+use crate::model::expr::Expr;
+use crate::vjm::spring::BeamSection;
+
+/// Slots 0..6 of every evaluation: the leg's end point and its orientation (rotation vector), in the leg's
+/// own frame (before the copy that places the leg).
+pub const END_VARIABLES: [&str; 6] = ["end_x", "end_y", "end_z", "end_rx", "end_ry", "end_rz"];
+
+/// A direction that follows the pose: a unit twist (translation part, rotation part) of formulas.
+#[derive(Clone, Debug)]
+pub struct DirectionTemplate {
+    pub twist: [Expr; 6],
+}
+
+#[derive(Clone, Debug)]
+pub enum ElementTemplate {
+    /// A beam between two nodes; its section's y axis across the beam, if given.
+    Beam {
+        i: usize,
+        j: usize,
+        section: BeamSection,
+        y_axis: Option<[Expr; 3]>,
+    },
+    /// A link given by its stiffness at j with i clamped (leg frame, at j).
+    Link {
+        i: usize,
+        j: usize,
+        kjj: Mat6,
+    },
+    Rigid {
+        i: usize,
+        j: usize,
+    },
+    /// A connection (i = None: to the base) with free and elastic directions.
+    Joint {
+        i: Option<usize>,
+        j: usize,
+        free: Vec<DirectionTemplate>,
+        elastic: Vec<DirectionTemplate>,
+        stiffness: DMatrix<f64>,
+        preload: DVector<f64>,
+    },
+}
+
+#[derive(Clone, Debug)]
+pub struct Template {
+    /// Per-pose quantities in evaluation order (each may use the end variables and earlier ones); the
+    /// value of `pose[k]` goes to slot 6 + k.
+    pub pose: Vec<Expr>,
+    /// Each must be >= 0 at a reachable pose (eq 20).
+    pub reach: Vec<Expr>,
+    pub nodes: Vec<[Expr; 3]>,
+    pub node_names: Vec<String>,
+    pub end: usize,
+    pub elements: Vec<ElementTemplate>,
+}
+
+/// Why a template gives no structure at a pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PoseOutOfReach {
+    /// A reach condition is negative (its index).
+    Condition(usize),
+    /// A per-pose quantity or a node position is not a finite number there (e.g. acos of more than 1).
+    NotFinite,
+}
+
+impl Template {
+    /// True when no elastic joint is preloaded: the leg carries no load where it was placed.
+    pub fn unloaded(&self) -> bool {
+        self.elements.iter().all(|e| match e {
+            ElementTemplate::Joint { preload, .. } => preload.iter().all(|p| *p == 0.0),
+            _ => true,
+        })
+    }
+
+    /// The structure at a pose: `end` is the leg's end frame in the leg's own frame, `place` the copy's frame
+    /// (leg frame -> base frame); the structure comes out in the base frame.
+    pub fn structure(&self, end: &Frame, place: &Frame, slots: &mut Vec<f64>) -> Result<Structure, PoseOutOfReach> {
+        slots.clear();
+        slots.extend(end.pos.iter());
+        slots.extend(rotation_vector(&end.rot).iter());
+        for e in &self.pose {
+            let v = e.eval(slots);
+            if !v.is_finite() {
+                return Err(PoseOutOfReach::NotFinite);
+            }
+            slots.push(v);
+        }
+        for (k, r) in self.reach.iter().enumerate() {
+            if r.eval(slots) < 0.0 {
+                return Err(PoseOutOfReach::Condition(k));
+            }
+        }
+        let point = |p: &[Expr; 3]| Vec3::new(p[0].eval(slots), p[1].eval(slots), p[2].eval(slots));
+        let mut nodes = Vec::with_capacity(self.nodes.len());
+        for p in &self.nodes {
+            let local = point(p);
+            if !local.iter().all(|v| v.is_finite()) {
+                return Err(PoseOutOfReach::NotFinite);
+            }
+            nodes.push(place.transform_point(&local));
+        }
+        let rot6 = block_rotation(&place.rot);
+        let direction = |d: &DirectionTemplate| -> Result<Vec6, PoseOutOfReach> {
+            let v = Vec6::from_fn(|r, _| d.twist[r].eval(slots));
+            let n = v.norm();
+            if !(n > 0.0 && n.is_finite()) {
+                return Err(PoseOutOfReach::NotFinite);
+            }
+            Ok(rot6 * (v / n))
+        };
+        let mut elements = Vec::with_capacity(self.elements.len());
+        for e in &self.elements {
+            elements.push(match e {
+                ElementTemplate::Beam { i, j, section, y_axis } => {
+                    let hint = y_axis.as_ref().map(|y| place.rot * point(y));
+                    Element::Flexible {
+                        i: *i,
+                        j: *j,
+                        k: oriented_beam_stiffness(section, &nodes[*i], &nodes[*j], hint),
+                    }
+                }
+                ElementTemplate::Link { i, j, kjj } => Element::Flexible {
+                    i: *i,
+                    j: *j,
+                    k: link_stiffness(&(rot6 * kjj * rot6.transpose()), &nodes[*i], &nodes[*j]),
+                },
+                ElementTemplate::Rigid { i, j } => Element::Rigid { i: *i, j: *j },
+                ElementTemplate::Joint { i, j, free, elastic, stiffness, preload } => {
+                    let connection = Connection {
+                        free: free.iter().map(direction).collect::<Result<_, _>>()?,
+                        elastic: elastic.iter().map(direction).collect::<Result<_, _>>()?,
+                        stiffness: stiffness.clone(),
+                        preload: preload.clone(),
+                    };
+                    match i {
+                        Some(i) => Element::Joint { i: *i, j: *j, connection },
+                        None => Element::Base { node: *j, connection },
+                    }
+                }
+            });
+        }
+        Ok(Structure { nodes, elements, end: self.end })
+    }
+}

@@ -1,0 +1,74 @@
+//! A leg described by matrix structural analysis (paper 003): its geometry follows the pose through the
+//! template's formulas, and its answer is the end node's stiffness (eq 17) and the wrench its preloads exert,
+//! moved to the platform's reference point. The model is linear: at a platform displaced from where the leg
+//! was placed, the wrench changes by the placed stiffness times the displacement, so the loaded studies run
+//! on MSA legs as on VJM ones, without large-deflection effects inside the leg.
+
+use super::leg::{at_reference_point, LegFailure, LegResponse};
+use crate::kinematics::frame::Frame;
+use crate::msa::template::{PoseOutOfReach, Template};
+use crate::msa::{MsaFailure, Structure};
+
+#[derive(Clone, Debug)]
+pub struct MsaLeg {
+    pub name: String,
+    pub template: Template,
+    /// The copy's frame: the template's leg frame in the base frame.
+    pub place: Frame,
+    /// The leg's end frame in the platform frame (copy included).
+    pub attachment: Frame,
+    /// mm per rad, to weigh rotations against translations.
+    pub length_scale: f64,
+}
+
+/// What an MSA leg keeps between calls: the answer at its placement (for the linear loaded answer) and the
+/// formulas' value table.
+#[derive(Clone, Debug, Default)]
+pub struct MsaState {
+    pub slots: Vec<f64>,
+    /// Platform pose at placement, and the leg's answer there.
+    pub placed: Option<(Frame, LegResponse)>,
+}
+
+impl MsaLeg {
+    /// The structure (base frame) with the platform at `platform`.
+    pub fn structure_at(&self, platform: &Frame) -> Result<Structure, LegFailure> {
+        self.structure_with(platform, &mut Vec::new())
+    }
+
+    fn structure_with(&self, platform: &Frame, slots: &mut Vec<f64>) -> Result<Structure, LegFailure> {
+        let target = platform.compose(&self.attachment);
+        let local = self.place.inverse().compose(&target);
+        self.template.structure(&local, &self.place, slots).map_err(|e| match e {
+            PoseOutOfReach::Condition(k) => LegFailure::OutOfReach { condition: Some(k) },
+            PoseOutOfReach::NotFinite => LegFailure::OutOfReach { condition: None },
+        })
+    }
+
+    /// The leg's answer with the platform at `platform`, its geometry evaluated there.
+    pub fn answer(&self, platform: &Frame, slots: &mut Vec<f64>) -> Result<LegResponse, LegFailure> {
+        let structure = self.structure_with(platform, slots)?;
+        let end = structure.condense().map_err(|e| match e {
+            MsaFailure::Mechanism { .. } | MsaFailure::BadNode(_) => LegFailure::SingularChain,
+        })?;
+        let v = structure.nodes[structure.end] - platform.pos;
+        // The holding wrench is what the platform applies to the leg's end; the leg exerts its opposite.
+        let (force, stiffness) = at_reference_point(&end.holding_wrench, &end.stiffness, &v);
+        Ok(LegResponse { wrench: -force, stiffness, stable: true, iterations: 0 })
+    }
+
+    /// Places the leg: evaluates it at the commanded pose and keeps the answer.
+    pub fn place(&self, platform: &Frame, state: &mut MsaState) -> Result<LegResponse, LegFailure> {
+        state.placed = None;
+        let r = self.answer(platform, &mut state.slots)?;
+        state.placed = Some((*platform, r));
+        Ok(r)
+    }
+
+    /// The linear answer at a platform displaced from the placement: w = w0 - K dt.
+    pub fn respond(&self, platform: &Frame, state: &MsaState) -> Result<LegResponse, LegFailure> {
+        let (placed, r) = state.placed.as_ref().ok_or(LegFailure::SingularChain)?;
+        let d = placed.error_to(platform);
+        Ok(LegResponse { wrench: r.wrench - r.stiffness * d, ..*r })
+    }
+}
