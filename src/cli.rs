@@ -8,10 +8,12 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::model::error::read_text;
 use crate::model::grid::{PointSet, PosePoint};
-use crate::model::load_manipulator;
+use crate::model::parse_with;
 use crate::output::report::point_report;
 use crate::output::sink::Sink;
+use crate::platform::manipulator::Manipulator;
 use crate::study::curve::{critical_load_factor, push_curve_row, run_curve, Control, CURVE_HEADER};
 use crate::study::map::{run_map, MapOptions};
 use crate::study::point::unloaded_point;
@@ -35,8 +37,8 @@ pub enum Command {
 
 #[derive(Args, Debug)]
 pub struct MapArgs {
-    /// Manipulator description (TOML), e.g. manipulators/orthoglide-3puu.toml.
-    pub model: PathBuf,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// Grid file (TOML): a [box] and/or named [[point]]s.
     #[arg(long, conflicts_with = "points", required_unless_present = "points")]
     pub grid: Option<PathBuf>,
@@ -62,8 +64,8 @@ pub struct MapArgs {
 
 #[derive(Args, Debug)]
 pub struct CurveArgs {
-    /// Manipulator description (TOML).
-    pub model: PathBuf,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// Commanded platform reference point x,y,z in mm.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub at: Vec3,
@@ -91,6 +93,32 @@ pub struct CurveArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct ModelArgs {
+    /// Manipulator description (TOML), e.g. manipulators/orthoglide-3puu.toml.
+    pub model: PathBuf,
+    /// Replace a parameter of the description for this run, e.g. --set mode=1 (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_assignment)]
+    pub set: Vec<(String, f64)>,
+}
+
+impl ModelArgs {
+    fn load(&self) -> Result<Manipulator> {
+        let source = read_text(&self.model)?;
+        let overrides = self.set.iter().cloned().collect();
+        Ok(parse_with(&self.model, &source, &overrides, 0)?)
+    }
+}
+
+fn parse_assignment(s: &str) -> Result<(String, f64), String> {
+    let (name, value) = s.split_once('=').ok_or_else(|| format!("expected NAME=VALUE, got `{s}`"))?;
+    let value: f64 = value.trim().parse().map_err(|_| format!("`{}` is not a number", value.trim()))?;
+    if !value.is_finite() {
+        return Err(format!("`{s}`: the value must be finite"));
+    }
+    Ok((name.trim().to_string(), value))
+}
+
+#[derive(Args, Debug)]
 pub struct RunArgs {
     /// Worker threads (default: all cores). The output is the same for any number.
     #[arg(long)]
@@ -102,8 +130,8 @@ pub struct RunArgs {
 
 #[derive(Args, Debug)]
 pub struct PointArgs {
-    /// Manipulator description (TOML).
-    pub model: PathBuf,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// Platform reference point x,y,z in mm.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub at: Vec3,
@@ -169,7 +197,7 @@ fn progress_bar(len: Option<u64>, quiet: bool) -> ProgressBar {
 }
 
 fn map(a: MapArgs) -> Result<()> {
-    let model = load_manipulator(&a.model)?;
+    let model = a.model.load()?;
     let mut points = match (&a.grid, &a.points) {
         (Some(g), None) => PointSet::from_grid_file(g)?,
         (None, Some(p)) => PointSet::from_points_csv(p)?,
@@ -195,7 +223,7 @@ fn map(a: MapArgs) -> Result<()> {
 }
 
 fn point(a: PointArgs) -> Result<()> {
-    let model = load_manipulator(&a.model)?;
+    let model = a.model.load()?;
     let p =
         PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
     let mut state = model.new_state();
@@ -205,7 +233,7 @@ fn point(a: PointArgs) -> Result<()> {
 }
 
 fn curve(a: CurveArgs) -> Result<()> {
-    let model = load_manipulator(&a.model)?;
+    let model = a.model.load()?;
     let at = Frame::from_position_rotvec(a.at, a.orientation.unwrap_or_else(Vec3::zeros));
     let control = match (a.wrench_direction, a.displacement_direction) {
         (Some(w), None) => Control::Force(w),

@@ -328,3 +328,114 @@ fn msa_orthoglide_refuses_a_rotated_platform() {
     let e = msa.unloaded(&pose, &mut state).unwrap_err();
     assert!(matches!(e.failure, stiff::platform::leg::LegFailure::OutOfReach { condition: Some(1) }), "{e:?}");
 }
+
+fn model_with(path: &str, overrides: &[(&str, f64)]) -> stiff::platform::manipulator::Manipulator {
+    let p = std::path::Path::new(path);
+    let source = std::fs::read_to_string(p).unwrap();
+    let o = overrides.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    stiff::model::parse_with(p, &source, &o, 0).unwrap()
+}
+
+/// NaVARo II leg 1's base pivot A (navaro2-leg-passive.toml: radius 400 mm at 90 degrees), bar length 250 mm.
+const R_B: f64 = 400.0;
+const BAR: f64 = 250.0;
+
+/// One pantograph leg with (nearly) rigid bars, its end at B: in mode 2 the only spring is the slider, and
+/// the pantograph's kinematics (rho = 2 l cos beta, slider height h = l sin beta, so d rho / d h =
+/// -2 tan beta) give the axial stiffness k_slider / (2 tan beta)^2; in mode 1 the only spring is the leg's
+/// rotation, giving k_theta / rho^2 across the leg. The clutch let go removes exactly its direction: along
+/// the leg in mode 1, across it in mode 2, with the platform joint's rotation about z free in both.
+#[test]
+fn pantograph_leg_closed_forms_and_free_directions() {
+    let a = Vec3::new(0.0, R_B, 0.0);
+    for (b, seed) in
+        [(Vec3::new(0.0, 0.0, 0.0), 0), (Vec3::new(90.0, 60.0, 0.0), 1), (Vec3::new(-120.0, 180.0, 0.0), 2)]
+    {
+        let d = b - a;
+        let (rho, u) = (d.norm(), d.normalize());
+        let n = Vec3::new(-u.y, u.x, 0.0);
+        let beta = (rho / (2.0 * BAR)).acos();
+        let pose = Frame::translation(b);
+        let along = Vec6::new(u.x, u.y, 0.0, 0.0, 0.0, 0.0);
+        let across = Vec6::new(n.x, n.y, 0.0, 0.0, 0.0, 0.0);
+        let spin = Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+        // Mode 2 (active pantograph), bars 1e7 times stiffer than aluminium.
+        let m2 = model_with("manipulators/navaro2-leg-active.toml", &[]);
+        let stiff_bars =
+            model_with("manipulators/navaro2-leg-passive.toml", &[("clutch1", 0.0), ("clutch2", 1.0), ("E", 6.9e11)]);
+        let k = stiffness_at(&stiff_bars, &pose);
+        let expected = 2e4 / (2.0 * beta.tan()).powi(2);
+        let got = along.dot(&(k * along));
+        assert!((got - expected).abs() < 1e-5 * expected, "B {b} ({seed}): {got} vs {expected}");
+        let k2 = stiffness_at(&m2, &pose);
+        let scale = k2.abs().max();
+        assert!((k2 * across).norm() < 1e-9 * scale && (k2 * spin).norm() < 1e-9 * scale, "mode 2 frees the angle");
+        assert!(along.dot(&(k2 * along)) > 1e-3 * expected, "mode 2 holds the length");
+        // Mode 1 (passive pantograph).
+        let m1 = model_with("manipulators/navaro2-leg-passive.toml", &[]);
+        let stiff_bars = model_with("manipulators/navaro2-leg-passive.toml", &[("E", 6.9e11)]);
+        let k = stiffness_at(&stiff_bars, &pose);
+        let expected = 1e7 / (rho * rho);
+        let got = across.dot(&(k * across));
+        assert!((got - expected).abs() < 1e-5 * expected, "B {b}: {got} vs {expected}");
+        let k1 = stiffness_at(&m1, &pose);
+        let scale = k1.abs().max();
+        assert!((k1 * along).norm() < 1e-9 * scale && (k1 * spin).norm() < 1e-9 * scale, "mode 1 frees the length");
+        // Rank 4: the two freed directions only.
+        for k in [k1, k2] {
+            let e = scaled_eigenvalues(&k, 300.0);
+            assert!(e[1].abs() < 1e-9 * e[5] && e[2] > 1e-8 * e[5], "{e:?}");
+        }
+    }
+}
+
+/// Eq (18)-(20) computed here independently: a pose is reachable exactly when every leg length
+/// |B_i - A_i| lies in [rho_min, rho_max]; the whole manipulator then has full rank in both modes (the leg
+/// lines do not meet in one point), and its two modes differ.
+#[test]
+fn navaro_reach_and_rank_in_both_modes() {
+    let (rho_min, rho_max) = (2.0 * BAR * 75f64.to_radians().cos(), 2.0 * BAR * 15f64.to_radians().cos());
+    let modes = [
+        model_with("manipulators/navaro2.toml", &[("mode", 1.0)]),
+        model_with("manipulators/navaro2.toml", &[("mode", 2.0)]),
+    ];
+    let mut r = rng(5);
+    let (mut reachable, mut unreachable) = (0, 0);
+    for _ in 0..200 {
+        let o = Vec3::new(r.random_range(-220.0..220.0), r.random_range(-220.0..220.0), 0.0);
+        let phi: f64 = r.random_range(-0.3..0.3);
+        let pose = Frame::from_position_rotvec(o, Vec3::new(0.0, 0.0, phi));
+        let inside = (1..=3).all(|i| {
+            let rz = |a: f64| stiff::kinematics::frame::rotation_about(&Vec3::z(), a);
+            let b = o - rz(-std::f64::consts::PI / 6.0 + 2.0 * std::f64::consts::PI / 3.0 * (i as f64 - 2.0) + phi)
+                * Vec3::new(80.0, 0.0, 0.0);
+            let a = rz(2.0 * std::f64::consts::PI / 3.0 * (i as f64 - 1.0)) * Vec3::new(0.0, R_B, 0.0);
+            let rho = (b - a).norm();
+            rho_min <= rho && rho <= rho_max
+        });
+        let mut ks = Vec::new();
+        for m in &modes {
+            let mut state = m.new_state();
+            match m.unloaded(&pose, &mut state) {
+                Ok(a) => ks.push(a.stiffness),
+                Err(e) => assert!(
+                    matches!(e.failure, stiff::platform::leg::LegFailure::OutOfReach { condition: Some(0 | 1) }),
+                    "{e:?}"
+                ),
+            }
+        }
+        if inside {
+            reachable += 1;
+            assert_eq!(ks.len(), 2, "reachable by eq (20) at {o}, phi {phi}");
+            for k in &ks {
+                let e = scaled_eigenvalues(k, 300.0);
+                assert!(e[0] > 1e-9 * e[5], "full rank at {o}: {e:?}");
+            }
+            assert!(scaled_rel_diff(&ks[0], &ks[1], 300.0) > 1e-3, "the modes differ");
+        } else {
+            unreachable += 1;
+            assert!(ks.is_empty(), "out of reach by eq (20) at {o}, phi {phi}");
+        }
+    }
+    assert!(reachable > 40 && unreachable > 40, "{reachable} / {unreachable}");
+}

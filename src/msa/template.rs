@@ -89,15 +89,17 @@ impl Template {
         slots.extend(rotation_vector(&end.rot).iter());
         for e in &self.pose {
             let v = e.eval(slots);
-            if !v.is_finite() {
-                return Err(PoseOutOfReach::NotFinite);
-            }
             slots.push(v);
         }
+        // The reach conditions first: they say why a pose is out of reach better than the NaN of a
+        // quantity that has no value there (acos of more than 1).
         for (k, r) in self.reach.iter().enumerate() {
             if r.eval(slots) < 0.0 {
                 return Err(PoseOutOfReach::Condition(k));
             }
+        }
+        if !slots.iter().all(|v| v.is_finite()) {
+            return Err(PoseOutOfReach::NotFinite);
         }
         let point = |p: &[Expr; 3]| Vec3::new(p[0].eval(slots), p[1].eval(slots), p[2].eval(slots));
         let mut nodes = Vec::with_capacity(self.nodes.len());
