@@ -339,7 +339,7 @@ impl Structure {
                 }
                 Some(k) => {
                     let e = &plan.edges[k];
-                    let (moving, _) = e.connection.moving_and_rigid();
+                    let moving = e.connection.free.iter().chain(&e.connection.elastic);
                     let parent_is_a = e.b == v;
                     let parent = if parent_is_a { e.a } else { Some(e.b) };
                     let tp = match parent {
@@ -354,7 +354,7 @@ impl Structure {
                         to_dmatrix(&point_shift(&(self.nodes[v] - self.nodes[e.b]))) * tp
                     };
                     let back = point_shift(&(self.nodes[v] - self.nodes[e.b]));
-                    for (c, d) in moving.iter().enumerate() {
+                    for (c, d) in moving.enumerate() {
                         let col = if parent_is_a { *d } else { -(back * d) };
                         m.view_mut((0, c0 + c), (6, 1)).copy_from(&col);
                     }
@@ -402,19 +402,28 @@ impl Structure {
                 constraints.push(row);
             }
         }
-        // Flexible links (eq 1): energy 1/2 [t_i; t_j]^T K [t_i; t_j].
+        // Flexible links (eq 1): energy 1/2 [t_i; t_j]^T K [t_i; t_j], over the few coordinates that move
+        // nodes i and j (those along their forest paths), not all of them.
+        let used: Vec<Vec<usize>> =
+            t.iter().map(|m| (0..nz).filter(|&c| m.column(c).iter().any(|v| *v != 0.0)).collect()).collect();
         for e in &self.elements {
             if let Element::Flexible { i, j, k } = e {
-                let mut tij = Map::zeros(12, nz);
-                tij.view_mut((0, 0), (6, nz)).copy_from(&t[*i]);
-                tij.view_mut((6, 0), (6, nz)).copy_from(&t[*j]);
-                let mut k12 = DMatrix::<f64>::zeros(12, 12);
-                for (r, row) in k.iter().enumerate() {
-                    for (c, block) in row.iter().enumerate() {
-                        k12.view_mut((6 * r, 6 * c), (6, 6)).copy_from(block);
+                let mut cols: Vec<usize> = used[*i].iter().chain(&used[*j]).copied().collect();
+                cols.sort_unstable();
+                cols.dedup();
+                let tij =
+                    DMatrix::from_fn(
+                        12,
+                        cols.len(),
+                        |r, c| if r < 6 { t[*i][(r, cols[c])] } else { t[*j][(r - 6, cols[c])] },
+                    );
+                let k12 = DMatrix::from_fn(12, 12, |r, c| k[r / 6][c / 6][(r % 6, c % 6)]);
+                let kc = tij.transpose() * (k12 * &tij);
+                for (a, &ca) in cols.iter().enumerate() {
+                    for (b, &cb) in cols.iter().enumerate() {
+                        kz[(ca, cb)] += kc[(a, b)];
                     }
                 }
-                kz += tij.transpose() * (k12 * &tij);
             }
         }
         let constraints = independent(constraints);
@@ -501,11 +510,25 @@ fn solve_condensed(
     let x = if size == 0 {
         DMatrix::zeros(0, 7)
     } else {
-        let lu = a.clone().lu();
-        let u = lu.u();
-        let pivots = (0..size).map(|i| u[(i, i)].abs());
-        let (lo, hi) = pivots.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
-        let solved = if lo > 1e-12 * hi { lu.solve(&rhs) } else { None };
+        let solved = if m == 0 {
+            // No loop closes: the reduced stiffness is symmetric positive definite unless a mechanism.
+            a.clone().cholesky().and_then(|c| {
+                let l = c.l_dirty();
+                let diag = (0..size).map(|i| l[(i, i)] * l[(i, i)]);
+                let (lo, hi) = diag.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
+                (lo > 1e-12 * hi).then(|| c.solve(&rhs))
+            })
+        } else {
+            let lu = a.clone().lu();
+            let u = lu.u();
+            let pivots = (0..size).map(|i| u[(i, i)].abs());
+            let (lo, hi) = pivots.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
+            if lo > 1e-12 * hi {
+                lu.solve(&rhs)
+            } else {
+                None
+            }
+        };
         match solved {
             Some(x) if x.iter().all(|v| v.is_finite()) => x,
             _ => return Err(null_space(&a, n_y)),
