@@ -273,3 +273,37 @@ fn loaded_without_reference_wrenches_is_refused() {
     assert!(!o.status.success());
     assert!(String::from_utf8(o.stderr).unwrap().contains("--loaded needs reference wrenches"));
 }
+
+/// NaVARo II maps in both actuation modes through `--set`; poses out of the legs' reach are rows with status
+/// `unreachable`; a `--set` naming no parameter, and a malformed MSA description, are refused with a message.
+#[test]
+fn navaro_maps_in_both_modes_and_bad_msa_input_is_refused() {
+    let dir = temp_dir();
+    let mut columns = Vec::new();
+    for mode in ["1", "2"] {
+        let out = dir.path().join(format!("n{mode}.csv"));
+        stiff()
+            .args(["map", "manipulators/navaro2.toml", "--set", &format!("mode={mode}"), "-q", "--grid"])
+            .arg("manipulators/grids/navaro2-workspace.toml")
+            .arg("-o")
+            .arg(&out)
+            .assert()
+            .success();
+        let (header, rows) = read_csv(&out);
+        let status = header.iter().position(|h| h == "status").unwrap();
+        let c11 = header.iter().position(|h| h == "C11_mm_per_N").unwrap();
+        assert_eq!(rows.len(), 41 * 41);
+        let ok: Vec<_> = rows.iter().filter(|r| r[status] == "ok").collect();
+        assert!(ok.len() > 300 && rows.iter().any(|r| r[status] == "unreachable"));
+        columns.push(ok.iter().map(|r| r[c11].clone()).collect::<Vec<_>>());
+    }
+    assert_ne!(columns[0], columns[1], "the two modes give different maps");
+    let o = stiff().args(["point", "manipulators/navaro2.toml", "--at", "0,0,0", "--set", "modes=1"]).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8(o.stderr).unwrap().contains("no parameter `modes`"));
+    let bad = dir.path().join("bad.toml");
+    let text = std::fs::read_to_string("manipulators/navaro2-leg-passive.toml").unwrap();
+    std::fs::write(&bad, text.replace("nodes = [\"15\", \"17\"]", "nodes = [\"15\", \"71\"]")).unwrap();
+    let o = stiff().args(["point"]).arg(&bad).args(["--at", "0,0,0"]).output().unwrap();
+    let message = String::from_utf8(o.stderr).unwrap();
+    assert!(!o.status.success() && message.contains("no node named `71`") && message.contains("line"), "{message}");
+}
