@@ -9,11 +9,14 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::error::read_text;
+use crate::model::errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::model::parse_with;
 use crate::output::report::point_report;
 use crate::output::sink::Sink;
+use crate::platform::leg::Leg;
 use crate::platform::manipulator::Manipulator;
+use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
 use crate::study::curve::{critical_load_factor, push_curve_row, run_curve, Control, CURVE_HEADER};
 use crate::study::map::{run_map, MapOptions};
 use crate::study::point::unloaded_point;
@@ -33,6 +36,45 @@ pub enum Command {
     Point(PointArgs),
     /// Force-deflection curve at one pose (loaded mode), as CSV.
     Curve(CurveArgs),
+    /// Assembly of legs with geometric errors (paper 000 s. 4.2): platform displacement, internal loads,
+    /// joint deflections, linear and non-linear, with an optional external wrench; tolerance studies.
+    Assemble(AssembleArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct AssembleArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Error file (TOML): per leg, eps, a base error and/or parameter values, e.g.
+    /// manipulators/errors/orthoglide-case-a.toml.
+    #[arg(long)]
+    pub errors: PathBuf,
+    /// Grid file (TOML).
+    #[arg(long, conflicts_with_all = ["points", "path"])]
+    pub grid: Option<PathBuf>,
+    /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name).
+    #[arg(long, conflicts_with = "path")]
+    pub points: Option<PathBuf>,
+    /// A straight path: FROM x,y,z (mm), TO x,y,z (mm), number of points.
+    #[arg(long, num_args = 3, value_names = ["FROM", "TO", "STEPS"], allow_hyphen_values = true)]
+    pub path: Option<Vec<String>>,
+    /// External wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): adds the load, total and superposition columns.
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
+    pub wrench: Option<Vec6>,
+    /// Factor on every error (default 1).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// Tolerance study: this many random draws of the errors within +-(scale x the given values).
+    #[arg(long, default_value_t = 0)]
+    pub samples: usize,
+    /// Seed of the random draws (with --samples).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output CSV; `-` or absent: stdout.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub run: RunArgs,
 }
 
 #[derive(Args, Debug)]
@@ -165,6 +207,7 @@ pub fn run() -> Result<()> {
         Command::Map(a) => map(a),
         Command::Point(a) => point(a),
         Command::Curve(a) => curve(a),
+        Command::Assemble(a) => assemble(a),
     }
 }
 
@@ -218,6 +261,49 @@ fn map(a: MapArgs) -> Result<()> {
             "{} points: {} ok, {} unreachable, {} singular, {} not converged, {} unstable",
             summary.points, summary.ok, summary.unreachable, summary.singular, summary.not_converged, summary.unstable
         );
+    }
+    Ok(())
+}
+
+fn assemble(a: AssembleArgs) -> Result<()> {
+    let model = a.model.load()?;
+    let set = ErrorSet::load(&a.errors, &a.model.model, &model)?;
+    if !(a.scale.is_finite()) {
+        bail!("--scale must be a finite number");
+    }
+    for (leg, e) in model.legs.iter().zip(&set.legs) {
+        if matches!(leg, Leg::Msa(_)) && !e.parameters.is_empty() {
+            bail!(
+                "leg `{}` is an MSA leg: its geometry is solved from the pose, so give its errors as eps or a base error, not parameters",
+                leg.name()
+            );
+        }
+    }
+    let perturbed = set.perturbed_legs(a.scale)?;
+    let mut points = match (&a.grid, &a.points, &a.path) {
+        (Some(g), None, None) => PointSet::from_grid_file(g)?,
+        (None, Some(p), None) => PointSet::from_points_csv(p)?,
+        (None, None, Some(path)) => {
+            let from = parse_vec3(&path[0]).map_err(|e| anyhow::anyhow!("--path FROM: {e}"))?;
+            let to = parse_vec3(&path[1]).map_err(|e| anyhow::anyhow!("--path TO: {e}"))?;
+            let steps: usize =
+                path[2].parse().map_err(|_| anyhow::anyhow!("--path STEPS: `{}` is not a count", path[2]))?;
+            if steps == 0 {
+                bail!("--path needs at least one step");
+            }
+            PointSet::from_points(path_points(&from, &to, steps))
+        }
+        _ => bail!("give exactly one of --grid, --points and --path"),
+    };
+    let pool = thread_pool(a.run.threads)?;
+    let mut sink = Sink::create(a.output.as_deref())?;
+    let bar = progress_bar(points.len, a.run.quiet);
+    let options = AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed };
+    let summary = run_assemble(&pool, &model, &set, &perturbed, &mut points, &options, sink.writer(), &bar)?;
+    sink.finish()?;
+    bar.finish_and_clear();
+    if !a.run.quiet {
+        eprintln!("{} points: {} assembled", summary.points, summary.ok);
     }
     Ok(())
 }

@@ -296,6 +296,22 @@ impl Chain {
         Self { elements: merged, n_actuated: na, n_passive: np, n_virtual: nv }
     }
 
+    /// The kind of each virtual joint, by virtual coordinate index.
+    pub fn virtual_kinds(&self) -> Vec<JointKind> {
+        let mut kinds = Vec::new();
+        for e in &self.elements {
+            if let Element::Joint(j) = e {
+                if j.role == Role::Virtual {
+                    if kinds.len() <= j.index {
+                        kinds.resize(j.index + 1, JointKind::Revolute);
+                    }
+                    kinds[j.index] = j.kind;
+                }
+            }
+        }
+        kinds
+    }
+
     pub fn elements(&self) -> &[Element] {
         &self.elements
     }

@@ -38,9 +38,21 @@ pub fn parse_with(
 ) -> Result<Manipulator, InputError> {
     let loc = Locator { path, source };
     let file: ModelFile = toml::from_str(source).map_err(|e| loc.syntax(e))?;
+    let params = file_parameters(&loc, &file, overrides)?;
+    let b = Builder { loc, params };
+    b.manipulator(&file, depth)
+}
+
+/// The evaluated parameters of a model file: its own, those it shares by `parameters_from`, with
+/// `overrides` replacing some.
+fn file_parameters(
+    loc: &Locator,
+    file: &ModelFile,
+    overrides: &BTreeMap<String, f64>,
+) -> Result<BTreeMap<String, f64>, InputError> {
     let mut specs = file.parameters.clone();
     if let Some(other) = &file.parameters_from {
-        let other_path = path.parent().unwrap_or(Path::new(".")).join(other.get_ref());
+        let other_path = loc.path.parent().unwrap_or(Path::new(".")).join(other.get_ref());
         let other_source = read_text(&other_path)?;
         let other_loc = Locator { path: &other_path, source: &other_source };
         let other_file: ModelFile = toml::from_str(&other_source).map_err(|e| other_loc.syntax(e))?;
@@ -60,9 +72,14 @@ pub fn parse_with(
         let span = spec.span();
         specs.insert(name.clone(), Spanned::new(span, ExprSrc::Number(*value)));
     }
-    let params = evaluate_parameters(&loc, &specs)?;
-    let b = Builder { loc, params };
-    b.manipulator(&file, depth)
+    evaluate_parameters(loc, &specs)
+}
+
+/// The evaluated parameters of the model file at `path` (for errors given as parameter values).
+pub fn parameter_values(path: &Path, source: &str) -> Result<BTreeMap<String, f64>, InputError> {
+    let loc = Locator { path, source };
+    let file: ModelFile = toml::from_str(source).map_err(|e| loc.syntax(e))?;
+    file_parameters(&loc, &file, &BTreeMap::new())
 }
 
 /// Evaluates every parameter (parameters may use each other, in any order, without cycles).
@@ -540,7 +557,13 @@ impl Builder<'_> {
                 }
                 let attachment = place.compose(&attachment);
                 legs.push(match &body {
-                    Leg::Vjm(v) => Leg::Vjm(VjmLeg { name, chain: v.chain.prepended(place), attachment, ..v.clone() }),
+                    Leg::Vjm(v) => Leg::Vjm(VjmLeg {
+                        name,
+                        chain: v.chain.prepended(place),
+                        place: place.compose(&v.place),
+                        attachment,
+                        ..v.clone()
+                    }),
                     Leg::Msa(m) => Leg::Msa(MsaLeg { name, place: place.compose(&m.place), attachment, ..m.clone() }),
                 });
             }
@@ -575,6 +598,7 @@ impl Builder<'_> {
             let length_scale = chain.length_scale().max(1.0);
             return Ok(Leg::Vjm(VjmLeg {
                 name: spec.name.clone(),
+                place: Frame::IDENTITY,
                 preload: parts.preload,
                 gravity,
                 chain,

@@ -124,6 +124,16 @@ pub struct PointSet {
 }
 
 impl PointSet {
+    /// Points given in memory (a path along a line, say), named or not.
+    pub fn from_points(points: Vec<PosePoint>) -> Self {
+        PointSet {
+            has_orientation: points.iter().any(|p| p.rotation != Vec3::zeros()),
+            has_wrench: points.iter().any(|p| p.wrench.is_some()),
+            len: Some(points.len() as u64),
+            source: Source::Grid { grid: None, named: points, next: 0 },
+        }
+    }
+
     /// A grid file (TOML): a `[box]`, named `[[point]]`s, or both (box points first).
     pub fn from_grid_file(path: &Path) -> Result<Self, InputError> {
         let source = read_text(path)?;

@@ -2,6 +2,7 @@
 pub mod build;
 mod build_msa;
 pub mod error;
+pub mod errors;
 pub mod expr;
 pub mod grid;
 pub mod schema;

@@ -26,3 +26,30 @@ pub fn linear_assembly(legs: &[LegResponse], eps: &[Vec6], length_scale: f64) ->
     let leg_wrenches = legs.iter().zip(eps).map(|(l, e)| -(l.stiffness * (displacement - e))).collect();
     Some(LinearAssembly { displacement, leg_wrenches })
 }
+
+/// A leg's joints after its end moved by dt from where the leg was placed (paper 000 eq 64-65): the largest
+/// passive-joint change, virtual-spring deflections and spring loads, translational and rotational apart.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct JointDeflections {
+    /// Largest |dq| of a passive joint (rad for revolute, mm for prismatic joints).
+    pub passive_max: f64,
+    /// Largest translational spring deflection (mm) and its force (N).
+    pub spring_deflection_max: f64,
+    pub spring_force_max: f64,
+    /// Largest rotational spring deflection (rad) and its torque (N mm).
+    pub spring_rotation_max: f64,
+    pub spring_torque_max: f64,
+}
+
+impl JointDeflections {
+    /// The larger of each maximum.
+    pub fn max(self, o: JointDeflections) -> JointDeflections {
+        JointDeflections {
+            passive_max: self.passive_max.max(o.passive_max),
+            spring_deflection_max: self.spring_deflection_max.max(o.spring_deflection_max),
+            spring_force_max: self.spring_force_max.max(o.spring_force_max),
+            spring_rotation_max: self.spring_rotation_max.max(o.spring_rotation_max),
+            spring_torque_max: self.spring_torque_max.max(o.spring_torque_max),
+        }
+    }
+}

@@ -45,6 +45,9 @@ pub struct VjmLeg {
     pub name: String,
     /// Base frame -> leg end frame.
     pub chain: Chain,
+    /// The copy's frame (identity for a leg written once): the frame of the leg as written, in the base
+    /// frame; errors given in the leg's own frame are carried by it.
+    pub place: Frame,
     /// The leg's end frame in the platform frame (the platform frame's origin is the reference point).
     pub attachment: Frame,
     pub springs: Vec<SpringGroup>,
@@ -88,6 +91,14 @@ impl Leg {
         match self {
             Leg::Vjm(l) => &l.name,
             Leg::Msa(l) => &l.name,
+        }
+    }
+
+    /// The frame of the leg as written (before its copy moved it), in the base frame.
+    pub fn copy_frame(&self) -> Frame {
+        match self {
+            Leg::Vjm(l) => l.place,
+            Leg::Msa(l) => l.place,
         }
     }
 
@@ -226,6 +237,115 @@ impl Leg {
                 let back = point_shift(&(platform.pos - jac.end.pos));
                 jac.actuated.iter().map(|t| back * t).collect()
             }
+        }
+    }
+}
+
+/// A leg's end-point error eps_i at the reference point (paper 000 eq 69) by source: given directly, from
+/// the base error, and from the parameter errors through the leg's own kinematics.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EndErrors {
+    pub direct: Vec6,
+    pub base: Vec6,
+    pub parameters: Vec6,
+}
+
+impl EndErrors {
+    pub fn total(&self) -> Vec6 {
+        self.direct + self.base + self.parameters
+    }
+}
+
+impl Leg {
+    /// After `place`: where the leg with errors puts the platform's reference point when its actuated and
+    /// passive coordinates keep their nominal values (eq 69: g*(q0, theta0) = t0 + eps), as a twist at the
+    /// reference point. `base` is the leg's rigid base error (a frame in the base frame); `perturbed` the leg
+    /// rebuilt with its parameter errors (a VJM leg of the same structure).
+    pub fn end_errors(
+        &self,
+        platform: &Frame,
+        state: &LegState,
+        direct: &Vec6,
+        base: &Frame,
+        perturbed: Option<&Leg>,
+    ) -> Result<EndErrors, LegFailure> {
+        // The whole leg moved rigidly by `base` carries the platform with it: P' = base P.
+        let base_error = platform.error_to(&base.compose(platform));
+        let parameters = match (self, perturbed) {
+            (_, None) => Vec6::zeros(),
+            (Leg::Vjm(l), Some(Leg::Vjm(p))) if p.chain.elements().len() == l.chain.elements().len() => {
+                let end = p.chain.end_frame(&state.coords);
+                platform.error_to(&end.compose(&p.attachment.inverse()))
+            }
+            // An MSA leg's geometry is solved from the pose, so its parameters do not move its end: its
+            // errors must be given as eps or a base error.
+            _ => return Err(LegFailure::SingularChain),
+        };
+        Ok(EndErrors { direct: *direct, base: base_error, parameters })
+    }
+
+    /// After `place`: the leg's joints when its end is moved by `dt` (a twist at the reference point) from
+    /// the placement with the actuators held (paper 000 eq 64-65, from K_Cq and K_Ctheta of eq 46). None for
+    /// an MSA leg (its joints are not coordinates of a chain).
+    pub fn joint_deflections(
+        &self,
+        platform: &Frame,
+        dt: &Vec6,
+        state: &mut LegState,
+    ) -> Option<super::assembly::JointDeflections> {
+        let Leg::Vjm(l) = self else { return None };
+        let target = l.target(platform);
+        let lin = l.loaded_chain().linearize(&target, &state.coords, &Vec6::zeros(), &mut state.equilibrium)?;
+        let twist = point_shift(&(lin.end - platform.pos)) * dt;
+        let delta = &lin.sensitivity * nalgebra::DVector::from_column_slice(twist.as_slice());
+        let n_q = state.coords.passive.len();
+        let mut out =
+            super::assembly::JointDeflections { passive_max: delta.rows(0, n_q).amax(), ..Default::default() };
+        let theta = delta.rows(n_q, state.coords.virtual_.len());
+        let kinds = l.chain.virtual_kinds();
+        for g in &l.springs {
+            let th = nalgebra::DVector::from_fn(g.dim, |r, _| theta[g.first + r]);
+            let k = g.stiffness.view((0, 0), (g.dim, g.dim));
+            let tau = k * &th;
+            for r in 0..g.dim {
+                if kinds[g.first + r] == crate::kinematics::chain::JointKind::Prismatic {
+                    out.spring_deflection_max = out.spring_deflection_max.max(th[r].abs());
+                    out.spring_force_max = out.spring_force_max.max(tau[r].abs());
+                } else {
+                    out.spring_rotation_max = out.spring_rotation_max.max(th[r].abs());
+                    out.spring_torque_max = out.spring_torque_max.max(tau[r].abs());
+                }
+            }
+        }
+        Some(out)
+    }
+
+    /// The same leg with its errors built in, for the non-linear assembly (eq 69-72): a VJM leg's chain
+    /// (its parameter-perturbed version if given) moved by the base error and by the direct end error (a
+    /// rigid motion about the reference point of `platform`).
+    pub fn with_errors(&self, platform: &Frame, direct: &Vec6, base: &Frame, perturbed: Option<&Leg>) -> Leg {
+        match (self, perturbed) {
+            (Leg::Vjm(l), p) => {
+                let chain = match p {
+                    Some(Leg::Vjm(p)) => &p.chain,
+                    _ => &l.chain,
+                };
+                let r = crate::kinematics::frame::rotation_from_vector(&Vec3::new(direct[3], direct[4], direct[5]));
+                let about_rp =
+                    Frame::new(r, platform.pos + Vec3::new(direct[0], direct[1], direct[2]) - r * platform.pos);
+                Leg::Vjm(VjmLeg { chain: chain.prepended(*base).prepended(about_rp), ..l.clone() })
+            }
+            (Leg::Msa(_), _) => self.clone(),
+        }
+    }
+}
+
+impl LegState {
+    /// For a linear (MSA) leg, placed nominally: makes it answer as if its end sat `eps` away (the leg's
+    /// end-point error). Nothing for a VJM leg, whose errors are built into its chain (`Leg::with_errors`).
+    pub fn offset_placement(&mut self, eps: &Vec6) {
+        if let Some((placed, _)) = self.msa.placed.as_mut() {
+            *placed = apply_twist(placed, eps);
         }
     }
 }

@@ -1,4 +1,5 @@
 //! Batch jobs that turn a request into rows: one point, a map.
+pub mod assemble;
 pub mod curve;
 pub mod map;
 pub mod point;

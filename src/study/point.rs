@@ -37,7 +37,7 @@ impl Status {
         }
     }
 
-    fn of(e: &PoseFailure) -> Self {
+    pub fn of(e: &PoseFailure) -> Self {
         match e.failure {
             LegFailure::Unreachable(_) | LegFailure::OutOfReach { .. } => Status::Unreachable,
             LegFailure::SingularChain => Status::SingularLeg,

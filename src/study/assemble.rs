@@ -1,0 +1,427 @@
+//! `stiff assemble`: legs with geometric errors put together (paper 000 s. 4.2-4.3, 5.2), at every point of
+//! a grid, a points file or a path, streamed like the map. Per point: the linear assembly of eq (57)-(65)
+//! (platform displacement, legs' end loads, joint and spring deflections and loads), the non-linear one of
+//! eq (69)-(72) (the legs with their errors built in, the loaded equilibrium with zero external wrench),
+//! and with an external wrench the compliance error due to the load, the total, and their superposition.
+//! Tolerance studies draw the errors at random within the given values (seeded per point, so the rows do
+//! not depend on the thread count) and report mean, spread and worst case.
+
+use std::io::Write;
+
+use anyhow::Result;
+use indicatif::ProgressBar;
+use rand::{Rng, SeedableRng};
+
+use super::point::Status;
+use super::stream::{stream_rows, Tally};
+use crate::kinematics::frame::{Frame, Vec6};
+use crate::model::errors::ErrorSet;
+use crate::model::grid::{PointSet, PosePoint};
+use crate::output::table::{push_number, push_text};
+use crate::platform::assembly::{linear_assembly, JointDeflections};
+use crate::platform::leg::{EndErrors, Leg, LegResponse};
+use crate::platform::loaded::DeflectionFailure;
+use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
+
+#[derive(Clone, Debug, Default)]
+pub struct AssembleOptions {
+    /// External wrench at the reference point (N, N mm): adds the load, total and superposition columns.
+    pub wrench: Option<Vec6>,
+    /// Factor on every error.
+    pub scale: f64,
+    /// Random draws of the errors within +-(scale x the given values), each source of each leg with its own
+    /// uniform factor; 0: the errors as given.
+    pub samples: usize,
+    pub seed: u64,
+}
+
+const DISPLACEMENT: [&str; 6] = ["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad"];
+
+/// The CSV header for `legs` legs.
+pub fn assemble_header(legs: usize, o: &AssembleOptions) -> String {
+    let mut h: Vec<String> =
+        ["index", "name", "x_mm", "y_mm", "z_mm", "status"].iter().map(|s| s.to_string()).collect();
+    if o.samples > 0 {
+        // dx_mm ... rz_rad: the mean platform displacement over the samples.
+        h.push("samples".into());
+        h.extend(DISPLACEMENT.iter().map(|c| c.to_string()));
+        for (q, u) in [("displacement", "mm"), ("force_max", "N"), ("moment_max", "Nmm")] {
+            for s in ["mean", "std", "worst"] {
+                h.push(format!("{q}_{s}_{u}"));
+            }
+        }
+    } else {
+        h.extend(DISPLACEMENT.iter().map(|c| c.to_string()));
+        h.extend(DISPLACEMENT.iter().map(|c| format!("nl_{c}")));
+        h.extend(
+            [
+                "force_max_N",
+                "moment_max_Nmm",
+                "force_sum_N",
+                "passive_max_rad",
+                "spring_deflection_max_mm",
+                "spring_force_max_N",
+                "spring_rotation_max_rad",
+                "spring_torque_max_Nmm",
+            ]
+            .iter()
+            .map(|s| s.to_string()),
+        );
+        for k in 1..=legs {
+            h.push(format!("leg{k}_force_N"));
+            h.push(format!("leg{k}_moment_Nmm"));
+        }
+        if o.wrench.is_some() {
+            for prefix in ["load", "total", "super"] {
+                h.extend(DISPLACEMENT.iter().map(|c| format!("{prefix}_{c}")));
+            }
+            h.push("superposition_gap_mm".into());
+        }
+    }
+    h.join(",") + "\n"
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AssembleSummary {
+    pub points: u64,
+    pub ok: u64,
+}
+
+impl Tally for AssembleSummary {
+    fn merge(&mut self, o: &Self) {
+        self.points += o.points;
+        self.ok += o.ok;
+    }
+}
+
+/// What the assembly gives at one point.
+#[derive(Clone, Debug)]
+pub struct Assembled {
+    /// Linear assembly (eq 60).
+    pub displacement: Vec6,
+    /// Load each leg's end takes (eq 63: F_i = K_i (dt - eps_i)), at the reference point.
+    pub loads: Vec<Vec6>,
+    pub joints: Option<JointDeflections>,
+    /// Non-linear assembly (eq 71), None where it did not converge.
+    pub nonlinear: Option<Vec6>,
+    /// With a wrench: displacement due to the load alone, total, superposition.
+    pub loaded: Option<(Vec6, Vec6, Vec6)>,
+}
+
+/// The nominal legs' answers at a pose and their end errors by source.
+pub struct Placed {
+    pub responses: Vec<LegResponse>,
+    pub errors: Vec<EndErrors>,
+}
+
+/// Places the manipulator and computes each leg's stiffness and end-point errors (scaled).
+pub fn place_with_errors(
+    m: &Manipulator,
+    set: &ErrorSet,
+    perturbed: &[Option<Leg>],
+    pose: &Frame,
+    scale: f64,
+    state: &mut ManipulatorState,
+) -> Result<Placed, Status> {
+    let status = |e: PoseFailure| Status::of(&e);
+    let mut responses = Vec::with_capacity(m.legs.len());
+    m.unloaded_each(pose, state, |_, r| responses.push(*r)).map_err(status)?;
+    let mut errors = Vec::with_capacity(m.legs.len());
+    for (k, leg) in m.legs.iter().enumerate() {
+        let e = &set.legs[k];
+        let base = crate::platform::leg::apply_twist(&Frame::IDENTITY, &(e.base * scale));
+        let ends = leg
+            .end_errors(pose, &state.legs[k], &(e.eps * scale), &base, perturbed[k].as_ref())
+            .map_err(|failure| status(PoseFailure { leg: k, failure }))?;
+        errors.push(ends);
+    }
+    Ok(Placed { responses, errors })
+}
+
+/// The linear assembly with the given end errors, and the joints' deflections.
+fn linear(
+    m: &Manipulator,
+    pose: &Frame,
+    placed: &Placed,
+    eps: &[Vec6],
+    state: &mut ManipulatorState,
+) -> Result<(Vec6, Vec<Vec6>, Option<JointDeflections>), Status> {
+    let a = linear_assembly(&placed.responses, eps, m.length_scale).ok_or(Status::Singular)?;
+    // eq (63): the load on leg i's end is minus the wrench it exerts on the platform.
+    let loads: Vec<Vec6> = a.leg_wrenches.iter().map(|w| -w).collect();
+    let mut joints: Option<JointDeflections> = None;
+    for (k, leg) in m.legs.iter().enumerate() {
+        let dt = a.displacement - eps[k];
+        if let Some(j) = leg.joint_deflections(pose, &dt, &mut state.legs[k]) {
+            joints = Some(joints.map_or(j, |o| o.max(j)));
+        }
+    }
+    Ok((a.displacement, loads, joints))
+}
+
+/// The manipulator with every leg's errors built in, and its state placed with the nominal actuators.
+fn with_errors(
+    m: &Manipulator,
+    set: &ErrorSet,
+    perturbed: &[Option<Leg>],
+    pose: &Frame,
+    scale: f64,
+    placed: &Placed,
+    state: &ManipulatorState,
+) -> (Manipulator, ManipulatorState) {
+    let mut legs = Vec::with_capacity(m.legs.len());
+    let mut s = state.clone();
+    for (k, leg) in m.legs.iter().enumerate() {
+        let e = &set.legs[k];
+        let base = crate::platform::leg::apply_twist(&Frame::IDENTITY, &(e.base * scale));
+        legs.push(leg.with_errors(pose, &(e.eps * scale), &base, perturbed[k].as_ref()));
+        s.legs[k].offset_placement(&placed.errors[k].total());
+    }
+    (Manipulator { legs, ..m.clone() }, s)
+}
+
+/// One point, errors as given (times the scale).
+pub fn assemble_point(
+    m: &Manipulator,
+    set: &ErrorSet,
+    perturbed: &[Option<Leg>],
+    p: &PosePoint,
+    o: &AssembleOptions,
+    state: &mut ManipulatorState,
+) -> Result<Assembled, Status> {
+    let pose = p.frame();
+    let placed = place_with_errors(m, set, perturbed, &pose, o.scale, state)?;
+    let eps: Vec<Vec6> = placed.errors.iter().map(EndErrors::total).collect();
+    let (displacement, loads, joints) = linear(m, &pose, &placed, &eps, state)?;
+    // eq (71): sum_i f_i(t_eps | t0) = 0 with the legs' own (erroneous) geometry, actuators as placed.
+    let (perturbed_m, mut perturbed_state) = with_errors(m, set, perturbed, &pose, o.scale, &placed, state);
+    let zero = Vec6::zeros();
+    let nl = perturbed_m.deflect(&pose, &zero, Some(&pose), &mut perturbed_state);
+    let nonlinear = nl.as_ref().ok().map(|d| d.displacement);
+    let loaded = match (&o.wrench, &nl) {
+        (Some(w), Ok(assembled)) => {
+            let load = m.deflect(&pose, w, None, state).map_err(deflection_status)?.displacement;
+            let total = perturbed_m
+                .deflect(&pose, w, Some(&assembled.pose), &mut perturbed_state)
+                .map_err(deflection_status)?;
+            Some((load, total.displacement, load + assembled.displacement))
+        }
+        (Some(_), Err(e)) => return Err(deflection_status(e.clone())),
+        (None, _) => None,
+    };
+    Ok(Assembled { displacement, loads, joints, nonlinear, loaded })
+}
+
+fn deflection_status(e: DeflectionFailure) -> Status {
+    match e {
+        DeflectionFailure::Leg(e) => Status::of(&e),
+        _ => Status::NotConverged,
+    }
+}
+
+/// Statistics of one quantity over the samples.
+#[derive(Clone, Copy, Debug, Default)]
+struct Stats {
+    n: f64,
+    sum: f64,
+    sum_sq: f64,
+    worst: f64,
+}
+
+impl Stats {
+    fn add(&mut self, v: f64) {
+        self.n += 1.0;
+        self.sum += v;
+        self.sum_sq += v * v;
+        self.worst = self.worst.max(v);
+    }
+    fn mean(&self) -> f64 {
+        self.sum / self.n
+    }
+    fn std(&self) -> f64 {
+        if self.n < 2.0 {
+            return 0.0;
+        }
+        ((self.sum_sq - self.sum * self.sum / self.n) / (self.n - 1.0)).max(0.0).sqrt()
+    }
+}
+
+/// A tolerance study at one point: each leg's three error sources scaled by independent uniform factors in
+/// [-1, 1], combined to first order (the linear assembly, eq 60-63), `samples` times. The generator is
+/// seeded by the seed and the point's index, so rows do not depend on threads or on the other points.
+fn sample_point(
+    m: &Manipulator,
+    set: &ErrorSet,
+    perturbed: &[Option<Leg>],
+    index: u64,
+    p: &PosePoint,
+    o: &AssembleOptions,
+    state: &mut ManipulatorState,
+) -> Result<(Vec6, [Stats; 3]), Status> {
+    let pose = p.frame();
+    let placed = place_with_errors(m, set, perturbed, &pose, o.scale, state)?;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(o.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let mut stats = [Stats::default(); 3];
+    let mut mean = Vec6::zeros();
+    for _ in 0..o.samples {
+        let eps: Vec<Vec6> = placed
+            .errors
+            .iter()
+            .map(|e| {
+                let mut u = || rng.random_range(-1.0..=1.0);
+                e.direct * u() + e.base * u() + e.parameters * u()
+            })
+            .collect();
+        let a = linear_assembly(&placed.responses, &eps, m.length_scale).ok_or(Status::Singular)?;
+        mean += a.displacement / o.samples as f64;
+        stats[0].add(a.displacement.fixed_rows::<3>(0).norm());
+        stats[1].add(a.leg_wrenches.iter().map(|w| w.fixed_rows::<3>(0).norm()).fold(0.0, f64::max));
+        stats[2].add(a.leg_wrenches.iter().map(|w| w.fixed_rows::<3>(3).norm()).fold(0.0, f64::max));
+    }
+    Ok((mean, stats))
+}
+
+fn push_fields(out: &mut String, values: impl IntoIterator<Item = f64>) {
+    for v in values {
+        out.push(',');
+        push_number(out, v);
+    }
+}
+
+fn push_empty(out: &mut String, n: usize) {
+    for _ in 0..n {
+        out.push(',');
+    }
+}
+
+pub fn run_assemble(
+    pool: &rayon::ThreadPool,
+    m: &Manipulator,
+    set: &ErrorSet,
+    perturbed: &[Option<Leg>],
+    points: &mut PointSet,
+    o: &AssembleOptions,
+    out: &mut (dyn Write + Send),
+    progress: &ProgressBar,
+) -> Result<AssembleSummary> {
+    let legs = m.legs.len();
+    let header = assemble_header(legs, o);
+    let fields = header.split(',').count() - 6;
+    stream_rows(pool, points, &header, out, progress, |first_index, run| {
+        let mut state = m.new_state();
+        let mut text = String::with_capacity(run.len() * 600);
+        let mut summary = AssembleSummary::default();
+        for (k, p) in run.iter().enumerate() {
+            let index = first_index + k as u64;
+            text.push_str(itoa::Buffer::new().format(index));
+            text.push(',');
+            if let Some(n) = &p.name {
+                push_text(&mut text, n);
+            }
+            for c in 0..3 {
+                text.push(',');
+                push_number(&mut text, p.position[c]);
+            }
+            text.push(',');
+            summary.points += 1;
+            if o.samples > 0 {
+                match sample_point(m, set, perturbed, index, p, o, &mut state) {
+                    Ok((mean, stats)) => {
+                        summary.ok += 1;
+                        text.push_str(Status::Ok.as_str());
+                        text.push(',');
+                        text.push_str(itoa::Buffer::new().format(o.samples));
+                        push_fields(&mut text, mean.iter().copied());
+                        for s in &stats {
+                            push_fields(&mut text, [s.mean(), s.std(), s.worst]);
+                        }
+                    }
+                    Err(s) => {
+                        text.push_str(s.as_str());
+                        push_empty(&mut text, fields);
+                    }
+                }
+                text.push('\n');
+                continue;
+            }
+            match assemble_point(m, set, perturbed, p, o, &mut state) {
+                Ok(a) => {
+                    summary.ok += 1;
+                    text.push_str(if a.nonlinear.is_some() {
+                        Status::Ok.as_str()
+                    } else {
+                        Status::NotConverged.as_str()
+                    });
+                    push_fields(&mut text, a.displacement.iter().copied());
+                    match a.nonlinear {
+                        Some(d) => push_fields(&mut text, d.iter().copied()),
+                        None => push_empty(&mut text, 6),
+                    }
+                    let force = |w: &Vec6| w.fixed_rows::<3>(0).norm();
+                    let moment = |w: &Vec6| w.fixed_rows::<3>(3).norm();
+                    let sum: Vec6 = a.loads.iter().sum();
+                    push_fields(
+                        &mut text,
+                        [
+                            a.loads.iter().map(force).fold(0.0, f64::max),
+                            a.loads.iter().map(moment).fold(0.0, f64::max),
+                            force(&sum),
+                        ],
+                    );
+                    match a.joints {
+                        Some(j) => push_fields(
+                            &mut text,
+                            [
+                                j.passive_max,
+                                j.spring_deflection_max,
+                                j.spring_force_max,
+                                j.spring_rotation_max,
+                                j.spring_torque_max,
+                            ],
+                        ),
+                        None => push_empty(&mut text, 5),
+                    }
+                    for l in &a.loads {
+                        push_fields(&mut text, [force(l), moment(l)]);
+                    }
+                    if o.wrench.is_some() {
+                        match a.loaded {
+                            Some((load, total, sup)) => {
+                                push_fields(&mut text, load.iter().copied());
+                                push_fields(&mut text, total.iter().copied());
+                                push_fields(&mut text, sup.iter().copied());
+                                push_fields(&mut text, [(total - sup).fixed_rows::<3>(0).norm()]);
+                            }
+                            None => push_empty(&mut text, 19),
+                        }
+                    }
+                }
+                Err(s) => {
+                    text.push_str(s.as_str());
+                    push_empty(&mut text, fields);
+                }
+            }
+            text.push('\n');
+        }
+        (text, summary)
+    })
+}
+
+/// Points along the straight line from `from` to `to` (mm), `steps` of them, named `path0`, `path1`, ...
+pub fn path_points(
+    from: &crate::kinematics::frame::Vec3,
+    to: &crate::kinematics::frame::Vec3,
+    steps: usize,
+) -> Vec<PosePoint> {
+    (0..steps)
+        .map(|k| {
+            let a = if steps > 1 { k as f64 / (steps - 1) as f64 } else { 0.0 };
+            PosePoint {
+                name: Some(format!("path{k}")),
+                position: from + (to - from) * a,
+                rotation: crate::kinematics::frame::Vec3::zeros(),
+                wrench: None,
+            }
+        })
+        .collect()
+}
