@@ -307,3 +307,62 @@ fn navaro_maps_in_both_modes_and_bad_msa_input_is_refused() {
     let message = String::from_utf8(o.stderr).unwrap();
     assert!(!o.status.success() && message.contains("no node named `71`") && message.contains("line"), "{message}");
 }
+
+/// `stiff assemble`: tolerance samples are the same for one and two threads and for the same seed, differ
+/// for another seed; a path gives its named points; an unknown leg and parameter errors on an MSA leg are
+/// refused with a message.
+#[test]
+fn assemble_samples_are_reproducible_and_bad_errors_are_refused() {
+    let dir = temp_dir();
+    let run = |threads: &str, seed: &str, name: &str| {
+        let out = dir.path().join(name);
+        stiff()
+            .args(["assemble", MODEL, "--errors", "manipulators/errors/orthoglide-case-b.toml", "-q"])
+            .args(["--grid", "manipulators/grids/orthoglide-small.toml", "--samples", "50", "--seed", seed])
+            .args(["--threads", threads, "-o"])
+            .arg(&out)
+            .assert()
+            .success();
+        std::fs::read_to_string(out).unwrap()
+    };
+    let a = run("1", "3", "a.csv");
+    assert_eq!(a, run("2", "3", "b.csv"));
+    assert_ne!(a, run("2", "4", "c.csv"));
+    let (header, rows) = read_csv(&dir.path().join("a.csv"));
+    assert_eq!(rows.len(), 125);
+    for c in ["x_mm", "status", "dx_mm", "rz_rad", "displacement_worst_mm", "force_max_std_N", "moment_max_mean_Nmm"] {
+        assert!(header.iter().any(|h| h == c), "{c} in {header:?}");
+    }
+    let out = dir.path().join("path.csv");
+    stiff()
+        .args(["assemble", MODEL, "--errors", "manipulators/errors/orthoglide-case-a.toml", "-q", "--path"])
+        .args(["-73.65,-73.65,-73.65", "-73.65,126.35,-73.65", "11", "--wrench", "215,-10,-25,1000,21500,0", "-o"])
+        .arg(&out)
+        .assert()
+        .success();
+    let (header, rows) = read_csv(&out);
+    assert_eq!(rows.len(), 11);
+    assert_eq!(rows[10][1], "path10");
+    assert!(header.iter().any(|h| h == "superposition_gap_mm"));
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[[leg]]\nname = \"chain.7\"\neps = { translation_mm = [1, 0, 0] }\n").unwrap();
+    let o = stiff()
+        .args(["assemble", MODEL, "--errors"])
+        .arg(&bad)
+        .args(["--path", "0,0,0", "1,0,0", "2"])
+        .output()
+        .unwrap();
+    let message = String::from_utf8(o.stderr).unwrap();
+    assert!(
+        !o.status.success() && message.contains("no leg named `chain.7`") && message.contains("line 2"),
+        "{message}"
+    );
+    std::fs::write(&bad, "[[leg]]\nname = \"*\"\nparameters = { L = 311 }\n").unwrap();
+    let o = stiff()
+        .args(["assemble", "manipulators/orthoglide-3puu-msa.toml", "--errors"])
+        .arg(&bad)
+        .args(["--path", "0,0,0", "1,0,0", "2"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success() && String::from_utf8(o.stderr).unwrap().contains("MSA leg"));
+}
