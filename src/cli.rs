@@ -39,6 +39,64 @@ pub enum Command {
     /// Assembly of legs with geometric errors (paper 000 s. 4.2): platform displacement, internal loads,
     /// joint deflections, linear and non-linear, with an optional external wrench; tolerance studies.
     Assemble(AssembleArgs),
+    /// Where measured deflections and the model disagree: names the missing effect (or none), fits it,
+    /// and writes the corrected model.
+    Diagnose(DiagnoseArgs),
+    /// Synthetic measurements with hidden effects, in the format `diagnose` reads.
+    Synth(SynthArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct DiagnoseArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Measurements (CSV): pose_id,x_mm,y_mm,z_mm,Fx_N,...,Mz_Nmm,dx_mm,dy_mm,dz_mm[,sigma_mm].
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Measurement standard deviation, mm (when the data has no sigma_mm column).
+    #[arg(long)]
+    pub sigma: Option<f64>,
+    /// Predict by the loaded equilibrium instead of the linear C w.
+    #[arg(long)]
+    pub loaded: bool,
+    /// Significance level (default 0.01; candidates are tested at alpha / their number).
+    #[arg(long, default_value_t = 0.01)]
+    pub alpha: f64,
+    /// Write the verdict, accepted effects and candidate table as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the model description with the accepted effects added.
+    #[arg(long)]
+    pub model_out: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct SynthArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// A hidden effect NAME[:TARGET]=V1,V2,... (repeatable), e.g. actuator-compliance:2=1.5, tool-offset=0.05,0,0.
+    #[arg(long = "effect", value_name = "NAME[:TARGET]=VALUES")]
+    pub effects: Vec<String>,
+    /// Grid file (TOML).
+    #[arg(long, conflicts_with = "points", required_unless_present = "points")]
+    pub grid: Option<PathBuf>,
+    /// Points file (CSV).
+    #[arg(long)]
+    pub points: Option<PathBuf>,
+    /// Wrenches applied at every pose: Fx,Fy,Fz,Mx,My,Mz (N, N mm) separated by `;`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub wrenches: String,
+    /// Standard deviation of the measurement noise, mm.
+    #[arg(long)]
+    pub noise: f64,
+    #[arg(long)]
+    pub seed: u64,
+    /// Measurements per pose and wrench.
+    #[arg(long, default_value_t = 1)]
+    pub repeats: usize,
+    /// Output CSV; `-` or absent: stdout.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -208,6 +266,8 @@ pub fn run() -> Result<()> {
         Command::Point(a) => point(a),
         Command::Curve(a) => curve(a),
         Command::Assemble(a) => assemble(a),
+        Command::Diagnose(a) => diagnose(a),
+        Command::Synth(a) => synth(a),
     }
 }
 
@@ -304,6 +364,75 @@ fn assemble(a: AssembleArgs) -> Result<()> {
     bar.finish_and_clear();
     if !a.run.quiet {
         eprintln!("{} points: {} assembled", summary.points, summary.ok);
+    }
+    Ok(())
+}
+
+fn diagnose(a: DiagnoseArgs) -> Result<()> {
+    use crate::diagnose::{data::Dataset, fit::Problem, report, select};
+    let model = a.model.load()?;
+    let data = Dataset::read(&a.data)?;
+    if !(a.alpha > 0.0 && a.alpha < 1.0) {
+        bail!("--alpha must lie in (0, 1)");
+    }
+    let (weights, sigma, source) =
+        select::noise(&data, a.sigma).map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    let needs_loaded = !a.loaded;
+    let problem = Problem::new(&model, &data, weights, a.loaded, needs_loaded)
+        .map_err(|b| anyhow::anyhow!("{}, line {}: pose `{}`: {}", a.data.display(), b.line, b.pose_id, b.why))?;
+    let options = select::Options { alpha: a.alpha, sigma: a.sigma, loaded: a.loaded, max_effects: 3 };
+    let d = select::diagnose(&problem, sigma, source, &options)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    let name = a.model.model.display().to_string();
+    print!("{}", report::text(&d, &name));
+    if let Some(path) = &a.json {
+        let mut sink = Sink::create(Some(path))?;
+        serde_json::to_writer_pretty(&mut *sink.writer(), &report::json(&d, &name))?;
+        sink.finish()?;
+    }
+    if let Some(path) = &a.model_out {
+        let source = read_text(&a.model.model)?;
+        let dir = a.model.model.parent().map(|p| p.to_path_buf()).unwrap_or_default();
+        let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+        let mut sink = Sink::create(Some(path))?;
+        sink.writer().write_all(report::corrected_model(&source, &dir, &d).as_bytes())?;
+        sink.finish()?;
+    }
+    Ok(())
+}
+
+fn synth(a: SynthArgs) -> Result<()> {
+    use crate::diagnose::{effects::Effect, synth};
+    let model = a.model.load()?;
+    let effects = a
+        .effects
+        .iter()
+        .map(|e| Effect::parse(e, &model))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("--effect {e}"))?;
+    let wrenches = a
+        .wrenches
+        .split(';')
+        .map(|w| parse_vec6(w.trim()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("--wrenches: {e}"))?;
+    if !(a.noise >= 0.0 && a.noise.is_finite()) {
+        bail!("--noise must be >= 0 (mm)");
+    }
+    let mut set = match (&a.grid, &a.points) {
+        (Some(g), None) => PointSet::from_grid_file(g)?,
+        (None, Some(p)) => PointSet::from_points_csv(p)?,
+        _ => bail!("give exactly one of --grid and --points"),
+    };
+    let mut points = Vec::new();
+    while set.next_block(4096, &mut points)? > 0 {}
+    let options = synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats };
+    let (text, skipped) = synth::synthesize(&model, &points, &options).map_err(|e| anyhow::anyhow!(e))?;
+    let mut sink = Sink::create(a.output.as_deref())?;
+    sink.writer().write_all(text.as_bytes())?;
+    sink.finish()?;
+    if skipped > 0 {
+        eprintln!("{skipped} poses left out (unreachable or singular)");
     }
     Ok(())
 }

@@ -1,5 +1,6 @@
 //! stiff: stiffness of parallel robots by the Virtual Joint Method (see ARCHITECTURE.md).
 pub mod cli;
+pub mod diagnose;
 pub mod kinematics;
 pub mod linalg;
 pub mod model;

@@ -168,7 +168,9 @@ impl ChainParts {
         for (kind, axis) in joints {
             self.joint(*kind, *axis, Role::Virtual);
         }
-        self.springs.push(SpringGroup { name, first, dim: joints.len(), stiffness, compliance, posture });
+        let actuator =
+            matches!(self.elements.iter().rev().nth(joints.len()), Some(Element::Joint(j)) if j.role == Role::Actuated);
+        self.springs.push(SpringGroup { name, actuator, first, dim: joints.len(), stiffness, compliance, posture });
     }
 }
 
@@ -569,7 +571,25 @@ impl Builder<'_> {
             }
         }
         let length_scale = legs.iter().map(Leg::length_scale).fold(1.0, f64::max);
-        Ok(Manipulator { name: file.name.clone(), legs, length_scale })
+        let nominal = Manipulator {
+            name: file.name.clone(),
+            legs,
+            length_scale,
+            gravity: file.gravity.as_ref().map(|_| gravity),
+            effects: Vec::new(),
+        };
+        let mut effects = Vec::with_capacity(file.effects.len());
+        for spec in &file.effects {
+            let s = spec.get_ref();
+            let kind = crate::diagnose::effects::Kind::parse(&s.name)
+                .ok_or_else(|| self.loc.at(spec.span(), format!("unknown effect `{}`", s.name)))?;
+            let e = crate::diagnose::effects::Effect::new(kind, s.target.as_deref(), s.values.clone(), &nominal)
+                .map_err(|e| self.loc.at(spec.span(), e))?;
+            effects.push(e);
+        }
+        let mut m = crate::diagnose::effects::scaled(&nominal, &effects);
+        m.effects = effects;
+        Ok(m)
     }
 
     /// One leg as written (a chain, an MSA structure, or the leg of another file), before copies.

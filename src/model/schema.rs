@@ -30,6 +30,19 @@ pub struct ModelFile {
     pub gravity: Option<[Num; 3]>,
     #[serde(rename = "leg")]
     pub legs: Spanned<Vec<Spanned<LegSpec>>>,
+    /// Corrections to the nominal model, as `stiff diagnose --model-out` writes them.
+    #[serde(default, rename = "effect")]
+    pub effects: Vec<Spanned<EffectSpec>>,
+}
+
+/// An effect of the diagnose library: `name`, `target` (a leg number or a spring group) and its values.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EffectSpec {
+    pub name: String,
+    #[serde(default)]
+    pub target: Option<String>,
+    pub values: Vec<f64>,
 }
 
 #[derive(Debug, Deserialize)]

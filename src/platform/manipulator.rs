@@ -9,6 +9,11 @@ pub struct Manipulator {
     pub legs: Vec<Leg>,
     /// mm per rad: weighs rotations against translations in rank decisions.
     pub length_scale: f64,
+    /// The model's gravity (m/s^2), when it gives one.
+    pub gravity: Option<crate::kinematics::frame::Vec3>,
+    /// Corrections found by `stiff diagnose` (`[[effect]]` in the description): spring scalings are
+    /// already applied to the legs; the others are terms of the measurement model (diagnose, synth).
+    pub effects: Vec<crate::diagnose::effects::Effect>,
 }
 
 /// Warm starts of every leg, carried from one point to the next by one worker.

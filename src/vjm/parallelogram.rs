@@ -33,7 +33,8 @@ impl Parallelogram {
         let bar_dir = Vec3::new(q.cos(), q.sin(), 0.0);
         let compliance = beam_compliance(&self.bar, self.length, &Vec3::x());
         let stiffness = compliance.try_inverse().expect("a beam's compliance is positive definite");
-        let spring = SpringGroup { name: "bar".into(), first: 0, dim: 6, stiffness, compliance, posture: None };
+        let spring =
+            SpringGroup { name: "bar".into(), actuator: false, first: 0, dim: 6, stiffness, compliance, posture: None };
         let mut total = Mat6::zeros();
         for side in [-0.5, 0.5] {
             let offset = Vec3::new(0.0, side * self.separation, 0.0);
@@ -100,7 +101,15 @@ mod tests {
         let q = 0.3;
         let leg = |k: Mat6| {
             let c = k.try_inverse().unwrap();
-            let spring = SpringGroup { name: "p".into(), first: 0, dim: 6, stiffness: k, compliance: c, posture: None };
+            let spring = SpringGroup {
+                name: "p".into(),
+                actuator: false,
+                first: 0,
+                dim: 6,
+                stiffness: k,
+                compliance: c,
+                posture: None,
+            };
             let z = Vec3::z();
             let mut elements = vec![
                 Element::Joint(Joint { kind: JointKind::Revolute, axis: z, role: Role::Passive, index: 0, gain: 1.0 }),

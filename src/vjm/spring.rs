@@ -8,6 +8,8 @@ use crate::kinematics::frame::{block_rotation, Mat3, Mat6, Vec3};
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpringGroup {
     pub name: String,
+    /// The control-loop spring of an actuator (V_a(q + theta), paper 001 eq 1).
+    pub actuator: bool,
     pub first: usize,
     pub dim: usize,
     /// Stiffness (top-left dim x dim block used; the rest zero).

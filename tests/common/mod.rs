@@ -74,6 +74,7 @@ impl ChainBuilder {
         let mut cm = Mat6::zeros();
         cm[(0, 0)] = 1.0 / k;
         self.springs.push(SpringGroup {
+            actuator: false,
             name: format!("s{first}"),
             first,
             dim: 1,
@@ -98,6 +99,7 @@ impl ChainBuilder {
         }
         let c = k.try_inverse().unwrap();
         self.springs.push(SpringGroup {
+            actuator: false,
             name: format!("s{first}"),
             first,
             dim: 6,

@@ -1,0 +1,139 @@
+//! Measured deflections (CSV): `pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm`,
+//! optionally `rx_rad,ry_rad,rz_rad` and `sigma_mm`, any order, extra columns ignored. Every error is located.
+
+use std::path::Path;
+
+use crate::kinematics::frame::{Vec3, Vec6};
+use crate::model::error::InputError;
+
+pub const REQUIRED: [&str; 13] = [
+    "pose_id", "x_mm", "y_mm", "z_mm", "Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm", "dx_mm", "dy_mm", "dz_mm",
+];
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Measurement {
+    pub pose_id: String,
+    /// Commanded reference point, mm.
+    pub position: Vec3,
+    /// Applied wrench at the reference point, N and N mm.
+    pub wrench: Vec6,
+    /// Measured minus commanded position of the reference point, mm.
+    pub displacement: Vec3,
+    pub sigma: Option<f64>,
+    /// Line in the file (for messages).
+    pub line: usize,
+}
+
+/// The rows of one pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pose {
+    pub id: String,
+    pub position: Vec3,
+    pub rows: Vec<usize>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Dataset {
+    pub rows: Vec<Measurement>,
+    pub poses: Vec<Pose>,
+}
+
+impl Dataset {
+    pub fn read(path: &Path) -> Result<Dataset, InputError> {
+        let at = |line: usize, column: usize, message: String| InputError::At {
+            path: path.to_path_buf(),
+            line,
+            column,
+            message,
+        };
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .from_path(path)
+            .map_err(|e| InputError::Whole { path: path.to_path_buf(), message: e.to_string() })?;
+        let header = reader.headers().map_err(|e| at(1, 1, e.to_string()))?.clone();
+        let find = |name: &str| header.iter().position(|h| h == name);
+        let mut columns = Vec::with_capacity(REQUIRED.len());
+        for name in REQUIRED {
+            columns.push(
+                find(name)
+                    .ok_or_else(|| at(1, 1, format!("missing column `{name}` (needs {})", REQUIRED.join(","))))?,
+            );
+        }
+        let sigma_column = find("sigma_mm");
+        let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
+        for record in reader.records() {
+            let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
+            let line = record.position().map_or(0, |p| p.line() as usize);
+            let number = |c: usize| -> Result<f64, InputError> {
+                let text = record.get(c).unwrap_or("");
+                let v: f64 = text
+                    .parse()
+                    .map_err(|_| at(line, c + 1, format!("`{text}` in column `{}` is not a number", &header[c])))?;
+                if !v.is_finite() {
+                    return Err(at(line, c + 1, format!("column `{}` is not finite ({text})", &header[c])));
+                }
+                Ok(v)
+            };
+            let v: Vec<f64> = columns[1..].iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
+            let sigma = match sigma_column {
+                Some(c) if !record.get(c).unwrap_or("").is_empty() => {
+                    let s = number(c)?;
+                    if !(s > 0.0) {
+                        return Err(at(line, c + 1, format!("sigma_mm must be positive, got {s}")));
+                    }
+                    Some(s)
+                }
+                _ => None,
+            };
+            let id = record.get(columns[0]).unwrap_or("").to_string();
+            if id.is_empty() {
+                return Err(at(line, columns[0] + 1, "empty pose_id".into()));
+            }
+            let position = Vec3::new(v[0], v[1], v[2]);
+            let index = data.rows.len();
+            match data.poses.iter_mut().find(|p| p.id == id) {
+                Some(p) => {
+                    if (p.position - position).norm() > 1e-9 * (1.0 + position.norm()) {
+                        return Err(at(
+                            line,
+                            columns[1] + 1,
+                            format!("pose `{id}` was at {} before", p.position.transpose()),
+                        ));
+                    }
+                    p.rows.push(index);
+                }
+                None => data.poses.push(Pose { id: id.clone(), position, rows: vec![index] }),
+            }
+            data.rows.push(Measurement {
+                pose_id: id,
+                position,
+                wrench: Vec6::from_column_slice(&v[3..9]),
+                displacement: Vec3::new(v[9], v[10], v[11]),
+                sigma,
+                line,
+            });
+        }
+        if data.rows.is_empty() {
+            return Err(InputError::Whole { path: path.to_path_buf(), message: "no measurements".into() });
+        }
+        Ok(data)
+    }
+
+    /// Groups of repeated rows (same pose and wrench), for the pure-error estimate of the noise.
+    pub fn repeats(&self) -> Vec<Vec<usize>> {
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        for p in &self.poses {
+            for &r in &p.rows {
+                let w = self.rows[r].wrench;
+                match groups.iter_mut().find(|g| {
+                    self.rows[g[0]].pose_id == p.id && (self.rows[g[0]].wrench - w).norm() <= 1e-12 * (1.0 + w.norm())
+                }) {
+                    Some(g) => g.push(r),
+                    None => groups.push(vec![r]),
+                }
+            }
+        }
+        groups.retain(|g| g.len() > 1);
+        groups
+    }
+}

@@ -1,0 +1,9 @@
+//! `stiff diagnose` and `stiff synth`: where measured deflections and the model disagree, which physical
+//! effect of a library explains it (with the statistics to back the name), and synthetic measurements with
+//! hidden effects to test the workflow and plan experiments.
+pub mod data;
+pub mod effects;
+pub mod fit;
+pub mod report;
+pub mod select;
+pub mod synth;

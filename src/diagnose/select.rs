@@ -1,0 +1,564 @@
+//! The diagnosis: is the nominal model's misfit beyond the noise (chi-square with known sigma, lack-of-fit
+//! F test with repeats)? Which candidate effects are identifiable on this data, how well does each explain
+//! it (fit, SSR, BIC, extra-sum-of-squares F test, parameters with standard errors), and which to accept,
+//! forward stepwise up to three: F test significant at alpha / (number of candidates), delta BIC < -10,
+//! plausible values at least 3 standard errors from neutral, and a better leave-pose-out prediction.
+//! Verdicts: `effect`, `none`, `ambiguous` (two candidates the data cannot tell apart), `unexplained`.
+
+use nalgebra::{DMatrix, DVector};
+use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
+
+use super::data::Dataset;
+use super::effects::{Effect, Kind, Target};
+use super::fit::{effects_of, fit, Candidate, Fit, Problem};
+use crate::kinematics::frame::{Vec3, Vec6};
+use crate::platform::leg::Leg;
+
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub alpha: f64,
+    pub sigma: Option<f64>,
+    pub loaded: bool,
+    pub max_effects: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options { alpha: 0.01, sigma: None, loaded: false, max_effects: 3 }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum SigmaSource {
+    /// The data's sigma_mm column.
+    Column,
+    /// --sigma.
+    Given,
+    /// Pooled from repeated rows (same pose and wrench): degrees of freedom of the pure error.
+    Repeats { dof: usize },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    Effect,
+    None,
+    Ambiguous,
+    Unexplained,
+}
+
+impl Verdict {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Verdict::Effect => "effect",
+            Verdict::None => "none",
+            Verdict::Ambiguous => "ambiguous",
+            Verdict::Unexplained => "unexplained",
+        }
+    }
+}
+
+/// One candidate evaluated at one step (added to the effects accepted before it).
+#[derive(Clone, Debug)]
+pub struct CandidateRow {
+    pub label: String,
+    pub dim: usize,
+    pub identifiable: bool,
+    /// Why not identifiable, or empty.
+    pub note: String,
+    pub condition: f64,
+    /// Share of the signature outside what the accepted effects already explain (0..1).
+    pub orthogonal: f64,
+    pub ssr: f64,
+    pub delta_bic: f64,
+    pub f: f64,
+    pub p_value: f64,
+    pub values: Vec<f64>,
+    pub se: Vec<f64>,
+    pub plausible: bool,
+    pub significant_params: bool,
+    pub passes: bool,
+    /// How the residuals change when this candidate is fitted (for parallel-signature checks).
+    change: DVector<f64>,
+    candidate: Candidate,
+    fit: Option<Fit>,
+}
+
+/// An accepted effect.
+#[derive(Clone, Debug)]
+pub struct Accepted {
+    pub effect: Effect,
+    pub label: String,
+    /// Fitted parameters (coordinates for leg-geometry) with standard errors.
+    pub params: Vec<f64>,
+    pub se: Vec<f64>,
+    pub p_value: f64,
+    pub delta_bic: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    pub verdict: Verdict,
+    pub sigma: f64,
+    pub sigma_source: SigmaSource,
+    pub rows: usize,
+    pub observations: usize,
+    /// Nominal test statistic and p-value (chi-square, or lack-of-fit F with repeats).
+    pub nominal_statistic: f64,
+    pub nominal_p: f64,
+    pub accepted: Vec<Accepted>,
+    /// Candidate table of the first step (each candidate alone against the nominal model).
+    pub table: Vec<CandidateRow>,
+    /// For `ambiguous`: the two candidates, and where their predictions differ most (advice).
+    pub ambiguous: Option<(String, String, String)>,
+    /// Residual RMS per axis (mm) on the data, before and after the accepted effects.
+    pub rms_before: Vec3,
+    pub rms_after: Vec3,
+    /// Leave-pose-out residual RMS per axis (mm): nominal, and with the accepted effects refitted
+    /// without the held-out pose.
+    pub heldout_before: Vec3,
+    pub heldout_after: Vec3,
+    /// p-value of the residuals left after the accepted effects.
+    pub final_p: f64,
+    pub effects_json: Vec<Effect>,
+}
+
+/// The candidates for this model and data (leg-geometry restricted to what the data can see).
+pub fn candidates(problem: &Problem, loaded: bool) -> Vec<Candidate> {
+    let m = problem.model;
+    let mut out = Vec::new();
+    let vjm = |k: usize| matches!(m.legs[k], Leg::Vjm(_));
+    let has_actuator = |k: usize| matches!(&m.legs[k], Leg::Vjm(v) if v.springs.iter().any(|s| s.actuator));
+    for k in 0..m.legs.len() {
+        if has_actuator(k) {
+            out.push(Candidate { kind: Kind::ActuatorCompliance, target: Target::Leg(k), basis: None });
+        }
+    }
+    let mut groups: Vec<String> = Vec::new();
+    for l in &m.legs {
+        if let Leg::Vjm(v) = l {
+            for s in v.springs.iter().filter(|s| !s.actuator) {
+                if !groups.contains(&s.name) {
+                    groups.push(s.name.clone());
+                }
+            }
+        }
+    }
+    for g in groups {
+        out.push(Candidate { kind: Kind::LinkCompliance, target: Target::Group(g), basis: None });
+    }
+    out.push(Candidate { kind: Kind::Gravity, target: Target::None, basis: None });
+    let all: Vec<usize> = (0..problem.data.rows.len()).collect();
+    for k in 0..m.legs.len() {
+        if let Some(basis) = visible_end_errors(problem, k, &all) {
+            out.push(Candidate { kind: Kind::LegGeometry, target: Target::Leg(k), basis: Some(basis) });
+        }
+    }
+    for k in 0..m.legs.len() {
+        if vjm(k) && has_actuator(k) {
+            out.push(Candidate { kind: Kind::Preload, target: Target::Leg(k), basis: None });
+            out.push(Candidate { kind: Kind::Backlash, target: Target::Leg(k), basis: None });
+        }
+    }
+    if !loaded {
+        out.push(Candidate { kind: Kind::LoadedNonlinearity, target: Target::None, basis: None });
+    }
+    out.push(Candidate { kind: Kind::ToolOffset, target: Target::None, basis: None });
+    out
+}
+
+/// The directions of leg k's end-point error that change the predictions (SVD of the signature).
+fn visible_end_errors(problem: &Problem, k: usize, rows: &[usize]) -> Option<DMatrix<f64>> {
+    let full = Candidate { kind: Kind::LegGeometry, target: Target::Leg(k), basis: Some(DMatrix::identity(6, 6)) };
+    let base = problem.residuals(&[], rows).ok()?;
+    let mut s = DMatrix::zeros(base.len(), 6);
+    for c in 0..6 {
+        let mut p = vec![0.0; 6];
+        p[c] = 1e-3;
+        let r = problem.residuals(&[full.effect(&p)], rows).ok()?;
+        s.set_column(c, &((&base - r) / 1e-3));
+    }
+    let svd = s.svd(false, true);
+    let v_t = svd.v_t?;
+    let top = svd.singular_values.max();
+    let keep: Vec<usize> =
+        (0..svd.singular_values.len()).filter(|&i| svd.singular_values[i] > 1e-6 * top && top > 0.0).collect();
+    if keep.is_empty() {
+        return None;
+    }
+    Some(DMatrix::from_fn(6, keep.len(), |r, c| v_t[(keep[c], r)]))
+}
+
+fn chi2_sf(x: f64, dof: usize) -> f64 {
+    ChiSquared::new(dof.max(1) as f64).map(|d| 1.0 - d.cdf(x)).unwrap_or(f64::NAN)
+}
+
+fn f_sf(x: f64, d1: usize, d2: usize) -> f64 {
+    if d1 == 0 || d2 == 0 || !x.is_finite() {
+        return if x.is_infinite() { 0.0 } else { 1.0 };
+    }
+    FisherSnedecor::new(d1 as f64, d2 as f64).map(|d| 1.0 - d.cdf(x.max(0.0))).unwrap_or(f64::NAN)
+}
+
+/// Per-axis RMS of weighted residuals turned back into mm.
+fn rms(problem: &Problem, rows: &[usize], r: &DVector<f64>) -> Vec3 {
+    let mut s = Vec3::zeros();
+    for (i, &row) in rows.iter().enumerate() {
+        for c in 0..3 {
+            s[c] += (r[3 * i + c] / problem.weights[row]).powi(2);
+        }
+    }
+    (s / rows.len().max(1) as f64).map(f64::sqrt)
+}
+
+/// The noise level and where it comes from, and the weights.
+pub fn noise(data: &Dataset, sigma: Option<f64>) -> Result<(Vec<f64>, f64, SigmaSource), String> {
+    if data.rows.iter().all(|r| r.sigma.is_some()) {
+        let w: Vec<f64> = data.rows.iter().map(|r| 1.0 / r.sigma.expect("checked")).collect();
+        let typical = data.rows.iter().map(|r| r.sigma.expect("checked")).sum::<f64>() / data.rows.len() as f64;
+        return Ok((w, typical, SigmaSource::Column));
+    }
+    if let Some(s) = sigma {
+        if !(s > 0.0 && s.is_finite()) {
+            return Err("--sigma must be positive".into());
+        }
+        return Ok((vec![1.0 / s; data.rows.len()], s, SigmaSource::Given));
+    }
+    let groups = data.repeats();
+    let (mut ss, mut dof) = (0.0, 0usize);
+    for g in &groups {
+        let mean: Vec3 = g.iter().map(|&r| data.rows[r].displacement).sum::<Vec3>() / g.len() as f64;
+        ss += g.iter().map(|&r| (data.rows[r].displacement - mean).norm_squared()).sum::<f64>();
+        dof += 3 * (g.len() - 1);
+    }
+    if dof < 3 || ss <= 0.0 {
+        return Err(
+            "the noise level is unknown: give a sigma_mm column, --sigma, or repeated rows (same pose and wrench)"
+                .into(),
+        );
+    }
+    let s = (ss / dof as f64).sqrt();
+    Ok((vec![1.0 / s; data.rows.len()], s, SigmaSource::Repeats { dof }))
+}
+
+struct Step<'a> {
+    problem: &'a Problem<'a>,
+    rows: Vec<usize>,
+    n: usize,
+    ln_n: f64,
+}
+
+impl Step<'_> {
+    /// Fits accepted + c; fills a table row.
+    fn evaluate(&self, accepted: &[Candidate], base: &Fit, c: &Candidate, alpha_c: f64) -> CandidateRow {
+        let mut cands = accepted.to_vec();
+        cands.push(c.clone());
+        let k0 = base.theta.len();
+        let dim = c.dim();
+        let mut row = CandidateRow {
+            label: c.label(),
+            dim,
+            identifiable: false,
+            note: String::new(),
+            condition: f64::INFINITY,
+            orthogonal: 0.0,
+            ssr: base.ssr,
+            delta_bic: 0.0,
+            f: 0.0,
+            p_value: 1.0,
+            values: c.neutral(),
+            se: vec![f64::NAN; dim],
+            plausible: false,
+            significant_params: false,
+            passes: false,
+            change: DVector::zeros(0),
+            candidate: c.clone(),
+            fit: None,
+        };
+        // Signature at the accepted fit, the candidate neutral.
+        let mut theta: Vec<f64> = base.theta.clone();
+        theta.extend(c.neutral());
+        let sig = match signature(self.problem, &cands, &theta, k0, &self.rows) {
+            Ok(s) => s,
+            Err(e) => {
+                row.note = e;
+                return row;
+            }
+        };
+        let svd = sig.clone().svd(false, false);
+        let (top, low) = (svd.singular_values.max(), svd.singular_values.min());
+        row.condition = if low > 0.0 { top / low } else { f64::INFINITY };
+        // What the accepted effects already explain: their signature columns.
+        let own = sig.norm();
+        row.orthogonal = if k0 == 0 {
+            1.0
+        } else {
+            match signature(self.problem, &cands, &theta, 0, &self.rows) {
+                Ok(all) => {
+                    let q = all.columns(0, k0).into_owned().qr().q();
+                    let rest = &sig - &q * (q.transpose() * &sig);
+                    rest.norm() / own.max(1e-300)
+                }
+                Err(_) => 0.0,
+            }
+        };
+        if !(own > 1e-9 * (self.n as f64).sqrt()) {
+            row.note = "no signature on this data".into();
+            return row;
+        }
+        if row.condition > 1e8 {
+            row.note = format!("rank-deficient signature (condition {:.1e})", row.condition);
+            return row;
+        }
+        if row.orthogonal < 0.05 {
+            row.note = "absorbed by the effects already accepted".into();
+            return row;
+        }
+        row.identifiable = true;
+        let mut start = base.theta.clone();
+        start.extend(c.neutral());
+        let Ok(f) = fit(self.problem, &cands, &self.rows, Some(&start)) else {
+            row.note = "fit failed".into();
+            return row;
+        };
+        let k1 = f.theta.len();
+        row.ssr = f.ssr;
+        row.delta_bic = (f.ssr - base.ssr) + dim as f64 * self.ln_n;
+        let d2 = self.n.saturating_sub(k1);
+        row.f = ((base.ssr - f.ssr).max(0.0) / dim as f64) / (f.ssr / d2.max(1) as f64);
+        row.p_value = f_sf(row.f, dim, d2);
+        row.values = f.theta[k0..].to_vec();
+        let scale = (f.ssr / d2.max(1) as f64).max(1.0);
+        row.se = match &f.covariance {
+            Some(cov) => (k0..k1).map(|i| (cov[(i, i)] * scale).max(0.0).sqrt()).collect(),
+            None => vec![f64::NAN; dim],
+        };
+        let neutral = c.neutral();
+        let t_max =
+            row.values.iter().zip(&row.se).zip(&neutral).map(|((v, s), n)| (v - n).abs() / s).fold(0.0, f64::max);
+        row.significant_params = t_max >= 3.0;
+        row.plausible = plausible(c, &row.values, &row.se);
+        row.change = &base.residuals - &f.residuals;
+        row.passes = row.p_value < alpha_c && row.delta_bic < -10.0 && row.plausible && row.significant_params;
+        row.fit = Some(f);
+        row
+    }
+}
+
+/// d residuals / d (candidate's parameters), the columns from `from` on (all when 0).
+fn signature(
+    problem: &Problem,
+    cands: &[Candidate],
+    theta: &[f64],
+    from: usize,
+    rows: &[usize],
+) -> Result<DMatrix<f64>, String> {
+    let n = problem.observations(rows);
+    let mut s = DMatrix::zeros(n, theta.len() - from);
+    for k in from..theta.len() {
+        let h = 1e-6 * theta[k].abs().max(1e-2);
+        let mut t = theta.to_vec();
+        t[k] += h;
+        let plus = problem.residuals(&effects_of(cands, &t), rows)?;
+        t[k] -= 2.0 * h;
+        let minus = problem.residuals(&effects_of(cands, &t), rows)?;
+        s.set_column(k - from, &((plus - minus) / (2.0 * h)));
+    }
+    Ok(s)
+}
+
+/// Physically possible values (within two standard errors).
+fn plausible(c: &Candidate, v: &[f64], se: &[f64]) -> bool {
+    match c.kind {
+        Kind::ActuatorCompliance | Kind::LinkCompliance => v[0] > 0.05 && v[0] < 20.0,
+        Kind::Gravity | Kind::Backlash => v[0] + 2.0 * se[0] >= 0.0,
+        Kind::LoadedNonlinearity => v[0] > 0.0 && v[0] < 5.0,
+        _ => v.iter().all(|x| x.is_finite()),
+    }
+}
+
+fn cosine(a: &DVector<f64>, b: &DVector<f64>) -> f64 {
+    a.dot(b) / (a.norm() * b.norm()).max(1e-300)
+}
+
+/// True when one candidate's signature lies (almost) inside the other's: nested, so parsimony decides.
+fn nested(problem: &Problem, a: &Candidate, b: &Candidate, rows: &[usize]) -> bool {
+    let sig = |c: &Candidate| signature(problem, std::slice::from_ref(c), &c.neutral(), 0, rows).ok();
+    let (Some(sa), Some(sb)) = (sig(a), sig(b)) else { return false };
+    let inside = |x: &DMatrix<f64>, y: &DMatrix<f64>| {
+        let q = y.clone().qr().q();
+        (x - &q * (q.transpose() * x)).norm() <= 1e-3 * x.norm()
+    };
+    inside(&sa, &sb) || inside(&sb, &sa)
+}
+
+/// Leave-pose-out residuals of the model with `cands` refitted without each pose (from `start`).
+fn heldout(problem: &Problem, cands: &[Candidate], start: &[f64]) -> Result<(f64, Vec3), String> {
+    let data = problem.data;
+    let mut ssr = 0.0;
+    let mut axis = Vec3::zeros();
+    let mut count = 0usize;
+    for p in &data.poses {
+        let train: Vec<usize> = (0..data.rows.len()).filter(|r| data.rows[*r].pose_id != p.id).collect();
+        let theta = if cands.is_empty() { Vec::new() } else { fit(problem, cands, &train, Some(start))?.theta };
+        let r = problem.residuals(&effects_of(cands, &theta), &p.rows)?;
+        ssr += r.norm_squared();
+        for (i, &row) in p.rows.iter().enumerate() {
+            for c in 0..3 {
+                axis[c] += (r[3 * i + c] / problem.weights[row]).powi(2);
+            }
+        }
+        count += p.rows.len();
+    }
+    Ok((ssr, (axis / count.max(1) as f64).map(f64::sqrt)))
+}
+
+/// Where two fitted candidates' predictions differ most: among the data's poses, with each data wrench,
+/// its reverse and its double, the pose and load that would separate them.
+fn separating_advice(problem: &Problem, a: &CandidateRow, b: &CandidateRow) -> String {
+    let data = problem.data;
+    let (Some(fa), Some(fb)) = (&a.fit, &b.fit) else { return String::new() };
+    let ka = fa.theta.len() - a.dim;
+    let ea = a.candidate.effect(&fa.theta[ka..]);
+    let eb = b.candidate.effect(&fb.theta[fb.theta.len() - b.dim..]);
+    let mut best = (0.0, String::new());
+    for factor in [-1.0, 1.0, 2.0] {
+        let mut scaled = data.clone();
+        for r in scaled.rows.iter_mut() {
+            r.wrench *= factor;
+        }
+        let Ok(p) = Problem::new(problem.model, &scaled, problem.weights.clone(), problem.loaded_mode, false) else {
+            continue;
+        };
+        let rows: Vec<usize> = (0..scaled.rows.len()).collect();
+        let (Ok(pa), Ok(pb)) =
+            (p.predict(std::slice::from_ref(&ea), &rows), p.predict(std::slice::from_ref(&eb), &rows))
+        else {
+            continue;
+        };
+        for (i, (x, y)) in pa.iter().zip(&pb).enumerate() {
+            let d = (x - y).norm();
+            if d > best.0 {
+                let row = &scaled.rows[i];
+                let w: Vec6 = row.wrench;
+                best = (
+                    d,
+                    format!(
+                        "at pose {} with the wrench ({:.0}, {:.0}, {:.0} N, {:.0}, {:.0}, {:.0} N mm) they differ by {:.4} mm",
+                        row.pose_id, w[0], w[1], w[2], w[3], w[4], w[5], d
+                    ),
+                );
+            }
+        }
+    }
+    best.1
+}
+
+pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options) -> Result<Diagnosis, String> {
+    let data = problem.data;
+    let rows: Vec<usize> = (0..data.rows.len()).collect();
+    let n = problem.observations(&rows);
+    let cands = candidates(problem, o.loaded);
+    if n <= cands.iter().map(|c| c.dim()).max().unwrap_or(0) + 1 {
+        return Err(format!("{} measurements are too few for the candidates' parameters", data.rows.len()));
+    }
+    let nominal = fit(problem, &[], &rows, None)?;
+    let (statistic, p0) = match source {
+        SigmaSource::Repeats { dof } => {
+            // Lack of fit against pure error (in units of the pooled sigma, SS_pe = dof).
+            let ss_pe = dof as f64;
+            let lof_dof = n.saturating_sub(dof).max(1);
+            let f = ((nominal.ssr - ss_pe).max(0.0) / lof_dof as f64) / (ss_pe / dof as f64);
+            (f, f_sf(f, lof_dof, dof))
+        }
+        _ => (nominal.ssr, chi2_sf(nominal.ssr, n)),
+    };
+    let rms_before = rms(problem, &rows, &nominal.residuals);
+    let (_, heldout_before) = heldout(problem, &[], &[])?;
+    let mut out = Diagnosis {
+        verdict: Verdict::None,
+        sigma,
+        sigma_source: source,
+        rows: data.rows.len(),
+        observations: n,
+        nominal_statistic: statistic,
+        nominal_p: p0,
+        accepted: Vec::new(),
+        table: Vec::new(),
+        ambiguous: None,
+        rms_before,
+        rms_after: rms_before,
+        heldout_before,
+        heldout_after: heldout_before,
+        final_p: p0,
+        effects_json: Vec::new(),
+    };
+    let step = Step { problem, rows: rows.clone(), n, ln_n: (n as f64).ln() };
+    let alpha_c = o.alpha / cands.len() as f64;
+    let mut accepted: Vec<Candidate> = Vec::new();
+    let mut current = nominal;
+    let mut cv_current = heldout(problem, &[], &[])?.0;
+    let significant = p0 < o.alpha;
+    if significant {
+        for _ in 0..o.max_effects {
+            let remaining: Vec<&Candidate> = cands.iter().filter(|c| !accepted.contains(c)).collect();
+            let table: Vec<CandidateRow> =
+                remaining.iter().map(|c| step.evaluate(&accepted, &current, c, alpha_c)).collect();
+            if out.table.is_empty() {
+                out.table = table.clone();
+            }
+            let mut passing: Vec<&CandidateRow> = table.iter().filter(|r| r.passes).collect();
+            passing.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+            let Some(best) = passing.first().copied() else { break };
+            // Two candidates explaining the same thing: parallel changes of the residuals, BIC within 10.
+            if let Some(rival) = passing.iter().skip(1).find(|r| {
+                r.delta_bic - best.delta_bic < 10.0
+                    && cosine(&r.change, &best.change) > 0.95
+                    && !nested(problem, &r.candidate, &best.candidate, &rows)
+            }) {
+                out.ambiguous =
+                    Some((best.label.clone(), rival.label.clone(), separating_advice(problem, best, rival)));
+                out.verdict = Verdict::Ambiguous;
+                break;
+            }
+            let mut trial = accepted.clone();
+            trial.push(best.candidate.clone());
+            let f = best.fit.clone().expect("a passing candidate was fitted");
+            let (cv, cv_axis) = heldout(problem, &trial, &f.theta)?;
+            if cv >= cv_current {
+                break;
+            }
+            cv_current = cv;
+            out.heldout_after = cv_axis;
+            let k0 = current.theta.len();
+            accepted = trial;
+            out.accepted.push(Accepted {
+                effect: best.candidate.effect(&f.theta[k0..]),
+                label: best.label.clone(),
+                params: f.theta[k0..].to_vec(),
+                se: best.se.clone(),
+                p_value: best.p_value,
+                delta_bic: best.delta_bic,
+            });
+            current = f;
+            let k = current.theta.len();
+            out.final_p = chi2_sf(current.ssr, n.saturating_sub(k).max(1));
+            if out.final_p >= o.alpha {
+                break;
+            }
+        }
+        // The accepted effects with their values refitted together.
+        out.effects_json = effects_of(&accepted, &current.theta);
+        for (a, e) in out.accepted.iter_mut().zip(&out.effects_json) {
+            a.effect = e.clone();
+        }
+        out.rms_after = rms(problem, &rows, &current.residuals);
+        if out.verdict != Verdict::Ambiguous {
+            out.verdict =
+                if accepted.is_empty() || out.final_p < o.alpha { Verdict::Unexplained } else { Verdict::Effect };
+        }
+    } else {
+        // Not significant: the candidates are still tabulated (for planning), none is named.
+        out.table = cands.iter().map(|c| step.evaluate(&[], &current, c, alpha_c)).collect();
+    }
+    Ok(out)
+}
