@@ -87,6 +87,8 @@ pub struct CandidateRow {
 #[derive(Clone, Debug)]
 pub struct Accepted {
     pub effect: Effect,
+    /// For leg-geometry: the directions of eps the data sees (6 x r), in which `params` are coordinates.
+    pub basis: Option<DMatrix<f64>>,
     pub label: String,
     /// Fitted parameters (coordinates for leg-geometry) with standard errors.
     pub params: Vec<f64>,
@@ -380,8 +382,12 @@ fn cosine(a: &DVector<f64>, b: &DVector<f64>) -> f64 {
     a.dot(b) / (a.norm() * b.norm()).max(1e-300)
 }
 
-/// True when one candidate's signature lies (almost) inside the other's: nested, so parsimony decides.
+/// True when one candidate's signature lies (almost) inside the other's and has fewer parameters: nested,
+/// so parsimony (BIC) decides. Equal signatures of equal size are not nested but indistinguishable.
 fn nested(problem: &Problem, a: &Candidate, b: &Candidate, rows: &[usize]) -> bool {
+    if a.dim() == b.dim() {
+        return false;
+    }
     let sig = |c: &Candidate| signature(problem, std::slice::from_ref(c), &c.neutral(), 0, rows).ok();
     let (Some(sa), Some(sb)) = (sig(a), sig(b)) else { return false };
     let inside = |x: &DMatrix<f64>, y: &DMatrix<f64>| {
@@ -444,7 +450,7 @@ fn separating_advice(problem: &Problem, a: &CandidateRow, b: &CandidateRow) -> S
                     d,
                     format!(
                         "at pose {} with the wrench ({:.0}, {:.0}, {:.0} N, {:.0}, {:.0}, {:.0} N mm) they differ by {:.4} mm",
-                        row.pose_id, w[0], w[1], w[2], w[3], w[4], w[5], d
+                        row.pose_id, w[0] + 0.0, w[1] + 0.0, w[2] + 0.0, w[3] + 0.0, w[4] + 0.0, w[5] + 0.0, d
                     ),
                 );
             }
@@ -533,6 +539,7 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
             accepted = trial;
             out.accepted.push(Accepted {
                 effect: best.candidate.effect(&f.theta[k0..]),
+                basis: best.candidate.basis.clone(),
                 label: best.label.clone(),
                 params: f.theta[k0..].to_vec(),
                 se: best.se.clone(),

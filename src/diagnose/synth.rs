@@ -69,9 +69,14 @@ pub fn synthesize(m: &Manipulator, points: &[PosePoint], o: &SynthOptions) -> Re
     for (row, d) in data.rows.iter().zip(predicted) {
         push_text(&mut text, &row.pose_id);
         let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
-        for v in row.position.iter().chain(row.wrench.iter()).chain(noisy.iter()).chain(std::iter::once(&o.noise)) {
+        for v in row.position.iter().chain(row.wrench.iter()).chain(noisy.iter()) {
             text.push(',');
             push_number(&mut text, *v);
+        }
+        // Noise-free data has no sigma (a zero sigma is not a measurement's).
+        text.push(',');
+        if o.noise > 0.0 {
+            push_number(&mut text, o.noise);
         }
         text.push('\n');
     }
