@@ -366,3 +366,55 @@ fn assemble_samples_are_reproducible_and_bad_errors_are_refused() {
         .unwrap();
     assert!(!o.status.success() && String::from_utf8(o.stderr).unwrap().contains("MSA leg"));
 }
+
+/// `stiff synth` then `stiff diagnose` from the outside: JSON with the verdict and named effects, sigma
+/// from repeats when the data has none, and bad data refused with its location: a missing column, a NaN,
+/// an unreachable pose, no way to know the noise, too few rows.
+#[test]
+fn diagnose_reads_synth_output_and_refuses_bad_data() {
+    let dir = temp_dir();
+    let data = dir.path().join("d.csv");
+    let wrenches = "0,0,0,0,0,0;200,0,0,0,0,0;-200,0,0,0,0,0;0,200,0,0,0,0;0,-200,0,0,0,0;0,0,200,0,0,0;0,0,-200,0,0,0";
+    stiff()
+        .args([
+            "synth",
+            MODEL,
+            "--effect",
+            "actuator-compliance:3=2",
+            "--grid",
+            "manipulators/grids/orthoglide-small.toml",
+        ])
+        .args(["--wrenches", wrenches, "--noise", "0.002", "--seed", "9", "--repeats", "2", "-o"])
+        .arg(&data)
+        .assert()
+        .success();
+    let json = dir.path().join("v.json");
+    stiff().args(["diagnose", MODEL, "--data"]).arg(&data).arg("--json").arg(&json).assert().success();
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["verdict"], "effect");
+    assert_eq!(v["effects"][0]["name"], "actuator-compliance");
+    assert_eq!(v["effects"][0]["target"], "3");
+    // Without the sigma column, the repeats give the noise.
+    let text = std::fs::read_to_string(&data).unwrap();
+    let strip = |t: &str| t.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n").collect::<String>();
+    let no_sigma = dir.path().join("n.csv");
+    std::fs::write(&no_sigma, strip(&text)).unwrap();
+    let o = stiff().args(["diagnose", MODEL, "--data"]).arg(&no_sigma).output().unwrap();
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(o.status.success() && out.contains("repeated rows") && out.contains("actuator-compliance:3"), "{out}");
+    let refuse = |content: String, needle: &str| {
+        let bad = dir.path().join("bad.csv");
+        std::fs::write(&bad, content).unwrap();
+        let o = stiff().args(["diagnose", MODEL, "--data"]).arg(&bad).output().unwrap();
+        let message = String::from_utf8(o.stderr).unwrap();
+        assert!(!o.status.success() && message.contains(needle), "expected `{needle}`: {message}");
+    };
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    refuse(lines.iter().map(|l| l.replacen("Fz_N", "Fz", 1) + "\n").collect(), "missing column `Fz_N`");
+    lines[3] = lines[3].replacen(",0.0,", ",NaN,", 1);
+    refuse(lines.join("\n"), "line 4");
+    let header = text.lines().next().unwrap();
+    refuse(format!("{header}\nfar,900,0,0,0,0,0,0,0,0,0.1,0,0,0.002\n"), "pose `far`");
+    refuse(strip(&format!("{header}\np,0,0,0,0,0,0,0,0,0,0.1,0,0,0.002\n")), "noise level is unknown");
+    refuse(format!("{header}\np,0,0,0,100,0,0,0,0,0,0.1,0,0,0.002\n"), "too few");
+}
