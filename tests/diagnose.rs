@@ -199,3 +199,18 @@ fn two_effects_are_named_and_the_corrected_model_is_clean() {
     let again = run(&corrected, &data);
     assert_eq!(again.verdict, Verdict::None, "{}", stiff::diagnose::report::sentence(&again));
 }
+
+/// Data that follows the loaded equilibrium: `--loaded` predicts it (verdict none); the linear nominal
+/// model names the loaded non-linearity.
+#[test]
+fn loaded_mode_predicts_the_loaded_response() {
+    let m = model();
+    let data = synth(&m, &[Effect::parse("loaded-nonlinearity=1", &m).unwrap()], &wrenches(), SIGMA, 8);
+    let (weights, sigma, source) = noise(&data, None).unwrap();
+    let problem = Problem::new(&m, &data, weights, true, true).unwrap();
+    let options = Options { loaded: true, ..Options::default() };
+    let d = diagnose(&problem, sigma, source, &options).unwrap();
+    assert_eq!(d.verdict, Verdict::None, "{}", stiff::diagnose::report::sentence(&d));
+    let d = run(&m, &data);
+    assert_eq!(d.accepted.first().map(|a| a.effect.kind), Some(Kind::LoadedNonlinearity));
+}
