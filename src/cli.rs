@@ -44,6 +44,67 @@ pub enum Command {
     Diagnose(DiagnoseArgs),
     /// Synthetic measurements with hidden effects, in the format `diagnose` reads.
     Synth(SynthArgs),
+    /// An SVG picture of a study's output (map, curve or assemble CSV, or diagnose JSON).
+    Plot(PlotArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// A CSV written by map, curve or assemble, or a JSON written by diagnose --json.
+    pub input: PathBuf,
+    /// The SVG to write.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub style: PlotStyle,
+}
+
+/// How to draw (maps and curves).
+#[derive(Args, Debug, Default)]
+pub struct PlotStyle {
+    /// Map: the column to colour (default c_tran_max_mm_per_N).
+    #[arg(long = "plot-column")]
+    pub column: Option<String>,
+    /// Map: a planar section AXIS=VALUE (mm), e.g. z=0; default: every section (up to six) of a 3-D grid.
+    #[arg(long)]
+    pub section: Option<String>,
+    /// Curve: the direction to draw (x, y, z, rx, ry, rz; default: the one that moves most).
+    #[arg(long)]
+    pub direction: Option<String>,
+}
+
+impl PlotStyle {
+    fn options(&self) -> crate::plot::PlotOptions {
+        crate::plot::PlotOptions {
+            column: self.column.clone(),
+            section: self.section.clone(),
+            direction: self.direction.clone(),
+        }
+    }
+}
+
+/// Draws `text` (a study's output) into the SVG file `path`.
+fn write_plot(text: &str, path: &std::path::Path, style: &PlotStyle) -> Result<()> {
+    let svg = crate::plot::plot_text(text, &style.options())?;
+    let mut sink = Sink::create(Some(path))?;
+    sink.writer().write_all(svg.as_bytes())?;
+    sink.finish()?;
+    Ok(())
+}
+
+/// A picture is drawn from the CSV a study writes, so `--plot` needs `-o FILE`: checked before the run.
+fn plot_needs_output(plot: &Option<PathBuf>, output: &Option<PathBuf>, what: &str) -> Result<()> {
+    match (plot, output.as_deref()) {
+        (Some(_), None) => bail!("{what} --plot needs -o FILE (the picture is drawn from the CSV written)"),
+        (Some(_), Some(p)) if p == std::path::Path::new("-") => bail!("{what} --plot needs -o FILE, not stdout"),
+        _ => Ok(()),
+    }
+}
+
+/// The output file just written, for its picture.
+fn written(output: &Option<PathBuf>) -> Result<String> {
+    let path = output.as_deref().expect("checked by plot_needs_output");
+    Ok(read_text(path)?)
 }
 
 #[derive(Args, Debug)]
@@ -68,6 +129,9 @@ pub struct DiagnoseArgs {
     /// Write the model description with the accepted effects added.
     #[arg(long)]
     pub model_out: Option<PathBuf>,
+    /// Also draw the diagnosis (SVG): residual arrows before and after, per-axis RMS, candidates' delta BIC.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -131,6 +195,9 @@ pub struct AssembleArgs {
     /// Output CSV; `-` or absent: stdout.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Also draw the displacements along the path (SVG, paper 000 Figures 10-11).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub run: RunArgs,
 }
@@ -158,6 +225,11 @@ pub struct MapArgs {
     /// Loaded mode under each point's reference wrench (from the grid or the points file).
     #[arg(long)]
     pub loaded: bool,
+    /// Also draw the map (SVG): a colour map over grid sections.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub style: PlotStyle,
     #[command(flatten)]
     pub run: RunArgs,
 }
@@ -190,6 +262,12 @@ pub struct CurveArgs {
     /// No summary on stderr.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Also draw the curve (SVG).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// The direction to draw (x, y, z, rx, ry, rz; default: the one that moves most).
+    #[arg(long)]
+    pub direction: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -268,6 +346,10 @@ pub fn run() -> Result<()> {
         Command::Assemble(a) => assemble(a),
         Command::Diagnose(a) => diagnose(a),
         Command::Synth(a) => synth(a),
+        Command::Plot(a) => {
+            let text = read_text(&a.input)?;
+            write_plot(&text, &a.output, &a.style)
+        }
     }
 }
 
@@ -313,9 +395,13 @@ fn map(a: MapArgs) -> Result<()> {
         bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
     }
     let options = MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded };
+    plot_needs_output(&a.plot, &a.output, "map")?;
     let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
     sink.finish()?;
     bar.finish_and_clear();
+    if let Some(plot) = &a.plot {
+        write_plot(&written(&a.output)?, plot, &a.style)?;
+    }
     if !a.run.quiet {
         eprintln!(
             "{} points: {} ok, {} unreachable, {} singular, {} not converged, {} unstable",
@@ -359,9 +445,16 @@ fn assemble(a: AssembleArgs) -> Result<()> {
     let mut sink = Sink::create(a.output.as_deref())?;
     let bar = progress_bar(points.len, a.run.quiet);
     let options = AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed };
+    if a.plot.is_some() && a.samples > 0 {
+        bail!("--plot draws an assembly path, not a tolerance study (--samples)");
+    }
+    plot_needs_output(&a.plot, &a.output, "assemble")?;
     let summary = run_assemble(&pool, &model, &set, &perturbed, &mut points, &options, sink.writer(), &bar)?;
     sink.finish()?;
     bar.finish_and_clear();
+    if let Some(plot) = &a.plot {
+        write_plot(&written(&a.output)?, plot, &PlotStyle::default())?;
+    }
     if !a.run.quiet {
         eprintln!("{} points: {} assembled", summary.points, summary.ok);
     }
@@ -385,10 +478,14 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
     print!("{}", report::text(&d, &name));
+    let json = report::json(&d, &name);
     if let Some(path) = &a.json {
         let mut sink = Sink::create(Some(path))?;
-        serde_json::to_writer_pretty(&mut *sink.writer(), &report::json(&d, &name))?;
+        serde_json::to_writer_pretty(&mut *sink.writer(), &json)?;
         sink.finish()?;
+    }
+    if let Some(path) = &a.plot {
+        write_plot(&json.to_string(), path, &PlotStyle::default())?;
     }
     if let Some(path) = &a.model_out {
         let source = read_text(&a.model.model)?;
@@ -463,6 +560,10 @@ fn curve(a: CurveArgs) -> Result<()> {
     }
     sink.writer().write_all(text.as_bytes())?;
     sink.finish()?;
+    if let Some(plot) = &a.plot {
+        let style = PlotStyle { direction: a.direction.clone(), ..PlotStyle::default() };
+        write_plot(&text, plot, &style)?;
+    }
     if !a.quiet {
         match critical_load_factor(&rows) {
             Some(c) => {

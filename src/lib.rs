@@ -7,5 +7,6 @@ pub mod model;
 pub mod msa;
 pub mod output;
 pub mod platform;
+pub mod plot;
 pub mod study;
 pub mod vjm;

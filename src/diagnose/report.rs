@@ -139,6 +139,9 @@ pub fn json(d: &Diagnosis, model: &str) -> Value {
         "final_p_value": d.final_p,
         "ambiguous": d.ambiguous.as_ref().map(|(a, b, advice)| json!({"candidates": [a, b], "separate_by": advice})),
         "candidates": table,
+        "residuals": d.per_pose.iter().map(|(p, b, a)| json!({
+            "position_mm": [p.x, p.y, p.z], "before_mm": [b.x, b.y, b.z], "after_mm": [a.x, a.y, a.z],
+        })).collect::<Vec<_>>(),
         "rms_mm": {
             "fit_before": [d.rms_before.x, d.rms_before.y, d.rms_before.z],
             "fit_after": [d.rms_after.x, d.rms_after.y, d.rms_after.z],

@@ -122,6 +122,9 @@ pub struct Diagnosis {
     /// p-value of the residuals left after the accepted effects.
     pub final_p: f64,
     pub effects_json: Vec<Effect>,
+    /// Per pose: its position, and the residual (mm) of its row with the largest nominal residual, before and
+    /// after the accepted effects (for the picture).
+    pub per_pose: Vec<(Vec3, Vec3, Vec3)>,
 }
 
 /// The candidates for this model and data (leg-geometry restricted to what the data can see).
@@ -497,6 +500,7 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
         heldout_after: heldout_before,
         final_p: p0,
         effects_json: Vec::new(),
+        per_pose: Vec::new(),
     };
     let step = Step { problem, rows: rows.clone(), n, ln_n: (n as f64).ln() };
     let alpha_c = o.alpha / cands.len() as f64;
@@ -566,6 +570,16 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
     } else {
         // Not significant: the candidates are still tabulated (for planning), none is named.
         out.table = cands.iter().map(|c| step.evaluate(&[], &current, c, alpha_c)).collect();
+    }
+    let mm =
+        |r: &DVector<f64>, row: usize| Vec3::new(r[3 * row], r[3 * row + 1], r[3 * row + 2]) / problem.weights[row];
+    let nominal_r = problem.residuals(&[], &rows)?;
+    for p in &data.poses {
+        let worst =
+            p.rows.iter().copied().max_by(|a, b| mm(&nominal_r, *a).norm().total_cmp(&mm(&nominal_r, *b).norm()));
+        if let Some(w) = worst {
+            out.per_pose.push((p.position, mm(&nominal_r, w), mm(&current.residuals, w)));
+        }
     }
     Ok(out)
 }

@@ -1,0 +1,246 @@
+//! A small SVG writer and linear axes: plots need rectangles, lines, polylines, circles and text, and text is
+//! left to the viewer's generic sans-serif font (headless machines have no fonts to embed or measure).
+
+use std::fmt::Write;
+
+/// An SVG document being written.
+pub struct Svg {
+    pub width: f64,
+    pub height: f64,
+    body: String,
+}
+
+fn escape(t: &str) -> String {
+    t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// Numbers in SVG attributes: two decimals are a hundredth of a pixel.
+fn n(v: f64) -> String {
+    let r = (v * 100.0).round() / 100.0;
+    if r == r.trunc() {
+        format!("{}", r as i64)
+    } else {
+        format!("{r}")
+    }
+}
+
+impl Svg {
+    pub fn new(width: f64, height: f64) -> Svg {
+        Svg { width, height, body: String::new() }
+    }
+
+    pub fn rect(&mut self, x: f64, y: f64, w: f64, h: f64, fill: &str, class: &str) {
+        let _ = writeln!(
+            self.body,
+            r#"<rect class="{class}" x="{}" y="{}" width="{}" height="{}" fill="{fill}"/>"#,
+            n(x),
+            n(y),
+            n(w),
+            n(h)
+        );
+    }
+
+    pub fn line(&mut self, x1: f64, y1: f64, x2: f64, y2: f64, stroke: &str, width: f64, class: &str) {
+        let _ = writeln!(
+            self.body,
+            r#"<line class="{class}" x1="{}" y1="{}" x2="{}" y2="{}" stroke="{stroke}" stroke-width="{}"/>"#,
+            n(x1),
+            n(y1),
+            n(x2),
+            n(y2),
+            n(width)
+        );
+    }
+
+    /// A polyline; `dashed` draws it in dashes (an unstable branch, an estimate).
+    pub fn polyline(&mut self, points: &[(f64, f64)], stroke: &str, width: f64, dashed: bool, class: &str) {
+        if points.len() < 2 {
+            return;
+        }
+        let pts: Vec<String> = points.iter().map(|(x, y)| format!("{},{}", n(*x), n(*y))).collect();
+        let dash = if dashed { r#" stroke-dasharray="6,4""# } else { "" };
+        let _ = writeln!(
+            self.body,
+            r#"<polyline class="{class}" points="{}" fill="none" stroke="{stroke}" stroke-width="{}"{dash}/>"#,
+            pts.join(" "),
+            n(width)
+        );
+    }
+
+    pub fn circle(&mut self, x: f64, y: f64, r: f64, fill: &str, class: &str) {
+        let _ =
+            writeln!(self.body, r#"<circle class="{class}" cx="{}" cy="{}" r="{}" fill="{fill}"/>"#, n(x), n(y), n(r));
+    }
+
+    /// Text; `anchor` is start, middle or end; `rotate` turns it (degrees) about its anchor.
+    pub fn text(&mut self, x: f64, y: f64, t: &str, size: f64, anchor: &str, rotate: f64) {
+        let transform = if rotate != 0.0 {
+            format!(r#" transform="rotate({} {} {})""#, n(rotate), n(x), n(y))
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            self.body,
+            r#"<text class="label" x="{}" y="{}" font-size="{}" text-anchor="{anchor}"{transform}>{}</text>"#,
+            n(x),
+            n(y),
+            n(size),
+            escape(t)
+        );
+    }
+
+    /// An arrow from (x1, y1) to (x2, y2).
+    pub fn arrow(&mut self, x1: f64, y1: f64, x2: f64, y2: f64, stroke: &str, class: &str) {
+        let (dx, dy) = (x2 - x1, y2 - y1);
+        let len = (dx * dx + dy * dy).sqrt();
+        self.line(x1, y1, x2, y2, stroke, 1.5, class);
+        if len > 1e-9 {
+            let (ux, uy) = (dx / len, dy / len);
+            let head = 5.0f64.min(0.5 * len);
+            let (hx, hy) = (x2 - ux * head, y2 - uy * head);
+            let pts =
+                [(x2, y2), (hx - uy * head * 0.5, hy + ux * head * 0.5), (hx + uy * head * 0.5, hy - ux * head * 0.5)];
+            let p: Vec<String> = pts.iter().map(|(x, y)| format!("{},{}", n(*x), n(*y))).collect();
+            let _ = writeln!(self.body, r#"<polygon class="{class}-head" points="{}" fill="{stroke}"/>"#, p.join(" "));
+        }
+    }
+
+    pub fn finish(self) -> String {
+        format!(
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" font-family=\"sans-serif\">\n<rect class=\"background\" x=\"0\" y=\"0\" width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n{}</svg>\n",
+            self.body,
+            w = n(self.width),
+            h = n(self.height)
+        )
+    }
+}
+
+/// A linear axis: data range to pixels, with round tick values.
+#[derive(Clone, Debug)]
+pub struct Axis {
+    pub lo: f64,
+    pub hi: f64,
+    pub from: f64,
+    pub to: f64,
+}
+
+impl Axis {
+    /// An axis over the data range (widened when empty or degenerate), onto pixels from..to.
+    pub fn new(values: impl IntoIterator<Item = f64>, from: f64, to: f64) -> Axis {
+        let (mut lo, mut hi) = values
+            .into_iter()
+            .filter(|v| v.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        if !lo.is_finite() {
+            (lo, hi) = (0.0, 1.0);
+        }
+        if hi - lo <= 1e-12 * (lo.abs() + hi.abs()).max(1e-300) {
+            let pad = if lo == 0.0 { 1.0 } else { 0.1 * lo.abs() };
+            (lo, hi) = (lo - pad, hi + pad);
+        }
+        let pad = 0.04 * (hi - lo);
+        Axis { lo: lo - pad, hi: hi + pad, from, to }
+    }
+
+    pub fn px(&self, v: f64) -> f64 {
+        self.from + (v - self.lo) / (self.hi - self.lo) * (self.to - self.from)
+    }
+
+    /// Round tick values inside the range (about five).
+    pub fn ticks(&self) -> Vec<f64> {
+        let span = self.hi - self.lo;
+        let raw = span / 5.0;
+        let mag = 10f64.powf(raw.log10().floor());
+        let step = [1.0, 2.0, 2.5, 5.0, 10.0].iter().map(|m| m * mag).find(|s| span / s <= 6.0).unwrap_or(10.0 * mag);
+        let first = (self.lo / step).ceil() as i64;
+        let last = (self.hi / step).floor() as i64;
+        (first..=last).map(|k| k as f64 * step).collect()
+    }
+}
+
+/// A tick label: short and readable.
+pub fn tick_label(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let a = v.abs();
+    if !(1e-3..1e5).contains(&a) {
+        format!("{v:.2e}")
+    } else {
+        let s = format!("{v:.4}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
+/// Draws a frame with ticks and labels for x (bottom) and y (left) axes.
+pub fn axes(svg: &mut Svg, x: &Axis, y: &Axis, x_label: &str, y_label: &str) {
+    let (left, right, top, bottom) = (x.from, x.to, y.to, y.from);
+    for (x1, y1, x2, y2) in
+        [(left, bottom, right, bottom), (left, top, left, bottom), (left, top, right, top), (right, top, right, bottom)]
+    {
+        svg.line(x1, y1, x2, y2, "#333", 1.0, "frame");
+    }
+    for t in x.ticks() {
+        let p = x.px(t);
+        svg.line(p, bottom, p, bottom + 4.0, "#333", 1.0, "tick");
+        svg.text(p, bottom + 16.0, &tick_label(t), 11.0, "middle", 0.0);
+    }
+    for t in y.ticks() {
+        let p = y.px(t);
+        svg.line(left - 4.0, p, left, p, "#333", 1.0, "tick");
+        svg.text(left - 6.0, p + 4.0, &tick_label(t), 11.0, "end", 0.0);
+    }
+    svg.text((left + right) / 2.0, bottom + 34.0, x_label, 12.0, "middle", 0.0);
+    svg.text(left - 52.0, (top + bottom) / 2.0, y_label, 12.0, "middle", -90.0);
+}
+
+/// A perceptually ordered colour map (viridis, by anchor interpolation) for t in [0, 1].
+pub fn viridis(t: f64) -> String {
+    const A: [(f64, f64, f64); 6] = [
+        (68.0, 1.0, 84.0),
+        (65.0, 68.0, 135.0),
+        (42.0, 120.0, 142.0),
+        (34.0, 168.0, 132.0),
+        (122.0, 209.0, 81.0),
+        (253.0, 231.0, 37.0),
+    ];
+    let t = t.clamp(0.0, 1.0) * (A.len() - 1) as f64;
+    let k = (t.floor() as usize).min(A.len() - 2);
+    let f = t - k as f64;
+    let c = |a: f64, b: f64| (a + (b - a) * f).round() as u8;
+    format!("#{:02x}{:02x}{:02x}", c(A[k].0, A[k + 1].0), c(A[k].1, A[k + 1].1), c(A[k].2, A[k + 1].2))
+}
+
+/// "c_tran_max_mm_per_N" -> ("c_tran_max", "mm/N"): a column's quantity and its unit for labels.
+pub fn unit_of(column: &str) -> (String, String) {
+    const UNITS: [&str; 12] = [
+        "_mm_per_Nmm",
+        "_rad_per_Nmm",
+        "_mm_per_N",
+        "_rad_per_N",
+        "_N_per_mm",
+        "_N_per_rad",
+        "_Nmm_per_rad",
+        "_Nmm_per_mm",
+        "_mm",
+        "_rad",
+        "_Nmm",
+        "_N",
+    ];
+    for u in UNITS {
+        if let Some(q) = column.strip_suffix(u) {
+            return (q.to_string(), u[1..].replace("_per_", "/").replace("Nmm", "N mm"));
+        }
+    }
+    (column.to_string(), String::new())
+}
+
+/// `quantity [unit]`.
+pub fn label(column: &str) -> String {
+    let (q, u) = unit_of(column);
+    if u.is_empty() {
+        q
+    } else {
+        format!("{q} [{u}]")
+    }
+}
