@@ -172,7 +172,7 @@ pub struct AssembleArgs {
     #[arg(long)]
     pub errors: PathBuf,
     /// Grid file (TOML).
-    #[arg(long, conflicts_with_all = ["points", "path"])]
+    #[arg(long, conflicts_with_all = ["points", "path"], required_unless_present_any = ["points", "path"])]
     pub grid: Option<PathBuf>,
     /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name).
     #[arg(long, conflicts_with = "path")]
@@ -381,13 +381,18 @@ fn progress_bar(len: Option<u64>, quiet: bool) -> ProgressBar {
     bar
 }
 
-fn map(a: MapArgs) -> Result<()> {
-    let model = a.model.load()?;
-    let mut points = match (&a.grid, &a.points) {
+/// The poses of `--grid` or `--points` (clap keeps the two exclusive).
+fn point_set(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Result<PointSet> {
+    Ok(match (grid, points) {
         (Some(g), None) => PointSet::from_grid_file(g)?,
         (None, Some(p)) => PointSet::from_points_csv(p)?,
         _ => bail!("give exactly one of --grid and --points"),
-    };
+    })
+}
+
+fn map(a: MapArgs) -> Result<()> {
+    let model = a.model.load()?;
+    let mut points = point_set(&a.grid, &a.points)?;
     let pool = thread_pool(a.run.threads)?;
     let mut sink = Sink::create(a.output.as_deref())?;
     let bar = progress_bar(points.len, a.run.quiet);
@@ -426,10 +431,9 @@ fn assemble(a: AssembleArgs) -> Result<()> {
         }
     }
     let perturbed = set.perturbed_legs(a.scale)?;
-    let mut points = match (&a.grid, &a.points, &a.path) {
-        (Some(g), None, None) => PointSet::from_grid_file(g)?,
-        (None, Some(p), None) => PointSet::from_points_csv(p)?,
-        (None, None, Some(path)) => {
+    let mut points = match &a.path {
+        None => point_set(&a.grid, &a.points)?,
+        Some(path) => {
             let from = parse_vec3(&path[0]).map_err(|e| anyhow::anyhow!("--path FROM: {e}"))?;
             let to = parse_vec3(&path[1]).map_err(|e| anyhow::anyhow!("--path TO: {e}"))?;
             let steps: usize =
@@ -439,7 +443,6 @@ fn assemble(a: AssembleArgs) -> Result<()> {
             }
             PointSet::from_points(path_points(&from, &to, steps))
         }
-        _ => bail!("give exactly one of --grid, --points and --path"),
     };
     let pool = thread_pool(a.run.threads)?;
     let mut sink = Sink::create(a.output.as_deref())?;
@@ -473,7 +476,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let needs_loaded = !a.loaded;
     let problem = Problem::new(&model, &data, weights, a.loaded, needs_loaded)
         .map_err(|b| anyhow::anyhow!("{}, line {}: pose `{}`: {}", a.data.display(), b.line, b.pose_id, b.why))?;
-    let options = select::Options { alpha: a.alpha, sigma: a.sigma, loaded: a.loaded, max_effects: 3 };
+    let options = select::Options { alpha: a.alpha, loaded: a.loaded, max_effects: 3 };
     let d = select::diagnose(&problem, sigma, source, &options)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
@@ -516,11 +519,7 @@ fn synth(a: SynthArgs) -> Result<()> {
     if !(a.noise >= 0.0 && a.noise.is_finite()) {
         bail!("--noise must be >= 0 (mm)");
     }
-    let mut set = match (&a.grid, &a.points) {
-        (Some(g), None) => PointSet::from_grid_file(g)?,
-        (None, Some(p)) => PointSet::from_points_csv(p)?,
-        _ => bail!("give exactly one of --grid and --points"),
-    };
+    let mut set = point_set(&a.grid, &a.points)?;
     let mut points = Vec::new();
     while set.next_block(4096, &mut points)? > 0 {}
     let options = synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats };

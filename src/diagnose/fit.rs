@@ -180,18 +180,25 @@ pub struct Fit {
     pub residuals: DVector<f64>,
 }
 
-/// The weighted residuals' Jacobian with respect to theta, by central differences.
-fn jacobian(problem: &Problem, cands: &[Candidate], theta: &[f64], rows: &[usize]) -> Result<DMatrix<f64>, String> {
+/// The weighted residuals' Jacobian with respect to theta's entries from `from` on (all when 0), by central
+/// differences: a candidate's signature is its part of it.
+pub fn jacobian(
+    problem: &Problem,
+    cands: &[Candidate],
+    theta: &[f64],
+    from: usize,
+    rows: &[usize],
+) -> Result<DMatrix<f64>, String> {
     let n = problem.observations(rows);
-    let mut j = DMatrix::zeros(n, theta.len());
-    for k in 0..theta.len() {
+    let mut j = DMatrix::zeros(n, theta.len() - from);
+    for k in from..theta.len() {
         let h = 1e-6 * theta[k].abs().max(1e-2);
         let mut t = theta.to_vec();
         t[k] = theta[k] + h;
         let plus = problem.residuals(&effects_of(cands, &t), rows)?;
         t[k] = theta[k] - h;
         let minus = problem.residuals(&effects_of(cands, &t), rows)?;
-        j.set_column(k, &((plus - minus) / (2.0 * h)));
+        j.set_column(k - from, &((plus - minus) / (2.0 * h)));
     }
     Ok(j)
 }
@@ -205,7 +212,7 @@ pub fn fit(problem: &Problem, cands: &[Candidate], rows: &[usize], start: Option
     let mut r = problem.residuals(&effects_of(cands, &theta), rows)?;
     let mut ssr = r.norm_squared();
     let mut mu = 1e-3;
-    let mut jac = jacobian(problem, cands, &theta, rows)?;
+    let mut jac = jacobian(problem, cands, &theta, 0, rows)?;
     for _ in 0..60 {
         if theta.is_empty() {
             break;
@@ -243,7 +250,7 @@ pub fn fit(problem: &Problem, cands: &[Candidate], rows: &[usize], start: Option
         if !improved {
             break;
         }
-        jac = jacobian(problem, cands, &theta, rows)?;
+        jac = jacobian(problem, cands, &theta, 0, rows)?;
     }
     let covariance = (jac.transpose() * &jac).try_inverse();
     Ok(Fit { theta, ssr, covariance, residuals: r })

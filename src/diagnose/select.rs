@@ -10,21 +10,20 @@ use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use super::data::Dataset;
 use super::effects::{Effect, Kind, Target};
-use super::fit::{effects_of, fit, Candidate, Fit, Problem};
+use super::fit::{effects_of, fit, jacobian, Candidate, Fit, Problem};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::platform::leg::Leg;
 
 #[derive(Clone, Debug)]
 pub struct Options {
     pub alpha: f64,
-    pub sigma: Option<f64>,
     pub loaded: bool,
     pub max_effects: usize,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { alpha: 0.01, sigma: None, loaded: false, max_effects: 3 }
+        Options { alpha: 0.01, loaded: false, max_effects: 3 }
     }
 }
 
@@ -121,7 +120,6 @@ pub struct Diagnosis {
     pub heldout_after: Vec3,
     /// p-value of the residuals left after the accepted effects.
     pub final_p: f64,
-    pub effects_json: Vec<Effect>,
     /// Per pose: its position, and the residual (mm) of its row with the largest nominal residual, before and
     /// after the accepted effects (for the picture).
     pub per_pose: Vec<(Vec3, Vec3, Vec3)>,
@@ -204,15 +202,20 @@ fn f_sf(x: f64, d1: usize, d2: usize) -> f64 {
     FisherSnedecor::new(d1 as f64, d2 as f64).map(|d| 1.0 - d.cdf(x.max(0.0))).unwrap_or(f64::NAN)
 }
 
-/// Per-axis RMS of weighted residuals turned back into mm.
-fn rms(problem: &Problem, rows: &[usize], r: &DVector<f64>) -> Vec3 {
+/// Per-axis sums of squares (mm^2) of the weighted residuals `r` of `rows`, turned back into mm.
+fn axis_squares(problem: &Problem, rows: &[usize], r: &DVector<f64>) -> Vec3 {
     let mut s = Vec3::zeros();
     for (i, &row) in rows.iter().enumerate() {
         for c in 0..3 {
             s[c] += (r[3 * i + c] / problem.weights[row]).powi(2);
         }
     }
-    (s / rows.len().max(1) as f64).map(f64::sqrt)
+    s
+}
+
+/// Per-axis RMS (mm) of the weighted residuals `r` of `rows`.
+fn rms(problem: &Problem, rows: &[usize], r: &DVector<f64>) -> Vec3 {
+    (axis_squares(problem, rows, r) / rows.len().max(1) as f64).map(f64::sqrt)
 }
 
 /// The noise level and where it comes from, and the weights.
@@ -282,7 +285,7 @@ impl Step<'_> {
         // Signature at the accepted fit, the candidate neutral.
         let mut theta: Vec<f64> = base.theta.clone();
         theta.extend(c.neutral());
-        let sig = match signature(self.problem, &cands, &theta, k0, &self.rows) {
+        let sig = match jacobian(self.problem, &cands, &theta, k0, &self.rows) {
             Ok(s) => s,
             Err(e) => {
                 row.note = e;
@@ -297,7 +300,7 @@ impl Step<'_> {
         row.orthogonal = if k0 == 0 {
             1.0
         } else {
-            match signature(self.problem, &cands, &theta, 0, &self.rows) {
+            match jacobian(self.problem, &cands, &theta, 0, &self.rows) {
                 Ok(all) => {
                     let q = all.columns(0, k0).into_owned().qr().q();
                     let rest = &sig - &q * (q.transpose() * &sig);
@@ -349,28 +352,6 @@ impl Step<'_> {
     }
 }
 
-/// d residuals / d (candidate's parameters), the columns from `from` on (all when 0).
-fn signature(
-    problem: &Problem,
-    cands: &[Candidate],
-    theta: &[f64],
-    from: usize,
-    rows: &[usize],
-) -> Result<DMatrix<f64>, String> {
-    let n = problem.observations(rows);
-    let mut s = DMatrix::zeros(n, theta.len() - from);
-    for k in from..theta.len() {
-        let h = 1e-6 * theta[k].abs().max(1e-2);
-        let mut t = theta.to_vec();
-        t[k] += h;
-        let plus = problem.residuals(&effects_of(cands, &t), rows)?;
-        t[k] -= 2.0 * h;
-        let minus = problem.residuals(&effects_of(cands, &t), rows)?;
-        s.set_column(k - from, &((plus - minus) / (2.0 * h)));
-    }
-    Ok(s)
-}
-
 /// Physically possible values (within two standard errors).
 fn plausible(c: &Candidate, v: &[f64], se: &[f64]) -> bool {
     match c.kind {
@@ -391,7 +372,7 @@ fn nested(problem: &Problem, a: &Candidate, b: &Candidate, rows: &[usize]) -> bo
     if a.dim() == b.dim() {
         return false;
     }
-    let sig = |c: &Candidate| signature(problem, std::slice::from_ref(c), &c.neutral(), 0, rows).ok();
+    let sig = |c: &Candidate| jacobian(problem, std::slice::from_ref(c), &c.neutral(), 0, rows).ok();
     let (Some(sa), Some(sb)) = (sig(a), sig(b)) else { return false };
     let inside = |x: &DMatrix<f64>, y: &DMatrix<f64>| {
         let q = y.clone().qr().q();
@@ -411,11 +392,7 @@ fn heldout(problem: &Problem, cands: &[Candidate], start: &[f64]) -> Result<(f64
         let theta = if cands.is_empty() { Vec::new() } else { fit(problem, cands, &train, Some(start))?.theta };
         let r = problem.residuals(&effects_of(cands, &theta), &p.rows)?;
         ssr += r.norm_squared();
-        for (i, &row) in p.rows.iter().enumerate() {
-            for c in 0..3 {
-                axis[c] += (r[3 * i + c] / problem.weights[row]).powi(2);
-            }
-        }
+        axis += axis_squares(problem, &p.rows, &r);
         count += p.rows.len();
     }
     Ok((ssr, (axis / count.max(1) as f64).map(f64::sqrt)))
@@ -482,7 +459,8 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
         _ => (nominal.ssr, chi2_sf(nominal.ssr, n)),
     };
     let rms_before = rms(problem, &rows, &nominal.residuals);
-    let (_, heldout_before) = heldout(problem, &[], &[])?;
+    // The nominal model has no parameters: its held-out residuals are its residuals, pose by pose.
+    let (mut cv_current, heldout_before) = heldout(problem, &[], &[])?;
     let mut out = Diagnosis {
         verdict: Verdict::None,
         sigma,
@@ -499,14 +477,12 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
         heldout_before,
         heldout_after: heldout_before,
         final_p: p0,
-        effects_json: Vec::new(),
         per_pose: Vec::new(),
     };
     let step = Step { problem, rows: rows.clone(), n, ln_n: (n as f64).ln() };
     let alpha_c = o.alpha / cands.len() as f64;
     let mut accepted: Vec<Candidate> = Vec::new();
     let mut current = nominal;
-    let mut cv_current = heldout(problem, &[], &[])?.0;
     let significant = p0 < o.alpha;
     if significant {
         for _ in 0..o.max_effects {
@@ -558,9 +534,8 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
             }
         }
         // The accepted effects with their values refitted together.
-        out.effects_json = effects_of(&accepted, &current.theta);
-        for (a, e) in out.accepted.iter_mut().zip(&out.effects_json) {
-            a.effect = e.clone();
+        for (a, e) in out.accepted.iter_mut().zip(effects_of(&accepted, &current.theta)) {
+            a.effect = e;
         }
         out.rms_after = rms(problem, &rows, &current.residuals);
         if out.verdict != Verdict::Ambiguous {

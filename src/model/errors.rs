@@ -84,13 +84,9 @@ impl LegErrors {
         LegErrors { eps: Vec6::zeros(), base: Vec6::zeros(), parameters: BTreeMap::new() }
     }
 
-    pub fn is_zero(&self) -> bool {
-        self.eps == Vec6::zeros() && self.base == Vec6::zeros() && self.parameters.values().all(|v| *v == 0.0)
-    }
-
-    /// The rigid motion of the base error as a frame.
-    pub fn base_frame(&self) -> Frame {
-        crate::platform::leg::apply_twist(&Frame::IDENTITY, &self.base)
+    /// The rigid motion of the base error, scaled, as a frame.
+    pub fn base_frame(&self, scale: f64) -> Frame {
+        crate::platform::leg::apply_twist(&Frame::IDENTITY, &(self.base * scale))
     }
 }
 

@@ -7,7 +7,7 @@ pub mod svg;
 use anyhow::{anyhow, bail, Context, Result};
 use serde_json::Value;
 
-use svg::{axes, label, tick_label, unit_of, viridis, Axis, Svg};
+use svg::{axes, frame, label, tick_label, unit_of, viridis, Axis, Svg};
 
 /// A CSV held as text cells.
 pub struct Table {
@@ -83,6 +83,12 @@ fn distinct(values: &[f64]) -> Vec<f64> {
     v.sort_by(f64::total_cmp);
     v.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * (1.0 + a.abs()));
     v
+}
+
+/// Largest minus smallest value (negative infinity when there is none).
+fn extent(values: impl Iterator<Item = f64>) -> f64 {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    hi - lo
 }
 
 fn spacing(values: &[f64]) -> f64 {
@@ -201,10 +207,7 @@ fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
             .position(|n| n == d)
             .ok_or_else(|| anyhow!("--direction must be one of x, y, z, rx, ry, rz"))?,
         None => {
-            let range = |c: &str| -> f64 {
-                let v: Vec<f64> = t.numbers(c).unwrap_or_default().into_iter().flatten().collect();
-                v.iter().fold(f64::NEG_INFINITY, |a, b| a.max(*b)) - v.iter().fold(f64::INFINITY, |a, b| a.min(*b))
-            };
+            let range = |c: &str| extent(t.numbers(c).unwrap_or_default().into_iter().flatten());
             (0..3).max_by(|a, b| range(disp[*a]).total_cmp(&range(disp[*b]))).unwrap_or(0)
         }
     };
@@ -261,9 +264,7 @@ fn assembly(t: &Table) -> Result<String> {
         .map(|c| t.numbers(c).map(|v| v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect()))
         .collect::<Result<_>>()?;
     // Along the path: the coordinate that varies most.
-    let range = |v: &Vec<f64>| {
-        v.iter().fold(f64::NEG_INFINITY, |a, b| a.max(*b)) - v.iter().fold(f64::INFINITY, |a, b| a.min(*b))
-    };
+    let range = |v: &Vec<f64>| extent(v.iter().copied());
     let along = (0..3).max_by(|a, b| range(&coords[*a]).total_cmp(&range(&coords[*b]))).unwrap_or(0);
     let s_values = &coords[along];
     let series: Vec<(&str, &str, &str, bool)> = vec![
@@ -320,10 +321,7 @@ fn diagnosis(v: &Value) -> Result<String> {
         before.push(vec3(&r["before_mm"]).ok_or_else(|| anyhow!("bad residual entry"))?);
         after.push(vec3(&r["after_mm"]).ok_or_else(|| anyhow!("bad residual entry"))?);
     }
-    let spread = |k: usize| {
-        pos.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max)
-            - pos.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min)
-    };
+    let spread = |k: usize| extent(pos.iter().map(|p| p[k]));
     let mut order = [0usize, 1, 2];
     order.sort_by(|a, b| spread(*b).total_cmp(&spread(*a)));
     let (u, w_axis) = (order[0].min(order[1]), order[0].max(order[1]));
@@ -440,32 +438,4 @@ fn diagnosis(v: &Value) -> Result<String> {
         }
     }
     Ok(s.finish())
-}
-
-/// A frame with optional numeric ticks on either axis (category axes label themselves).
-fn frame(s: &mut Svg, x: &Axis, y: &Axis, x_label: &str, y_label: &str, x_ticks: bool, y_ticks: bool) {
-    let (left, right, top, bottom) = (x.from, x.to, y.to, y.from);
-    for (x1, y1, x2, y2) in
-        [(left, bottom, right, bottom), (left, top, right, top), (left, top, left, bottom), (right, top, right, bottom)]
-    {
-        s.line(x1, y1, x2, y2, "#333", 1.0, "frame");
-    }
-    if x_ticks {
-        for t in x.ticks() {
-            let p = x.px(t);
-            s.line(p, bottom, p, bottom + 4.0, "#333", 1.0, "tick");
-            s.text(p, bottom + 16.0, &tick_label(t), 10.0, "middle", 0.0);
-        }
-    }
-    if y_ticks {
-        for t in y.ticks() {
-            let p = y.px(t);
-            s.line(left - 4.0, p, left, p, "#333", 1.0, "tick");
-            s.text(left - 6.0, p + 4.0, &tick_label(t), 10.0, "end", 0.0);
-        }
-    }
-    s.text((left + right) / 2.0, bottom + 34.0, x_label, 11.0, "middle", 0.0);
-    if !y_label.is_empty() {
-        s.text(left - 48.0, (top + bottom) / 2.0, y_label, 11.0, "middle", -90.0);
-    }
 }

@@ -174,24 +174,36 @@ pub fn tick_label(v: f64) -> String {
 
 /// Draws a frame with ticks and labels for x (bottom) and y (left) axes.
 pub fn axes(svg: &mut Svg, x: &Axis, y: &Axis, x_label: &str, y_label: &str) {
+    frame(svg, x, y, x_label, y_label, true, true);
+}
+
+/// A frame with numeric ticks on either axis or none (a category axis labels itself); an empty label is
+/// left out.
+pub fn frame(svg: &mut Svg, x: &Axis, y: &Axis, x_label: &str, y_label: &str, x_ticks: bool, y_ticks: bool) {
     let (left, right, top, bottom) = (x.from, x.to, y.to, y.from);
     for (x1, y1, x2, y2) in
         [(left, bottom, right, bottom), (left, top, left, bottom), (left, top, right, top), (right, top, right, bottom)]
     {
         svg.line(x1, y1, x2, y2, "#333", 1.0, "frame");
     }
-    for t in x.ticks() {
-        let p = x.px(t);
-        svg.line(p, bottom, p, bottom + 4.0, "#333", 1.0, "tick");
-        svg.text(p, bottom + 16.0, &tick_label(t), 11.0, "middle", 0.0);
+    if x_ticks {
+        for t in x.ticks() {
+            let p = x.px(t);
+            svg.line(p, bottom, p, bottom + 4.0, "#333", 1.0, "tick");
+            svg.text(p, bottom + 16.0, &tick_label(t), 11.0, "middle", 0.0);
+        }
     }
-    for t in y.ticks() {
-        let p = y.px(t);
-        svg.line(left - 4.0, p, left, p, "#333", 1.0, "tick");
-        svg.text(left - 6.0, p + 4.0, &tick_label(t), 11.0, "end", 0.0);
+    if y_ticks {
+        for t in y.ticks() {
+            let p = y.px(t);
+            svg.line(left - 4.0, p, left, p, "#333", 1.0, "tick");
+            svg.text(left - 6.0, p + 4.0, &tick_label(t), 11.0, "end", 0.0);
+        }
     }
     svg.text((left + right) / 2.0, bottom + 34.0, x_label, 12.0, "middle", 0.0);
-    svg.text(left - 52.0, (top + bottom) / 2.0, y_label, 12.0, "middle", -90.0);
+    if !y_label.is_empty() {
+        svg.text(left - 52.0, (top + bottom) / 2.0, y_label, 12.0, "middle", -90.0);
+    }
 }
 
 /// A perceptually ordered colour map (viridis, by anchor interpolation) for t in [0, 1].

@@ -129,7 +129,7 @@ pub fn place_with_errors(
     let mut errors = Vec::with_capacity(m.legs.len());
     for (k, leg) in m.legs.iter().enumerate() {
         let e = &set.legs[k];
-        let base = crate::platform::leg::apply_twist(&Frame::IDENTITY, &(e.base * scale));
+        let base = e.base_frame(scale);
         let ends = leg
             .end_errors(pose, &state.legs[k], &(e.eps * scale), &base, perturbed[k].as_ref())
             .map_err(|failure| status(PoseFailure { leg: k, failure }))?;
@@ -173,7 +173,7 @@ fn with_errors(
     let mut s = state.clone();
     for (k, leg) in m.legs.iter().enumerate() {
         let e = &set.legs[k];
-        let base = crate::platform::leg::apply_twist(&Frame::IDENTITY, &(e.base * scale));
+        let base = e.base_frame(scale);
         legs.push(leg.with_errors(pose, &(e.eps * scale), &base, perturbed[k].as_ref()));
         s.legs[k].offset_placement(&placed.errors[k].total());
     }
