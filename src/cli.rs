@@ -14,7 +14,6 @@ use crate::model::grid::{PointSet, PosePoint};
 use crate::model::parse_with;
 use crate::output::report::point_report;
 use crate::output::sink::Sink;
-use crate::platform::leg::Leg;
 use crate::platform::manipulator::Manipulator;
 use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
 use crate::study::curve::{critical_load_factor, push_curve_row, run_curve, Control, CURVE_HEADER};
@@ -421,14 +420,6 @@ fn assemble(a: AssembleArgs) -> Result<()> {
     let set = ErrorSet::load(&a.errors, &a.model.model, &model)?;
     if !(a.scale.is_finite()) {
         bail!("--scale must be a finite number");
-    }
-    for (leg, e) in model.legs.iter().zip(&set.legs) {
-        if matches!(leg, Leg::Msa(_)) && !e.parameters.is_empty() {
-            bail!(
-                "leg `{}` is an MSA leg: its geometry is solved from the pose, so give its errors as eps or a base error, not parameters",
-                leg.name()
-            );
-        }
     }
     let perturbed = set.perturbed_legs(a.scale)?;
     let mut points = match &a.path {

@@ -129,6 +129,17 @@ impl ErrorSet {
                     return Err(loc.at(span, format!("unknown frame `{other}`: use leg or base")));
                 }
             };
+            if let Some(k) =
+                targets.iter().find(|&&k| matches!(m.legs[k], Leg::Msa(_))).filter(|_| !s.parameters.is_empty())
+            {
+                return Err(loc.at(
+                    spec.span(),
+                    format!(
+                        "leg `{}` is an MSA leg: its geometry is solved from the pose, so give its errors as eps or a base error, not parameters",
+                        m.legs[*k].name()
+                    ),
+                ));
+            }
             for (name, value) in &s.parameters {
                 if !nominal_parameters.contains_key(name) {
                     return Err(loc.at(spec.span(), format!("the model has no parameter `{name}`")));

@@ -277,8 +277,8 @@ impl Leg {
                 let end = p.chain.end_frame(&state.coords);
                 platform.error_to(&end.compose(&p.attachment.inverse()))
             }
-            // An MSA leg's geometry is solved from the pose, so its parameters do not move its end: its
-            // errors must be given as eps or a base error.
+            // An MSA leg's geometry is solved from the pose, so its parameters do not move its end: the error
+            // file refuses parameter errors for it (`ErrorSet::load`), so only a rebuild that does not match lands here.
             _ => return Err(LegFailure::SingularChain),
         };
         Ok(EndErrors { direct: *direct, base: base_error, parameters })
