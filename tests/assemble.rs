@@ -12,7 +12,7 @@ const VJM: &str = "manipulators/orthoglide-3puu.toml";
 const CASE_A: &str = "manipulators/errors/orthoglide-case-a.toml";
 const CASE_B: &str = "manipulators/errors/orthoglide-case-b.toml";
 
-/// Paper 000's labels (orthoglide-geometry.md): Q1 = +126.35, Q2 = -73.65.
+/// Paper 000's labels (tests/reference/README.md): Q1 = +126.35, Q2 = -73.65.
 const POINTS: [(&str, [f64; 3]); 5] = [
     ("Q0", [0.0, 0.0, 0.0]),
     ("Q1", [126.35, 126.35, 126.35]),
@@ -68,11 +68,11 @@ fn table_4_case_a() {
 }
 
 /// Table 3 (Case B): the end-point errors of a 1 degree rotation of each actuator about its own axis (the
-/// line inferred in orthoglide-geometry.md), through each chain's kinematics, all 15 rows within 0.02 mm,
+/// line inferred in tests/reference/README.md), through each chain's kinematics, all 15 rows within 0.02 mm,
 /// rotations 1 degree about the chain's axis.
 #[test]
 fn table_3_case_b_end_point_errors() {
-    let text = std::fs::read_to_string("../shared/reference/seed000_assembly_case_b_eps.csv").unwrap();
+    let text = std::fs::read_to_string("tests/reference/paper000-table3-case-b-eps.csv").unwrap();
     let m = load(VJM);
     let set = ErrorSet::load(Path::new(CASE_B), Path::new(VJM), &m).unwrap();
     let perturbed = set.perturbed_legs(1.0).unwrap();

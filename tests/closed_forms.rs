@@ -101,7 +101,7 @@ fn passive_joints_remove_exactly_their_directions() {
 
 /// Where two passive axes become collinear (a U-joint folded onto the next joint's axis), J_q loses rank
 /// and the bordered matrix of eq 9 as printed is singular; with J_q replaced by a basis of its range
-/// (errata.md) the stiffness is still computed and loses exactly one rank per independent freedom.
+/// (tests/reference/README.md) the stiffness is still computed and loses exactly one rank per independent freedom.
 #[test]
 fn collinear_passive_axes_are_handled() {
     let mut r = rng(5);

@@ -81,7 +81,7 @@ fn loaded_stiffness_matches_differences_of_equilibria() {
 /// Paper 001 Table 1, loaded rows (platform displaced by (0.5, 0.5, 0.5) mm, no rotation) and Table 3 (F,
 /// one component of F = (f, f, f)). Predicted, not fitted (the link parameters were fitted to unloaded
 /// rows). Reached: Q0 within 0.5%, Q1 within 1.5%, Q2 k_tran within 2.4% and k_rot diagonal 2.2%; the Q2
-/// k_rot off-diagonal is -2.53e-7 against -0.7e-7 (the independent model of orthoglide-geometry.md gets
+/// k_rot off-diagonal is -2.53e-7 against -0.7e-7 (the independent model of tests/reference/README.md gets
 /// -2.51e-7; a small difference of large terms, sensitive to geometry). Table 3: 1828 / 230 / 3962 N against
 /// 1823 / 234 / 4104 N (3.5% at Q2). The printed moments M (lever arms under 2 mm) are not reproduced.
 #[test]

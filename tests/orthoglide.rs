@@ -1,5 +1,5 @@
 //! The Orthoglide 3-PUU against paper 001 Table 1 (unloaded), paper 000 Table 4 (assembly, Case A), the
-//! closed-form kinematics of shared/reference/orthoglide-geometry.md, and invariances of the model.
+//! closed-form kinematics of tests/reference/README.md, and invariances of the model.
 
 mod common;
 use common::*;
@@ -27,7 +27,7 @@ fn rel(a: f64, b: f64) -> f64 {
 }
 
 /// Paper 001 Table 1 prints k_tran = 2.78e-4 mm/N and k_rot = 20.9e-7 rad/(N mm) at Q0, isotropic.
-/// The link stiffness is set from beams with parameter set J of orthoglide-geometry.md (fitted there to
+/// The link stiffness is set from beams with parameter set J of tests/reference/README.md (fitted there to
 /// the unloaded rows of Tables 1 and 2); here it must reach Q0 within 1%.
 #[test]
 fn q0_matches_table_1_and_is_isotropic() {
@@ -49,7 +49,7 @@ fn q0_matches_table_1_and_is_isotropic() {
 }
 
 /// Q1 and Q2 (paper 001 labels) are predictions, not fitted: reached within 2.0% (Q1 k_tran off-diagonal
-/// 5.61 vs 5.5, the largest gap; the independent model of orthoglide-geometry.md reports 5.61 too). Pinned
+/// 5.61 vs 5.5, the largest gap; the independent model of tests/reference/README.md reports 5.61 too). Pinned
 /// at 2.5%.
 #[test]
 fn q1_q2_predictions_against_table_1() {
@@ -68,7 +68,7 @@ fn q1_q2_predictions_against_table_1() {
 
 /// The actuator-to-platform map through the engine's own Jacobians: every actuator shifted by 1 mm (paper
 /// 000 Table 4, Case A), assembled by the linear scheme of paper 000 eq 57-65. The platform shift must match
-/// the closed form dp = M^-1 (1,1,1), rows of M = e_i + t_i / n_i (orthoglide-geometry.md), and the printed
+/// the closed form dp = M^-1 (1,1,1), rows of M = e_i + t_i / n_i (tests/reference/README.md), and the printed
 /// digits; no internal loads arise.
 #[test]
 fn case_a_assembly_reproduces_table_4() {

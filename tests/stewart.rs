@@ -1,6 +1,6 @@
 //! Stewart-Gough platforms of paper 002 (s. V): the numerical stiffness at the symmetric home pose against
 //! the closed forms of eq (10) (case A) and eq (11) with its misprint corrected (case B,
-//! shared/reference/errata.md), for several geometries; case A's rank and free rotations.
+//! tests/reference/README.md), for several geometries; case A's rank and free rotations.
 
 mod common;
 use common::*;

@@ -124,7 +124,7 @@ pub fn block_rotation(r: &Mat3) -> Mat6 {
 
 /// The map from a platform twist at a reference point RP to the twist of a point EP of the same rigid
 /// body, with `v = EP - RP`: `dt_EP = A dt_RP`, `A = [[I, -[v]x], [0, I]]` (paper 000 eq 55, with the sign of
-/// v corrected as in shared/reference/errata.md: v runs from the reference point to the leg's end point).
+/// v corrected as in tests/reference/README.md: v runs from the reference point to the leg's end point).
 pub fn point_shift(v: &Vec3) -> Mat6 {
     let mut a = Mat6::identity();
     a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-skew(v)));

@@ -68,7 +68,7 @@ fn six_dof_spring_compliance(cols: &[Vec6], c: &Mat6) -> Mat6 {
 /// weighted by `length_scale` (mm/rad) so that mm and rad compare.
 ///
 /// Where passive axes become collinear J_q loses rank and the bordered matrix of eq 9 is singular although
-/// the stiffness is well defined; replacing J_q by a basis of its range is exact (shared/reference/errata.md).
+/// the stiffness is well defined; replacing J_q by a basis of its range is exact (tests/reference/README.md).
 #[derive(Clone, Copy, Debug)]
 pub struct PassiveRange {
     /// `basis[..rank]` spans range(J_q).
