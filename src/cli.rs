@@ -16,7 +16,7 @@ use crate::output::report::point_report;
 use crate::output::sink::Sink;
 use crate::platform::manipulator::Manipulator;
 use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
-use crate::study::curve::{critical_load_factor, push_curve_row, run_curve, Control, CURVE_HEADER};
+use crate::study::curve::{push_curve_row, run_curve, summary, Control, CURVE_HEADER, MAX_INTERVALS};
 use crate::study::map::{run_map, MapOptions};
 use crate::study::point::unloaded_point;
 
@@ -542,6 +542,12 @@ fn curve(a: CurveArgs) -> Result<()> {
         (None, Some(d)) => Control::Displacement(d),
         _ => bail!("give exactly one of --wrench-direction and --displacement-direction"),
     };
+    if !(1..=MAX_INTERVALS).contains(&a.steps) {
+        bail!("--steps must lie between 1 and {MAX_INTERVALS} (each step is a loaded equilibrium kept in memory)");
+    }
+    if !(a.max.is_finite() && a.max > 0.0) {
+        bail!("--max must be a positive finite number, got {}", a.max);
+    }
     let mut sink = Sink::create(a.output.as_deref())?;
     let rows = run_curve(&model, &at, control, a.max, a.steps)?;
     let mut text = String::from(CURVE_HEADER);
@@ -555,15 +561,7 @@ fn curve(a: CurveArgs) -> Result<()> {
         write_plot(&text, plot, &style)?;
     }
     if !a.quiet {
-        match critical_load_factor(&rows) {
-            Some(c) => {
-                eprintln!("the tangent stiffness stops being positive definite at load factor {c:.6} (interpolated)")
-            }
-            None => eprintln!("the tangent stiffness stays positive definite up to load factor {}", a.max),
-        }
-        if let Some(r) = rows.iter().find(|r| r.event == "limit_point") {
-            eprintln!("limit point near load factor {}: continued by displacement control", r.load_factor);
-        }
+        eprintln!("{}", summary(&rows, model.length_scale));
     }
     Ok(())
 }

@@ -11,7 +11,7 @@
 use std::fmt;
 
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
-use crate::platform::compliance::{analyse, Analysis};
+use crate::platform::compliance::analyse;
 use crate::platform::leg::Leg;
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
@@ -229,8 +229,8 @@ impl PoseModel {
         let total = m
             .unloaded_each(pose, state, |_, r| legs.push(r.stiffness))
             .map_err(|e| format!("leg {} fails there ({:?})", e.leg + 1, e.failure))?;
-        let Analysis::Regular { compliance } = analyse(&total.stiffness, m.length_scale) else {
-            return Err("the manipulator is singular there".into());
+        let Some(&compliance) = analyse(&total.stiffness, m.length_scale, true).compliance() else {
+            return Err("the manipulator is singular or ill-conditioned there".into());
         };
         let actuators = m
             .legs

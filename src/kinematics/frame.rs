@@ -151,26 +151,6 @@ pub fn shift_stiffness(k: &Mat6, v: &Vec3) -> Mat6 {
     out
 }
 
-/// Eigenvalues of a symmetric 3x3 matrix in ascending order (closed form, trigonometric method).
-pub fn symmetric_eigenvalues3(m: &Mat3) -> [f64; 3] {
-    let p1 = m[(0, 1)].powi(2) + m[(0, 2)].powi(2) + m[(1, 2)].powi(2);
-    let tr = m.trace();
-    if p1 <= 1e-30 * (tr * tr).max(f64::MIN_POSITIVE) {
-        let mut d = [m[(0, 0)], m[(1, 1)], m[(2, 2)]];
-        d.sort_by(f64::total_cmp);
-        return d;
-    }
-    let q = tr / 3.0;
-    let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
-    let p = (p2 / 6.0).sqrt();
-    let b = (m - Mat3::identity() * q) / p;
-    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
-    let phi = r.acos() / 3.0;
-    let largest = q + 2.0 * p * phi.cos();
-    let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
-    [smallest, tr - largest - smallest, largest]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -189,17 +169,6 @@ mod tests {
                 (back - v).norm() <= 1e-13 * v.norm().max(1e-300) + 1e-9 * (v.norm() > 3.0) as u8 as f64,
                 "{v:?} -> {back:?}"
             );
-        }
-    }
-
-    #[test]
-    fn eigenvalues3_match_nalgebra() {
-        let m = Mat3::new(4.0, 1.0, -0.5, 1.0, 3.0, 0.2, -0.5, 0.2, 1.0);
-        let mut reference: Vec<f64> = m.symmetric_eigen().eigenvalues.iter().copied().collect();
-        reference.sort_by(f64::total_cmp);
-        let ours = symmetric_eigenvalues3(&m);
-        for k in 0..3 {
-            assert!((ours[k] - reference[k]).abs() < 1e-12, "{ours:?} vs {reference:?}");
         }
     }
 

@@ -36,7 +36,9 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult) -> String {
         "pose: x = {} mm, y = {} mm, z = {} mm; orientation (rotation vector) {} {} {} rad",
         x.x, x.y, x.z, o.x, o.y, o.z
     );
-    let _ = writeln!(out, "status: {}, rank {}\n", r.status.as_str(), r.rank);
+    let rank = r.rank.map_or(String::from("not computed"), |k| k.to_string());
+    let condition = r.condition.map_or(String::from("not computed"), |c| format!("{c:.3e}"));
+    let _ = writeln!(out, "status: {}, rank {rank}, condition {condition}\n", r.status.as_str());
     if let Some(k) = &r.stiffness {
         matrix(
             &mut out,

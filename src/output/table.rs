@@ -31,14 +31,25 @@ pub fn upper_triangle() -> impl Iterator<Item = (usize, usize)> {
     (1..=6).flat_map(|i| (i..=6).map(move |j| (i, j)))
 }
 
+/// The entries a map writes of a 6x6 matrix (1-based): all 36 row by row where it is not symmetric
+/// (loaded tangent stiffness and its inverse), else the 21 of the upper triangle.
+pub fn matrix_entries(full: bool) -> Vec<(usize, usize)> {
+    if full {
+        (1..=6).flat_map(|i| (1..=6).map(move |j| (i, j))).collect()
+    } else {
+        upper_triangle().collect()
+    }
+}
+
 /// Which optional columns a map has; fixed by the input before the first row.
 #[derive(Clone, Copy, Debug)]
 pub struct MapColumns {
     pub orientation: bool,
     pub stiffness: bool,
     pub deflection: bool,
-    /// Loaded mode: the compliance is the tangent compliance at the loaded equilibrium, the deflection
-    /// that equilibrium's displacement; adds the Newton iteration count.
+    /// Loaded mode: the compliance is the tangent compliance at the loaded equilibrium (all 36 entries of
+    /// it and of K, which are not symmetric), the deflection that equilibrium's displacement; appends the
+    /// Newton iteration count.
     pub loaded: bool,
 }
 
@@ -47,17 +58,18 @@ pub fn map_header(c: &MapColumns) -> String {
     if c.orientation {
         h.extend(["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"].map(String::from));
     }
-    h.extend(["status", "rank", "free_directions"].map(String::from));
-    if c.loaded {
-        h.push("iterations".into());
-    }
+    h.extend(["status", "rank", "free_directions", "condition"].map(String::from));
     h.extend(["c_tran_max_mm_per_N", "c_tran_min_mm_per_N", "c_rot_max_rad_per_Nmm"].map(String::from));
     if c.deflection {
         h.extend(["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad", "deflection_mm"].map(String::from));
     }
-    h.extend(upper_triangle().map(|(i, j)| format!("C{i}{j}_{}", compliance_unit(i, j))));
+    let entries = matrix_entries(c.loaded);
+    h.extend(entries.iter().map(|&(i, j)| format!("C{i}{j}_{}", compliance_unit(i, j))));
     if c.stiffness {
-        h.extend(upper_triangle().map(|(i, j)| format!("K{i}{j}_{}", stiffness_unit(i, j))));
+        h.extend(entries.iter().map(|&(i, j)| format!("K{i}{j}_{}", stiffness_unit(i, j))));
+    }
+    if c.loaded {
+        h.push("iterations".into());
     }
     let mut s = h.join(",");
     s.push('\n');
@@ -109,8 +121,8 @@ fn push_optional(out: &mut String, v: Option<f64>) {
     }
 }
 
-fn push_matrix(out: &mut String, m: Option<&Mat6>) {
-    for (i, j) in upper_triangle() {
+fn push_matrix(out: &mut String, m: Option<&Mat6>, full: bool) {
+    for (i, j) in matrix_entries(full) {
         push_optional(out, m.map(|m| m[(i - 1, j - 1)]));
     }
 }
@@ -134,13 +146,12 @@ pub fn push_map_row(out: &mut String, c: &MapColumns, index: u64, p: &PosePoint,
     out.push(',');
     out.push_str(r.status.as_str());
     out.push(',');
-    out.push_str(itoa::Buffer::new().format(r.rank));
+    if let Some(rank) = r.rank {
+        out.push_str(itoa::Buffer::new().format(rank));
+    }
     out.push(',');
     push_free_directions(out, &r.free);
-    if c.loaded {
-        out.push(',');
-        out.push_str(itoa::Buffer::new().format(r.iterations));
-    }
+    push_optional(out, r.condition.filter(|c| c.is_finite()));
     let pc = r.principal;
     push_optional(out, pc.map(|p| p.translation_max));
     push_optional(out, pc.map(|p| p.translation_min));
@@ -152,9 +163,13 @@ pub fn push_map_row(out: &mut String, c: &MapColumns, index: u64, p: &PosePoint,
         }
         push_optional(out, d.map(|d| d.fixed_rows::<3>(0).norm()));
     }
-    push_matrix(out, r.compliance.as_ref());
+    push_matrix(out, r.compliance.as_ref(), c.loaded);
     if c.stiffness {
-        push_matrix(out, r.stiffness.as_ref());
+        push_matrix(out, r.stiffness.as_ref(), c.loaded);
+    }
+    if c.loaded {
+        out.push(',');
+        out.push_str(itoa::Buffer::new().format(r.iterations));
     }
     out.push('\n');
 }

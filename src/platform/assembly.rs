@@ -2,7 +2,7 @@
 //! (eq 57-65): each leg, deformed from its own end point t0 + eps_i to the common platform pose t0 + dt,
 //! pushes back with w_i = -K_i (dt - eps_i); equilibrium sum_i w_i = 0 gives dt = K^-1 sum_i K_i eps_i.
 
-use super::compliance::{analyse, Analysis};
+use super::compliance::analyse;
 use super::leg::LegResponse;
 use crate::kinematics::frame::Vec6;
 
@@ -18,9 +18,7 @@ pub struct LinearAssembly {
 /// stiffness is singular.
 pub fn linear_assembly(legs: &[LegResponse], eps: &[Vec6], length_scale: f64) -> Option<LinearAssembly> {
     let k: nalgebra::Matrix6<f64> = legs.iter().map(|l| l.stiffness).sum();
-    let Analysis::Regular { compliance } = analyse(&k, length_scale) else {
-        return None;
-    };
+    let compliance = *analyse(&k, length_scale, true).compliance()?;
     let load: Vec6 = legs.iter().zip(eps).map(|(l, e)| l.stiffness * e).sum();
     let displacement = compliance * load;
     let leg_wrenches = legs.iter().zip(eps).map(|(l, e)| -(l.stiffness * (displacement - e))).collect();

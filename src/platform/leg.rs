@@ -39,6 +39,30 @@ pub enum LegFailure {
     NotConverged { iterations: usize, residual: f64 },
 }
 
+impl std::fmt::Display for LegFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LegFailure::Unreachable(e) => write!(f, "unreachable: {e}"),
+            LegFailure::OutOfReach { condition: Some(k) } => {
+                write!(f, "out of reach: reach condition {} of the MSA leg is negative at this pose", k + 1)
+            }
+            LegFailure::OutOfReach { condition: None } => {
+                write!(f, "out of reach: a formula of the MSA leg has no finite value at this pose")
+            }
+            LegFailure::SingularChain => write!(
+                f,
+                "the leg's springs do not restrain a direction its passive joints leave free (check the springs \
+                 and passive joints of this leg)"
+            ),
+            LegFailure::NotConverged { iterations, residual } => write!(
+                f,
+                "its loaded equilibrium was not found after {iterations} Newton iterations (residual {residual:.3e}); \
+                 try a smaller load or more steps"
+            ),
+        }
+    }
+}
+
 /// A VJM leg: a serial chain from the base to the leg's end frame, and where that frame sits on the platform.
 #[derive(Clone, Debug)]
 pub struct VjmLeg {

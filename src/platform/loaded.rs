@@ -2,7 +2,7 @@
 //! its tangent stiffness, stability, and its inverse, the deflection under a given wrench by Newton's
 //! method with load continuation (eq 73-75).
 
-use super::compliance::{scaled, RANK_TOLERANCE};
+use super::compliance::positive_definite;
 use super::leg::apply_twist;
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
@@ -14,24 +14,26 @@ pub struct Held {
     pub force: Vec6,
     /// Tangent stiffness dF/dt at the reference point.
     pub stiffness: Mat6,
-    /// Every leg's equilibrium is stable with its end held.
-    pub legs_stable: bool,
+    /// Legs whose equilibrium is unstable with their end held, as bits (leg i -> bit min(i, 63)).
+    pub unstable_legs: u64,
     /// Most Newton iterations over the legs.
     pub iterations: usize,
 }
 
-/// Smallest and largest eigenvalues of the symmetric part of a stiffness, rotations weighted by
-/// `length_scale` so that every entry is in N/mm. The smallest is positive exactly where the stiffness is
-/// positive definite.
-pub fn eigenvalue_range(k: &Mat6, length_scale: f64) -> (f64, f64) {
-    let e = scaled(&((k + k.transpose()) * 0.5), length_scale).symmetric_eigen().eigenvalues;
-    (e.min(), e.max())
+impl Held {
+    /// Every leg's equilibrium is stable with its end held.
+    pub fn legs_stable(&self) -> bool {
+        self.unstable_legs == 0
+    }
+
+    /// The legs (0-based) unstable with their end held.
+    pub fn unstable_legs(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..64).filter(|i| self.unstable_legs & (1 << i) != 0)
+    }
 }
 
-/// Positive definite, with a tolerance relative to the largest eigenvalue.
-pub fn positive_definite(k: &Mat6, length_scale: f64) -> bool {
-    let (lo, hi) = eigenvalue_range(k, length_scale);
-    lo > RANK_TOLERANCE * hi.abs()
+fn leg_bit(i: usize) -> u64 {
+    1 << i.min(63)
 }
 
 /// The deflection under an external wrench.
@@ -58,6 +60,28 @@ pub enum DeflectionFailure {
     NotConverged { load_fraction: f64 },
 }
 
+impl std::fmt::Display for DeflectionFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DeflectionFailure::Leg(e) => write!(f, "{e}"),
+            DeflectionFailure::SingularStiffness { load_fraction } => write!(
+                f,
+                "the tangent stiffness became singular at {:.1}% of the load (a buckling or limit point: try \
+                 `stiff curve` to follow the path)",
+                100.0 * load_fraction
+            ),
+            DeflectionFailure::NotConverged { load_fraction } => write!(
+                f,
+                "no equilibrium found beyond {:.1}% of the load, even with load continuation (past a limit \
+                 point?)",
+                100.0 * load_fraction
+            ),
+        }
+    }
+}
+
+impl std::error::Error for DeflectionFailure {}
+
 const MAX_NEWTON: usize = 30;
 /// Convergence of the manipulator-level Newton method: the last step below this times the length scale
 /// (mm, rotations weighted) and every leg within this of its equilibrium (rad or mm).
@@ -68,12 +92,14 @@ const MAX_STEP_MM: f64 = 5.0;
 impl Manipulator {
     /// The external wrench that holds the platform at `platform`, and the tangent stiffness there.
     pub fn hold(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<Held, PoseFailure> {
-        let mut held = Held { force: Vec6::zeros(), stiffness: Mat6::zeros(), legs_stable: true, iterations: 0 };
+        let mut held = Held { force: Vec6::zeros(), stiffness: Mat6::zeros(), unstable_legs: 0, iterations: 0 };
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
             let r = leg.respond(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
             held.force -= r.wrench;
             held.stiffness += r.stiffness;
-            held.legs_stable &= r.stable;
+            if !r.stable {
+                held.unstable_legs |= leg_bit(i);
+            }
             held.iterations = held.iterations.max(r.iterations);
         }
         Ok(held)
@@ -107,13 +133,15 @@ impl Manipulator {
             {
                 // Quadratic convergence: after this last full step the error is of the order of its square.
                 // The stiffness is the one linearised just before it, 1e-8 (relative) away.
-                let legs_stable = self.legs.iter().zip(&state.legs).all(|(leg, s)| leg.stable(s));
+                let unstable_legs = (self.legs.iter().zip(&state.legs).enumerate())
+                    .filter(|(_, (leg, s))| !leg.stable(s))
+                    .fold(0, |bits, (i, _)| bits | leg_bit(i));
                 for ((leg, l), s) in self.legs.iter().zip(&lins).zip(state.legs.iter_mut()) {
                     leg.advance(l, &step, 1.0, s);
                 }
                 *t = apply_twist(t, &step);
                 return Ok((
-                    Held { force: force + stiffness * step, stiffness, legs_stable, iterations: it + 1 },
+                    Held { force: force + stiffness * step, stiffness, unstable_legs, iterations: it + 1 },
                     it + 1,
                 ));
             }
@@ -186,7 +214,7 @@ impl Manipulator {
             }
         }
         let held = last.expect("the loop ran at least once");
-        let stable = held.legs_stable && positive_definite(&held.stiffness, self.length_scale);
+        let stable = held.legs_stable() && positive_definite(&held.stiffness, self.length_scale);
         Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations: total_iterations })
     }
 }

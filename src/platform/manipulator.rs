@@ -36,6 +36,14 @@ pub struct PoseFailure {
     pub failure: LegFailure,
 }
 
+impl std::fmt::Display for PoseFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "leg {}: {}", self.leg + 1, self.failure)
+    }
+}
+
+impl std::error::Error for PoseFailure {}
+
 impl Manipulator {
     pub fn new_state(&self) -> ManipulatorState {
         ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect() }

@@ -1,16 +1,36 @@
 //! `stiff curve`: a force-deflection curve at one pose, under force control (a wrench growing along a
-//! direction) or displacement control (a displacement growing along a direction), with the smallest
-//! eigenvalue of the tangent stiffness and stability at every step. Force control continues through a
-//! bifurcation (the equilibrium path goes on, flagged unstable) and switches to displacement control where
-//! it cannot pass a limit point.
-
-use anyhow::{anyhow, bail, Result};
+//! direction) or displacement control (a displacement growing along a direction), with the spectrum of the
+//! tangent stiffness and stability at every step.
+//!
+//! Definitions (README, "Force-deflection curves"), implemented exactly:
+//! - `stable`: the symmetric part of the manipulator's tangent stiffness is positive definite (decided on the
+//!   equilibrated matrix, `compliance::positive_definite`) and every leg is stable with its end held;
+//!   `instability` names what failed (`platform`, `leg N`).
+//! - `buckling` / `restabilised`: positive definiteness is lost / regained between two converged rows; the
+//!   crossing is located by bisection between them to `BISECTION_TOLERANCE` of their interval and written
+//!   in `event_load_factor`.
+//! - `limit_point` (force control): the load factor reaches a maximum along the equilibrium path, found
+//!   from the converged rows (a row whose load factor exceeds both neighbours'); the vertex of the parabola
+//!   through the three rows against path length goes to `event_load_factor`. Where force control finds no
+//!   equilibrium, the path is followed by displacement control (its load factor is the projection of the
+//!   holding wrench on the wrench direction) for the remaining steps and never beyond `max`.
+//! - `not_converged`: a row's equilibrium was not found (with the residual); the curve stops there and
+//!   every earlier row is kept.
 
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::output::table::push_number;
-use crate::platform::leg::apply_twist;
-use crate::platform::loaded::{eigenvalue_range, positive_definite};
-use crate::platform::manipulator::Manipulator;
+use crate::platform::compliance::{positive_definite, spectrum, Spectrum};
+use crate::platform::leg::{apply_twist, LegFailure};
+use crate::platform::loaded::Held;
+use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
+
+/// Largest number of intervals a curve accepts: each row costs a loaded equilibrium and rows are kept in
+/// memory (about 300 bytes each), so a million rows is far beyond any plot and still small.
+pub const MAX_INTERVALS: usize = 1_000_000;
+
+/// Bisection of an event stops when the bracket is below this fraction of the interval between the two
+/// rows (or after 60 halvings).
+pub const BISECTION_TOLERANCE: f64 = 1e-9;
 
 #[derive(Clone, Copy, Debug)]
 pub enum Control {
@@ -20,125 +40,464 @@ pub enum Control {
     Displacement(Vec6),
 }
 
+/// A row's outcome.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RowStatus {
+    Ok,
+    /// No equilibrium found at this row's target; `residual` is the largest remaining leg residual (mm or
+    /// rad), NaN where the solver did not report one.
+    NotConverged { residual: f64 },
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct CurveRow {
     pub step: usize,
     /// "force" or "displacement".
     pub control: &'static str,
     pub load_factor: f64,
-    /// External wrench holding the platform (N, N mm).
-    pub wrench: Vec6,
+    /// External wrench holding the platform (N, N mm); under force control exactly `load_factor * W`.
+    pub wrench: Option<Vec6>,
     /// Platform displacement from the commanded pose (mm, rad).
-    pub displacement: Vec6,
-    /// Smallest eigenvalue of the symmetric part of the tangent stiffness, rotations weighted by the
-    /// length scale (N/mm).
-    pub min_eigenvalue: f64,
-    pub stable: bool,
+    pub displacement: Option<Vec6>,
+    /// Spectrum of the tangent stiffness' symmetric part (None where not converged).
+    pub spectrum: Option<Spectrum>,
+    pub positive_definite: bool,
+    /// Legs (0-based) unstable with their end held.
+    pub unstable_legs: Vec<usize>,
     pub iterations: usize,
-    /// "", "buckling" (the tangent stiffness stops being positive definite at this step), "limit_point"
-    /// (force control could not go on; displacement control from here), "restabilised".
-    pub event: &'static str,
+    pub status: RowStatus,
+    /// Events at this row, `;`-separated: "buckling", "restabilised", "limit_point".
+    pub event: String,
+    /// Where the event lies, located between this row and the previous one (bisection) or, for a limit
+    /// point, by the parabola through this row and its neighbours.
+    pub event_load_factor: Option<f64>,
 }
 
-pub const CURVE_HEADER: &str = "step,control,load_factor,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,rx_rad,ry_rad,rz_rad,min_eigenvalue_N_per_mm,stable,iterations,event\n";
+impl CurveRow {
+    pub fn converged(&self) -> bool {
+        self.status == RowStatus::Ok
+    }
+
+    /// Tangent stiffness positive definite and every leg stable.
+    pub fn stable(&self) -> bool {
+        self.converged() && self.positive_definite && self.unstable_legs.is_empty()
+    }
+
+    /// What makes the row unstable: `platform`, `leg N` (1-based), `;`-separated.
+    pub fn instability(&self) -> String {
+        if !self.converged() {
+            return String::new();
+        }
+        let mut parts: Vec<String> = Vec::new();
+        if !self.positive_definite {
+            parts.push("platform".into());
+        }
+        parts.extend(self.unstable_legs.iter().map(|l| format!("leg {}", l + 1)));
+        parts.join(";")
+    }
+
+    fn add_event(&mut self, name: &str, at: f64) {
+        if !self.event.is_empty() {
+            self.event.push(';');
+        }
+        self.event.push_str(name);
+        self.event_load_factor.get_or_insert(at);
+    }
+}
+
+pub const CURVE_HEADER: &str = "step,control,load_factor,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,rx_rad,ry_rad,rz_rad,k_tran_min_N_per_mm,k_rot_min_Nmm_per_rad,k_scaled_min_N_per_mm,mode_dx,mode_dy,mode_dz,mode_rx,mode_ry,mode_rz,stable,instability,iterations,status,residual,event,event_load_factor\n";
+
+fn push_cell(out: &mut String, v: Option<f64>) {
+    out.push(',');
+    if let Some(v) = v {
+        push_number(out, v);
+    }
+}
 
 pub fn push_curve_row(out: &mut String, r: &CurveRow) {
     out.push_str(&format!("{},{},", r.step, r.control));
     push_number(out, r.load_factor);
-    for v in r.wrench.iter().chain(r.displacement.iter()) {
-        out.push(',');
-        push_number(out, *v);
+    for k in 0..6 {
+        push_cell(out, r.wrench.map(|w| w[k]));
+    }
+    for k in 0..6 {
+        push_cell(out, r.displacement.map(|d| d[k]));
+    }
+    let s = r.spectrum;
+    push_cell(out, s.map(|s| s.translational_min));
+    push_cell(out, s.map(|s| s.rotational_min));
+    push_cell(out, s.map(|s| s.scaled_min));
+    for k in 0..6 {
+        push_cell(out, s.map(|s| s.critical_mode[k]));
     }
     out.push(',');
-    push_number(out, r.min_eigenvalue);
-    out.push_str(&format!(",{},{},{}\n", r.stable, r.iterations, r.event));
-}
-
-/// The load factor at which the smallest eigenvalue crosses zero, interpolated linearly between the two
-/// steps that bracket it (the first crossing).
-pub fn critical_load_factor(rows: &[CurveRow]) -> Option<f64> {
-    rows.windows(2).find(|w| w[0].min_eigenvalue > 0.0 && w[1].min_eigenvalue <= 0.0).map(|w| {
-        let (a, b) = (&w[0], &w[1]);
-        a.load_factor + (b.load_factor - a.load_factor) * a.min_eigenvalue / (a.min_eigenvalue - b.min_eigenvalue)
-    })
-}
-
-pub fn run_curve(m: &Manipulator, at: &Frame, control: Control, max: f64, steps: usize) -> Result<Vec<CurveRow>> {
-    if steps == 0 {
-        bail!("--steps must be at least 1");
+    if r.converged() {
+        out.push_str(if r.stable() { "true" } else { "false" });
     }
-    if !max.is_finite() || max <= 0.0 {
-        bail!("--max must be a positive number, got {max}");
-    }
-    let leg_error = |e: crate::platform::manipulator::PoseFailure| anyhow!("leg {}: {:?}", e.leg + 1, e.failure);
-    let mut state = m.new_state();
-    m.place(at, &mut state).map_err(|e| anyhow!("the pose cannot be reached: {}", leg_error(e)))?;
-    let mut rows: Vec<CurveRow> = Vec::with_capacity(steps + 1);
-    let mut t = *at;
-    let mut was_pd = true;
-    // After a limit point under force control: (step of the switch, displacement before it, increment).
-    let mut continuation: Option<(usize, Vec6, Vec6)> = None;
-    for step in 0..=steps {
-        let lambda = max * step as f64 / steps as f64;
-        let mut event = "";
-        let held_at = |pose: Frame, state: &mut _| m.hold(&pose, state).map(|h| (pose, h)).map_err(leg_error);
-        let (pose, held, iterations, factor, by_force) = match control {
-            Control::Displacement(d) => {
-                let (pose, h) = held_at(apply_twist(at, &(d * lambda)), &mut state)?;
-                (pose, h, h.iterations, lambda, false)
+    out.push(',');
+    out.push_str(&r.instability());
+    out.push_str(&format!(",{},", r.iterations));
+    match r.status {
+        RowStatus::Ok => out.push_str("ok,"),
+        RowStatus::NotConverged { residual } => {
+            out.push_str("not_converged,");
+            if residual.is_finite() {
+                push_number(out, residual);
             }
-            Control::Force(w) => {
-                let attempt = match continuation {
-                    None => m.deflect(at, &(w * lambda), Some(&t), &mut state).ok(),
-                    Some(_) => None,
-                };
-                match attempt {
-                    Some(d) => (d.pose, d.held, d.iterations, lambda, true),
-                    None => {
-                        if continuation.is_none() {
-                            let n = rows.len();
-                            if n < 2 {
-                                bail!("force control failed at step {step}: no equilibrium under this load");
-                            }
-                            let increment = rows[n - 1].displacement - rows[n - 2].displacement;
-                            continuation = Some((step, rows[n - 1].displacement, increment));
-                            event = "limit_point";
-                        }
-                        let (k0, base, increment) = continuation.expect("set just above");
-                        let target = base + increment * (step + 1 - k0) as f64;
-                        let (pose, h) = held_at(apply_twist(at, &target), &mut state)?;
-                        (pose, h, h.iterations, project(&h.force, &w), false)
-                    }
-                }
-            }
-        };
-        t = pose;
-        let (lo, _) = eigenvalue_range(&held.stiffness, m.length_scale);
-        let pd = positive_definite(&held.stiffness, m.length_scale);
-        if event.is_empty() {
-            event = match (was_pd, pd) {
-                (true, false) => "buckling",
-                (false, true) => "restabilised",
-                _ => "",
-            };
         }
-        was_pd = pd;
-        rows.push(CurveRow {
+    }
+    out.push(',');
+    out.push_str(&r.event);
+    push_cell(out, r.event_load_factor);
+    out.push('\n');
+}
+
+/// Why a curve could not start.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CurveError {
+    /// The commanded pose cannot be reached by some leg.
+    Unreachable(PoseFailure),
+    /// No equilibrium even at the first row (zero load).
+    NoStart(PoseFailure),
+}
+
+impl std::fmt::Display for CurveError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CurveError::Unreachable(e) => write!(f, "the commanded pose cannot be reached: {e}"),
+            CurveError::NoStart(e) => write!(f, "no equilibrium at zero load: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for CurveError {}
+
+/// One equilibrium on the curve.
+#[derive(Clone)]
+struct Solved {
+    pose: Frame,
+    held: Held,
+    wrench: Vec6,
+    iterations: usize,
+}
+
+/// A point of the path to solve for: a load factor under force control, or a displacement.
+#[derive(Clone, Copy)]
+enum Target {
+    Load(f64),
+    Displacement(Vec6),
+}
+
+struct Tracer<'a> {
+    m: &'a Manipulator,
+    at: Frame,
+    control: Control,
+}
+
+impl Tracer<'_> {
+    fn solve(&self, target: Target, start: &Frame, state: &mut ManipulatorState) -> Result<Solved, f64> {
+        match (target, self.control) {
+            (Target::Load(lambda), Control::Force(w)) => {
+                let wrench = w * lambda;
+                let d = self.m.deflect(&self.at, &wrench, Some(start), state).map_err(|_| f64::NAN)?;
+                Ok(Solved { pose: d.pose, held: d.held, wrench, iterations: d.iterations })
+            }
+            (Target::Load(lambda), Control::Displacement(d)) => self.hold(&(d * lambda), state),
+            (Target::Displacement(d), _) => self.hold(&d, state),
+        }
+    }
+
+    fn hold(&self, displacement: &Vec6, state: &mut ManipulatorState) -> Result<Solved, f64> {
+        let pose = apply_twist(&self.at, displacement);
+        let held = self.m.hold(&pose, state).map_err(|e| residual_of(&e))?;
+        Ok(Solved { pose, held, wrench: held.force, iterations: held.iterations })
+    }
+
+    /// The load factor a solution stands for: the applied factor under force control (or the projection of
+    /// the holding wrench on W on the displacement-controlled continuation), the displacement factor
+    /// under displacement control.
+    fn load_factor(&self, target: Target, s: &Solved) -> f64 {
+        match (target, self.control) {
+            (Target::Load(lambda), _) => lambda,
+            (Target::Displacement(_), Control::Force(w)) => s.wrench.dot(&w) / w.dot(&w),
+            (Target::Displacement(d), Control::Displacement(dir)) => d.dot(&dir) / dir.dot(&dir),
+        }
+    }
+
+    fn row(&self, step: usize, target: Target, s: &Solved) -> CurveRow {
+        let by_force = matches!(target, Target::Load(_)) && matches!(self.control, Control::Force(_));
+        CurveRow {
             step,
             control: if by_force { "force" } else { "displacement" },
-            load_factor: factor,
-            wrench: held.force,
-            displacement: at.error_to(&pose),
-            min_eigenvalue: lo,
-            stable: pd && held.legs_stable,
-            iterations,
-            event,
-        });
+            load_factor: self.load_factor(target, s),
+            wrench: Some(s.wrench),
+            displacement: Some(self.at.error_to(&s.pose)),
+            spectrum: spectrum(&s.held.stiffness, self.m.length_scale),
+            positive_definite: positive_definite(&s.held.stiffness, self.m.length_scale),
+            unstable_legs: s.held.unstable_legs().collect(),
+            iterations: s.iterations,
+            status: RowStatus::Ok,
+            event: String::new(),
+            event_load_factor: None,
+        }
+    }
+
+    /// Bisects between two solved targets for the change of positive definiteness; returns the load factor
+    /// at the crossing (the middle of the last bracket).
+    fn locate_crossing(&self, from: (Target, &Solved, &ManipulatorState), to: (Target, &Solved)) -> f64 {
+        let ((a_target, a_solved, a_state), (b_target, b_solved)) = (from, to);
+        let blend = |s: f64| match (a_target, b_target) {
+            (Target::Load(a), Target::Load(b)) => Target::Load(a + (b - a) * s),
+            (Target::Displacement(a), Target::Displacement(b)) => Target::Displacement(a + (b - a) * s),
+            (_, b) => b,
+        };
+        let pd_a = positive_definite(&a_solved.held.stiffness, self.m.length_scale);
+        let smallest = |s: &Solved| spectrum(&s.held.stiffness, self.m.length_scale).map_or(f64::NAN, |e| e.scaled_min);
+        // (parameter, load factor, smallest scaled eigenvalue) at both ends of the bracket.
+        let mut lo = (0.0f64, self.load_factor(a_target, a_solved), smallest(a_solved));
+        let mut hi = (1.0f64, self.load_factor(b_target, b_solved), smallest(b_solved));
+        // Every trial starts from the row before the crossing, so that it follows the branch the rows
+        // followed (past a bifurcation, a start nearer the crossing can slide onto the other branch).
+        for _ in 0..60 {
+            if hi.0 - lo.0 <= BISECTION_TOLERANCE {
+                break;
+            }
+            let mid = 0.5 * (lo.0 + hi.0);
+            let mut trial = a_state.clone();
+            // Near the critical load Newton's matrix is nearly singular and a solve may fail: the bracket
+            // found so far is then interpolated.
+            let Ok(solved) = self.solve(blend(mid), &a_solved.pose, &mut trial) else { break };
+            let point = (mid, self.load_factor(blend(mid), &solved), smallest(&solved));
+            if positive_definite(&solved.held.stiffness, self.m.length_scale) == pd_a {
+                lo = point;
+            } else {
+                hi = point;
+            }
+        }
+        // Linear interpolation of the smallest eigenvalue across the final bracket (its midpoint where the
+        // eigenvalues are not finite or do not straddle zero).
+        let (e_lo, e_hi) = (lo.2, hi.2);
+        if e_lo.is_finite() && e_hi.is_finite() && (e_lo - e_hi).abs() > 0.0 && e_lo * e_hi <= 0.0 {
+            lo.1 + (hi.1 - lo.1) * e_lo / (e_lo - e_hi)
+        } else {
+            0.5 * (lo.1 + hi.1)
+        }
+    }
+}
+
+fn residual_of(e: &PoseFailure) -> f64 {
+    match e.failure {
+        LegFailure::NotConverged { residual, .. } => residual,
+        LegFailure::Unreachable(f) => f.residual_mm,
+        _ => f64::NAN,
+    }
+}
+
+/// The curve from zero to `max` in `intervals` equal steps (rows 0..=intervals). `intervals` must lie in
+/// 1..=`MAX_INTERVALS` and `max` be positive and finite (checked by the caller, which words the message).
+pub fn run_curve(
+    m: &Manipulator,
+    at: &Frame,
+    control: Control,
+    max: f64,
+    intervals: usize,
+) -> Result<Vec<CurveRow>, CurveError> {
+    assert!((1..=MAX_INTERVALS).contains(&intervals) && max.is_finite() && max > 0.0, "checked by the caller");
+    let tracer = Tracer { m, at: *at, control };
+    let mut state = m.new_state();
+    m.place(at, &mut state).map_err(CurveError::Unreachable)?;
+    let mut rows: Vec<CurveRow> = Vec::with_capacity(intervals + 1);
+    // The last converged row: its target, solution and state (the warm start and the bisection bracket).
+    let mut last: Option<(Target, Solved, ManipulatorState)> = None;
+    // After force control found no equilibrium: the displacement increment per row of the continuation.
+    let mut continuation: Option<Vec6> = None;
+    for step in 0..=intervals {
+        let lambda = max * step as f64 / intervals as f64;
+        let start = last.as_ref().map_or(*at, |(_, s, _)| s.pose);
+        let mut attempt = None;
+        if continuation.is_none() {
+            let target = Target::Load(lambda);
+            let mut trial = state.clone();
+            match tracer.solve(target, &start, &mut trial) {
+                Ok(s) => {
+                    state = trial;
+                    attempt = Some((target, Ok(s)));
+                }
+                Err(residual) => match (control, &last) {
+                    (Control::Force(w), Some((_, prev, _))) => {
+                        continuation = continuation_step(&rows, prev, &(w * (max / intervals as f64)));
+                        if continuation.is_none() {
+                            attempt = Some((target, Err(residual)));
+                        }
+                    }
+                    _ => attempt = Some((target, Err(residual))),
+                },
+            }
+        }
+        if let (Some(increment), None) = (continuation, &attempt) {
+            let prev = rows.last().and_then(|r| r.displacement).unwrap_or_else(Vec6::zeros);
+            let target = Target::Displacement(prev + increment);
+            attempt = Some((target, tracer.solve(target, &start, &mut state)));
+        }
+        let (target, outcome) = attempt.expect("one of the two branches ran");
+        match outcome {
+            Ok(solved) => {
+                let mut row = tracer.row(step, target, &solved);
+                if continuation.is_some() && row.load_factor > max {
+                    break; // never beyond --max in the quantity the user gave
+                }
+                if let Some((prev_target, prev_solved, prev_state)) = &last {
+                    let was = rows.last().is_some_and(|r| r.positive_definite);
+                    if was != row.positive_definite && same_kind(*prev_target, target) {
+                        let at = tracer.locate_crossing((*prev_target, prev_solved, prev_state), (target, &solved));
+                        row.add_event(if was { "buckling" } else { "restabilised" }, at);
+                    }
+                }
+                rows.push(row);
+                last = Some((target, solved, state.clone()));
+            }
+            Err(residual) => {
+                if rows.is_empty() {
+                    let failure = m.hold(at, &mut state).err();
+                    return Err(CurveError::NoStart(failure.unwrap_or(PoseFailure {
+                        leg: 0,
+                        failure: LegFailure::NotConverged { iterations: 0, residual },
+                    })));
+                }
+                rows.push(not_converged_row(step, &tracer, target, residual));
+                break;
+            }
+        }
+    }
+    if matches!(control, Control::Force(_)) {
+        mark_limit_points(&mut rows);
     }
     Ok(rows)
 }
 
-/// The load factor of a wrench along a direction: (F . W) / (W . W).
-fn project(f: &Vec6, w: &Vec6) -> f64 {
-    f.dot(w) / w.dot(w)
+fn same_kind(a: Target, b: Target) -> bool {
+    matches!((a, b), (Target::Load(_), Target::Load(_)) | (Target::Displacement(_), Target::Displacement(_)))
+}
+
+/// The displacement increment that continues the path past a failed force step: the last increment along
+/// the path, or at the first step the tangent compliance times the load increment.
+fn continuation_step(rows: &[CurveRow], prev: &Solved, load_step: &Vec6) -> Option<Vec6> {
+    let n = rows.len();
+    if n >= 2 {
+        if let (Some(a), Some(b)) = (rows[n - 2].displacement, rows[n - 1].displacement) {
+            return Some(b - a).filter(|d| d.norm() > 0.0);
+        }
+    }
+    prev.held.stiffness.lu().solve(load_step).filter(|d| d.iter().all(|v| v.is_finite()))
+}
+
+fn not_converged_row(step: usize, tracer: &Tracer, target: Target, residual: f64) -> CurveRow {
+    let (control, load_factor, displacement) = match (target, tracer.control) {
+        (Target::Load(l), Control::Force(_)) => ("force", l, None),
+        (Target::Load(l), Control::Displacement(d)) => ("displacement", l, Some(d * l)),
+        (Target::Displacement(d), _) => ("displacement", f64::NAN, Some(d)),
+    };
+    CurveRow {
+        step,
+        control,
+        load_factor,
+        wrench: None,
+        displacement,
+        spectrum: None,
+        positive_definite: false,
+        unstable_legs: Vec::new(),
+        iterations: 0,
+        status: RowStatus::NotConverged { residual },
+        event: String::new(),
+        event_load_factor: None,
+    }
+}
+
+/// A limit point: a converged row whose load factor exceeds both neighbours' along the path; the maximum
+/// of the parabola through the three (against path length) locates it.
+fn mark_limit_points(rows: &mut [CurveRow]) {
+    let path: Vec<f64> = rows
+        .iter()
+        .scan((0.0, None::<Vec6>), |(s, prev), r| {
+            if let (Some(p), Some(d)) = (*prev, r.displacement) {
+                *s += (d - p).norm();
+            }
+            *prev = r.displacement.or(*prev);
+            Some(*s)
+        })
+        .collect();
+    for i in 1..rows.len().saturating_sub(1) {
+        let (a, b, c) = (&rows[i - 1], &rows[i], &rows[i + 1]);
+        if !(a.converged() && b.converged() && c.converged()) {
+            continue;
+        }
+        if b.load_factor > a.load_factor && b.load_factor > c.load_factor {
+            let peak = parabola_peak((path[i - 1], a.load_factor), (path[i], b.load_factor), (path[i + 1], c.load_factor));
+            rows[i].add_event("limit_point", peak);
+        }
+    }
+}
+
+/// The largest value of the parabola through three points (the middle one highest).
+fn parabola_peak(p0: (f64, f64), p1: (f64, f64), p2: (f64, f64)) -> f64 {
+    let (x0, y0) = p0;
+    let (x1, y1) = p1;
+    let (x2, y2) = p2;
+    let d = (x0 - x1) * (x0 - x2) * (x1 - x2);
+    if d.abs() <= f64::MIN_POSITIVE {
+        return y1;
+    }
+    let a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / d;
+    let b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / d;
+    let c = y1 - a * x1 * x1 - b * x1;
+    if a >= 0.0 {
+        return y1;
+    }
+    (c - b * b / (4.0 * a)).max(y1)
+}
+
+/// The first buckling crossing (bisected), if any.
+pub fn critical_load_factor(rows: &[CurveRow]) -> Option<f64> {
+    rows.iter().find(|r| r.event.split(';').any(|e| e == "buckling")).and_then(|r| r.event_load_factor)
+}
+
+/// The closing summary on stderr, derived from the rows the CSV holds.
+pub fn summary(rows: &[CurveRow], length_scale: f64) -> String {
+    let mut lines = Vec::new();
+    let converged: Vec<&CurveRow> = rows.iter().filter(|r| r.converged()).collect();
+    if let (Some(first), Some(last)) = (converged.first(), converged.last()) {
+        if !first.positive_definite {
+            lines.push(format!(
+                "the tangent stiffness is not positive definite at the start (load factor {}): the manipulator is \
+                 singular or unstable there",
+                first.load_factor
+            ));
+        } else if converged.iter().all(|r| r.positive_definite) {
+            lines.push(format!("the tangent stiffness stays positive definite up to load factor {}", last.load_factor));
+        }
+    }
+    for r in rows {
+        for e in r.event.split(';').filter(|e| !e.is_empty()) {
+            let at = r.event_load_factor.map_or(String::from("?"), |v| format!("{v:.6}"));
+            let what = match e {
+                "buckling" => "the tangent stiffness stops being positive definite (buckling)",
+                "restabilised" => "the tangent stiffness is positive definite again",
+                "limit_point" => "the load reaches a maximum (limit point)",
+                other => other,
+            };
+            lines.push(format!("step {}: {what} at load factor {at}", r.step));
+        }
+    }
+    if let Some(r) = rows.iter().find(|r| r.control == "displacement") {
+        if r.step > 0 && rows.first().is_some_and(|f| f.control == "force") {
+            lines.push(format!("from step {}, no equilibrium under force control: path followed by displacement control", r.step));
+        }
+    }
+    if let Some(r) = rows.iter().find(|r| !r.converged()) {
+        lines.push(format!("step {}: no equilibrium found; the curve stops there ({} rows written)", r.step, rows.len()));
+    }
+    lines.push(format!(
+        "k_scaled_min weighs rotations by the model's length scale, {length_scale:.6} mm/rad (README: force-deflection curves)"
+    ));
+    lines.join("\n")
 }

@@ -31,6 +31,8 @@ pub struct MapSummary {
     pub singular: u64,
     pub not_converged: u64,
     pub unstable: u64,
+    pub ill_conditioned: u64,
+    pub overflow: u64,
 }
 
 impl MapSummary {
@@ -42,6 +44,8 @@ impl MapSummary {
             Status::Singular | Status::SingularLeg => self.singular += 1,
             Status::NotConverged => self.not_converged += 1,
             Status::Unstable => self.unstable += 1,
+            Status::IllConditioned => self.ill_conditioned += 1,
+            Status::Overflow => self.overflow += 1,
         }
     }
 }
@@ -54,6 +58,8 @@ impl Tally for MapSummary {
         self.singular += o.singular;
         self.not_converged += o.not_converged;
         self.unstable += o.unstable;
+        self.ill_conditioned += o.ill_conditioned;
+        self.overflow += o.overflow;
     }
 }
 

@@ -3,7 +3,7 @@
 
 use crate::kinematics::frame::{Mat6, Vec3, Vec6};
 use crate::model::grid::PosePoint;
-use crate::platform::compliance::{analyse, principal, Analysis, PrincipalCompliance};
+use crate::platform::compliance::{analyse, principal, Outcome, PrincipalCompliance};
 use crate::platform::leg::{apply_twist, LegFailure, LoadedOffsets};
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
@@ -23,6 +23,12 @@ pub enum Status {
     /// The loaded equilibrium was found but is unstable (tangent stiffness not positive definite, or a leg
     /// unstable with its end held).
     Unstable,
+    /// Full rank, but the equilibrated stiffness' condition number exceeds
+    /// `compliance::CONDITION_LIMIT` (or, unloaded, round-off made it indefinite): too few correct digits
+    /// to write a compliance. Typical within a fraction of a millimetre of a reach boundary.
+    IllConditioned,
+    /// A number overflowed (non-finite stiffness or displacement), e.g. under an astronomically large load.
+    Overflow,
 }
 
 impl Status {
@@ -34,6 +40,8 @@ impl Status {
             Status::SingularLeg => "singular_leg",
             Status::NotConverged => "not_converged",
             Status::Unstable => "unstable",
+            Status::IllConditioned => "ill_conditioned",
+            Status::Overflow => "overflow",
         }
     }
 
@@ -49,8 +57,10 @@ impl Status {
 #[derive(Clone, Debug)]
 pub struct PointResult {
     pub status: Status,
-    /// Rank of the stiffness matrix (0 where it could not be computed).
-    pub rank: usize,
+    /// Rank of the stiffness matrix (None where it was not computed).
+    pub rank: Option<usize>,
+    /// Condition number of the equilibrated stiffness (None where it was not computed).
+    pub condition: Option<f64>,
     pub stiffness: Option<Mat6>,
     pub compliance: Option<Mat6>,
     pub principal: Option<PrincipalCompliance>,
@@ -67,7 +77,8 @@ impl PointResult {
     fn failed(status: Status) -> Self {
         Self {
             status,
-            rank: 0,
+            rank: None,
+            condition: None,
             stiffness: None,
             compliance: None,
             principal: None,
@@ -77,23 +88,40 @@ impl PointResult {
         }
     }
 
-    /// A result from a stiffness matrix: compliance, rank and principal compliances.
-    fn from_stiffness(k: Mat6, length_scale: f64) -> Self {
-        match analyse(&k, length_scale) {
-            Analysis::Regular { compliance } => PointResult {
-                status: Status::Ok,
-                rank: 6,
-                stiffness: Some(k),
-                compliance: Some(compliance),
-                principal: Some(principal(&compliance)),
-                deflection: None,
-                free: Vec::new(),
-                iterations: 0,
-            },
-            Analysis::Singular { rank, free } => {
-                PointResult { rank, stiffness: Some(k), free, ..PointResult::failed(Status::Singular) }
+    /// A result from a stiffness matrix: compliance, rank, condition and principal compliances. `loaded`:
+    /// K is a tangent stiffness (not symmetric in general; its full inverse is written, and an indefinite
+    /// symmetric part is instability, decided by the caller); else K is symmetric positive semi-definite
+    /// by theory, so an indefinite one can only come from lost digits.
+    fn from_stiffness(k: Mat6, length_scale: f64, loaded: bool) -> Self {
+        let a = analyse(&k, length_scale, !loaded);
+        let base = PointResult { stiffness: Some(k), condition: Some(a.condition), ..PointResult::failed(Status::Ok) };
+        match a.outcome {
+            Outcome::Regular { compliance } => {
+                let status = if loaded || a.positive_definite { Status::Ok } else { Status::IllConditioned };
+                PointResult {
+                    status,
+                    rank: Some(6),
+                    compliance: Some(compliance),
+                    principal: principal(&compliance),
+                    ..base
+                }
             }
+            Outcome::IllConditioned => PointResult { status: Status::IllConditioned, rank: Some(6), ..base },
+            Outcome::Singular { rank, free } => PointResult { status: Status::Singular, rank: Some(rank), free, ..base },
+            Outcome::NotFinite => PointResult { status: Status::Overflow, condition: None, ..base },
         }
+    }
+
+    /// Marks a row whose numbers overflowed: nothing non-finite is ever written under `ok`.
+    fn check_finite(mut self) -> Self {
+        let finite = |m: &Option<Mat6>| m.is_none_or(|m| m.iter().all(|v| v.is_finite()));
+        let finite_v = self.deflection.is_none_or(|d| d.iter().all(|v| v.is_finite()));
+        if self.status == Status::Ok && !(finite(&self.compliance) && finite_v) {
+            self.status = Status::Overflow;
+            self.compliance = None;
+            self.principal = None;
+        }
+        self
     }
 }
 
@@ -102,12 +130,12 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
         Ok(a) => a,
         Err(e) => return PointResult::failed(Status::of(&e)),
     };
-    let mut r = PointResult::from_stiffness(agg.stiffness, m.length_scale);
+    let mut r = PointResult::from_stiffness(agg.stiffness, m.length_scale, false);
     r.deflection = match (&r.compliance, &p.wrench) {
         (Some(c), Some(w)) => Some(c * w),
         _ => None,
     };
-    r
+    r.check_finite()
 }
 
 /// The last two loaded solutions of a run (commanded position, displacement, legs' departures from their
@@ -177,13 +205,13 @@ pub fn loaded_point(
     match attempt {
         Ok(d) => {
             history.push(p.position, d.displacement, state.legs.iter().map(|s| s.loaded_offsets()).collect());
-            let mut r = PointResult::from_stiffness(d.held.stiffness, m.length_scale);
+            let mut r = PointResult::from_stiffness(d.held.stiffness, m.length_scale, true);
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;
             if r.status == Status::Ok && !d.stable {
                 r.status = Status::Unstable;
             }
-            r
+            r.check_finite()
         }
         Err(DeflectionFailure::Leg(e)) => {
             history.clear();
