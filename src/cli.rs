@@ -407,10 +407,7 @@ fn map(a: MapArgs) -> Result<()> {
         write_plot(&written(&a.output)?, plot, &a.style)?;
     }
     if !a.run.quiet {
-        eprintln!(
-            "{} points: {} ok, {} unreachable, {} singular, {} not converged, {} unstable",
-            summary.points, summary.ok, summary.unreachable, summary.singular, summary.not_converged, summary.unstable
-        );
+        eprintln!("{}", summary.line());
     }
     Ok(())
 }

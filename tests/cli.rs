@@ -112,7 +112,11 @@ fn points_csv_keeps_input_order_names_and_reports_unreachable_points_as_rows() {
             && lines[0].contains(",C66_rad_per_Nmm")
     );
     assert!(lines[1].starts_with("0,Q2,126.35,126.35,126.35,ok,6,,"));
-    assert!(lines[2].starts_with("1,\"far, away\",900.0,0.0,0.0,unreachable,,,,,"), "rank and condition are empty where not computed: {}", lines[2]);
+    assert!(
+        lines[2].starts_with("1,\"far, away\",900.0,0.0,0.0,unreachable,,,,,"),
+        "rank and condition are empty where not computed: {}",
+        lines[2]
+    );
     assert!(lines[3].starts_with("2,Q0,0.0,0.0,0.0,ok,6,"));
 }
 

@@ -229,7 +229,7 @@ impl PoseModel {
         let total = m
             .unloaded_each(pose, state, |_, r| legs.push(r.stiffness))
             .map_err(|e| format!("leg {} fails there ({:?})", e.leg + 1, e.failure))?;
-        let Some(&compliance) = analyse(&total.stiffness, m.length_scale, true).compliance() else {
+        let Some(&compliance) = analyse(&total.stiffness, &total.magnitude, m.length_scale, true).compliance() else {
             return Err("the manipulator is singular or ill-conditioned there".into());
         };
         let actuators = m

@@ -131,6 +131,25 @@ pub fn point_shift(v: &Vec3) -> Mat6 {
     a
 }
 
+/// The entrywise bound `|A|^T |K| |A|` of `shift_stiffness(k, v)`'s terms: the size of what the shift adds
+/// and subtracts, against which an entry that cancelled to round-off is recognised (a Stewart-Gough leg
+/// whose line passes through the vertical axis has a zero rz stiffness that comes out as 1e-14).
+pub fn shift_magnitude(k: &Mat6, v: &Vec3) -> Mat6 {
+    let s = skew(v).abs();
+    let k = k.abs();
+    let k11: Mat3 = k.fixed_view::<3, 3>(0, 0).into();
+    let k12: Mat3 = k.fixed_view::<3, 3>(0, 3).into();
+    let k21: Mat3 = k.fixed_view::<3, 3>(3, 0).into();
+    let k22: Mat3 = k.fixed_view::<3, 3>(3, 3).into();
+    let top_right = k12 + k11 * s;
+    let mut out = Mat6::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&k11);
+    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&top_right);
+    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(s * k11 + k21));
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&(s * top_right + k22 + k21 * s));
+    out
+}
+
 /// A stiffness matrix moved from a body point EP to the point RP of the same rigid body: `A^T K A` with
 /// `A = point_shift(v)`, `v = EP - RP` (paper 000 eq 54-55), by 3x3 blocks.
 pub fn shift_stiffness(k: &Mat6, v: &Vec3) -> Mat6 {

@@ -12,6 +12,13 @@ pub struct IkFailure {
     pub residual_mm: f64,
 }
 
+impl IkFailure {
+    /// The solve ended within `REACH_TOLERANCE_MM` of the pose: it lies at the reach boundary.
+    pub fn at_reach_boundary(&self) -> bool {
+        self.residual_mm <= REACH_TOLERANCE_MM
+    }
+}
+
 impl std::fmt::Display for IkFailure {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
@@ -27,11 +34,11 @@ pub const MAX_ITERATIONS: usize = 60;
 /// Convergence: weighted pose error below this times the chain's length scale (a 900 mm leg: 1e-6 mm and
 /// 1e-9 rad), far below what changes a stiffness in its printed digits.
 pub const TOLERANCE: f64 = 1e-9;
-/// The reach decision: a pose is reachable when the solve ends within this distance of it (mm, rotations
-/// weighted by the length scale), even where Newton's method has not met `TOLERANCE`. At the reach
-/// boundary (a leg stretched to a fold of its kinematics) Gauss-Newton converges sublinearly: a 3-PUU pose
-/// 1e-5 mm inside its boundary ends 60 iterations at 7e-6 mm. Such poses are accepted; their stiffness is
-/// degenerate there, which the status `ill_conditioned` reports.
+/// The reach decision's tolerance (mm, rotations weighted by the length scale). At a reach boundary (a leg
+/// stretched to a fold of its kinematics) Gauss-Newton converges sublinearly: a 3-PUU pose 1e-5 mm inside
+/// its boundary ends 60 iterations 7e-6 mm away, as does one 1e-6 mm outside. A solve that ends within
+/// this distance therefore says "at the reach boundary, within 1e-4 mm", not "unreachable": the pose may
+/// lie on either side, and its stiffness is degenerate there (status `ill_conditioned`).
 pub const REACH_TOLERANCE_MM: f64 = 1e-4;
 
 /// Buffers reused from one solve to the next (no allocation per point).
@@ -128,18 +135,13 @@ pub fn solve(
             step *= 0.5;
         }
         if !accepted {
-            return reach_decision(norm, iteration, ws);
+            return Err(IkFailure { iterations: iteration, residual_mm: norm });
         }
     }
-    reach_decision(norm, MAX_ITERATIONS, ws)
-}
-
-/// Accepts a solve that stopped short of `TOLERANCE` but within `REACH_TOLERANCE_MM` of its target.
-fn reach_decision(norm: f64, iterations: usize, ws: &mut IkWorkspace) -> Result<usize, IkFailure> {
-    if norm <= REACH_TOLERANCE_MM {
+    if norm <= tolerance {
         ws.current_is_valid = true;
-        Ok(iterations)
+        Ok(MAX_ITERATIONS)
     } else {
-        Err(IkFailure { iterations, residual_mm: norm })
+        Err(IkFailure { iterations: MAX_ITERATIONS, residual_mm: norm })
     }
 }

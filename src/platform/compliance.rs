@@ -7,6 +7,9 @@
 //! A diagonal congruence changes neither the rank nor the signs of the eigenvalues (Sylvester's law of
 //! inertia), but it makes the decisions independent of units and of springs written as "rigid" with huge
 //! numbers (a link with E = 1e30 no longer hides the 2e4 N/mm of the others under a relative tolerance).
+//! A diagonal entry is not scaled up where it is round-off: where the legs' contributions cancelled to
+//! below `CANCELLATION_TOLERANCE` of their own size (`magnitude`, the entrywise sum of |K_i|), as the
+//! free rotations of a singular Stewart-Gough platform do.
 
 use nalgebra::{SymmetricEigen, SVD};
 
@@ -16,12 +19,16 @@ use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec6};
 /// times round-off.
 pub const RANK_TOLERANCE: f64 = 1e-13;
 
-/// Condition number of the equilibrated stiffness beyond which a point is `ill_conditioned`: from there on
-/// more than 8 of the 16 significant digits of C may be lost (the perturbation of K by round-off and by the
-/// 1e-9 relative tolerance of inverse kinematics is amplified by the condition number), and two correct
-/// implementations of the same robot (VJM and MSA) no longer agree in the third digit of the smallest
-/// compliance near a reach boundary.
-pub const CONDITION_LIMIT: f64 = 1e8;
+/// A diagonal entry of the sum over legs smaller than this times the sum of its terms' sizes is round-off
+/// (a few thousand times the unit round-off: the legs' own stiffnesses carry errors of that order).
+pub const CANCELLATION_TOLERANCE: f64 = 1e-12;
+
+/// Condition number of the equilibrated stiffness beyond which a point is `ill_conditioned`. The
+/// compliance's relative error is about 1e-10 times the condition number (the model is evaluated to that
+/// accuracy: inverse kinematics stops at 1e-9 of the length scale): the VJM and MSA descriptions of the
+/// 3-PUU differ by 7e-7 at condition 5.6e4, 4e-5 at 2.8e5 and 1e-3 at 2.8e6 near the reach boundary on x.
+/// Beyond 1e6 fewer than four digits of C can be trusted, so none are written.
+pub const CONDITION_LIMIT: f64 = 1e6;
 
 /// Iteration cap for the 6x6 SVD and symmetric eigen-solvers (nalgebra iterates without one by default;
 /// these converge in a few dozen sweeps on finite input).
@@ -65,17 +72,27 @@ pub fn scaled(k: &Mat6, length_scale: f64) -> Mat6 {
     Mat6::from_fn(|i, j| k[(i, j)] * d[i] * d[j])
 }
 
-/// The diagonal `E` that brings a length-scaled stiffness to a unit diagonal (`E Ks E`), directions with no
-/// diagonal stiffness left unscaled.
-fn equilibration(ks: &Mat6) -> Vec6 {
+/// The diagonal `E` that brings a length-scaled stiffness to a unit diagonal (`E Ks E`). A diagonal entry
+/// that is round-off (below `CANCELLATION_TOLERANCE` of its terms' size `ms`) or not positive is scaled as
+/// the largest diagonal is, so that noise is never magnified into a stiffness.
+fn equilibration(ks: &Mat6, ms: &Mat6) -> Vec6 {
+    let largest = (0..6).map(|i| ks[(i, i)]).fold(0.0f64, f64::max);
+    let fallback = if largest > 0.0 { 1.0 / largest.sqrt() } else { 1.0 };
     Vec6::from_fn(|i, _| {
-        let d = ks[(i, i)].abs();
-        if d > 0.0 {
+        let d = ks[(i, i)];
+        if d > CANCELLATION_TOLERANCE * ms[(i, i)] && d > 0.0 {
             1.0 / d.sqrt()
         } else {
-            1.0
+            fallback
         }
     })
+}
+
+/// The length-scaled stiffness brought to a unit diagonal, and the scaling used.
+fn equilibrated(k: &Mat6, magnitude: &Mat6, length_scale: f64) -> (Mat6, Vec6) {
+    let ks = scaled(k, length_scale);
+    let e = equilibration(&ks, &scaled(magnitude, length_scale));
+    (Mat6::from_fn(|i, j| ks[(i, j)] * e[i] * e[j]), e)
 }
 
 /// Eigenvalues (ascending) of a symmetric 3x3 matrix by nalgebra's iterative solver with an iteration
@@ -100,24 +117,20 @@ fn definiteness(ke: &Mat6) -> Option<f64> {
 }
 
 /// The symmetric part of `k` is positive definite, decided on the equilibrated matrix with the rank
-/// tolerance.
-pub fn positive_definite(k: &Mat6, length_scale: f64) -> bool {
-    let ks = scaled(k, length_scale);
-    let e = equilibration(&ks);
-    let ke = Mat6::from_fn(|i, j| ks[(i, j)] * e[i] * e[j]);
-    definiteness(&ke).is_some_and(|d| d > RANK_TOLERANCE)
+/// tolerance. `magnitude`: the entrywise sum of the legs' |K_i| (`Aggregate::magnitude`).
+pub fn positive_definite(k: &Mat6, magnitude: &Mat6, length_scale: f64) -> bool {
+    definiteness(&equilibrated(k, magnitude, length_scale).0).is_some_and(|d| d > RANK_TOLERANCE)
 }
 
-/// Rank, conditioning, definiteness and (where meaningful) the compliance of a 6x6 stiffness. `symmetric`:
-/// K is symmetric by theory (unloaded), so C is symmetrised; otherwise (loaded tangent stiffness) C is the
-/// full inverse.
-pub fn analyse(k: &Mat6, length_scale: f64, symmetric: bool) -> Analysis {
+/// Rank, conditioning, definiteness and (where meaningful) the compliance of a 6x6 stiffness. `magnitude`:
+/// the entrywise sum of the legs' |K_i| (`Aggregate::magnitude`; `k.abs()` where K is not a sum).
+/// `symmetric`: K is symmetric by theory (unloaded), so C is symmetrised; otherwise (loaded tangent
+/// stiffness) C is the full inverse.
+pub fn analyse(k: &Mat6, magnitude: &Mat6, length_scale: f64, symmetric: bool) -> Analysis {
     if !k.iter().all(|v| v.is_finite()) {
         return Analysis { outcome: Outcome::NotFinite, condition: f64::NAN, positive_definite: false };
     }
-    let ks = scaled(k, length_scale);
-    let e = equilibration(&ks);
-    let ke = Mat6::from_fn(|i, j| ks[(i, j)] * e[i] * e[j]);
+    let (ke, e) = equilibrated(k, magnitude, length_scale);
     let positive_definite = definiteness(&ke).is_some_and(|d| d > RANK_TOLERANCE);
     let Some(svd) = SVD::try_new(ke, false, true, f64::EPSILON, MAX_SWEEPS) else {
         return Analysis { outcome: Outcome::NotFinite, condition: f64::NAN, positive_definite: false };

@@ -3,7 +3,7 @@
 //! and in the base frame. Aggregation and every study talk to legs only through this.
 
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
-use crate::kinematics::frame::{point_shift, shift_stiffness, skew, Frame, Mat3, Mat6, Vec3, Vec6};
+use crate::kinematics::frame::{point_shift, shift_magnitude, shift_stiffness, skew, Frame, Mat3, Mat6, Vec3, Vec6};
 use crate::kinematics::ik::{self, IkWorkspace};
 use crate::vjm::equilibrium::{EquilibriumFailure, EquilibriumWorkspace, Linearization, LoadedChain};
 use crate::vjm::spring::SpringGroup;
@@ -19,6 +19,9 @@ pub struct LegResponse {
     /// Tangent stiffness at the reference point, base frame: minus the derivative of `wrench` with respect
     /// to the platform's displacement (singular on its own, never inverted).
     pub stiffness: Mat6,
+    /// Entrywise size of the terms that made `stiffness` (`frame::shift_magnitude`), for telling round-off
+    /// from small stiffness (`compliance::analyse`).
+    pub magnitude: Mat6,
     /// The leg's equilibrium is stable with its end held (always true unloaded).
     pub stable: bool,
     /// Newton iterations of the equilibrium (0 unloaded).
@@ -203,10 +206,17 @@ impl Leg {
                     .ok_or(LegFailure::SingularChain)?;
                 let v = lin.end - platform.pos;
                 let corrected = lin.wrench + Vec6::from_fn(|r, _| lin.correction[lin.correction.len() - 6 + r]);
-                let (corrected_force, _) = at_reference_point(&corrected, &Mat6::zeros(), &v);
-                let (_, stiffness) = at_reference_point(&lin.wrench, &lin.stiffness(), &v);
+                let corrected_force = at_reference_point(&corrected, &Mat6::zeros(), &v).wrench;
+                let at_rp = at_reference_point(&lin.wrench, &lin.stiffness(), &v);
                 let distance = lin.distance_from_equilibrium(l.length_scale);
-                Ok(LegLinear { shift: point_shift(&v), corrected_force, stiffness, distance, lin: Some(lin) })
+                Ok(LegLinear {
+                    shift: point_shift(&v),
+                    corrected_force,
+                    stiffness: at_rp.stiffness,
+                    magnitude: at_rp.magnitude,
+                    distance,
+                    lin: Some(lin),
+                })
             }
             // Linear: the answer at `platform` is exact, nothing inside the leg to correct.
             Leg::Msa(l) => {
@@ -216,6 +226,7 @@ impl Leg {
                     shift: Mat6::identity(),
                     corrected_force: -r.wrench,
                     stiffness: r.stiffness,
+                    magnitude: r.magnitude,
                     distance: 0.0,
                 })
             }
@@ -452,8 +463,9 @@ impl VjmLeg {
         let range = passive_range(&jac.passive, self.length_scale);
         let k_end = leg_stiffness(&s, &range).ok_or(LegFailure::SingularChain)?;
         // Move from the leg's end point EP to the reference point RP: K_RP = A^T K_EP A, v = EP - RP.
-        let stiffness = shift_stiffness(&k_end, &(jac.end.pos - platform.pos));
-        Ok(LegResponse { wrench: Vec6::zeros(), stiffness, stable: true, iterations: 0 })
+        let v = jac.end.pos - platform.pos;
+        let (stiffness, magnitude) = (shift_stiffness(&k_end, &v), shift_magnitude(&k_end, &v));
+        Ok(LegResponse { wrench: Vec6::zeros(), stiffness, magnitude, stable: true, iterations: 0 })
     }
 
     fn respond(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
@@ -472,8 +484,14 @@ impl VjmLeg {
             }
         };
         state.last_target = target;
-        let (force, stiffness) = at_reference_point(&answer.wrench, &answer.stiffness, &(answer.end - platform.pos));
-        Ok(LegResponse { wrench: -force, stiffness, stable: answer.stable, iterations: answer.iterations })
+        let at_rp = at_reference_point(&answer.wrench, &answer.stiffness, &(answer.end - platform.pos));
+        Ok(LegResponse {
+            wrench: -at_rp.wrench,
+            stiffness: at_rp.stiffness,
+            magnitude: at_rp.magnitude,
+            stable: answer.stable,
+            iterations: answer.iterations,
+        })
     }
 
     fn continuation(
@@ -565,15 +583,26 @@ impl LegState {
 /// reference point RP, with `v = EP - RP`: the force is unchanged, the moment gains v x F, and the stiffness
 /// is A^T K A (paper 000 eq 54-55) plus [F]x [v]x in its rotational block, because the lever arm v turns
 /// with the platform.
-pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> (Vec6, Mat6) {
+pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> AtReferencePoint {
     let f: Vec3 = wrench.fixed_rows::<3>(0).into();
     let m: Vec3 = wrench.fixed_rows::<3>(3).into();
     let m_rp = m + v.cross(&f);
     let mut stiffness = shift_stiffness(k_end, v);
+    let mut magnitude = shift_magnitude(k_end, v);
     let geometric: Mat3 = skew(&f) * skew(v);
     let mut block = stiffness.fixed_view_mut::<3, 3>(3, 3);
     block += geometric;
-    (Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z), stiffness)
+    let mut block = magnitude.fixed_view_mut::<3, 3>(3, 3);
+    block += skew(&f).abs() * skew(v).abs();
+    AtReferencePoint { wrench: Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z), stiffness, magnitude }
+}
+
+/// A leg's wrench and tangent stiffness moved to the reference point, with the size of the stiffness'
+/// terms (`frame::shift_magnitude`).
+pub struct AtReferencePoint {
+    pub wrench: Vec6,
+    pub stiffness: Mat6,
+    pub magnitude: Mat6,
 }
 
 /// A leg's linearised equilibrium seen from the platform: one Newton step of the whole manipulator
@@ -588,6 +617,8 @@ pub struct LegLinear {
     pub corrected_force: Vec6,
     /// Tangent stiffness at the reference point.
     pub stiffness: Mat6,
+    /// Entrywise size of its terms (`LegResponse::magnitude`).
+    pub magnitude: Mat6,
     /// How far the configuration linearised is from the leg's equilibrium (rad or mm, see
     /// `Linearization::distance_from_equilibrium`).
     pub distance: f64,

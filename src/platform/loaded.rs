@@ -14,6 +14,8 @@ pub struct Held {
     pub force: Vec6,
     /// Tangent stiffness dF/dt at the reference point.
     pub stiffness: Mat6,
+    /// Entrywise sum of the legs' |K_i| (see `Aggregate::magnitude`).
+    pub magnitude: Mat6,
     /// Legs whose equilibrium is unstable with their end held, as bits (leg i -> bit min(i, 63)).
     pub unstable_legs: u64,
     /// Most Newton iterations over the legs.
@@ -92,11 +94,18 @@ const MAX_STEP_MM: f64 = 5.0;
 impl Manipulator {
     /// The external wrench that holds the platform at `platform`, and the tangent stiffness there.
     pub fn hold(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<Held, PoseFailure> {
-        let mut held = Held { force: Vec6::zeros(), stiffness: Mat6::zeros(), unstable_legs: 0, iterations: 0 };
+        let mut held = Held {
+            force: Vec6::zeros(),
+            stiffness: Mat6::zeros(),
+            magnitude: Mat6::zeros(),
+            unstable_legs: 0,
+            iterations: 0,
+        };
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
             let r = leg.respond(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
             held.force -= r.wrench;
             held.stiffness += r.stiffness;
+            held.magnitude += r.magnitude;
             if !r.stable {
                 held.unstable_legs |= leg_bit(i);
             }
@@ -140,8 +149,9 @@ impl Manipulator {
                     leg.advance(l, &step, 1.0, s);
                 }
                 *t = apply_twist(t, &step);
+                let magnitude: Mat6 = lins.iter().map(|l| l.magnitude).sum();
                 return Ok((
-                    Held { force: force + stiffness * step, stiffness, unstable_legs, iterations: it + 1 },
+                    Held { force: force + stiffness * step, stiffness, magnitude, unstable_legs, iterations: it + 1 },
                     it + 1,
                 ));
             }
@@ -214,7 +224,7 @@ impl Manipulator {
             }
         }
         let held = last.expect("the loop ran at least once");
-        let stable = held.legs_stable() && positive_definite(&held.stiffness, self.length_scale);
+        let stable = held.legs_stable() && positive_definite(&held.stiffness, &held.magnitude, self.length_scale);
         Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations: total_iterations })
     }
 }

@@ -27,6 +27,9 @@ pub struct ManipulatorState {
 pub struct Aggregate {
     pub wrench: Vec6,
     pub stiffness: Mat6,
+    /// Entrywise sum of the legs' |K_i|: the size of what was added, so that an entry of the sum that
+    /// cancelled to round-off can be told from a genuinely small one (`compliance::analyse`).
+    pub magnitude: Mat6,
 }
 
 /// Which leg failed, and how.
@@ -70,11 +73,12 @@ impl Manipulator {
         mut each: impl FnMut(usize, &LegResponse),
     ) -> Result<Aggregate, PoseFailure> {
         self.place(platform, state)?;
-        let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros() };
+        let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros(), magnitude: Mat6::zeros() };
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
             let r = leg.respond_unloaded(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
             total.wrench += r.wrench;
             total.stiffness += r.stiffness;
+            total.magnitude += r.magnitude;
             each(i, &r);
         }
         Ok(total)

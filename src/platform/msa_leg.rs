@@ -53,8 +53,14 @@ impl MsaLeg {
         })?;
         let v = structure.nodes[structure.end] - platform.pos;
         // The holding wrench is what the platform applies to the leg's end; the leg exerts its opposite.
-        let (force, stiffness) = at_reference_point(&end.holding_wrench, &end.stiffness, &v);
-        Ok(LegResponse { wrench: -force, stiffness, stable: true, iterations: 0 })
+        let at_rp = at_reference_point(&end.holding_wrench, &end.stiffness, &v);
+        Ok(LegResponse {
+            wrench: -at_rp.wrench,
+            stiffness: at_rp.stiffness,
+            magnitude: at_rp.magnitude,
+            stable: true,
+            iterations: 0,
+        })
     }
 
     /// Places the leg: evaluates it at the commanded pose and keeps the answer.

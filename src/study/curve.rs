@@ -46,7 +46,9 @@ pub enum RowStatus {
     Ok,
     /// No equilibrium found at this row's target; `residual` is the largest remaining leg residual (mm or
     /// rad), NaN where the solver did not report one.
-    NotConverged { residual: f64 },
+    NotConverged {
+        residual: f64,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -233,7 +235,7 @@ impl Tracer<'_> {
             wrench: Some(s.wrench),
             displacement: Some(self.at.error_to(&s.pose)),
             spectrum: spectrum(&s.held.stiffness, self.m.length_scale),
-            positive_definite: positive_definite(&s.held.stiffness, self.m.length_scale),
+            positive_definite: positive_definite(&s.held.stiffness, &s.held.magnitude, self.m.length_scale),
             unstable_legs: s.held.unstable_legs().collect(),
             iterations: s.iterations,
             status: RowStatus::Ok,
@@ -251,7 +253,7 @@ impl Tracer<'_> {
             (Target::Displacement(a), Target::Displacement(b)) => Target::Displacement(a + (b - a) * s),
             (_, b) => b,
         };
-        let pd_a = positive_definite(&a_solved.held.stiffness, self.m.length_scale);
+        let pd_a = positive_definite(&a_solved.held.stiffness, &a_solved.held.magnitude, self.m.length_scale);
         let smallest = |s: &Solved| spectrum(&s.held.stiffness, self.m.length_scale).map_or(f64::NAN, |e| e.scaled_min);
         // (parameter, load factor, smallest scaled eigenvalue) at both ends of the bracket.
         let mut lo = (0.0f64, self.load_factor(a_target, a_solved), smallest(a_solved));
@@ -268,7 +270,7 @@ impl Tracer<'_> {
             // found so far is then interpolated.
             let Ok(solved) = self.solve(blend(mid), &a_solved.pose, &mut trial) else { break };
             let point = (mid, self.load_factor(blend(mid), &solved), smallest(&solved));
-            if positive_definite(&solved.held.stiffness, self.m.length_scale) == pd_a {
+            if positive_definite(&solved.held.stiffness, &solved.held.magnitude, self.m.length_scale) == pd_a {
                 lo = point;
             } else {
                 hi = point;
@@ -432,7 +434,8 @@ fn mark_limit_points(rows: &mut [CurveRow]) {
             continue;
         }
         if b.load_factor > a.load_factor && b.load_factor > c.load_factor {
-            let peak = parabola_peak((path[i - 1], a.load_factor), (path[i], b.load_factor), (path[i + 1], c.load_factor));
+            let peak =
+                parabola_peak((path[i - 1], a.load_factor), (path[i], b.load_factor), (path[i + 1], c.load_factor));
             rows[i].add_event("limit_point", peak);
         }
     }
@@ -490,11 +493,18 @@ pub fn summary(rows: &[CurveRow], length_scale: f64) -> String {
     }
     if let Some(r) = rows.iter().find(|r| r.control == "displacement") {
         if r.step > 0 && rows.first().is_some_and(|f| f.control == "force") {
-            lines.push(format!("from step {}, no equilibrium under force control: path followed by displacement control", r.step));
+            lines.push(format!(
+                "from step {}, no equilibrium under force control: path followed by displacement control",
+                r.step
+            ));
         }
     }
     if let Some(r) = rows.iter().find(|r| !r.converged()) {
-        lines.push(format!("step {}: no equilibrium found; the curve stops there ({} rows written)", r.step, rows.len()));
+        lines.push(format!(
+            "step {}: no equilibrium found; the curve stops there ({} rows written)",
+            r.step,
+            rows.len()
+        ));
     }
     lines.push(format!(
         "k_scaled_min weighs rotations by the model's length scale, {length_scale:.6} mm/rad (README: force-deflection curves)"

@@ -50,6 +50,23 @@ impl MapSummary {
     }
 }
 
+impl MapSummary {
+    /// `N points: a ok, b unreachable, ...`, listing only the statuses that occurred.
+    pub fn line(&self) -> String {
+        let counts = [
+            (self.ok, "ok"),
+            (self.unreachable, "unreachable"),
+            (self.singular, "singular"),
+            (self.ill_conditioned, "ill_conditioned"),
+            (self.not_converged, "not_converged"),
+            (self.unstable, "unstable"),
+            (self.overflow, "overflow"),
+        ];
+        let parts: Vec<String> = counts.iter().filter(|(n, _)| *n > 0).map(|(n, s)| format!("{n} {s}")).collect();
+        format!("{} points: {}", self.points, parts.join(", "))
+    }
+}
+
 impl Tally for MapSummary {
     fn merge(&mut self, o: &MapSummary) {
         self.points += o.points;

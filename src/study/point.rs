@@ -47,6 +47,7 @@ impl Status {
 
     pub fn of(e: &PoseFailure) -> Self {
         match e.failure {
+            LegFailure::Unreachable(f) if f.at_reach_boundary() => Status::IllConditioned,
             LegFailure::Unreachable(_) | LegFailure::OutOfReach { .. } => Status::Unreachable,
             LegFailure::SingularChain => Status::SingularLeg,
             LegFailure::NotConverged { .. } => Status::NotConverged,
@@ -92,8 +93,8 @@ impl PointResult {
     /// K is a tangent stiffness (not symmetric in general; its full inverse is written, and an indefinite
     /// symmetric part is instability, decided by the caller); else K is symmetric positive semi-definite
     /// by theory, so an indefinite one can only come from lost digits.
-    fn from_stiffness(k: Mat6, length_scale: f64, loaded: bool) -> Self {
-        let a = analyse(&k, length_scale, !loaded);
+    fn from_stiffness(k: Mat6, magnitude: &Mat6, length_scale: f64, loaded: bool) -> Self {
+        let a = analyse(&k, magnitude, length_scale, !loaded);
         let base = PointResult { stiffness: Some(k), condition: Some(a.condition), ..PointResult::failed(Status::Ok) };
         match a.outcome {
             Outcome::Regular { compliance } => {
@@ -107,7 +108,9 @@ impl PointResult {
                 }
             }
             Outcome::IllConditioned => PointResult { status: Status::IllConditioned, rank: Some(6), ..base },
-            Outcome::Singular { rank, free } => PointResult { status: Status::Singular, rank: Some(rank), free, ..base },
+            Outcome::Singular { rank, free } => {
+                PointResult { status: Status::Singular, rank: Some(rank), free, ..base }
+            }
             Outcome::NotFinite => PointResult { status: Status::Overflow, condition: None, ..base },
         }
     }
@@ -130,7 +133,7 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
         Ok(a) => a,
         Err(e) => return PointResult::failed(Status::of(&e)),
     };
-    let mut r = PointResult::from_stiffness(agg.stiffness, m.length_scale, false);
+    let mut r = PointResult::from_stiffness(agg.stiffness, &agg.magnitude, m.length_scale, false);
     r.deflection = match (&r.compliance, &p.wrench) {
         (Some(c), Some(w)) => Some(c * w),
         _ => None,
@@ -205,7 +208,7 @@ pub fn loaded_point(
     match attempt {
         Ok(d) => {
             history.push(p.position, d.displacement, state.legs.iter().map(|s| s.loaded_offsets()).collect());
-            let mut r = PointResult::from_stiffness(d.held.stiffness, m.length_scale, true);
+            let mut r = PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true);
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;
             if r.status == Status::Ok && !d.stable {
