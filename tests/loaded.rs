@@ -306,3 +306,71 @@ chain = [
         assert_eq!(r.spectrum.unwrap().scaled_min > 0.0 && r.unstable_legs.is_empty(), r.stable(), "row {}", r.step);
     }
 }
+
+/// Two Stewart-Gough legs (universal joint at the base, axial spring k, spherical joint at the platform)
+/// from (-a, 0, 0) and (a, 0, 0) to the apex (0, 0, h), loaded by a vertical force P: each leg, compressed
+/// by N, loses lateral stiffness N / L as a pinned strut does (Euler-like), so the apex' stiffness along x,
+/// 2 (k sin^2(alpha) - (N / L) cos^2(alpha)), vanishes at a load found in closed form on the deformed
+/// geometry (apex lowered by w: L = sqrt(a^2 + (h - w)^2), N = k (L0 - L), P = 2 N cos(alpha)). A guide holds
+/// y and the rotations. Force control must find the buckling there, every row's smallest translational
+/// eigenvalue must follow the closed form, and `stable` must follow it.
+#[test]
+fn stewart_leg_pair_loses_lateral_stiffness_under_axial_load() {
+    let (a, h, k) = (100.0f64, 300.0f64, 1.0e5f64);
+    let l0 = (a * a + h * h).sqrt();
+    let geometry = |w: f64| {
+        let l = (a * a + (h - w) * (h - w)).sqrt();
+        let (sin, cos) = (a / l, (h - w) / l);
+        let n = k * (l0 - l);
+        (2.0 * n * cos, 2.0 * (k * sin * sin - n / l * cos * cos))
+    };
+    // The closed-form critical apex drop and load, by bisection on w.
+    let (mut lo, mut hi) = (0.0, 0.5 * h);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if geometry(mid).1 > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let p_cr = geometry(lo).0;
+    let m = model(&format!(
+        r#"
+name = "Stewart-Gough leg pair"
+[parameters]
+a = {a}
+h = {h}
+k = {k}
+[[leg]]
+name = "leg"
+copies = [{{ name = "left", rotation_axis = "z", rotation_deg = 0 }}, {{ name = "right", rotation_axis = "z", rotation_deg = 180 }}]
+chain = [
+  {{ type = "fixed", translation = ["-a", 0, 0] }},
+  {{ type = "universal", axes = ["y", ["h", 0, "-a"]] }},
+  {{ type = "prismatic", axis = ["a", 0, "h"], role = "actuated", stiffness = "k" }},
+  {{ type = "fixed", translation = ["a", 0, "h"] }},
+  {{ type = "spherical" }},
+]
+[[leg]]
+name = "guide"
+chain = [
+  {{ type = "prismatic", axis = "x", role = "passive" }},
+  {{ type = "prismatic", axis = "z", role = "passive" }},
+  {{ type = "spring6", stiffness_matrix = [[1,0,0,0,0,0],[0,1e5,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1e9,0,0],[0,0,0,0,1e9,0],[0,0,0,0,0,1e9]] }},
+]
+"#
+    ));
+    let at = Frame::translation(Vec3::new(0.0, 0.0, h));
+    let rows = run_curve(&m, &at, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.4 * p_cr, 28).unwrap();
+    let found = critical_load_factor(&rows).expect("the lateral stiffness vanishes");
+    assert!((found - p_cr).abs() < 1e-6 * p_cr, "found {found}, closed form {p_cr}");
+    for r in rows.iter().filter(|r| r.converged()) {
+        let w = -r.displacement.unwrap()[2];
+        let (p, lateral) = geometry(w);
+        assert!((p - r.load_factor).abs() < 1e-6 * p_cr, "row {}: P {} vs {p}", r.step, r.load_factor);
+        let smallest = r.spectrum.unwrap().translational_min;
+        assert!((smallest - lateral.min(1e5)).abs() < 1e-6 * k, "row {}: {smallest} vs {lateral}", r.step);
+        assert_eq!(r.stable(), lateral > 0.0, "row {}", r.step);
+    }
+}

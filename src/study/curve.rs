@@ -9,6 +9,8 @@
 //! - `buckling` / `restabilised`: positive definiteness is lost / regained between two converged rows; the
 //!   crossing is located by bisection between them to `BISECTION_TOLERANCE` of their interval and written
 //!   in `event_load_factor`.
+//! - `leg_unstable` / `leg_stable`: some leg stops / every leg starts again being stable with its end held
+//!   (at the row, not bisected).
 //! - `limit_point` (force control): the load factor reaches a maximum along the equilibrium path, found
 //!   from the converged rows (a row whose load factor exceeds both neighbours'); the vertex of the parabola
 //!   through the three rows against path length goes to `event_load_factor`. Where force control finds no
@@ -251,7 +253,7 @@ impl Tracer<'_> {
         let blend = |s: f64| match (a_target, b_target) {
             (Target::Load(a), Target::Load(b)) => Target::Load(a + (b - a) * s),
             (Target::Displacement(a), Target::Displacement(b)) => Target::Displacement(a + (b - a) * s),
-            (_, b) => b,
+            (_, b) => b, // not reached: the caller passes targets of one kind
         };
         let pd_a = positive_definite(&a_solved.held.stiffness, &a_solved.held.magnitude, self.m.length_scale);
         let smallest = |s: &Solved| spectrum(&s.held.stiffness, self.m.length_scale).map_or(f64::NAN, |e| e.scaled_min);
@@ -350,9 +352,22 @@ pub fn run_curve(
                 }
                 if let Some((prev_target, prev_solved, prev_state)) = &last {
                     let was = rows.last().is_some_and(|r| r.positive_definite);
-                    if was != row.positive_definite && same_kind(*prev_target, target) {
-                        let at = tracer.locate_crossing((*prev_target, prev_solved, prev_state), (target, &solved));
+                    if was != row.positive_definite {
+                        // Across the switch to displacement control, bisect in displacement from the
+                        // previous row's equilibrium (holding it there is the same equilibrium).
+                        let from = match (same_kind(*prev_target, target), rows.last().and_then(|r| r.displacement)) {
+                            (false, Some(d)) => Target::Displacement(d),
+                            _ => *prev_target,
+                        };
+                        let at = tracer.locate_crossing((from, prev_solved, prev_state), (target, &solved));
                         row.add_event(if was { "buckling" } else { "restabilised" }, at);
+                    }
+                }
+                if let Some(prev) = rows.last().filter(|r| r.converged()) {
+                    match (prev.unstable_legs.is_empty(), row.unstable_legs.is_empty()) {
+                        (true, false) => row.add_event("leg_unstable", row.load_factor),
+                        (false, true) => row.add_event("leg_stable", row.load_factor),
+                        _ => {}
                     }
                 }
                 rows.push(row);
@@ -486,6 +501,8 @@ pub fn summary(rows: &[CurveRow], length_scale: f64) -> String {
                 "buckling" => "the tangent stiffness stops being positive definite (buckling)",
                 "restabilised" => "the tangent stiffness is positive definite again",
                 "limit_point" => "the load reaches a maximum (limit point)",
+                "leg_unstable" => "a leg becomes unstable with its end held (see the instability column)",
+                "leg_stable" => "every leg is stable again",
                 other => other,
             };
             lines.push(format!("step {}: {what} at load factor {at}", r.step));
@@ -498,6 +515,13 @@ pub fn summary(rows: &[CurveRow], length_scale: f64) -> String {
                 r.step
             ));
         }
+    }
+    if let Some(r) = rows.iter().find(|r| r.converged() && !r.unstable_legs.is_empty()) {
+        lines.push(format!(
+            "from step {}, {} unstable with its end held: the curve is unstable there",
+            r.step,
+            r.instability().split(';').filter(|p| p.starts_with("leg")).collect::<Vec<_>>().join(", ")
+        ));
     }
     if let Some(r) = rows.iter().find(|r| !r.converged()) {
         lines.push(format!(

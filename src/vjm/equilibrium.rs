@@ -146,16 +146,31 @@ impl LoadedChain<'_> {
             rhs[(6 + k, 0)] = -g;
         }
         for s in self.springs {
-            // A posture-dependent spring enters with its value at the current posture; its derivative with
-            // respect to the posture is not in the Newton matrix (a frozen-spring approximation).
             let (stiffness, _) = s.at(&coords.passive);
+            let deflection = |j: usize| coords.virtual_[s.first + j] - self.preload[s.first + j];
             for i in 0..s.dim {
                 let mut reaction = 0.0;
                 for j in 0..s.dim {
                     a[(6 + n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
-                    reaction += stiffness[(i, j)] * (coords.virtual_[s.first + j] - self.preload[s.first + j]);
+                    reaction += stiffness[(i, j)] * deflection(j);
                 }
                 rhs[(6 + n + s.first + i, 0)] += reaction;
+            }
+            // A spring whose stiffness depends on a passive coordinate q (paper 000 s. 6: "an equivalent
+            // non-linear virtual spring whose stiffness depends on the internal variable"): its energy
+            // 1/2 dtheta^T K(q) dtheta also pushes on q, and both statics rows depend on q.
+            if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive) {
+                let d = nalgebra::DVector::from_fn(s.dim, |j, _| deflection(j));
+                let dk = dk.view((0, 0), (s.dim, s.dim));
+                let dk_d = dk * &d;
+                let energy_slope = 0.5 * d.dot(&dk_d);
+                let energy_curvature = 0.5 * d.dot(&(ddk.view((0, 0), (s.dim, s.dim)) * &d));
+                rhs[(6 + q, 0)] += energy_slope;
+                a[(6 + q, q)] -= energy_curvature;
+                for i in 0..s.dim {
+                    a[(6 + n + s.first + i, q)] -= dk_d[i];
+                    a[(6 + q, n + s.first + i)] -= dk_d[i];
+                }
             }
         }
     }

@@ -36,6 +36,24 @@ impl SpringGroup {
     }
 }
 
+/// Step (rad) of the central differences that give a posture-dependent spring's derivatives: the
+/// truncation error of K' is (h^2/6) K''' ~ 2e-9 relative and round-off in K'' eps/h^2 ~ 1e-8.
+const POSTURE_STEP: f64 = 1e-4;
+
+impl SpringGroup {
+    /// For a spring whose stiffness depends on a passive coordinate q (a parallelogram's angle): that
+    /// coordinate's index and dK/dq, d2K/dq2 at the given posture, by central differences of the spring's own
+    /// derivation. The loaded equilibrium needs them: with the energy 1/2 dtheta^T K(q) dtheta, q feels
+    /// 1/2 dtheta^T K'(q) dtheta and the Newton matrix gains K'(q) dtheta and 1/2 dtheta^T K''(q) dtheta.
+    pub fn posture_derivatives(&self, passive: &[f64]) -> Option<(usize, Mat6, Mat6)> {
+        let p = self.posture.as_ref()?;
+        let q = passive.get(p.angle).copied().unwrap_or(0.0);
+        let h = POSTURE_STEP;
+        let (minus, mid, plus) = (p.stiffness(q - h), p.stiffness(q), p.stiffness(q + h));
+        Some((p.angle, (plus - minus) / (2.0 * h), (plus - mid * 2.0 + minus) / (h * h)))
+    }
+}
+
 /// The elementary joints of a 6-dof spring, in order: translations along the frame's x, y, z, then
 /// rotations about them (paper 001 eq 1, V_s(theta1..theta6)).
 pub const SIX_DOF: [(JointKind, Vec3); 6] = [

@@ -1,0 +1,282 @@
+//! What a user reads off loaded results must be the loaded model's own numbers: the tangent stiffness is
+//! not symmetric under a moment, so its compliance is its full inverse; the tangent stiffness is the
+//! derivative of the equilibrium wrench (checked against central differences of equilibria under wrenches
+//! with moments, and for the 3-PRPaR, whose parallelogram spring depends on the parallelogram angle).
+
+mod common;
+use std::path::Path;
+
+use common::*;
+use stiff::kinematics::frame::{skew, Frame, Mat3, Mat6, Vec3, Vec6};
+use stiff::platform::leg::apply_twist;
+use stiff::platform::manipulator::Manipulator;
+
+/// Paper 000 s. 5.2's groove-milling wrench (N, N mm).
+const MILLING: [f64; 6] = [215.0, -10.0, -25.0, 1000.0, 21500.0, 0.0];
+
+fn load(path: &str) -> Manipulator {
+    stiff::model::load_manipulator(Path::new(path)).unwrap()
+}
+
+/// The loaded equilibrium under `wrench` at `commanded` and, by central differences of the holding wrench
+/// between equilibria at poses displaced from it (steps 1e-4 mm and 1e-7 rad), the tangent stiffness.
+fn tangent_and_differences(m: &Manipulator, commanded: &Frame, wrench: &Vec6) -> (Mat6, Mat6) {
+    let mut s = m.new_state();
+    m.place(commanded, &mut s).unwrap();
+    let d = m.deflect(commanded, wrench, None, &mut s).unwrap();
+    let k = d.held.stiffness;
+    let mut fd = Mat6::zeros();
+    for c in 0..6 {
+        let h = if c < 3 { 1e-4 } else { 1e-7 };
+        let mut e = Vec6::zeros();
+        e[c] = h;
+        let plus = m.hold(&apply_twist(&d.pose, &e), &mut s).unwrap().force;
+        let minus = m.hold(&apply_twist(&d.pose, &-e), &mut s).unwrap().force;
+        fd.set_column(c, &((plus - minus) / (2.0 * h)));
+    }
+    (k, fd)
+}
+
+/// Under the milling wrench (a moment of 21.5 N m) the Orthoglide's tangent stiffness equals central
+/// differences of the equilibria to 1e-6, and its antisymmetric part is not negligible.
+#[test]
+fn orthoglide_tangent_stiffness_under_the_milling_wrench_matches_differences() {
+    let m = orthoglide();
+    for x in [0.0, -73.65, 40.0] {
+        let (k, fd) =
+            tangent_and_differences(&m, &Frame::translation(Vec3::new(x, -0.5 * x, 0.3 * x)), &MILLING.into());
+        assert!(scaled_rel_diff(&k, &fd, 300.0) < 1e-6, "at {x}: {k}\nvs differences\n{fd}");
+        let antisymmetric = (k - k.transpose()).abs().max();
+        assert!(antisymmetric > 1e-3 * k.abs().max() / 300.0, "the moment makes K non-symmetric");
+    }
+}
+
+/// Stewart-Gough platform B under a wrench whose load terms are about 5% of the stiffness: tangent stiffness
+/// against differences of equilibria to 1e-6.
+#[test]
+fn stewart_gough_b_tangent_stiffness_under_a_large_wrench_matches_differences() {
+    let m = load("manipulators/stewart-gough-b.toml");
+    let home = Frame::translation(Vec3::new(0.0, 0.0, 300.0));
+    let wrench = Vec6::new(1.5e6, -1e6, -7.5e6, 1e8, -1.5e8, 5e7);
+    let (k, fd) = tangent_and_differences(&m, &home, &wrench);
+    let k0 = m.unloaded(&home, &mut m.new_state()).unwrap().stiffness;
+    let load_share = scaled_rel_diff(&k, &k0, 300.0);
+    assert!((0.02..0.2).contains(&load_share), "load terms are {load_share} of K");
+    assert!(scaled_rel_diff(&k, &fd, 300.0) < 1e-6, "{k}\nvs differences\n{fd}");
+}
+
+/// Regression: the loaded compliance was a Cholesky inverse, which reads one triangle of a non-symmetric
+/// K (|C K - I| up to 0.22). The written C must be K's inverse: C K = I to 1e-9 on every loaded row of a
+/// map under the milling wrench, both read back from the CSV (36 entries each).
+#[test]
+fn loaded_map_writes_the_inverse_of_the_tangent_stiffness() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("loaded.csv");
+    assert_cmd::Command::cargo_bin("stiff")
+        .unwrap()
+        .args(["map", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+        .args(["--wrench", "215,-10,-25,1000,21500,0", "--stiffness", "-q", "-o"])
+        .arg(&out)
+        .assert()
+        .success();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |prefix: &str| header.iter().position(|h| h.starts_with(prefix)).unwrap_or_else(|| panic!("{prefix}"));
+    let mut rows = 0;
+    let mut worst_asymmetry = 0.0f64;
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f[column("status")], "ok");
+        let matrix = |m: char| Mat6::from_fn(|i, j| f[column(&format!("{m}{}{}_", i + 1, j + 1))].parse().unwrap());
+        let (c, k) = (matrix('C'), matrix('K'));
+        // C K is dimensionless on its diagonal blocks, mm/rad and rad/mm off them: weigh by 300 mm.
+        let d = Vec6::new(1.0, 1.0, 1.0, 300.0, 300.0, 300.0);
+        let e = Mat6::from_fn(|i, j| ((c * k)[(i, j)] - if i == j { 1.0 } else { 0.0 }) * d[i] / d[j]);
+        assert!(e.abs().max() < 1e-9, "|C K - I| = {:e} on {line}", e.abs().max());
+        worst_asymmetry = worst_asymmetry.max((c - c.transpose()).abs().max() / c.abs().max());
+        rows += 1;
+    }
+    assert_eq!(rows, 125);
+    assert!(worst_asymmetry > 1e-4, "loaded C is not symmetric, and all 36 entries are written");
+}
+
+/// The antisymmetric part of the rotational block of the tangent stiffness under a pure moment M at the
+/// reference point is -1/2 [M]x for base-frame rotation vectors (legs ending at the reference point carry
+/// no [F]x[v]x term with no force): the moment's own geometric stiffness.
+#[test]
+fn antisymmetric_part_under_a_pure_moment_is_half_the_moment() {
+    let m = orthoglide();
+    let moment = Vec3::new(3000.0, -21500.0, 8000.0);
+    let mut s = m.new_state();
+    let at = Frame::translation(Vec3::new(10.0, -20.0, 5.0));
+    m.place(&at, &mut s).unwrap();
+    let d = m.deflect(&at, &Vec6::new(0.0, 0.0, 0.0, moment.x, moment.y, moment.z), None, &mut s).unwrap();
+    let k = d.held.stiffness;
+    let rot: Mat3 = k.fixed_view::<3, 3>(3, 3).into();
+    let antisymmetric = (rot - rot.transpose()) * 0.5;
+    let expected = -skew(&moment) * 0.5;
+    assert!((antisymmetric - expected).abs().max() < 1e-6 * moment.norm(), "{antisymmetric}\nvs\n{expected}");
+}
+
+/// The 3-PRPaR's parallelogram spring depends on the parallelogram angle: with its derivative in the
+/// Newton matrix the loaded stiffness is the derivative of the equilibrium wrench, at Q0, Q1 and Q2 of
+/// paper 001 (platform displaced by 0.5 mm along each axis, as Table 2), to 1e-6.
+#[test]
+fn prpar_loaded_stiffness_matches_differences_with_the_posture_dependent_spring() {
+    let m = load("manipulators/orthoglide-3prpar.toml");
+    for x in [0.0, -73.65, 126.35] {
+        let commanded = Frame::translation(Vec3::new(x, x, x));
+        let actual = Frame::translation(Vec3::new(x + 0.5, x + 0.5, x + 0.5));
+        let mut s = m.new_state();
+        m.place(&commanded, &mut s).unwrap();
+        let k = m.hold(&actual, &mut s).unwrap().stiffness;
+        let mut fd = Mat6::zeros();
+        for c in 0..6 {
+            let h = if c < 3 { 1e-4 } else { 1e-7 };
+            let mut e = Vec6::zeros();
+            e[c] = h;
+            let plus = m.hold(&apply_twist(&actual, &e), &mut s).unwrap().force;
+            let minus = m.hold(&apply_twist(&actual, &-e), &mut s).unwrap().force;
+            fd.set_column(c, &((plus - minus) / (2.0 * h)));
+        }
+        assert!(scaled_rel_diff(&k, &fd, 300.0) < 1e-6, "at {x}: {k}\nvs differences\n{fd}");
+    }
+}
+
+/// Paper 001 Table 1's loaded Q0 off-diagonal entries, read from the symmetric part of the full inverse
+/// (the table prints symmetric blocks): k_tran -0.0105e-4 (published -0.02e-4), k_rot -0.0258e-7
+/// (published -0.02e-7; the Cholesky inverse used to give -0.015e-7). The two triangles differ under
+/// load: C45 = -0.058e-7, C54 = 0.007e-7.
+#[test]
+fn table_1_loaded_q0_off_diagonals_from_the_full_inverse() {
+    let m = orthoglide();
+    let mut s = m.new_state();
+    m.place(&Frame::IDENTITY, &mut s).unwrap();
+    let k = m.hold(&Frame::translation(Vec3::new(0.5, 0.5, 0.5)), &mut s).unwrap().stiffness;
+    let c = k.try_inverse().unwrap();
+    let sym = (c + c.transpose()) * 0.5;
+    assert!((sym[(0, 1)] * 1e4 - -0.02).abs() < 0.011, "k_tran off {:e}", sym[(0, 1)]);
+    assert!((sym[(3, 4)] * 1e7 - -0.02).abs() < 0.007, "k_rot off {:e}", sym[(3, 4)]);
+    assert!((sym[(3, 4)] * 1e7 - -0.0258).abs() < 0.0005, "k_rot off {:e}", sym[(3, 4)]);
+    assert!((c[(3, 4)] - c[(4, 3)]).abs() > 0.05e-7, "the loaded compliance is not symmetric");
+}
+
+/// Paper 001 Table 2's loaded rows and Table 3's forces for the 3-PRPaR (platform displaced by 0.5 mm along
+/// each axis), predicted with the parallelogram spring's derivative in the equilibrium. Reached
+/// (1e-4 mm/N, 1e-7 rad/(N mm); published in brackets): Q0 k_tran 2.729 (2.74), k_rot 1.880 (1.88);
+/// Q1 k_tran 9.736 / 5.848 (9.55 / 5.52), k_rot 2.132 / -0.306 (2.05 / -0.31); Q2 k_tran 16.15 / -7.62
+/// (16.7 / -7.9); F 1894 / 230 / 10637 N (1823 / 248 / 9418). Not reached: Q2 k_rot 2.01 / 0.90 (2.50 /
+/// 1.28). In this model the parallelogram's two bars (7.5 mm, fitted at Q0 unloaded) buckle at Q2 between
+/// 0.15 and 0.2 mm of that displacement (`stiff curve`): the Q2 row is an unstable equilibrium, so reported,
+/// and its rotational compliance is off the paper's.
+#[test]
+fn prpar_table_2_loaded_rows_and_table_3_forces() {
+    let m = load("manipulators/orthoglide-3prpar.toml");
+    // (x, k_tran diag, off, tolerance; k_rot diag, off, tolerance; F, tolerance; legs stable)
+    let rows = [
+        (0.0, 2.74e-4, None, 0.01, 1.88e-7, None, 0.01, 1823.0, 0.05, true),
+        (-73.65, 9.55e-4, Some(5.52e-4), 0.07, 2.05e-7, Some(-0.31e-7), 0.05, 248.0, 0.08, true),
+        (126.35, 16.7e-4, Some(-7.9e-4), 0.04, 2.50e-7, Some(1.28e-7), 0.31, 9418.0, 0.14, false),
+    ];
+    for (x, td, to, ttol, rd, ro, rtol, f, ftol, stable) in rows {
+        let mut s = m.new_state();
+        m.place(&Frame::translation(Vec3::new(x, x, x)), &mut s).unwrap();
+        let h = m.hold(&Frame::translation(Vec3::new(x + 0.5, x + 0.5, x + 0.5)), &mut s).unwrap();
+        let c = h.stiffness.try_inverse().unwrap();
+        let c = (c + c.transpose()) * 0.5;
+        let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+        assert!(rel(c[(0, 0)], td) < ttol, "{x}: k_tran {:e} vs {td:e}", c[(0, 0)]);
+        assert!(rel(c[(3, 3)], rd) < rtol, "{x}: k_rot {:e} vs {rd:e}", c[(3, 3)]);
+        if let Some(to) = to {
+            assert!(rel(c[(0, 1)], to) < ttol, "{x}: k_tran off {:e} vs {to:e}", c[(0, 1)]);
+        }
+        if let Some(ro) = ro {
+            assert!(rel(c[(3, 4)], ro) < rtol, "{x}: k_rot off {:e} vs {ro:e}", c[(3, 4)]);
+        }
+        assert!(rel(h.force[0], f) < ftol, "{x}: F {} vs {f}", h.force[0]);
+        assert_eq!(h.legs_stable(), stable, "{x}");
+    }
+}
+
+/// Regression: on the Orthoglide at (0, 0, 0) with a force along x and a large --max, `stable` was false
+/// from step 1 while the eigenvalue column stayed positive, a Newton failure was called a limit point, the
+/// load factor ran to 2.9 x --max, and stderr contradicted the CSV. Every flag must now follow from the
+/// row's own columns: `stable` = (smallest scaled eigenvalue > 0 and no unstable leg), `instability` names
+/// what failed, events mark changes between rows, no row goes beyond --max, and the stderr summary quotes
+/// the rows.
+#[test]
+fn orthoglide_curve_flags_agree_with_their_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("curve.csv");
+    let max = 1e6;
+    let run = assert_cmd::Command::cargo_bin("stiff")
+        .unwrap()
+        .args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--wrench-direction", "1,0,0,0,0,0"])
+        .args(["--max", "1e6", "--steps", "50", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success());
+    let stderr = String::from_utf8(run.stderr).unwrap();
+    assert!(!stderr.contains('{') && !stderr.contains("NotConverged"), "no debug text: {stderr}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let mut previous: Option<(bool, bool)> = None;
+    for r in &rows {
+        assert_eq!(r[col("status")], "ok");
+        let load: f64 = r[col("load_factor")].parse().unwrap();
+        assert!(load <= max, "a row beyond --max: {load}");
+        let eigen: f64 = r[col("k_scaled_min_N_per_mm")].parse().unwrap();
+        let instability = r[col("instability")];
+        let legs_stable = !instability.contains("leg");
+        let platform_pd = !instability.contains("platform");
+        assert_eq!(platform_pd, eigen > 0.0, "row {}: platform flag vs eigenvalue {eigen}", r[0]);
+        assert_eq!(r[col("stable")] == "true", platform_pd && legs_stable, "row {}", r[0]);
+        let events = r[col("event")];
+        if let Some((was_pd, was_legs)) = previous {
+            assert_eq!(events.contains("buckling"), was_pd && !platform_pd, "row {}", r[0]);
+            assert_eq!(events.contains("leg_unstable"), was_legs && !legs_stable, "row {}", r[0]);
+        }
+        assert!(!events.contains("limit_point") || r[col("control")] == "displacement" || load > 0.0);
+        previous = Some((platform_pd, legs_stable));
+    }
+    // The summary on stderr is derived from the same rows.
+    let first_unstable_leg = rows.iter().find(|r| r[col("instability")].contains("leg")).map(|r| r[0]);
+    if let Some(step) = first_unstable_leg {
+        assert!(stderr.contains(&format!("from step {step}, leg")), "{stderr}");
+    }
+    let last_load = rows.last().unwrap()[col("load_factor")];
+    if rows.iter().all(|r| !r[col("instability")].contains("platform")) {
+        assert!(stderr.contains(&format!("positive definite up to load factor {last_load}")), "{stderr}");
+    }
+}
+
+/// Regression: a step that found no equilibrium aborted the curve with Rust debug text and lost every row
+/// computed before it. Displacement control turning the platform by up to 6 rad (far beyond what the legs'
+/// equilibria can follow: the 3-PUU's does not converge at 4.4 rad): the rows before the failure are
+/// written, the failing row says `not_converged` with its residual, and the run succeeds.
+#[test]
+fn a_curve_that_stops_converging_keeps_its_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("curve.csv");
+    let run = assert_cmd::Command::cargo_bin("stiff")
+        .unwrap()
+        .args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--displacement-direction"])
+        .args(["0,0,0,0,0,1", "--max", "6", "--steps", "30", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success());
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    let failed = rows.iter().position(|r| r.contains(",not_converged,")).expect("the legs cannot follow 6 rad");
+    assert!(failed >= 10 && failed == rows.len() - 1, "rows before it kept, none after");
+    assert!(rows[..failed].iter().all(|r| r.contains(",ok,")));
+    let residual = rows[failed].split(',').nth(28).unwrap();
+    assert!(residual.parse::<f64>().is_ok_and(|v| v > 0.0), "{}", rows[failed]);
+    assert!(String::from_utf8(run.stderr).unwrap().contains("no equilibrium found"));
+}
