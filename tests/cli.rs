@@ -438,3 +438,25 @@ fn diagnose_reads_synth_output_and_refuses_bad_data() {
     refuse(strip(&format!("{header}\np,0,0,0,0,0,0,0,0,0,0.1,0,0,0.002\n")), "noise level is unknown");
     refuse(format!("{header}\np,0,0,0,100,0,0,0,0,0,0.1,0,0,0.002\n"), "too few");
 }
+
+/// Regression: grid coordinates were computed in floating point (-63.650000000000006), so a filter
+/// `x_mm == -63.65` selected nothing. They are computed in the grid's own decimals: every coordinate of the
+/// 21-point axes from -73.65 to 126.35 is written as exactly -73.65 + 10 k.
+#[test]
+fn grid_coordinates_are_the_decimals_the_user_meant() {
+    let dir = temp_dir();
+    let grid = dir.path().join("g.toml");
+    std::fs::write(&grid, "[box]\nfrom = [-73.65, -73.65, 0.1]\nto = [126.35, 126.35, 0.1]\nsteps = [21, 21, 1]\n")
+        .unwrap();
+    let out = stiff().args(["map", MODEL, "--grid"]).arg(&grid).arg("-q").output().unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut xs: Vec<String> = text.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().to_string()).collect();
+    xs.dedup();
+    xs.sort();
+    xs.dedup();
+    let mut expected: Vec<String> = (0..21).map(|k| format!("{}", (-7365 + 1000 * k) as f64 / 100.0)).collect();
+    expected.sort();
+    assert_eq!(xs, expected);
+    assert!(text.lines().skip(1).all(|l| l.split(',').nth(4) == Some("0.1")));
+    assert!(text.contains(",-63.65,"));
+}

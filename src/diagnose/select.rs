@@ -191,15 +191,17 @@ fn visible_end_errors(problem: &Problem, k: usize, rows: &[usize]) -> Option<DMa
     Some(DMatrix::from_fn(6, keep.len(), |r, c| v_t[(keep[c], r)]))
 }
 
+/// Upper-tail probabilities by the distributions' survival functions: `1 - cdf` underflows to 0 beyond
+/// p ~ 1e-16, which made every strong effect look equally (infinitely) significant.
 fn chi2_sf(x: f64, dof: usize) -> f64 {
-    ChiSquared::new(dof.max(1) as f64).map(|d| 1.0 - d.cdf(x)).unwrap_or(f64::NAN)
+    ChiSquared::new(dof.max(1) as f64).map(|d| d.sf(x)).unwrap_or(f64::NAN)
 }
 
 fn f_sf(x: f64, d1: usize, d2: usize) -> f64 {
     if d1 == 0 || d2 == 0 || !x.is_finite() {
         return if x.is_infinite() { 0.0 } else { 1.0 };
     }
-    FisherSnedecor::new(d1 as f64, d2 as f64).map(|d| 1.0 - d.cdf(x.max(0.0))).unwrap_or(f64::NAN)
+    FisherSnedecor::new(d1 as f64, d2 as f64).map(|d| d.sf(x.max(0.0))).unwrap_or(f64::NAN)
 }
 
 /// Per-axis sums of squares (mm^2) of the weighted residuals `r` of `rows`, turned back into mm.
@@ -557,4 +559,24 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: p-values were `1 - cdf`, which is 0 below 1e-16. Closed forms: the chi-square
+    /// distribution with 2 degrees of freedom has sf(x) = exp(-x/2); the F distribution with d1 = 2 has
+    /// sf(x) = (1 + 2x/d2)^(-d2/2).
+    #[test]
+    fn p_values_keep_their_digits_far_in_the_tail() {
+        for x in [1.0, 40.0, 200.0, 1000.0] {
+            let exact = (-x / 2.0f64).exp();
+            assert!((chi2_sf(x, 2) - exact).abs() <= 1e-10 * exact, "chi2 sf({x}) {} vs {exact}", chi2_sf(x, 2));
+        }
+        for (x, d2) in [(3.0, 20usize), (200.0, 30), (5000.0, 40)] {
+            let exact = (1.0 + 2.0 * x / d2 as f64).powf(-(d2 as f64) / 2.0);
+            assert!((f_sf(x, 2, d2) - exact).abs() <= 1e-8 * exact, "F sf({x}) {} vs {exact}", f_sf(x, 2, d2));
+        }
+    }
 }

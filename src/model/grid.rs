@@ -70,6 +70,9 @@ struct BoxGrid {
     from: Vec3,
     to: Vec3,
     steps: [usize; 3],
+    /// Per axis, the decimal places in which `from`, `to` and the spacing are exact (None: not a short
+    /// decimal), so that coordinates are computed in integers and written as the decimals the user meant.
+    decimals: [Option<u32>; 3],
     rotation: Vec3,
     wrench: Option<Vec6>,
 }
@@ -86,14 +89,40 @@ impl BoxGrid {
         let idx = [i % nx, (i / nx) % ny, i / (nx * ny)];
         let mut p = Vec3::zeros();
         for k in 0..3 {
-            p[k] = if self.steps[k] == 1 {
-                self.from[k]
-            } else {
-                self.from[k] + (self.to[k] - self.from[k]) * idx[k] as f64 / (self.steps[k] - 1) as f64
+            p[k] = match (self.steps[k], self.decimals[k]) {
+                (1, _) => self.from[k],
+                // -73.65 + 10 * i in hundredths: -7365 + 1000 i, then one correctly rounded division, so
+                // the coordinate is the double nearest the decimal (-63.65, not -63.650000000000006).
+                (n, Some(d)) => {
+                    let scale = 10f64.powi(d as i32);
+                    let (from, to) = ((self.from[k] * scale).round() as i128, (self.to[k] * scale).round() as i128);
+                    let units = from + (to - from) * idx[k] as i128 / (n as i128 - 1);
+                    units as f64 / scale
+                }
+                (n, None) => self.from[k] + (self.to[k] - self.from[k]) * idx[k] as f64 / (n - 1) as f64,
             };
         }
         PosePoint { name: None, position: p, rotation: self.rotation, wrench: self.wrench }
     }
+}
+
+/// The fewest decimal places (up to 9) in which `from`, `to` and the spacing of `n` points between them
+/// are all exact decimals, e.g. 2 for -73.65 .. 126.35 in 21 points; None where there is none (a third of a
+/// millimetre) or the numbers are too large for exact integer arithmetic.
+fn grid_decimals(from: f64, to: f64, n: usize) -> Option<u32> {
+    if n < 2 {
+        return None;
+    }
+    (0..=9u32).find_map(|d| {
+        let scale = 10f64.powi(d as i32);
+        let (f, t) = (from * scale, to * scale);
+        let exact = |v: f64| v.abs() < 1e15 && (v - v.round()).abs() <= 4.0 * f64::EPSILON * v.abs().max(1.0);
+        if !(exact(f) && exact(t)) {
+            return None;
+        }
+        let span = t.round() as i128 - f.round() as i128;
+        (span % (n as i128 - 1) == 0).then_some(d)
+    })
 }
 
 /// Columns of a points CSV.
@@ -160,6 +189,7 @@ impl PointSet {
                     from: Vec3::from(s.from),
                     to: Vec3::from(s.to),
                     steps,
+                    decimals: [0, 1, 2].map(|k| grid_decimals(s.from[k], s.to[k], steps[k])),
                     rotation: Vec3::from(s.orientation.unwrap_or([0.0; 3])),
                     wrench: s.wrench.map(Vec6::from),
                 })

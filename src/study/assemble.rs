@@ -219,30 +219,35 @@ fn deflection_status(e: DeflectionFailure) -> Status {
     }
 }
 
-/// Statistics of one quantity over the samples.
-#[derive(Clone, Copy, Debug, Default)]
-struct Stats {
+/// Statistics of one quantity over the samples, by Welford's one-pass update: the textbook
+/// `(sum_sq - sum^2 / n) / (n - 1)` cancels catastrophically when the spread is small against the mean
+/// (a 1 mm error with micrometre scatter loses every digit of the variance).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
     n: f64,
-    sum: f64,
-    sum_sq: f64,
+    mean: f64,
+    /// Sum of squared deviations from the running mean.
+    m2: f64,
     worst: f64,
 }
 
 impl Stats {
-    fn add(&mut self, v: f64) {
+    pub fn add(&mut self, v: f64) {
         self.n += 1.0;
-        self.sum += v;
-        self.sum_sq += v * v;
-        self.worst = self.worst.max(v);
+        let delta = v - self.mean;
+        self.mean += delta / self.n;
+        self.m2 += delta * (v - self.mean);
+        self.worst = if self.n == 1.0 { v } else { self.worst.max(v) };
     }
-    fn mean(&self) -> f64 {
-        self.sum / self.n
+    pub fn mean(&self) -> f64 {
+        self.mean
     }
-    fn std(&self) -> f64 {
+    /// Sample standard deviation (n - 1 in the denominator); 0 for fewer than two samples.
+    pub fn std(&self) -> f64 {
         if self.n < 2.0 {
             return 0.0;
         }
-        ((self.sum_sq - self.sum * self.sum / self.n) / (self.n - 1.0)).max(0.0).sqrt()
+        (self.m2 / (self.n - 1.0)).max(0.0).sqrt()
     }
 }
 
@@ -424,4 +429,23 @@ pub fn path_points(
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Stats;
+
+    /// Regression: the sample variance was computed as (sum_sq - sum^2/n)/(n - 1), which cancels when the
+    /// spread is small against the mean. Values 1e6 + k * 1e-4 (k = 0..9): mean 1e6 + 4.5e-4, standard
+    /// deviation 1e-4 * sqrt(55/6) exactly.
+    #[test]
+    fn sample_spread_is_exact_when_small_against_the_mean() {
+        let mut s = Stats::default();
+        for k in 0..10 {
+            s.add(1e6 + k as f64 * 1e-4);
+        }
+        let exact = 1e-4 * (55.0f64 / 6.0).sqrt();
+        assert!((s.std() - exact).abs() < 1e-6 * exact, "{} vs {exact}", s.std());
+        assert!((s.mean() - (1e6 + 4.5e-4)).abs() < 1e-9);
+    }
 }
