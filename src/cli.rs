@@ -18,7 +18,7 @@ use crate::platform::manipulator::Manipulator;
 use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
 use crate::study::curve::{push_curve_row, run_curve, summary, Control, CURVE_HEADER, MAX_INTERVALS};
 use crate::study::map::{run_map, MapOptions};
-use crate::study::point::unloaded_point;
+use crate::study::point::{loaded_point, unloaded_point, LoadedHistory};
 
 #[derive(Parser, Debug)]
 #[command(name = "stiff", version, about = "Stiffness of parallel robots: maps, points (units: mm, N, N mm, rad)")]
@@ -315,7 +315,8 @@ pub struct PointArgs {
     /// Platform orientation as a rotation vector rx,ry,rz in rad (default 0,0,0).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub orientation: Option<Vec3>,
-    /// A wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm) whose linear deflection to report.
+    /// A wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): reports its linear deflection C w and the loaded equilibrium
+    /// under it (displacement, tangent stiffness and its full inverse).
     #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
     pub wrench: Option<Vec6>,
 }
@@ -527,7 +528,12 @@ fn point(a: PointArgs) -> Result<()> {
         PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
-    print!("{}", point_report(&model.name, &p, &r));
+    print!("{}", point_report(&model.name, &p, &r, false));
+    if let Some(w) = &a.wrench {
+        let loaded = loaded_point(&model, &p, w, &mut state, &mut LoadedHistory::default());
+        println!("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)");
+        print!("{}", point_report(&model.name, &p, &loaded, true));
+    }
     Ok(())
 }
 

@@ -142,3 +142,22 @@ fn principal_compliances_are_accurate_at_repeated_eigenvalues() {
         assert!((p.translation_min - lo).abs() <= 1e-12 * hi, "{x}: {} vs {lo}", p.translation_min);
     }
 }
+
+/// The `condition` column is the 1-norm condition number of the equilibrated stiffness: K with rotations
+/// weighed by the length scale, scaled to a unit diagonal. Recomputed here from the map's own K columns by
+/// a different route (nalgebra's general inverse of the matrix built in the test), it agrees to 1e-9.
+#[test]
+fn condition_column_is_the_condition_number_of_the_equilibrated_stiffness() {
+    let m = load("manipulators/orthoglide-3puu.toml");
+    for p in [Vec3::new(0.0, 0.0, 0.0), Vec3::new(100.0, -50.0, 20.0), Vec3::new(290.0, 0.0, 0.0)] {
+        let r = at(&m, p);
+        let k = r.stiffness.unwrap();
+        let w = [1.0, 1.0, 1.0, 1.0 / m.length_scale, 1.0 / m.length_scale, 1.0 / m.length_scale];
+        let t: Vec<f64> = (0..6).map(|i| w[i] / (k[(i, i)] * w[i] * w[i]).sqrt()).collect();
+        let a = stiff::kinematics::frame::Mat6::from_fn(|i, j| k[(i, j)] * t[i] * t[j]);
+        let norm1 = |m: &stiff::kinematics::frame::Mat6| (0..6).map(|j| m.column(j).abs().sum()).fold(0.0, f64::max);
+        let expected = norm1(&a) * norm1(&a.try_inverse().unwrap());
+        let got = r.condition.unwrap();
+        assert!((got - expected).abs() < 1e-9 * expected, "at {p:?}: {got} vs {expected}");
+    }
+}

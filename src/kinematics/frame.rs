@@ -131,22 +131,29 @@ pub fn point_shift(v: &Vec3) -> Mat6 {
     a
 }
 
-/// The entrywise bound `|A|^T |K| |A|` of `shift_stiffness(k, v)`'s terms: the size of what the shift adds
-/// and subtracts, against which an entry that cancelled to round-off is recognised (a Stewart-Gough leg
-/// whose line passes through the vertical axis has a zero rz stiffness that comes out as 1e-14).
-pub fn shift_magnitude(k: &Mat6, v: &Vec3) -> Mat6 {
+/// The diagonal of the entrywise bound `|A|^T |K| |A|` of `shift_stiffness(k, v)`'s terms: the size of what
+/// the shift adds and subtracts on each diagonal entry, against which one that cancelled to round-off is
+/// recognised (a Stewart-Gough leg whose line passes through the vertical axis has a zero rz stiffness
+/// that comes out as 1e-14).
+pub fn shift_magnitude(k: &Mat6, v: &Vec3) -> Vec6 {
     let s = skew(v).abs();
-    let k = k.abs();
-    let k11: Mat3 = k.fixed_view::<3, 3>(0, 0).into();
-    let k12: Mat3 = k.fixed_view::<3, 3>(0, 3).into();
-    let k21: Mat3 = k.fixed_view::<3, 3>(3, 0).into();
-    let k22: Mat3 = k.fixed_view::<3, 3>(3, 3).into();
-    let top_right = k12 + k11 * s;
-    let mut out = Mat6::zeros();
-    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&k11);
-    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&top_right);
-    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(s * k11 + k21));
-    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&(s * top_right + k22 + k21 * s));
+    let mut out = Vec6::zeros();
+    for i in 0..3 {
+        out[i] = k[(i, i)].abs();
+        // (S |K11| S + S |K12| + |K21| S + |K22|)_ii, S = |[v]x| symmetric.
+        let mut sum = k[(3 + i, 3 + i)].abs();
+        for a in 0..3 {
+            let sa = s[(i, a)];
+            if sa == 0.0 {
+                continue;
+            }
+            sum += sa * (k[(a, 3 + i)].abs() + k[(3 + i, a)].abs());
+            for b in 0..3 {
+                sum += sa * k[(a, b)].abs() * s[(b, i)];
+            }
+        }
+        out[3 + i] = sum;
+    }
     out
 }
 

@@ -26,8 +26,9 @@ fn matrix(out: &mut String, title: &str, m: &Mat6, rows: [&str; 6], cols: [&str;
 const TWIST: [&str; 6] = ["dx [mm]", "dy [mm]", "dz [mm]", "rx [rad]", "ry [rad]", "rz [rad]"];
 const WRENCH: [&str; 6] = ["Fx [N]", "Fy [N]", "Fz [N]", "Mx [Nmm]", "My [Nmm]", "Mz [Nmm]"];
 
-/// The report of `stiff point`.
-pub fn point_report(model: &str, p: &PosePoint, r: &PointResult) -> String {
+/// The report of `stiff point`. `loaded`: `r` is the loaded equilibrium under the point's wrench (its
+/// displacement and tangent matrices, not symmetric, every entry shown).
+pub fn point_report(model: &str, p: &PosePoint, r: &PointResult, loaded: bool) -> String {
     let mut out = String::new();
     let (x, o) = (p.position, p.rotation);
     let _ = writeln!(out, "{model}");
@@ -54,12 +55,13 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult) -> String {
     if let Some(pc) = &r.principal {
         let _ = writeln!(
             out,
-            "principal compliance: translation max {:.4e} / min {:.4e} mm/N, rotation max {:.4e} rad/(N mm)",
+            "principal compliance (of C's symmetric part): translation max {:.4e} / min {:.4e} mm/N, rotation max {:.4e} rad/(N mm)",
             pc.translation_max, pc.translation_min, pc.rotation_max
         );
     }
     if let (Some(d), Some(w)) = (&r.deflection, &p.wrench) {
-        let _ = writeln!(out, "deflection under the reference wrench {}: {}", fmt6(w), fmt6(d));
+        let what = if loaded { "loaded equilibrium displacement" } else { "linear deflection C w" };
+        let _ = writeln!(out, "{what} under the wrench {}: {}", fmt6(w), fmt6(d));
     }
     if !r.free.is_empty() {
         let _ = writeln!(out, "free directions (unit twists dx dy dz [mm], rx ry rz [rad]):");

@@ -18,7 +18,7 @@ pub struct LinearAssembly {
 /// stiffness is singular.
 pub fn linear_assembly(legs: &[LegResponse], eps: &[Vec6], length_scale: f64) -> Option<LinearAssembly> {
     let k: nalgebra::Matrix6<f64> = legs.iter().map(|l| l.stiffness).sum();
-    let magnitude: nalgebra::Matrix6<f64> = legs.iter().map(|l| l.magnitude).sum();
+    let magnitude: Vec6 = legs.iter().map(|l| l.magnitude).sum();
     let compliance = *analyse(&k, &magnitude, length_scale, true).compliance()?;
     let load: Vec6 = legs.iter().zip(eps).map(|(l, e)| l.stiffness * e).sum();
     let displacement = compliance * load;

@@ -26,7 +26,8 @@ pub const CANCELLATION_TOLERANCE: f64 = 1e-12;
 /// Condition number of the equilibrated stiffness beyond which a point is `ill_conditioned`. The
 /// compliance's relative error is about 1e-10 times the condition number (the model is evaluated to that
 /// accuracy: inverse kinematics stops at 1e-9 of the length scale): the VJM and MSA descriptions of the
-/// 3-PUU differ by 7e-7 at condition 5.6e4, 4e-5 at 2.8e5 and 1e-3 at 2.8e6 near the reach boundary on x.
+/// 3-PUU differ (largest compliance) by 7e-7 at condition 6.3e4 and 4e-5 at 3.1e5 near the reach boundary
+/// on x, and by 1e-3 at 3.1e6.
 /// Beyond 1e6 fewer than four digits of C can be trusted, so none are written.
 pub const CONDITION_LIMIT: f64 = 1e6;
 
@@ -49,8 +50,8 @@ pub enum Outcome {
 #[derive(Clone, Debug)]
 pub struct Analysis {
     pub outcome: Outcome,
-    /// Condition number (2-norm) of the equilibrated stiffness; infinite where singular, NaN where K is not
-    /// finite.
+    /// Condition number (1-norm, exact: ||A||_1 ||A^-1||_1) of the equilibrated stiffness; infinite where
+    /// singular, NaN where K is not finite.
     pub condition: f64,
     /// The symmetric part of K is positive definite (decided on the equilibrated matrix).
     pub positive_definite: bool,
@@ -68,39 +69,55 @@ impl Analysis {
 
 /// `D K D` with `D = diag(1, 1, 1, 1/l, 1/l, 1/l)`: every entry in N/mm, so that eigenvalues compare.
 pub fn scaled(k: &Mat6, length_scale: f64) -> Mat6 {
-    let d = weigh_rotations(&Vec6::repeat(1.0), 1.0 / length_scale);
+    let d = length_weights(length_scale);
     Mat6::from_fn(|i, j| k[(i, j)] * d[i] * d[j])
 }
 
-/// The diagonal `E` that brings a length-scaled stiffness to a unit diagonal (`E Ks E`). A diagonal entry
-/// that is round-off (below `CANCELLATION_TOLERANCE` of its terms' size `ms`) or not positive is scaled as
-/// the largest diagonal is, so that noise is never magnified into a stiffness.
-fn equilibration(ks: &Mat6, ms: &Mat6) -> Vec6 {
-    let largest = (0..6).map(|i| ks[(i, i)]).fold(0.0f64, f64::max);
+/// The length-scaled stiffness brought to a unit diagonal, `T K T` with `T = D E`: `D` weighs rotations by
+/// the length scale (`scaled`), `E` brings the diagonal to one. A diagonal entry that is round-off (below
+/// `CANCELLATION_TOLERANCE` of its terms' size `magnitude`) or not positive is scaled as the largest
+/// diagonal is, so that noise is never magnified into a stiffness. Returns the matrix and `T`'s diagonal.
+fn equilibrated(k: &Mat6, magnitude: &Vec6, length_scale: f64) -> (Mat6, Vec6) {
+    let d = length_weights(length_scale);
+    let diagonal = Vec6::from_fn(|i, _| k[(i, i)] * d[i] * d[i]);
+    let largest = diagonal.max().max(0.0);
     let fallback = if largest > 0.0 { 1.0 / largest.sqrt() } else { 1.0 };
-    Vec6::from_fn(|i, _| {
-        let d = ks[(i, i)];
-        if d > CANCELLATION_TOLERANCE * ms[(i, i)] && d > 0.0 {
-            1.0 / d.sqrt()
-        } else {
-            fallback
-        }
-    })
+    let t = Vec6::from_fn(|i, _| {
+        let s = diagonal[i];
+        let e =
+            if s > CANCELLATION_TOLERANCE * magnitude[i] * d[i] * d[i] && s > 0.0 { 1.0 / s.sqrt() } else { fallback };
+        d[i] * e
+    });
+    (Mat6::from_fn(|i, j| k[(i, j)] * t[i] * t[j]), t)
 }
 
-/// The length-scaled stiffness brought to a unit diagonal, and the scaling used.
-fn equilibrated(k: &Mat6, magnitude: &Mat6, length_scale: f64) -> (Mat6, Vec6) {
-    let ks = scaled(k, length_scale);
-    let e = equilibration(&ks, &scaled(magnitude, length_scale));
-    (Mat6::from_fn(|i, j| ks[(i, j)] * e[i] * e[j]), e)
+/// `diag(1, 1, 1, 1/l, 1/l, 1/l)`: rotations weighed against translations by the length scale `l`.
+fn length_weights(length_scale: f64) -> Vec6 {
+    weigh_rotations(&Vec6::repeat(1.0), 1.0 / length_scale)
 }
 
-/// Eigenvalues (ascending) of a symmetric 3x3 matrix by nalgebra's iterative solver with an iteration
-/// cap: accurate at repeated roots, where the closed-form trigonometric method loses half its digits. None
-/// on non-finite input.
+/// Eigenvalues (ascending) of a symmetric 3x3 matrix. The closed-form trigonometric method is exact away
+/// from repeated roots, but loses half its digits near them (its angle is an arccos near +-1, as on the
+/// Orthoglide's diagonal x = y = z): there nalgebra's iterative solver (with an iteration cap) takes over.
+/// None on non-finite input.
 pub fn symmetric_eigenvalues3(m: &Mat3) -> Option<[f64; 3]> {
     if !m.iter().all(|v| v.is_finite()) {
         return None;
+    }
+    let p1 = m[(0, 1)].powi(2) + m[(0, 2)].powi(2) + m[(1, 2)].powi(2);
+    let tr = m.trace();
+    let q = tr / 3.0;
+    let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    if p > 0.0 {
+        let r = ((m - Mat3::identity() * q) / p).determinant() / 2.0;
+        // |r| = 1 exactly at a double root; 1e-3 away the arccos has lost at most ~5e-15 of its argument.
+        if r.abs() < 1.0 - 1e-3 {
+            let phi = r.acos() / 3.0;
+            let largest = q + 2.0 * p * phi.cos();
+            let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+            return Some([smallest, tr - largest - smallest, largest]);
+        }
     }
     let e = SymmetricEigen::try_new(*m, f64::EPSILON, MAX_SWEEPS)?.eigenvalues;
     let mut v = [e[0], e[1], e[2]];
@@ -111,49 +128,91 @@ pub fn symmetric_eigenvalues3(m: &Mat3) -> Option<[f64; 3]> {
 /// Smallest eigenvalue of the symmetric part of the equilibrated stiffness, relative to the largest:
 /// positive exactly where the stiffness is positive definite (the stability test of loaded mode).
 fn definiteness(ke: &Mat6) -> Option<f64> {
-    let e = SymmetricEigen::try_new((ke + ke.transpose()) * 0.5, f64::EPSILON, MAX_SWEEPS)?.eigenvalues;
+    Some(relative_smallest(&capped_eigenvalues(&((ke + ke.transpose()) * 0.5))?))
+}
+
+/// The smallest eigenvalue over the largest magnitude (0 for a zero matrix).
+fn relative_smallest(e: &Vec6) -> f64 {
     let largest = e.abs().max();
-    Some(if largest > 0.0 { e.min() / largest } else { 0.0 })
+    if largest > 0.0 {
+        e.min() / largest
+    } else {
+        0.0
+    }
 }
 
 /// The symmetric part of `k` is positive definite, decided on the equilibrated matrix with the rank
 /// tolerance. `magnitude`: the entrywise sum of the legs' |K_i| (`Aggregate::magnitude`).
-pub fn positive_definite(k: &Mat6, magnitude: &Mat6, length_scale: f64) -> bool {
+pub fn positive_definite(k: &Mat6, magnitude: &Vec6, length_scale: f64) -> bool {
     definiteness(&equilibrated(k, magnitude, length_scale).0).is_some_and(|d| d > RANK_TOLERANCE)
 }
 
 /// Rank, conditioning, definiteness and (where meaningful) the compliance of a 6x6 stiffness. `magnitude`:
-/// the entrywise sum of the legs' |K_i| (`Aggregate::magnitude`; `k.abs()` where K is not a sum).
+/// the diagonal of the entrywise sum of the sizes of the legs' terms (`Aggregate::magnitude`; K's own
+/// diagonal magnitudes where K is not a sum).
 /// `symmetric`: K is symmetric by theory (unloaded), so C is symmetrised; otherwise (loaded tangent
 /// stiffness) C is the full inverse.
-pub fn analyse(k: &Mat6, magnitude: &Mat6, length_scale: f64, symmetric: bool) -> Analysis {
+pub fn analyse(k: &Mat6, magnitude: &Vec6, length_scale: f64, symmetric: bool) -> Analysis {
+    let not_finite = Analysis { outcome: Outcome::NotFinite, condition: f64::NAN, positive_definite: false };
     if !k.iter().all(|v| v.is_finite()) {
-        return Analysis { outcome: Outcome::NotFinite, condition: f64::NAN, positive_definite: false };
+        return not_finite;
     }
-    let (ke, e) = equilibrated(k, magnitude, length_scale);
-    let positive_definite = definiteness(&ke).is_some_and(|d| d > RANK_TOLERANCE);
-    let Some(svd) = SVD::try_new(ke, false, true, f64::EPSILON, MAX_SWEEPS) else {
-        return Analysis { outcome: Outcome::NotFinite, condition: f64::NAN, positive_definite: false };
+    let (ke, t) = equilibrated(k, magnitude, length_scale);
+    let compliance_of = |inv: &Mat6| {
+        // C = K^-1 = T (T K T)^-1 T
+        let c = Mat6::from_fn(|i, j| inv[(i, j)] * t[i] * t[j]);
+        if symmetric {
+            (c + c.transpose()) * 0.5
+        } else {
+            c
+        }
     };
+    // The common case first, at the cost of one factorisation: the inverse (Cholesky where K is symmetric,
+    // which succeeds only where it is positive definite; LU with pivoting otherwise) and the exact 1-norm
+    // condition number from it. Within the limit the rank is full and, for a symmetric K, definiteness
+    // is settled too (lambda_min / lambda_max >= 1 / (6 condition)).
+    let inverse = if symmetric { ke.cholesky().map(|c| c.inverse()) } else { ke.lu().try_inverse() };
+    let inverse = inverse.filter(|inv| inv.iter().all(|v| v.is_finite()));
+    let condition = inverse.as_ref().map_or(f64::INFINITY, |inv| norm1(&ke) * norm1(inv));
+    if condition <= CONDITION_LIMIT {
+        let inv = inverse.expect("a finite condition comes from an inverse");
+        let positive_definite = symmetric || definiteness(&ke).is_some_and(|d| d > RANK_TOLERANCE);
+        return Analysis {
+            outcome: Outcome::Regular { compliance: compliance_of(&inv) },
+            condition,
+            positive_definite,
+        };
+    }
+    // Ill-conditioned, singular or indefinite: eigenvalues of the symmetric part for definiteness, singular
+    // values for the rank (an SVD), vectors for the free directions.
+    let Some(values) = capped_eigenvalues(&((ke + ke.transpose()) * 0.5)) else { return not_finite };
+    let positive_definite = relative_smallest(&values) > RANK_TOLERANCE;
+    let Some(svd) = SVD::try_new(ke, false, true, f64::EPSILON, MAX_SWEEPS) else { return not_finite };
     let sigma_max = svd.singular_values.max();
-    let sigma_min = svd.singular_values.min();
-    let condition = if sigma_min > 0.0 { sigma_max / sigma_min } else { f64::INFINITY };
     let rank = svd.singular_values.iter().filter(|s| **s > RANK_TOLERANCE * sigma_max).count();
     if rank < 6 {
-        let v_t = svd.v_t.expect("requested");
-        let free = free_directions(&v_t, &svd.singular_values, sigma_max, &e, length_scale);
-        return Analysis { outcome: Outcome::Singular { rank, free }, condition, positive_definite };
+        let e = t.component_div(&length_weights(length_scale));
+        let free = free_directions(&svd.v_t.expect("requested"), &svd.singular_values, sigma_max, &e, length_scale);
+        return Analysis { outcome: Outcome::Singular { rank, free }, condition: f64::INFINITY, positive_definite };
     }
-    if condition > CONDITION_LIMIT {
-        return Analysis { outcome: Outcome::IllConditioned, condition, positive_definite };
-    }
-    let Some(inv) = ke.lu().try_inverse() else {
-        return Analysis { outcome: Outcome::IllConditioned, condition, positive_definite };
+    // Full rank: the condition from an LU inverse where Cholesky failed (an indefinite symmetric K).
+    let condition = match (&inverse, ke.lu().try_inverse()) {
+        (None, Some(inv)) => norm1(&ke) * norm1(&inv),
+        _ => condition,
     };
-    // C = K^-1 = D E (E D K D E)^-1 E D
-    let c = scaled(&Mat6::from_fn(|i, j| inv[(i, j)] * e[i] * e[j]), length_scale);
-    let compliance = if symmetric { (c + c.transpose()) * 0.5 } else { c };
-    Analysis { outcome: Outcome::Regular { compliance }, condition, positive_definite }
+    Analysis { outcome: Outcome::IllConditioned, condition, positive_definite }
+}
+
+/// The matrix 1-norm: the largest column sum of magnitudes.
+fn norm1(m: &Mat6) -> f64 {
+    m.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max)
+}
+
+/// Eigenvalues of a symmetric 6x6 matrix, without eigenvectors. nalgebra's eigenvalue-only solve has no
+/// iteration cap, so it is called only on finite entries of bounded size (an equilibrated matrix has a
+/// unit diagonal), where its shifted QR converges.
+fn capped_eigenvalues(m: &Mat6) -> Option<Vec6> {
+    (m.iter().all(|v| v.is_finite() && v.abs() < 1e150)).then(|| m.symmetric_eigenvalues())
 }
 
 /// The null space of the equilibrated stiffness mapped back to twists: orthonormal in the length-scaled

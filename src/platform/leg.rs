@@ -19,9 +19,9 @@ pub struct LegResponse {
     /// Tangent stiffness at the reference point, base frame: minus the derivative of `wrench` with respect
     /// to the platform's displacement (singular on its own, never inverted).
     pub stiffness: Mat6,
-    /// Entrywise size of the terms that made `stiffness` (`frame::shift_magnitude`), for telling round-off
-    /// from small stiffness (`compliance::analyse`).
-    pub magnitude: Mat6,
+    /// Size of the terms that made each diagonal entry of `stiffness` (`frame::shift_magnitude`), for
+    /// telling round-off from small stiffness (`compliance::analyse`).
+    pub magnitude: Vec6,
     /// The leg's equilibrium is stable with its end held (always true unloaded).
     pub stable: bool,
     /// Newton iterations of the equilibrium (0 unloaded).
@@ -592,8 +592,10 @@ pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> AtReferenceP
     let geometric: Mat3 = skew(&f) * skew(v);
     let mut block = stiffness.fixed_view_mut::<3, 3>(3, 3);
     block += geometric;
-    let mut block = magnitude.fixed_view_mut::<3, 3>(3, 3);
-    block += skew(&f).abs() * skew(v).abs();
+    let geometric_size = skew(&f).abs() * skew(v).abs();
+    for i in 0..3 {
+        magnitude[3 + i] += geometric_size[(i, i)];
+    }
     AtReferencePoint { wrench: Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z), stiffness, magnitude }
 }
 
@@ -602,7 +604,7 @@ pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> AtReferenceP
 pub struct AtReferencePoint {
     pub wrench: Vec6,
     pub stiffness: Mat6,
-    pub magnitude: Mat6,
+    pub magnitude: Vec6,
 }
 
 /// A leg's linearised equilibrium seen from the platform: one Newton step of the whole manipulator
@@ -617,8 +619,8 @@ pub struct LegLinear {
     pub corrected_force: Vec6,
     /// Tangent stiffness at the reference point.
     pub stiffness: Mat6,
-    /// Entrywise size of its terms (`LegResponse::magnitude`).
-    pub magnitude: Mat6,
+    /// Size of its diagonal's terms (`LegResponse::magnitude`).
+    pub magnitude: Vec6,
     /// How far the configuration linearised is from the leg's equilibrium (rad or mm, see
     /// `Linearization::distance_from_equilibrium`).
     pub distance: f64,

@@ -14,8 +14,8 @@ pub struct Held {
     pub force: Vec6,
     /// Tangent stiffness dF/dt at the reference point.
     pub stiffness: Mat6,
-    /// Entrywise sum of the legs' |K_i| (see `Aggregate::magnitude`).
-    pub magnitude: Mat6,
+    /// The size of the legs' terms on each diagonal entry (see `Aggregate::magnitude`).
+    pub magnitude: Vec6,
     /// Legs whose equilibrium is unstable with their end held, as bits (leg i -> bit min(i, 63)).
     pub unstable_legs: u64,
     /// Most Newton iterations over the legs.
@@ -97,7 +97,7 @@ impl Manipulator {
         let mut held = Held {
             force: Vec6::zeros(),
             stiffness: Mat6::zeros(),
-            magnitude: Mat6::zeros(),
+            magnitude: Vec6::zeros(),
             unstable_legs: 0,
             iterations: 0,
         };
@@ -149,7 +149,7 @@ impl Manipulator {
                     leg.advance(l, &step, 1.0, s);
                 }
                 *t = apply_twist(t, &step);
-                let magnitude: Mat6 = lins.iter().map(|l| l.magnitude).sum();
+                let magnitude: Vec6 = lins.iter().map(|l| l.magnitude).sum();
                 return Ok((
                     Held { force: force + stiffness * step, stiffness, magnitude, unstable_legs, iterations: it + 1 },
                     it + 1,

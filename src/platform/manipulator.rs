@@ -27,9 +27,10 @@ pub struct ManipulatorState {
 pub struct Aggregate {
     pub wrench: Vec6,
     pub stiffness: Mat6,
-    /// Entrywise sum of the legs' |K_i|: the size of what was added, so that an entry of the sum that
-    /// cancelled to round-off can be told from a genuinely small one (`compliance::analyse`).
-    pub magnitude: Mat6,
+    /// The size of the legs' terms on each diagonal entry (the sum of their `LegResponse::magnitude`), so
+    /// that a diagonal entry that cancelled to round-off can be told from a genuinely small one
+    /// (`compliance::analyse`).
+    pub magnitude: Vec6,
 }
 
 /// Which leg failed, and how.
@@ -73,7 +74,7 @@ impl Manipulator {
         mut each: impl FnMut(usize, &LegResponse),
     ) -> Result<Aggregate, PoseFailure> {
         self.place(platform, state)?;
-        let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros(), magnitude: Mat6::zeros() };
+        let mut total = Aggregate { wrench: Vec6::zeros(), stiffness: Mat6::zeros(), magnitude: Vec6::zeros() };
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
             let r = leg.respond_unloaded(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
             total.wrench += r.wrench;

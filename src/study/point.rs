@@ -93,7 +93,7 @@ impl PointResult {
     /// K is a tangent stiffness (not symmetric in general; its full inverse is written, and an indefinite
     /// symmetric part is instability, decided by the caller); else K is symmetric positive semi-definite
     /// by theory, so an indefinite one can only come from lost digits.
-    fn from_stiffness(k: Mat6, magnitude: &Mat6, length_scale: f64, loaded: bool) -> Self {
+    fn from_stiffness(k: Mat6, magnitude: &Vec6, length_scale: f64, loaded: bool) -> Self {
         let a = analyse(&k, magnitude, length_scale, !loaded);
         let base = PointResult { stiffness: Some(k), condition: Some(a.condition), ..PointResult::failed(Status::Ok) };
         match a.outcome {
