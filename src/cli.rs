@@ -297,7 +297,7 @@ fn parse_assignment(s: &str) -> Result<(String, f64), String> {
 
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// Worker threads (default: all cores). The output is the same for any number.
+    /// Worker threads (default and 0: all cores; at most 1024). The output is the same for any number.
     #[arg(long)]
     pub threads: Option<usize>,
     /// No progress bar.
@@ -322,11 +322,18 @@ pub struct PointArgs {
 }
 
 fn parse_numbers(s: &str, n: usize) -> Result<Vec<f64>, String> {
-    let v: Result<Vec<f64>, _> = s.split(',').map(|t| t.trim().parse::<f64>()).collect();
-    match v {
-        Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
-        _ => Err(format!("expected {n} comma-separated numbers, got `{s}`")),
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != n {
+        return Err(format!("expected {n} comma-separated numbers, got {} in `{s}`", parts.len()));
     }
+    parts
+        .iter()
+        .map(|t| match t.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => Err(crate::model::grid::not_finite(t)),
+            Err(_) => Err(format!("`{t}` is not a number")),
+        })
+        .collect()
 }
 
 fn parse_vec3(s: &str) -> Result<Vec3, String> {
@@ -353,12 +360,21 @@ pub fn run() -> Result<()> {
     }
 }
 
+/// Most worker threads a run starts: each holds its own buffers and a run in flight, and starting a
+/// million of them hangs the pool setup.
+const MAX_THREADS: usize = 1024;
+
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut b = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
-        if n == 0 {
-            bail!("--threads must be at least 1");
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        if n > MAX_THREADS {
+            bail!(
+                "--threads {n} is more than stiff starts ({MAX_THREADS}): this machine has {cores} cores, and \
+                 threads beyond the cores only add overhead (0 means all cores)"
+            );
         }
+        // 0: all cores (rayon's default), as ripgrep reads it.
         b = b.num_threads(n);
     }
     b.build().context("cannot start the worker threads")
@@ -469,7 +485,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let d = select::diagnose(&problem, sigma, source, &options)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
-    print!("{}", report::text(&d, &name));
+    write_stdout(&report::text(&d, &name))?;
     let json = report::json(&d, &name);
     if let Some(path) = &a.json {
         let mut sink = Sink::create(Some(path))?;
@@ -508,13 +524,10 @@ fn synth(a: SynthArgs) -> Result<()> {
     if !(a.noise >= 0.0 && a.noise.is_finite()) {
         bail!("--noise must be >= 0 (mm)");
     }
-    let mut set = point_set(&a.grid, &a.points)?;
-    let mut points = Vec::new();
-    while set.next_block(4096, &mut points)? > 0 {}
+    let mut points = point_set(&a.grid, &a.points)?;
     let options = synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats };
-    let (text, skipped) = synth::synthesize(&model, &points, &options).map_err(|e| anyhow::anyhow!(e))?;
     let mut sink = Sink::create(a.output.as_deref())?;
-    sink.writer().write_all(text.as_bytes())?;
+    let skipped = synth::synthesize(&model, &mut points, &options, sink.writer())?;
     sink.finish()?;
     if skipped > 0 {
         eprintln!("{skipped} poses left out (unreachable or singular)");
@@ -528,13 +541,21 @@ fn point(a: PointArgs) -> Result<()> {
         PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
-    print!("{}", point_report(&model.name, &p, &r, false));
+    let mut text = point_report(&model.name, &p, &r, false);
     if let Some(w) = &a.wrench {
         let loaded = loaded_point(&model, &p, w, &mut state, &mut LoadedHistory::default());
-        println!("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)");
-        print!("{}", point_report(&model.name, &p, &loaded, true));
+        text.push_str("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)\n");
+        text.push_str(&point_report(&model.name, &p, &loaded, true));
     }
-    Ok(())
+    write_stdout(&text)
+}
+
+/// Writes a report to stdout, reporting a failed write (a full disk, a closed pipe) instead of panicking
+/// as `print!` does.
+fn write_stdout(text: &str) -> Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes()).and_then(|_| out.flush()).context("cannot write to stdout")
 }
 
 fn curve(a: CurveArgs) -> Result<()> {

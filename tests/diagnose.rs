@@ -12,6 +12,7 @@ use stiff::diagnose::fit::Problem;
 use stiff::diagnose::report::corrected_model;
 use stiff::diagnose::select::{diagnose, noise, Diagnosis, Options, Verdict};
 use stiff::diagnose::synth::{synthesize, SynthOptions};
+use stiff::model::grid::PointSet;
 use stiff::kinematics::frame::{Vec3, Vec6};
 use stiff::model::grid::PosePoint;
 use stiff::platform::manipulator::Manipulator;
@@ -50,7 +51,8 @@ fn wrenches() -> Vec<Vec6> {
 
 fn synth(m: &Manipulator, effects: &[Effect], wrenches: &[Vec6], noise_mm: f64, seed: u64) -> Dataset {
     let o = SynthOptions { effects: effects.to_vec(), wrenches: wrenches.to_vec(), noise: noise_mm, seed, repeats: 1 };
-    let (text, _) = synthesize(m, &poses(), &o).unwrap();
+    let mut text = Vec::new();
+    synthesize(m, &mut PointSet::from_points(poses()), &o, &mut text).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("data.csv");
     std::fs::write(&path, text).unwrap();

@@ -128,7 +128,9 @@ fn diagnose_plot_has_arrows_and_bars() {
     }
     let effect = stiff::diagnose::effects::Effect::parse("tool-offset=0.05,0,0", &m).unwrap();
     let o = stiff::diagnose::synth::SynthOptions { effects: vec![effect], wrenches, noise: 0.002, seed: 1, repeats: 1 };
-    let (text, _) = stiff::diagnose::synth::synthesize(&m, &points, &o).unwrap();
+    let mut text = Vec::new();
+    let mut points = stiff::model::grid::PointSet::from_points(points);
+    stiff::diagnose::synth::synthesize(&m, &mut points, &o, &mut text).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("d.csv");
     std::fs::write(&path, text).unwrap();

@@ -7,7 +7,7 @@ use super::data::{Dataset, Measurement, Pose, REQUIRED};
 use super::effects::{Effect, Kind, PoseModel};
 use super::fit::Problem;
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
-use crate::model::grid::PosePoint;
+use crate::model::grid::PointSet;
 use crate::output::table::{push_number, push_text};
 use crate::platform::manipulator::Manipulator;
 
@@ -28,57 +28,125 @@ fn normal(rng: &mut impl Rng) -> f64 {
     (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
 }
 
-/// The CSV text and the number of poses left out as unreachable or singular.
-pub fn synthesize(m: &Manipulator, points: &[PosePoint], o: &SynthOptions) -> Result<(String, usize), String> {
+/// Poses measured per block: the data set a block builds (its predictions need every row's model) is
+/// bounded by this, so memory does not grow with the grid.
+const BLOCK: usize = 256;
+
+/// Writes the measurements of every pose of `points` to `out`, block by block (a pose's id is its name or
+/// `p` and its index in the input), and returns the number of poses left out as unreachable or singular.
+/// The noise generator is drawn in row order, so the bytes do not depend on the block size.
+pub fn synthesize(
+    m: &Manipulator,
+    points: &mut PointSet,
+    o: &SynthOptions,
+    out: &mut dyn std::io::Write,
+) -> Result<usize, SynthError> {
     let mut state = m.new_state();
-    let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
-    let mut skipped = 0;
-    for (i, p) in points.iter().enumerate() {
-        if PoseModel::at(m, &Frame::translation(p.position), &mut state).is_err() {
-            skipped += 1;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(o.seed);
+    out.write_all((REQUIRED.join(",") + ",sigma_mm\n").as_bytes())?;
+    let (mut skipped, mut written, mut index) = (0, 0, 0usize);
+    let mut block = Vec::with_capacity(BLOCK);
+    loop {
+        block.clear();
+        if points.next_block(BLOCK, &mut block)? == 0 {
+            break;
+        }
+        let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
+        for p in &block {
+            let i = index;
+            index += 1;
+            if PoseModel::at(m, &Frame::translation(p.position), &mut state).is_err() {
+                skipped += 1;
+                continue;
+            }
+            let id = p.name.clone().unwrap_or_else(|| format!("p{i}"));
+            let mut pose = Pose { id: id.clone(), position: p.position, rows: Vec::new() };
+            for w in &o.wrenches {
+                for _ in 0..o.repeats.max(1) {
+                    pose.rows.push(data.rows.len());
+                    data.rows.push(Measurement {
+                        pose_id: id.clone(),
+                        position: p.position,
+                        wrench: *w,
+                        displacement: Vec3::zeros(),
+                        sigma: Some(o.noise),
+                        line: 0,
+                    });
+                }
+            }
+            data.poses.push(pose);
+        }
+        if data.rows.is_empty() {
             continue;
         }
-        let id = p.name.clone().unwrap_or_else(|| format!("p{i}"));
-        let mut pose = Pose { id: id.clone(), position: p.position, rows: Vec::new() };
-        for w in &o.wrenches {
-            for _ in 0..o.repeats.max(1) {
-                pose.rows.push(data.rows.len());
-                data.rows.push(Measurement {
-                    pose_id: id.clone(),
-                    position: p.position,
-                    wrench: *w,
-                    displacement: Vec3::zeros(),
-                    sigma: Some(o.noise),
-                    line: 0,
-                });
+        let loaded = o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
+        let weights = vec![1.0; data.rows.len()];
+        let problem = Problem::new(m, &data, weights, false, loaded)
+            .map_err(|b| SynthError::Pose(format!("pose {}: {}", b.pose_id, b.why)))?;
+        let rows: Vec<usize> = (0..data.rows.len()).collect();
+        let predicted = problem.predict(&o.effects, &rows).map_err(SynthError::Pose)?;
+        let mut text = String::new();
+        for (row, d) in data.rows.iter().zip(predicted) {
+            push_text(&mut text, &row.pose_id);
+            let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
+            for v in row.position.iter().chain(row.wrench.iter()).chain(noisy.iter()) {
+                text.push(',');
+                push_number(&mut text, *v);
             }
-        }
-        data.poses.push(pose);
-    }
-    if data.rows.is_empty() {
-        return Err("no reachable pose to measure".into());
-    }
-    let loaded = o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
-    let weights = vec![1.0; data.rows.len()];
-    let problem =
-        Problem::new(m, &data, weights, false, loaded).map_err(|b| format!("pose {}: {}", b.pose_id, b.why))?;
-    let rows: Vec<usize> = (0..data.rows.len()).collect();
-    let predicted = problem.predict(&o.effects, &rows)?;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(o.seed);
-    let mut text = REQUIRED.join(",") + ",sigma_mm\n";
-    for (row, d) in data.rows.iter().zip(predicted) {
-        push_text(&mut text, &row.pose_id);
-        let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
-        for v in row.position.iter().chain(row.wrench.iter()).chain(noisy.iter()) {
+            // Noise-free data has no sigma (a zero sigma is not a measurement's).
             text.push(',');
-            push_number(&mut text, *v);
+            if o.noise > 0.0 {
+                push_number(&mut text, o.noise);
+            }
+            text.push('\n');
         }
-        // Noise-free data has no sigma (a zero sigma is not a measurement's).
-        text.push(',');
-        if o.noise > 0.0 {
-            push_number(&mut text, o.noise);
-        }
-        text.push('\n');
+        out.write_all(text.as_bytes())?;
+        written += data.rows.len();
     }
-    Ok((text, skipped))
+    if written == 0 {
+        return Err(SynthError::Pose("no reachable pose to measure".into()));
+    }
+    Ok(skipped)
+}
+
+/// Why synthetic data could not be written.
+#[derive(Debug)]
+pub enum SynthError {
+    /// The points file could not be read.
+    Input(crate::model::error::InputError),
+    /// A pose could not be modelled (the message says which and why).
+    Pose(String),
+    /// Writing the output failed (a closed pipe, a full disk).
+    Write(std::io::Error),
+}
+
+impl std::fmt::Display for SynthError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SynthError::Input(e) => write!(f, "{e}"),
+            SynthError::Pose(why) => write!(f, "{why}"),
+            SynthError::Write(e) => write!(f, "cannot write the measurements: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for SynthError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            SynthError::Write(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<std::io::Error> for SynthError {
+    fn from(e: std::io::Error) -> Self {
+        SynthError::Write(e)
+    }
+}
+
+impl From<crate::model::error::InputError> for SynthError {
+    fn from(e: crate::model::error::InputError) -> Self {
+        SynthError::Input(e)
+    }
 }

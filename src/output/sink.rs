@@ -1,13 +1,51 @@
-//! Where a study's rows go: stdout, or a file written through a temporary file in the same folder and
-//! renamed into place on success, so an interrupted or failed run never leaves a file that looks complete.
+//! Where a study's rows go: stdout; a regular file, written through a temporary file in the same folder and
+//! renamed into place on success, so an interrupted or failed run never leaves a file that looks complete;
+//! or anything else that exists and is not a regular file (`/dev/null`, a FIFO), written through directly,
+//! since renaming over it would replace the device node by a plain file.
+//!
+//! The temporary files in use are registered, so that Ctrl-C or SIGTERM removes them before the process
+//! exits (`install_signal_cleanup`). A SIGKILL cannot be caught: it leaves a hidden `.stiff-XXXXXX.partial`
+//! beside the target (README).
 
+use std::fs::{File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use anyhow::{anyhow, bail, Context, Result};
 
+/// Temporary files being written, removed if the process is interrupted.
+static PARTIAL: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// On SIGINT, SIGTERM or SIGHUP: remove every registered temporary file, then exit with 130 (the shell's
+/// code for an interrupted command). Call once at start-up.
+pub fn install_signal_cleanup() {
+    let _ = ctrlc::set_handler(|| {
+        if let Ok(files) = PARTIAL.lock() {
+            for f in files.iter() {
+                let _ = std::fs::remove_file(f);
+            }
+        }
+        std::process::exit(130);
+    });
+}
+
+fn register(path: &Path) {
+    if let Ok(mut files) = PARTIAL.lock() {
+        files.push(path.to_path_buf());
+    }
+}
+
+fn unregister(path: &Path) {
+    if let Ok(mut files) = PARTIAL.lock() {
+        files.retain(|f| f != path);
+    }
+}
+
 pub enum Sink {
     Stdout(BufWriter<io::Stdout>),
+    /// An existing path that is not a regular file: written in place.
+    Direct { file: BufWriter<File>, path: PathBuf },
     File { temp: BufWriter<tempfile::NamedTempFile>, path: PathBuf },
 }
 
@@ -20,13 +58,22 @@ impl Sink {
             Some(p) if p.as_os_str() == "-" => return Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
             Some(p) => p,
         };
+        if p.is_dir() {
+            bail!("cannot write {}: it is a folder", p.display());
+        }
+        if let Ok(meta) = std::fs::metadata(p) {
+            if !meta.is_file() {
+                let file = OpenOptions::new()
+                    .write(true)
+                    .open(p)
+                    .map_err(|e| anyhow!("cannot write {}: {}", p.display(), e.kind()))?;
+                return Ok(Sink::Direct { file: BufWriter::with_capacity(1 << 20, file), path: p.to_path_buf() });
+            }
+        }
         let dir = match p.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        if p.is_dir() {
-            bail!("cannot write {}: it is a folder", p.display());
-        }
         if !dir.is_dir() {
             bail!("cannot write {}: the folder {} does not exist", p.display(), dir.display());
         }
@@ -35,12 +82,14 @@ impl Sink {
             .suffix(".partial")
             .tempfile_in(&dir)
             .map_err(|e| anyhow!("cannot write {}: {}", p.display(), e.kind()))?;
+        register(temp.path());
         Ok(Sink::File { temp: BufWriter::with_capacity(1 << 20, temp), path: p.to_path_buf() })
     }
 
     pub fn writer(&mut self) -> &mut (dyn Write + Send) {
         match self {
             Sink::Stdout(w) => w,
+            Sink::Direct { file, .. } => file,
             Sink::File { temp, .. } => temp,
         }
     }
@@ -49,6 +98,7 @@ impl Sink {
     pub fn finish(self) -> Result<()> {
         match self {
             Sink::Stdout(mut w) => w.flush().context("cannot write to stdout"),
+            Sink::Direct { mut file, path } => file.flush().with_context(|| format!("cannot write {}", path.display())),
             Sink::File { temp, path } => {
                 let temp = temp
                     .into_inner()
@@ -59,10 +109,13 @@ impl Sink {
                     use std::os::unix::fs::PermissionsExt;
                     let _ = temp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644));
                 }
-                temp.persist(&path)
+                let temp_path = temp.path().to_path_buf();
+                let result = temp
+                    .persist(&path)
                     .map_err(|e| e.error)
-                    .with_context(|| format!("cannot move the result to {}", path.display()))?;
-                Ok(())
+                    .with_context(|| format!("cannot move the result to {}", path.display()));
+                unregister(&temp_path);
+                result.map(|_| ())
             }
         }
     }

@@ -76,13 +76,12 @@ pub fn map_header(c: &MapColumns) -> String {
     s
 }
 
-/// Appends one number in shortest round-trip form.
+/// Appends one number in shortest round-trip form; nothing for a non-finite one (one rule for missing
+/// values everywhere: an empty cell).
 pub fn push_number(out: &mut String, v: f64) {
     if v.is_finite() {
         let mut b = ryu::Buffer::new();
         out.push_str(b.format_finite(v));
-    } else {
-        out.push_str("nan");
     }
 }
 

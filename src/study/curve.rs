@@ -51,6 +51,8 @@ pub enum RowStatus {
     NotConverged {
         residual: f64,
     },
+    /// The equilibrium's numbers overflowed (a load beyond what doubles hold); the curve stops there.
+    Overflow,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -149,6 +151,7 @@ pub fn push_curve_row(out: &mut String, r: &CurveRow) {
                 push_number(out, residual);
             }
         }
+        RowStatus::Overflow => out.push_str("overflow,"),
     }
     out.push(',');
     out.push_str(&r.event);
@@ -230,6 +233,13 @@ impl Tracer<'_> {
 
     fn row(&self, step: usize, target: Target, s: &Solved) -> CurveRow {
         let by_force = matches!(target, Target::Load(_)) && matches!(self.control, Control::Force(_));
+        let finite = s.wrench.iter().chain(s.held.stiffness.iter()).all(|v| v.is_finite())
+            && self.at.error_to(&s.pose).iter().all(|v| v.is_finite());
+        if !finite {
+            let mut row = not_converged_row(step, self, target, f64::NAN);
+            row.status = RowStatus::Overflow;
+            return row;
+        }
         CurveRow {
             step,
             control: if by_force { "force" } else { "displacement" },
@@ -347,6 +357,10 @@ pub fn run_curve(
         match outcome {
             Ok(solved) => {
                 let mut row = tracer.row(step, target, &solved);
+                if row.status == RowStatus::Overflow {
+                    rows.push(row);
+                    break;
+                }
                 if continuation.is_some() && row.load_factor > max {
                     break; // never beyond --max in the quantity the user gave
                 }
@@ -523,12 +537,19 @@ pub fn summary(rows: &[CurveRow], length_scale: f64) -> String {
             r.instability().split(';').filter(|p| p.starts_with("leg")).collect::<Vec<_>>().join(", ")
         ));
     }
-    if let Some(r) = rows.iter().find(|r| !r.converged()) {
-        lines.push(format!(
+    match rows.iter().find(|r| !r.converged()) {
+        Some(r) if r.status == RowStatus::Overflow => lines.push(format!(
+            "step {}: the numbers overflowed (a load beyond what doubles hold); the curve stops there ({} rows \
+             written)",
+            r.step,
+            rows.len()
+        )),
+        Some(r) => lines.push(format!(
             "step {}: no equilibrium found; the curve stops there ({} rows written)",
             r.step,
             rows.len()
-        ));
+        )),
+        None => {}
     }
     lines.push(format!(
         "k_scaled_min weighs rotations by the model's length scale, {length_scale:.6} mm/rad (README: force-deflection curves)"

@@ -8,6 +8,7 @@
 
 use std::collections::BTreeMap;
 use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, sync_channel};
 
 use anyhow::{anyhow, Result};
@@ -47,6 +48,9 @@ where
     for _ in 0..window {
         token_tx.send(()).expect("the token channel holds the window");
     }
+    // Set by the writer at its first failed write (a closed pipe, a full disk): no new run is started.
+    let stop = AtomicBool::new(false);
+    let stop = &stop;
     std::thread::scope(|threads| -> Result<T> {
         let reader = threads.spawn(move || loop {
             let mut run = Vec::with_capacity(RUN);
@@ -75,6 +79,7 @@ where
                     if failure.is_none() {
                         if let Err(e) = out.write_all(text.as_bytes()) {
                             failure = Some(e);
+                            stop.store(true, Ordering::Relaxed);
                         }
                     }
                     tally.merge(&t);
@@ -100,7 +105,7 @@ where
                         break;
                     }
                 };
-                if token_rx.recv().is_err() {
+                if token_rx.recv().is_err() || stop.load(Ordering::Relaxed) {
                     break;
                 }
                 let done = done_tx.clone();

@@ -1,0 +1,387 @@
+//! Mutation fuzzing of the `stiff` binary: a batch tool runs unattended, so no input may make it panic,
+//! hang or abort, and no row whose status says it is fine may carry a non-finite number.
+//!
+//! Each case starts from a valid command on shipped inputs (models, grids, points, error files, measured
+//! data, plot inputs, command-line values) and applies one to three mutations: a number replaced by an
+//! extreme value (0, -1, 1e308, 5e-324, 2^32, nan, inf, ...), a line deleted or duplicated, a file
+//! truncated, an array lengthened. The binary runs with a per-case timeout; at most 256 KB of its stdout is
+//! read before the pipe is closed (so a huge request must stop at the closed pipe, as `head` expects).
+//! A case fails on: exit code 101 or "panicked" on stderr (panic), death by a signal (abort), the
+//! timeout (hang), or a CSV row with status `ok` holding a non-finite number.
+//!
+//! `cargo test --test fuzz` runs a short seeded campaign (400 cases). The long run (README, "Fuzzing"):
+//! `STIFF_FUZZ_CASES=20000 STIFF_FUZZ_SEED=1 cargo test --release --test fuzz -- --nocapture`.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+/// Values that break naive numerics: zero, signs, the extremes of f64, 2^32 (wraps 32-bit counts), and
+/// non-finite text.
+const EXTREMES: [&str; 18] = [
+    "0", "-1", "1e308", "-1e308", "5e-324", "1e-300", "4294967296", "4294967297", "nan", "inf", "-inf", "-0.0",
+    "1e200", "1e-200", "1e18", "18446744073709551616", "0.5", "1000000",
+];
+
+/// Longest a case may run (the slowest shipped commands take well under a second in release).
+const TIMEOUT: Duration = Duration::from_secs(20);
+/// Stdout read before the pipe is closed.
+const STDOUT_LIMIT: usize = 256 * 1024;
+
+#[derive(Debug)]
+#[allow(dead_code)] // the fields are read through Debug in the report
+enum Failure {
+    Panic(String),
+    Signal(i32),
+    Hang,
+    NonFiniteOk(String),
+}
+
+struct Case {
+    args: Vec<String>,
+    /// Files written into the case's folder before the run: (name, content).
+    files: Vec<(String, String)>,
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn shipped(path: &str) -> String {
+    std::fs::read_to_string(root().join(path)).unwrap()
+}
+
+/// Byte ranges of the numbers in a text (a sign, digits, a fraction, an exponent).
+fn numbers(text: &str) -> Vec<(usize, usize)> {
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let starts = b[i].is_ascii_digit() && (i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_'));
+        if starts {
+            let start = if i > 0 && b[i - 1] == b'-' { i - 1 } else { i };
+            let mut j = i;
+            while j < b.len() && (b[j].is_ascii_digit() || b[j] == b'.') {
+                j += 1;
+            }
+            if j < b.len() && (b[j] == b'e' || b[j] == b'E') {
+                let mut k = j + 1;
+                if k < b.len() && (b[k] == b'-' || b[k] == b'+') {
+                    k += 1;
+                }
+                if k < b.len() && b[k].is_ascii_digit() {
+                    j = k;
+                    while j < b.len() && b[j].is_ascii_digit() {
+                        j += 1;
+                    }
+                }
+            }
+            if !(j < b.len() && (b[j].is_ascii_alphabetic() || b[j] == b'_')) {
+                out.push((start, j));
+            }
+            i = j.max(i + 1);
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+fn extreme(r: &mut StdRng) -> &'static str {
+    EXTREMES[r.random_range(0..EXTREMES.len())]
+}
+
+/// One mutation of a text: a number replaced, a line deleted or duplicated, the text truncated, or an
+/// element added to an array.
+fn mutate(text: &str, r: &mut StdRng) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    match r.random_range(0..10) {
+        0..=5 => {
+            let spots = numbers(text);
+            if spots.is_empty() {
+                return text.to_string();
+            }
+            let (a, b) = spots[r.random_range(0..spots.len())];
+            format!("{}{}{}", &text[..a], extreme(r), &text[b..])
+        }
+        6 if !lines.is_empty() => {
+            let k = r.random_range(0..lines.len());
+            lines.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, l)| format!("{l}\n")).collect()
+        }
+        7 if !lines.is_empty() => {
+            let k = r.random_range(0..lines.len());
+            lines.iter().enumerate().map(|(i, l)| if i == k { format!("{l}\n{l}\n") } else { format!("{l}\n") }).collect()
+        }
+        8 => {
+            let cut = r.random_range(0..=text.len());
+            let cut = (0..=cut).rev().find(|&c| text.is_char_boundary(c)).unwrap_or(0);
+            text[..cut].to_string()
+        }
+        _ => match text.match_indices(']').map(|(i, _)| i).collect::<Vec<_>>() {
+            v if v.is_empty() => text.to_string(),
+            v => {
+                let at = v[r.random_range(0..v.len())];
+                format!("{}, {}{}", &text[..at], extreme(r), &text[at..])
+            }
+        },
+    }
+}
+
+/// A command-line value mutated: a number of it replaced, or the whole value replaced.
+fn mutate_value(v: &str, r: &mut StdRng) -> String {
+    if r.random_bool(0.3) {
+        return extreme(r).to_string();
+    }
+    mutate(v, r).trim_end().to_string()
+}
+
+const MODELS: [&str; 7] = [
+    "manipulators/orthoglide-3puu.toml",
+    "manipulators/orthoglide-3prpar.toml",
+    "manipulators/orthoglide-3puu-msa.toml",
+    "manipulators/stewart-gough-a.toml",
+    "manipulators/stewart-gough-b.toml",
+    "manipulators/navaro2.toml",
+    "manipulators/navaro2-leg-passive.toml",
+];
+
+const SMALL_GRID: &str = "[box]\nfrom = [-40, -40, -40]\nto = [40, 40, 40]\nsteps = [2, 2, 2]\nwrench = [215, -10, -25, 1000, 21500, 0]\n";
+const POINTS: &str = "name,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm\nQ0,0,0,0,100,0,0,0,0,0\nQ1,-73.65,-73.65,-73.65,0,50,0,0,1000,0\nfar,126.35,126.35,126.35,0,0,-80,0,0,0\n";
+const DATA: &str = "pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,sigma_mm\n\
+p0,0,0,0,200,0,0,0,0,0,0.056,0.0001,0.0002,0.002\np0,0,0,0,-200,0,0,0,0,0,-0.056,0,0.0001,0.002\n\
+p0,0,0,0,0,200,0,0,0,0,0.0001,0.056,0,0.002\np0,0,0,0,0,0,200,0,0,0,0,0.0001,0.057,0.002\n\
+p1,40,-30,20,200,0,0,0,0,0,0.07,0.002,0.003,0.002\np1,40,-30,20,0,200,0,0,0,0,0.002,0.06,0.001,0.002\n\
+p1,40,-30,20,0,0,200,0,0,0,0.003,0.001,0.065,0.002\np2,-50,20,60,200,0,0,0,0,0,0.05,0.001,0.01,0.002\n\
+p2,-50,20,60,0,200,0,0,0,0,0.001,0.06,0.004,0.002\np2,-50,20,60,0,0,200,0,0,0,0.01,0.004,0.08,0.002\n";
+
+/// A valid command and its input files, then mutated.
+fn case(r: &mut StdRng) -> Case {
+    let model = MODELS[r.random_range(0..MODELS.len())];
+    let model_path = root().join(model).display().to_string();
+    let m = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<String>>();
+    let mut files: Vec<(String, String)> = Vec::new();
+    let mut args: Vec<String> = match r.random_range(0..12) {
+        0 | 1 => {
+            files.push(("grid.toml".into(), SMALL_GRID.into()));
+            m(&["map", &model_path, "--grid", "grid.toml"])
+        }
+        2 => {
+            files.push(("points.csv".into(), POINTS.into()));
+            m(&["map", &model_path, "--points", "points.csv", "--stiffness"])
+        }
+        3 => {
+            files.push(("grid.toml".into(), SMALL_GRID.into()));
+            m(&["map", &model_path, "--grid", "grid.toml", "--wrench", "215,-10,-25,1000,21500,0"])
+        }
+        4 => m(&["point", &model_path, "--at", "10,-20,5", "--wrench", "100,0,0,0,2000,0"]),
+        5 => m(&["curve", &model_path, "--at", "0,0,0", "--wrench-direction", "1,0,0,0,0,0", "--max", "2000", "--steps", "4"]),
+        6 => m(&["curve", &model_path, "--at", "0,0,0", "--displacement-direction", "0,0,1,0,0,0", "--max", "0.5", "--steps", "4"]),
+        7 => {
+            files.push(("errors.toml".into(), shipped("manipulators/errors/orthoglide-case-b.toml")));
+            files.push(("points.csv".into(), POINTS.into()));
+            let samples = if r.random_bool(0.3) { "--samples=3" } else { "--scale=1" };
+            m(&["assemble", &root().join(MODELS[0]).display().to_string(), "--errors", "errors.toml", "--points", "points.csv", samples, "--seed=1"])
+        }
+        8 => {
+            files.push(("data.csv".into(), DATA.into()));
+            m(&["diagnose", &root().join(MODELS[0]).display().to_string(), "--data", "data.csv"])
+        }
+        9 => {
+            files.push(("grid.toml".into(), SMALL_GRID.into()));
+            m(&["synth", &root().join(MODELS[0]).display().to_string(), "--grid", "grid.toml", "--wrenches", "100,0,0,0,0,0;0,0,-100,0,0,0", "--noise", "0.002", "--seed", "3", "--effect", "actuator-compliance:2=1.5"])
+        }
+        10 => {
+            let (name, text) = if r.random_bool(0.5) {
+                ("curve.csv", shipped("tests/golden/curve-small.csv"))
+            } else {
+                ("map.csv", shipped("tests/golden/orthoglide-3puu-small.csv"))
+            };
+            files.push((name.into(), text));
+            m(&["plot", name, "-o", "out.svg"])
+        }
+        _ => {
+            // The model itself mutated (copied with its neighbours, which it may reference).
+            files.push((format!("model:{model}"), shipped(model)));
+            files.push(("grid.toml".into(), SMALL_GRID.into()));
+            m(&["map", "MODEL", "--grid", "grid.toml"])
+        }
+    };
+    // One to three mutations of files or command-line values.
+    for _ in 0..r.random_range(1..=3) {
+        let choice = r.random_range(0..(files.len() + 2));
+        if choice < files.len() {
+            let text = &mut files[choice].1;
+            *text = mutate(text, r);
+        } else if choice == files.len() {
+            // A command-line value (not the subcommand or a path).
+            let k = r.random_range(1..args.len());
+            if !args[k].contains('/') && !args[k].ends_with(".csv") && !args[k].ends_with(".toml") {
+                args[k] = mutate_value(&args[k], r);
+            }
+        } else {
+            // An option added with an extreme value.
+            match r.random_range(0..4) {
+                0 => args.extend(["--threads".into(), ["0", "1", "2", "1000000", "4294967297"][r.random_range(0..5)].into()]),
+                1 => args.extend(["--set".into(), format!("{}={}", ["E", "L", "d_leg", "d_foot", "k_act", "bar_d", "bar_gap", "mode", "h", "R", "k_theta"][r.random_range(0..11)], extreme(r))]),
+                // Device nodes are tested apart (tests/robustness.rs): a regression here must not replace the
+                // machine's /dev/null.
+                2 => args.extend(["-o".into(), ["out.csv", "-", "missing/out.csv", "."][r.random_range(0..4)].into()]),
+                _ => args.extend(["--quiet".into()]),
+            }
+        }
+    }
+    Case { args, files }
+}
+
+/// Runs a case in its own folder; None when nothing went wrong.
+fn run(bin: &Path, c: &Case, dir: &Path) -> Option<Failure> {
+    let mut args = c.args.clone();
+    for (name, text) in &c.files {
+        if let Some(path) = name.strip_prefix("model:") {
+            // Copy the manipulators folder (a model may reference its neighbours), then write the mutated
+            // text over that model.
+            copy_dir(&root().join("manipulators"), &dir.join("manipulators"));
+            std::fs::write(dir.join(path), text).unwrap();
+            for a in args.iter_mut().filter(|a| *a == "MODEL") {
+                *a = dir.join(path).display().to_string();
+            }
+        } else {
+            std::fs::write(dir.join(name), text).unwrap();
+        }
+    }
+    let mut child = Command::new(bin)
+        .args(&args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let out_reader = std::thread::spawn(move || {
+        let mut buf = vec![0u8; STDOUT_LIMIT];
+        let mut n = 0;
+        while n < buf.len() {
+            match stdout.read(&mut buf[n..]) {
+                Ok(0) | Err(_) => break,
+                Ok(k) => n += k,
+            }
+        }
+        buf.truncate(n);
+        buf // the pipe closes here
+    });
+    let err_reader = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        let _ = stderr.read_to_end(&mut s);
+        String::from_utf8_lossy(&s).into_owned()
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if start.elapsed() > TIMEOUT {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    };
+    let out = out_reader.join().unwrap();
+    let err = err_reader.join().unwrap();
+    let Some(status) = status else { return Some(Failure::Hang) };
+    if status.code() == Some(101) || err.contains("panicked") {
+        return Some(Failure::Panic(err.lines().take(3).collect::<Vec<_>>().join(" | ")));
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        if let Some(sig) = status.signal() {
+            return Some(Failure::Signal(sig));
+        }
+    }
+    let mut texts = vec![String::from_utf8_lossy(&out).into_owned()];
+    for name in ["out.csv"] {
+        if let Ok(t) = std::fs::read_to_string(dir.join(name)) {
+            texts.push(t);
+        }
+    }
+    texts.iter().find_map(|t| non_finite_ok_row(t)).map(Failure::NonFiniteOk)
+}
+
+/// A complete CSV row whose `status` is `ok` and which holds a non-finite number.
+fn non_finite_ok_row(text: &str) -> Option<String> {
+    let mut lines = text.split_inclusive('\n').filter(|l| l.ends_with('\n'));
+    let header: Vec<&str> = lines.next()?.trim_end().split(',').collect();
+    let status = header.iter().position(|h| *h == "status")?;
+    for line in lines {
+        let fields: Vec<&str> = line.trim_end().split(',').collect();
+        if fields.get(status) != Some(&"ok") {
+            continue;
+        }
+        let bad = fields.iter().any(|f| {
+            let f = f.trim();
+            f.eq_ignore_ascii_case("nan") || f.to_ascii_lowercase().contains("inf") && f.parse::<f64>().is_ok()
+                || f.parse::<f64>().is_ok_and(|v| !v.is_finite())
+        });
+        if bad {
+            return Some(line.chars().take(300).collect());
+        }
+    }
+    None
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).unwrap();
+        }
+    }
+}
+
+/// Runs `cases` seeded cases and returns the failures with the command that caused each.
+fn campaign(seed: u64, cases: usize) -> Vec<(String, Failure)> {
+    let bin = std::env::var("STIFF_FUZZ_BIN").map(PathBuf::from).unwrap_or_else(|_| PathBuf::from(env!("CARGO_BIN_EXE_stiff")));
+    let mut r = StdRng::seed_from_u64(seed);
+    let mut failures = Vec::new();
+    for k in 0..cases {
+        let c = case(&mut r);
+        let dir = tempfile::tempdir().unwrap();
+        if let Some(f) = run(&bin, &c, dir.path()) {
+            let files: Vec<String> = c.files.iter().map(|(n, t)| format!("{n}:\n{t}")).collect();
+            failures.push((format!("case {k}: stiff {}\n{}", c.args.join(" "), files.join("\n")), f));
+        }
+    }
+    failures
+}
+
+/// The seeded campaign CI runs; `STIFF_FUZZ_CASES` and `STIFF_FUZZ_SEED` make it the long one.
+#[test]
+fn no_input_makes_stiff_panic_hang_abort_or_write_non_finite_ok_rows() {
+    let cases = std::env::var("STIFF_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(400);
+    let seed = std::env::var("STIFF_FUZZ_SEED").ok().and_then(|v| v.parse().ok()).unwrap_or(20261123);
+    let start = Instant::now();
+    let failures = campaign(seed, cases);
+    eprintln!("fuzz: {cases} cases (seed {seed}) in {:.1} s, {} failures", start.elapsed().as_secs_f64(), failures.len());
+    for (what, f) in failures.iter().take(10) {
+        eprintln!("{f:?}\n  {what}\n");
+    }
+    assert!(failures.is_empty(), "{} of {cases} fuzz cases failed (first ones above)", failures.len());
+}
+
+#[test]
+fn mutations_find_every_number() {
+    let spots = numbers("a = [1, -2.5e3, 7]\nx_1 = 3\nk = \"k_act\"\n");
+    let found: Vec<&str> = spots.iter().map(|&(a, b)| &"a = [1, -2.5e3, 7]\nx_1 = 3\nk = \"k_act\"\n"[a..b]).collect();
+    assert_eq!(found, ["1", "-2.5e3", "7", "3"]);
+}
