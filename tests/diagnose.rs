@@ -12,8 +12,8 @@ use stiff::diagnose::fit::Problem;
 use stiff::diagnose::report::corrected_model;
 use stiff::diagnose::select::{diagnose, noise, Diagnosis, Options, Verdict};
 use stiff::diagnose::synth::{synthesize, SynthOptions};
-use stiff::model::grid::PointSet;
 use stiff::kinematics::frame::{Vec3, Vec6};
+use stiff::model::grid::PointSet;
 use stiff::model::grid::PosePoint;
 use stiff::platform::manipulator::Manipulator;
 

@@ -9,7 +9,7 @@
 //! A case fails on: exit code 101 or "panicked" on stderr (panic), death by a signal (abort), the
 //! timeout (hang), or a CSV row with status `ok` holding a non-finite number.
 //!
-//! `cargo test --test fuzz` runs a short seeded campaign (400 cases). The long run (README, "Fuzzing"):
+//! `cargo test --test fuzz` runs a short seeded campaign (2,000 cases, about ten seconds). The long run (README, "Fuzzing"):
 //! `STIFF_FUZZ_CASES=20000 STIFF_FUZZ_SEED=1 cargo test --release --test fuzz -- --nocapture`.
 
 use std::io::Read;
@@ -23,8 +23,24 @@ use rand::{Rng, SeedableRng};
 /// Values that break naive numerics: zero, signs, the extremes of f64, 2^32 (wraps 32-bit counts), and
 /// non-finite text.
 const EXTREMES: [&str; 18] = [
-    "0", "-1", "1e308", "-1e308", "5e-324", "1e-300", "4294967296", "4294967297", "nan", "inf", "-inf", "-0.0",
-    "1e200", "1e-200", "1e18", "18446744073709551616", "0.5", "1000000",
+    "0",
+    "-1",
+    "1e308",
+    "-1e308",
+    "5e-324",
+    "1e-300",
+    "4294967296",
+    "4294967297",
+    "nan",
+    "inf",
+    "-inf",
+    "-0.0",
+    "1e200",
+    "1e-200",
+    "1e18",
+    "18446744073709551616",
+    "0.5",
+    "1000000",
 ];
 
 /// Longest a case may run (the slowest shipped commands take well under a second in release).
@@ -114,7 +130,11 @@ fn mutate(text: &str, r: &mut StdRng) -> String {
         }
         7 if !lines.is_empty() => {
             let k = r.random_range(0..lines.len());
-            lines.iter().enumerate().map(|(i, l)| if i == k { format!("{l}\n{l}\n") } else { format!("{l}\n") }).collect()
+            lines
+                .iter()
+                .enumerate()
+                .map(|(i, l)| if i == k { format!("{l}\n{l}\n") } else { format!("{l}\n") })
+                .collect()
         }
         8 => {
             let cut = r.random_range(0..=text.len());
@@ -149,7 +169,8 @@ const MODELS: [&str; 7] = [
     "manipulators/navaro2-leg-passive.toml",
 ];
 
-const SMALL_GRID: &str = "[box]\nfrom = [-40, -40, -40]\nto = [40, 40, 40]\nsteps = [2, 2, 2]\nwrench = [215, -10, -25, 1000, 21500, 0]\n";
+const SMALL_GRID: &str =
+    "[box]\nfrom = [-40, -40, -40]\nto = [40, 40, 40]\nsteps = [2, 2, 2]\nwrench = [215, -10, -25, 1000, 21500, 0]\n";
 const POINTS: &str = "name,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm\nQ0,0,0,0,100,0,0,0,0,0\nQ1,-73.65,-73.65,-73.65,0,50,0,0,1000,0\nfar,126.35,126.35,126.35,0,0,-80,0,0,0\n";
 const DATA: &str = "pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,sigma_mm\n\
 p0,0,0,0,200,0,0,0,0,0,0.056,0.0001,0.0002,0.002\np0,0,0,0,-200,0,0,0,0,0,-0.056,0,0.0001,0.002\n\
@@ -178,13 +199,44 @@ fn case(r: &mut StdRng) -> Case {
             m(&["map", &model_path, "--grid", "grid.toml", "--wrench", "215,-10,-25,1000,21500,0"])
         }
         4 => m(&["point", &model_path, "--at", "10,-20,5", "--wrench", "100,0,0,0,2000,0"]),
-        5 => m(&["curve", &model_path, "--at", "0,0,0", "--wrench-direction", "1,0,0,0,0,0", "--max", "2000", "--steps", "4"]),
-        6 => m(&["curve", &model_path, "--at", "0,0,0", "--displacement-direction", "0,0,1,0,0,0", "--max", "0.5", "--steps", "4"]),
+        5 => m(&[
+            "curve",
+            &model_path,
+            "--at",
+            "0,0,0",
+            "--wrench-direction",
+            "1,0,0,0,0,0",
+            "--max",
+            "2000",
+            "--steps",
+            "4",
+        ]),
+        6 => m(&[
+            "curve",
+            &model_path,
+            "--at",
+            "0,0,0",
+            "--displacement-direction",
+            "0,0,1,0,0,0",
+            "--max",
+            "0.5",
+            "--steps",
+            "4",
+        ]),
         7 => {
             files.push(("errors.toml".into(), shipped("manipulators/errors/orthoglide-case-b.toml")));
             files.push(("points.csv".into(), POINTS.into()));
             let samples = if r.random_bool(0.3) { "--samples=3" } else { "--scale=1" };
-            m(&["assemble", &root().join(MODELS[0]).display().to_string(), "--errors", "errors.toml", "--points", "points.csv", samples, "--seed=1"])
+            m(&[
+                "assemble",
+                &root().join(MODELS[0]).display().to_string(),
+                "--errors",
+                "errors.toml",
+                "--points",
+                "points.csv",
+                samples,
+                "--seed=1",
+            ])
         }
         8 => {
             files.push(("data.csv".into(), DATA.into()));
@@ -192,7 +244,20 @@ fn case(r: &mut StdRng) -> Case {
         }
         9 => {
             files.push(("grid.toml".into(), SMALL_GRID.into()));
-            m(&["synth", &root().join(MODELS[0]).display().to_string(), "--grid", "grid.toml", "--wrenches", "100,0,0,0,0,0;0,0,-100,0,0,0", "--noise", "0.002", "--seed", "3", "--effect", "actuator-compliance:2=1.5"])
+            m(&[
+                "synth",
+                &root().join(MODELS[0]).display().to_string(),
+                "--grid",
+                "grid.toml",
+                "--wrenches",
+                "100,0,0,0,0,0;0,0,-100,0,0,0",
+                "--noise",
+                "0.002",
+                "--seed",
+                "3",
+                "--effect",
+                "actuator-compliance:2=1.5",
+            ])
         }
         10 => {
             let (name, text) = if r.random_bool(0.5) {
@@ -225,8 +290,19 @@ fn case(r: &mut StdRng) -> Case {
         } else {
             // An option added with an extreme value.
             match r.random_range(0..4) {
-                0 => args.extend(["--threads".into(), ["0", "1", "2", "1000000", "4294967297"][r.random_range(0..5)].into()]),
-                1 => args.extend(["--set".into(), format!("{}={}", ["E", "L", "d_leg", "d_foot", "k_act", "bar_d", "bar_gap", "mode", "h", "R", "k_theta"][r.random_range(0..11)], extreme(r))]),
+                0 => args.extend([
+                    "--threads".into(),
+                    ["0", "1", "2", "1000000", "4294967297"][r.random_range(0..5)].into(),
+                ]),
+                1 => args.extend([
+                    "--set".into(),
+                    format!(
+                        "{}={}",
+                        ["E", "L", "d_leg", "d_foot", "k_act", "bar_d", "bar_gap", "mode", "h", "R", "k_theta"]
+                            [r.random_range(0..11)],
+                        extreme(r)
+                    ),
+                ]),
                 // Device nodes are tested apart (tests/robustness.rs): a regression here must not replace the
                 // machine's /dev/null.
                 2 => args.extend(["-o".into(), ["out.csv", "-", "missing/out.csv", "."][r.random_range(0..4)].into()]),
@@ -326,7 +402,8 @@ fn non_finite_ok_row(text: &str) -> Option<String> {
         }
         let bad = fields.iter().any(|f| {
             let f = f.trim();
-            f.eq_ignore_ascii_case("nan") || f.to_ascii_lowercase().contains("inf") && f.parse::<f64>().is_ok()
+            f.eq_ignore_ascii_case("nan")
+                || f.to_ascii_lowercase().contains("inf") && f.parse::<f64>().is_ok()
                 || f.parse::<f64>().is_ok_and(|v| !v.is_finite())
         });
         if bad {
@@ -351,7 +428,9 @@ fn copy_dir(from: &Path, to: &Path) {
 
 /// Runs `cases` seeded cases and returns the failures with the command that caused each.
 fn campaign(seed: u64, cases: usize) -> Vec<(String, Failure)> {
-    let bin = std::env::var("STIFF_FUZZ_BIN").map(PathBuf::from).unwrap_or_else(|_| PathBuf::from(env!("CARGO_BIN_EXE_stiff")));
+    let bin = std::env::var("STIFF_FUZZ_BIN")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| PathBuf::from(env!("CARGO_BIN_EXE_stiff")));
     let mut r = StdRng::seed_from_u64(seed);
     let mut failures = Vec::new();
     for k in 0..cases {
@@ -368,11 +447,15 @@ fn campaign(seed: u64, cases: usize) -> Vec<(String, Failure)> {
 /// The seeded campaign CI runs; `STIFF_FUZZ_CASES` and `STIFF_FUZZ_SEED` make it the long one.
 #[test]
 fn no_input_makes_stiff_panic_hang_abort_or_write_non_finite_ok_rows() {
-    let cases = std::env::var("STIFF_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(400);
+    let cases = std::env::var("STIFF_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(2000);
     let seed = std::env::var("STIFF_FUZZ_SEED").ok().and_then(|v| v.parse().ok()).unwrap_or(20261123);
     let start = Instant::now();
     let failures = campaign(seed, cases);
-    eprintln!("fuzz: {cases} cases (seed {seed}) in {:.1} s, {} failures", start.elapsed().as_secs_f64(), failures.len());
+    eprintln!(
+        "fuzz: {cases} cases (seed {seed}) in {:.1} s, {} failures",
+        start.elapsed().as_secs_f64(),
+        failures.len()
+    );
     for (what, f) in failures.iter().take(10) {
         eprintln!("{f:?}\n  {what}\n");
     }

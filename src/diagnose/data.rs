@@ -10,6 +10,13 @@ pub const REQUIRED: [&str; 13] = [
     "pose_id", "x_mm", "y_mm", "z_mm", "Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm", "dx_mm", "dy_mm", "dz_mm",
 ];
 
+/// Largest magnitude a measured number may have (mm, N, N mm): residuals are squared and weighted, and
+/// 1e100 squared is still far from overflowing.
+pub const MAX_MAGNITUDE: f64 = 1e100;
+/// Smallest measurement standard deviation accepted, mm (a picometre: below any instrument; a smaller one
+/// makes weights whose squares overflow).
+pub const MIN_SIGMA_MM: f64 = 1e-9;
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Measurement {
     pub pose_id: String,
@@ -70,7 +77,20 @@ impl Dataset {
                     .parse()
                     .map_err(|_| at(line, c + 1, format!("`{text}` in column `{}` is not a number", &header[c])))?;
                 if !v.is_finite() {
-                    return Err(at(line, c + 1, format!("column `{}` is not finite ({text})", &header[c])));
+                    return Err(at(
+                        line,
+                        c + 1,
+                        format!("column `{}`: {}", &header[c], crate::model::grid::not_finite(text)),
+                    ));
+                }
+                // Residuals are squared and weighted: a value beyond 1e100 overflows there (and is no
+                // measurement of a robot in mm, N or N mm).
+                if v.abs() > MAX_MAGNITUDE {
+                    return Err(at(
+                        line,
+                        c + 1,
+                        format!("column `{}`: {text} is beyond {MAX_MAGNITUDE:e}, not a measurement", &header[c]),
+                    ));
                 }
                 Ok(v)
             };
@@ -78,8 +98,12 @@ impl Dataset {
             let sigma = match sigma_column {
                 Some(c) if !record.get(c).unwrap_or("").is_empty() => {
                     let s = number(c)?;
-                    if !(s > 0.0) {
-                        return Err(at(line, c + 1, format!("sigma_mm must be positive, got {s}")));
+                    if !(MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&s) {
+                        return Err(at(
+                            line,
+                            c + 1,
+                            format!("sigma_mm must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mm, got {s}"),
+                        ));
                     }
                     Some(s)
                 }

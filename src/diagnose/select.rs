@@ -180,7 +180,7 @@ fn visible_end_errors(problem: &Problem, k: usize, rows: &[usize]) -> Option<DMa
         let r = problem.residuals(&[full.effect(&p)], rows).ok()?;
         s.set_column(c, &((&base - r) / 1e-3));
     }
-    let svd = s.svd(false, true);
+    let svd = crate::linalg::capped_svd(s, false, true)?;
     let v_t = svd.v_t?;
     let top = svd.singular_values.max();
     let keep: Vec<usize> =
@@ -228,8 +228,12 @@ pub fn noise(data: &Dataset, sigma: Option<f64>) -> Result<(Vec<f64>, f64, Sigma
         return Ok((w, typical, SigmaSource::Column));
     }
     if let Some(s) = sigma {
-        if !(s > 0.0 && s.is_finite()) {
-            return Err("--sigma must be positive".into());
+        if !(super::data::MIN_SIGMA_MM..=super::data::MAX_MAGNITUDE).contains(&s) {
+            return Err(format!(
+                "the noise must lie in [{:e}, {:e}] mm, got {s}",
+                super::data::MIN_SIGMA_MM,
+                super::data::MAX_MAGNITUDE
+            ));
         }
         return Ok((vec![1.0 / s; data.rows.len()], s, SigmaSource::Given));
     }
@@ -294,7 +298,10 @@ impl Step<'_> {
                 return row;
             }
         };
-        let svd = sig.clone().svd(false, false);
+        let Some(svd) = crate::linalg::capped_svd(sig.clone(), false, false) else {
+            row.note = "its signature is not finite on this data (extreme values?)".into();
+            return row;
+        };
         let (top, low) = (svd.singular_values.max(), svd.singular_values.min());
         row.condition = if low > 0.0 { top / low } else { f64::INFINITY };
         // What the accepted effects already explain: their signature columns.

@@ -3,6 +3,26 @@
 //! (n + m + 6)-square matrix several times per point, and allocating or going through generic dynamic
 //! dimensions there costs more than the arithmetic).
 
+/// Largest entry magnitude a decomposition is asked to handle: beyond it squares and products overflow.
+pub const MAX_ENTRY: f64 = 1e150;
+/// Iteration cap of the decompositions below (a converging SVD of a few dozen columns takes well under a
+/// hundred sweeps).
+pub const MAX_SWEEPS: usize = 1000;
+
+/// nalgebra's SVD with a check of its input and an iteration cap: its plain `svd` iterates without a cap and
+/// never returns on non-finite or overflowing matrices. None where the input is not finite, has an entry
+/// beyond `MAX_ENTRY`, or the iteration does not converge.
+pub fn capped_svd(
+    m: nalgebra::DMatrix<f64>,
+    compute_u: bool,
+    compute_v: bool,
+) -> Option<nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>> {
+    if !m.iter().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY) {
+        return None;
+    }
+    nalgebra::SVD::try_new(m, compute_u, compute_v, f64::EPSILON, MAX_SWEEPS)
+}
+
 /// LU factorisation with partial pivoting of a column-major square matrix, kept in place.
 #[derive(Clone, Debug, Default)]
 pub struct DenseLu {

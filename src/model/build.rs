@@ -494,7 +494,13 @@ impl Builder<'_> {
                     (None, None, Some(b), None) => Some(self.beam(b)?),
                     (None, None, None, Some(p)) => {
                         let spec = self.parallelogram(p, parts)?;
-                        let k = spec.stiffness(0.0);
+                        let k = spec.stiffness(0.0).ok_or_else(|| {
+                            self.loc.at(
+                                e.span(),
+                                "the parallelogram's bars give no finite stiffness: check E, bar_diameter, length \
+                                 and separation",
+                            )
+                        })?;
                         posture = Some(spec);
                         k.try_inverse()
                     }
@@ -505,11 +511,15 @@ impl Builder<'_> {
                         ))
                     }
                 };
-                let compliance =
-                    compliance.ok_or_else(|| self.loc.at(e.span(), "the spring's matrix cannot be inverted"))?;
-                let stiffness = compliance
-                    .try_inverse()
-                    .ok_or_else(|| self.loc.at(e.span(), "the spring's matrix cannot be inverted"))?;
+                let finite = |m: &Mat6| m.iter().all(|v| v.is_finite());
+                let compliance = compliance.filter(finite).ok_or_else(|| {
+                    self.loc
+                        .at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
+                })?;
+                let stiffness = compliance.try_inverse().filter(finite).ok_or_else(|| {
+                    self.loc
+                        .at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
+                })?;
                 parts.spring(
                     name,
                     &SIX_DOF,

@@ -153,9 +153,19 @@ impl Expr {
     }
 }
 
+/// Longest formula read: a formula's tree is evaluated recursively at every pose, so its size is bounded
+/// (no description needs more than a few hundred characters).
+pub const MAX_FORMULA_LENGTH: usize = 10_000;
+/// Deepest nesting of parentheses, signs, powers and function calls: the parser recurses per level, and
+/// ~10,000 nested parentheses overflowed its stack.
+pub const MAX_FORMULA_DEPTH: usize = 100;
+
 /// Parses a formula, resolving each name through `resolve` (a constant or a slot).
 pub fn compile(text: &str, resolve: &mut dyn FnMut(&str) -> Result<Expr, String>) -> Result<Expr, String> {
-    let mut p = Parser { s: text.as_bytes(), i: 0, resolve };
+    if text.len() > MAX_FORMULA_LENGTH {
+        return Err(format!("a formula may have at most {MAX_FORMULA_LENGTH} characters, this one has {}", text.len()));
+    }
+    let mut p = Parser { s: text.as_bytes(), i: 0, depth: 0, resolve };
     let v = p.expr()?;
     p.skip_ws();
     if p.i != p.s.len() {
@@ -167,6 +177,8 @@ pub fn compile(text: &str, resolve: &mut dyn FnMut(&str) -> Result<Expr, String>
 struct Parser<'a> {
     s: &'a [u8],
     i: usize,
+    /// Nesting level of the `unary` being parsed (every nesting passes through it).
+    depth: usize,
     resolve: &'a mut dyn FnMut(&str) -> Result<Expr, String>,
 }
 
@@ -213,6 +225,15 @@ impl Parser<'_> {
         }
     }
     fn unary(&mut self) -> Result<Expr, String> {
+        self.depth += 1;
+        if self.depth > MAX_FORMULA_DEPTH {
+            return Err(format!("the formula nests more than {MAX_FORMULA_DEPTH} levels deep"));
+        }
+        let v = self.unary_inner();
+        self.depth -= 1;
+        v
+    }
+    fn unary_inner(&mut self) -> Result<Expr, String> {
         if self.eat(b'-') {
             return Ok(match self.unary()? {
                 Expr::Const(x) => Expr::Const(-x),
@@ -314,6 +335,19 @@ fn call(name: &str, mut a: Vec<Expr>) -> Result<Expr, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Regression: ~10,000 nested parentheses overflowed the parser's stack (an abort, not an error).
+    #[test]
+    fn deeply_nested_formulas_are_refused_not_overflowing() {
+        let mut p = std::collections::BTreeMap::<String, f64>::new();
+        let deep = format!("{}1{}", "(".repeat(10_000), ")".repeat(10_000));
+        assert!(evaluate(&deep, &mut p).unwrap_err().contains("characters"));
+        let deep = format!("{}1{}", "(".repeat(2_000), ")".repeat(2_000));
+        assert!(evaluate(&deep, &mut p).unwrap_err().contains("levels deep"));
+        let signs = format!("{}1", "-".repeat(5_000));
+        assert!(evaluate(&signs, &mut p).is_err());
+        assert_eq!(evaluate(&format!("{}1{}", "(".repeat(50), ")".repeat(50)), &mut p).unwrap(), 1.0);
+    }
 
     #[test]
     fn formulas_follow_usual_precedence() {

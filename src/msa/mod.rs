@@ -91,6 +91,8 @@ pub enum MsaFailure {
     Mechanism { free: usize, nodes: Vec<usize> },
     /// An element names a node that does not exist.
     BadNode(usize),
+    /// The system has non-finite entries, or its decomposition did not converge (extreme values).
+    NotFinite,
 }
 
 /// The end node's answer (eq 17): its Cartesian stiffness, and the wrench that holds it in place against
@@ -115,12 +117,19 @@ pub struct SystemSize {
 /// The 12x12 stiffness of a straight beam from `pi` to `pj` (Euler-Bernoulli), built from the clamped-free
 /// compliance at j (the same beam the VJM springs use) and rigid-body invariance. The section's y axis is
 /// the component of `y_hint` across the beam (default: `frame_along`'s choice, fine for round sections).
-pub fn beam_stiffness(section: &BeamSection, pi: &Vec3, pj: &Vec3) -> [[Mat6; 2]; 2] {
+pub fn beam_stiffness(section: &BeamSection, pi: &Vec3, pj: &Vec3) -> Option<[[Mat6; 2]; 2]> {
     oriented_beam_stiffness(section, pi, pj, None)
 }
 
-/// As `beam_stiffness`, with the section's local y axis given (for sections with Iy != Iz).
-pub fn oriented_beam_stiffness(section: &BeamSection, pi: &Vec3, pj: &Vec3, y_hint: Option<Vec3>) -> [[Mat6; 2]; 2] {
+/// As `beam_stiffness`, with the section's local y axis given (for sections with Iy != Iz). None where the
+/// beam has no finite stiffness (zero length, a length or modulus at the edge of doubles, a y axis along
+/// the beam).
+pub fn oriented_beam_stiffness(
+    section: &BeamSection,
+    pi: &Vec3,
+    pj: &Vec3,
+    y_hint: Option<Vec3>,
+) -> Option<[[Mat6; 2]; 2]> {
     let d = pj - pi;
     let frame = match y_hint {
         Some(h) => {
@@ -132,7 +141,9 @@ pub fn oriented_beam_stiffness(section: &BeamSection, pi: &Vec3, pj: &Vec3, y_hi
     };
     let r = block_rotation(&frame);
     let c = r * cantilever_compliance(section, d.norm()) * r.transpose();
-    link_stiffness(&c.try_inverse().expect("a beam's compliance is positive definite"), pi, pj)
+    let k = c.try_inverse().filter(|k| k.iter().all(|v| v.is_finite()))?;
+    let blocks = link_stiffness(&k, pi, pj);
+    blocks.iter().flatten().all(|b| b.iter().all(|v| v.is_finite())).then_some(blocks)
 }
 
 /// The 12x12 stiffness of a link from its stiffness at j with i clamped (base frame, at j's point): the
@@ -426,13 +437,20 @@ impl Structure {
                 }
             }
         }
+        if !(kz.iter().chain(f.iter()).all(|v| v.is_finite())) {
+            return Err(MsaFailure::NotFinite);
+        }
         let constraints = independent(constraints);
-        solve_condensed(&kz, &f, &constraints, n_y).map_err(|null| {
-            // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
-            let mut nodes: Vec<usize> =
-                (0..n).filter(|&v| null.iter().any(|y| (&t[v].columns(0, n_y) * y).norm() > 1e-6 * y.norm())).collect();
-            nodes.sort_unstable();
-            MsaFailure::Mechanism { free: null.len(), nodes }
+        solve_condensed(&kz, &f, &constraints, n_y).map_err(|null| match null {
+            Err(failure) => failure,
+            Ok(null) => {
+                // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
+                let mut nodes: Vec<usize> = (0..n)
+                    .filter(|&v| null.iter().any(|y| (&t[v].columns(0, n_y) * y).norm() > 1e-6 * y.norm()))
+                    .collect();
+                nodes.sort_unstable();
+                MsaFailure::Mechanism { free: null.len(), nodes }
+            }
         })
     }
 }
@@ -482,7 +500,7 @@ fn solve_condensed(
     f: &DVector<f64>,
     constraints: &[DVector<f64>],
     n_y: usize,
-) -> Result<EndAnswer, Vec<DVector<f64>>> {
+) -> Result<EndAnswer, Result<Vec<DVector<f64>>, MsaFailure>> {
     let m = constraints.len();
     let size = n_y + m;
     // Constraint rows scaled to the stiffness' size, for a balanced factorisation.
@@ -558,15 +576,16 @@ fn solve_condensed(
 }
 
 /// The null space of a singular reduced system, restricted to the coordinates y (the free motions).
-fn null_space(a: &DMatrix<f64>, n_y: usize) -> Vec<DVector<f64>> {
-    let svd = a.clone().svd(false, true);
+fn null_space(a: &DMatrix<f64>, n_y: usize) -> Result<Vec<DVector<f64>>, MsaFailure> {
+    let svd = crate::linalg::capped_svd(a.clone(), false, true).ok_or(MsaFailure::NotFinite)?;
     let v_t = svd.v_t.expect("asked for V^T");
     let top = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    svd.singular_values
+    Ok(svd
+        .singular_values
         .iter()
         .enumerate()
         .filter(|(_, s)| **s <= 1e-11 * top)
         .map(|(k, _)| v_t.row(k).columns(0, n_y).transpose())
         .filter(|y| y.norm() > 1e-9)
-        .collect()
+        .collect())
 }

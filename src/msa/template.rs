@@ -70,6 +70,9 @@ pub enum PoseOutOfReach {
     Condition(usize),
     /// A per-pose quantity or a node position is not a finite number there (e.g. acos of more than 1).
     NotFinite,
+    /// The geometry has values but a beam has no finite stiffness there (zero length, or a length or
+    /// section at the edge of doubles).
+    Degenerate,
 }
 
 impl Template {
@@ -127,7 +130,8 @@ impl Template {
                     Element::Flexible {
                         i: *i,
                         j: *j,
-                        k: oriented_beam_stiffness(section, &nodes[*i], &nodes[*j], hint),
+                        k: oriented_beam_stiffness(section, &nodes[*i], &nodes[*j], hint)
+                            .ok_or(PoseOutOfReach::Degenerate)?,
                     }
                 }
                 ElementTemplate::Link { i, j, kjj } => Element::Flexible {

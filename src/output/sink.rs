@@ -45,8 +45,14 @@ fn unregister(path: &Path) {
 pub enum Sink {
     Stdout(BufWriter<io::Stdout>),
     /// An existing path that is not a regular file: written in place.
-    Direct { file: BufWriter<File>, path: PathBuf },
-    File { temp: BufWriter<tempfile::NamedTempFile>, path: PathBuf },
+    Direct {
+        file: BufWriter<File>,
+        path: PathBuf,
+    },
+    File {
+        temp: BufWriter<tempfile::NamedTempFile>,
+        path: PathBuf,
+    },
 }
 
 impl Sink {

@@ -40,6 +40,8 @@ pub enum LegFailure {
     SingularChain,
     /// The loaded equilibrium was not found, even with continuation.
     NotConverged { iterations: usize, residual: f64 },
+    /// The leg's model has no finite stiffness at this pose (parameters at the edge of doubles).
+    NotFinite,
 }
 
 impl std::fmt::Display for LegFailure {
@@ -56,6 +58,11 @@ impl std::fmt::Display for LegFailure {
                 f,
                 "the leg's springs do not restrain a direction its passive joints leave free (check the springs \
                  and passive joints of this leg)"
+            ),
+            LegFailure::NotFinite => write!(
+                f,
+                "its model has no finite stiffness at this pose (a parameter at the edge of what doubles hold, \
+                 e.g. a modulus of 5e-324 or a length of 1e200?)"
             ),
             LegFailure::NotConverged { iterations, residual } => write!(
                 f,

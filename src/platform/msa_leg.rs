@@ -42,6 +42,7 @@ impl MsaLeg {
         self.template.structure(&local, &self.place, slots).map_err(|e| match e {
             PoseOutOfReach::Condition(k) => LegFailure::OutOfReach { condition: Some(k) },
             PoseOutOfReach::NotFinite => LegFailure::OutOfReach { condition: None },
+            PoseOutOfReach::Degenerate => LegFailure::NotFinite,
         })
     }
 
@@ -50,6 +51,7 @@ impl MsaLeg {
         let structure = self.structure_with(platform, slots)?;
         let end = structure.condense().map_err(|e| match e {
             MsaFailure::Mechanism { .. } | MsaFailure::BadNode(_) => LegFailure::SingularChain,
+            MsaFailure::NotFinite => LegFailure::NotFinite,
         })?;
         let v = structure.nodes[structure.end] - platform.pos;
         // The holding wrench is what the platform applies to the leg's end; the leg exerts its opposite.

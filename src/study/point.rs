@@ -51,6 +51,7 @@ impl Status {
             LegFailure::Unreachable(_) | LegFailure::OutOfReach { .. } => Status::Unreachable,
             LegFailure::SingularChain => Status::SingularLeg,
             LegFailure::NotConverged { .. } => Status::NotConverged,
+            LegFailure::NotFinite => Status::Overflow,
         }
     }
 }

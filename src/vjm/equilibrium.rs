@@ -327,9 +327,9 @@ impl LoadedChain<'_> {
                 None => return false,
             }
         } else {
-            match jb.svd(true, true).solve(&jn, 1e-12) {
-                Ok(x) => x,
-                Err(_) => return false,
+            match crate::linalg::capped_svd(jb, true, true).map(|svd| svd.solve(&jn, 1e-12)) {
+                Some(Ok(x)) => x,
+                _ => return false,
             }
         };
         // Z = [I; -X] on (free; basic) coordinates: Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X, with

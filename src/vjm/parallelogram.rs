@@ -28,11 +28,12 @@ pub struct Parallelogram {
 
 impl Parallelogram {
     /// The stiffness of the parallelogram at its end side (frame with the base side's axes, at the middle of
-    /// the end side), for parallelogram angle `q` (rad).
-    pub fn stiffness(&self, q: f64) -> Mat6 {
+    /// the end side), for parallelogram angle `q` (rad). None where the bars give no finite stiffness
+    /// (parameters at the edge of doubles: a modulus of 5e-324, a length of 1e300, a gap of 4e9 mm).
+    pub fn stiffness(&self, q: f64) -> Option<Mat6> {
         let bar_dir = Vec3::new(q.cos(), q.sin(), 0.0);
         let compliance = beam_compliance(&self.bar, self.length, &Vec3::x());
-        let stiffness = compliance.try_inverse().expect("a beam's compliance is positive definite");
+        let stiffness = compliance.try_inverse().filter(|k| k.iter().all(|v| v.is_finite()))?;
         let spring =
             SpringGroup { name: "bar".into(), actuator: false, first: 0, dim: 6, stiffness, compliance, posture: None };
         let mut total = Mat6::zeros();
@@ -60,13 +61,13 @@ impl Parallelogram {
             chain.evaluate(&Coordinates::zeros(&chain), &mut j);
             j.fill_virtual();
             let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(&spring), &[]);
-            total += leg_stiffness(&s, &passive_range(&j.passive, self.length)).expect("a bar chain is regular");
+            total += leg_stiffness(&s, &passive_range(&j.passive, self.length))?;
         }
         // The parallelogram's own motion: the end side translating across the bars, without turning.
         let motion = Vec6::new(-q.sin(), q.cos(), 0.0, 0.0, 0.0, 0.0);
         let scale = total.trace() / 6.0;
         total += motion * motion.transpose() * scale;
-        (total + total.transpose()) * 0.5
+        Some((total + total.transpose()) * 0.5).filter(|k| k.iter().all(|v| v.is_finite()))
     }
 }
 
@@ -84,7 +85,7 @@ mod tests {
     #[test]
     fn axial_and_in_plane_rotational_stiffness_match_closed_forms() {
         let p = sample();
-        let k = p.stiffness(0.0);
+        let k = p.stiffness(0.0).unwrap();
         let ea_l = p.bar.e * p.bar.area / p.length;
         assert!((k[(0, 0)] - 2.0 * ea_l).abs() < 1e-9 * k[(0, 0)], "{}", k[(0, 0)]);
         let krz = ea_l * p.separation * p.separation / 2.0;
@@ -127,7 +128,7 @@ mod tests {
             let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(&spring), &[]);
             leg_stiffness(&s, &passive_range(&j.passive, 300.0)).unwrap()
         };
-        let k = p.stiffness(q);
+        let k = p.stiffness(q).unwrap();
         let motion = Vec6::new(-q.sin(), q.cos(), 0.0, 0.0, 0.0, 0.0);
         let a = leg(k);
         let b = leg(k + motion * motion.transpose() * 1e3 * k.trace());

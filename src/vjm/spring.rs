@@ -22,14 +22,17 @@ pub struct SpringGroup {
 }
 
 impl SpringGroup {
-    /// Stiffness and compliance at the given passive coordinates.
+    /// Stiffness and compliance at the given passive coordinates. Where a posture-dependent spring has no
+    /// finite value (`Parallelogram::stiffness`), both are NaN: the leg's answer is then not finite and
+    /// its point is reported as `overflow` (statuses in README), never a panic.
     pub fn at(&self, passive: &[f64]) -> (Mat6, Mat6) {
         match &self.posture {
             None => (self.stiffness, self.compliance),
             Some(p) => {
                 let q = passive.get(p.angle).copied().unwrap_or(0.0);
-                let k = p.stiffness(q);
-                let c = k.try_inverse().unwrap_or(self.compliance);
+                let not_finite = Mat6::from_element(f64::NAN);
+                let Some(k) = p.stiffness(q) else { return (not_finite, not_finite) };
+                let c = k.try_inverse().unwrap_or(not_finite);
                 (k, (c + c.transpose()) * 0.5)
             }
         }
@@ -49,7 +52,9 @@ impl SpringGroup {
         let p = self.posture.as_ref()?;
         let q = passive.get(p.angle).copied().unwrap_or(0.0);
         let h = POSTURE_STEP;
-        let (minus, mid, plus) = (p.stiffness(q - h), p.stiffness(q), p.stiffness(q + h));
+        let not_finite = Mat6::from_element(f64::NAN);
+        let at = |q: f64| p.stiffness(q).unwrap_or(not_finite);
+        let (minus, mid, plus) = (at(q - h), at(q), at(q + h));
         Some((p.angle, (plus - minus) / (2.0 * h), (plus - mid * 2.0 + minus) / (h * h)))
     }
 }
