@@ -16,7 +16,7 @@ use crate::output::report::point_report;
 use crate::output::sink::Sink;
 use crate::platform::manipulator::Manipulator;
 use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
-use crate::study::curve::{push_curve_row, run_curve, summary, Control, CURVE_HEADER, MAX_INTERVALS};
+use crate::study::curve::{push_curve_row, run_curve, Control, CURVE_HEADER, MAX_INTERVALS};
 use crate::study::map::{run_map, MapOptions};
 use crate::study::point::{loaded_point, unloaded_point, LoadedHistory};
 
@@ -573,19 +573,26 @@ fn curve(a: CurveArgs) -> Result<()> {
         bail!("--max must be a positive finite number, got {}", a.max);
     }
     let mut sink = Sink::create(a.output.as_deref())?;
-    let rows = run_curve(&model, &at, control, a.max, a.steps)?;
-    let mut text = String::from(CURVE_HEADER);
-    for r in &rows {
-        push_curve_row(&mut text, r);
-    }
-    sink.writer().write_all(text.as_bytes())?;
+    // Rows are written as they become final; the picture, if asked, is drawn from the same text.
+    let mut picture = a.plot.as_ref().map(|_| String::from(CURVE_HEADER));
+    let writer = sink.writer();
+    writer.write_all(CURVE_HEADER.as_bytes())?;
+    let mut line = String::new();
+    let summary = run_curve(&model, &at, control, a.max, a.steps, &mut |r| {
+        line.clear();
+        push_curve_row(&mut line, r);
+        if let Some(p) = picture.as_mut() {
+            p.push_str(&line);
+        }
+        writer.write_all(line.as_bytes())
+    })?;
     sink.finish()?;
-    if let Some(plot) = &a.plot {
+    if let (Some(plot), Some(text)) = (&a.plot, &picture) {
         let style = PlotStyle { direction: a.direction.clone(), ..PlotStyle::default() };
-        write_plot(&text, plot, &style)?;
+        write_plot(text, plot, &style)?;
     }
     if !a.quiet {
-        eprintln!("{}", summary(&rows, model.length_scale));
+        eprintln!("{}", summary.text(model.length_scale));
     }
     Ok(())
 }

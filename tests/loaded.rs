@@ -7,7 +7,7 @@ use common::*;
 use stiff::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use stiff::platform::leg::apply_twist;
 use stiff::platform::manipulator::Manipulator;
-use stiff::study::curve::{critical_load_factor, run_curve, Control};
+use stiff::study::curve::{critical_load_factor, curve_rows as run_curve, Control};
 
 /// Places the legs for `commanded` and holds the platform at `actual`: the external wrench and tangent
 /// stiffness there.

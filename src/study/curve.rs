@@ -159,13 +159,15 @@ pub fn push_curve_row(out: &mut String, r: &CurveRow) {
     out.push('\n');
 }
 
-/// Why a curve could not start.
-#[derive(Clone, Debug, PartialEq)]
+/// Why a curve could not start or be written.
+#[derive(Debug)]
 pub enum CurveError {
     /// The commanded pose cannot be reached by some leg.
     Unreachable(PoseFailure),
     /// No equilibrium even at the first row (zero load).
     NoStart(PoseFailure),
+    /// Writing a row failed (a closed pipe, a full disk).
+    Write(std::io::Error),
 }
 
 impl std::fmt::Display for CurveError {
@@ -173,11 +175,19 @@ impl std::fmt::Display for CurveError {
         match self {
             CurveError::Unreachable(e) => write!(f, "the commanded pose cannot be reached: {e}"),
             CurveError::NoStart(e) => write!(f, "no equilibrium at zero load: {e}"),
+            CurveError::Write(e) => write!(f, "cannot write the curve: {e}"),
         }
     }
 }
 
-impl std::error::Error for CurveError {}
+impl std::error::Error for CurveError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            CurveError::Write(e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 /// One equilibrium on the curve.
 #[derive(Clone)]
@@ -307,20 +317,44 @@ fn residual_of(e: &PoseFailure) -> f64 {
     }
 }
 
-/// The curve from zero to `max` in `intervals` equal steps (rows 0..=intervals). `intervals` must lie in
-/// 1..=`MAX_INTERVALS` and `max` be positive and finite (checked by the caller, which words the message).
-pub fn run_curve(
+/// The curve's rows in a Vec (for library users and tests; `run_curve` streams them).
+pub fn curve_rows(
     m: &Manipulator,
     at: &Frame,
     control: Control,
     max: f64,
     intervals: usize,
 ) -> Result<Vec<CurveRow>, CurveError> {
+    let mut rows = Vec::new();
+    run_curve(m, at, control, max, intervals, &mut |r| {
+        rows.push(r.clone());
+        Ok(())
+    })?;
+    Ok(rows)
+}
+
+/// The curve from zero to `max` in `intervals` equal steps (rows 0..=intervals), each row handed to `emit`
+/// as soon as it is final (one row behind the computation: a limit point needs the next row). Memory does
+/// not grow with the number of rows. `intervals` must lie in 1..=`MAX_INTERVALS` and `max` be positive and
+/// finite (checked by the caller, which words the message). Returns the summary of the rows written.
+pub fn run_curve(
+    m: &Manipulator,
+    at: &Frame,
+    control: Control,
+    max: f64,
+    intervals: usize,
+    emit: &mut dyn FnMut(&CurveRow) -> std::io::Result<()>,
+) -> Result<CurveSummary, CurveError> {
     assert!((1..=MAX_INTERVALS).contains(&intervals) && max.is_finite() && max > 0.0, "checked by the caller");
     let tracer = Tracer { m, at: *at, control };
     let mut state = m.new_state();
     m.place(at, &mut state).map_err(CurveError::Unreachable)?;
-    let mut rows: Vec<CurveRow> = Vec::with_capacity(intervals + 1);
+    let mut rows = Window {
+        recent: Vec::with_capacity(3),
+        limit_points: matches!(control, Control::Force(_)),
+        emit,
+        summary: CurveSummary::default(),
+    };
     // The last converged row: its target, solution and state (the warm start and the bisection bracket).
     let mut last: Option<(Target, Solved, ManipulatorState)> = None;
     // After force control found no equilibrium: the displacement increment per row of the continuation.
@@ -339,7 +373,7 @@ pub fn run_curve(
                 }
                 Err(residual) => match (control, &last) {
                     (Control::Force(w), Some((_, prev, _))) => {
-                        continuation = continuation_step(&rows, prev, &(w * (max / intervals as f64)));
+                        continuation = continuation_step(&rows.rows(), prev, &(w * (max / intervals as f64)));
                         if continuation.is_none() {
                             attempt = Some((target, Err(residual)));
                         }
@@ -358,7 +392,7 @@ pub fn run_curve(
             Ok(solved) => {
                 let mut row = tracer.row(step, target, &solved);
                 if row.status == RowStatus::Overflow {
-                    rows.push(row);
+                    rows.push(row)?;
                     break;
                 }
                 if continuation.is_some() && row.load_factor > max {
@@ -384,26 +418,73 @@ pub fn run_curve(
                         _ => {}
                     }
                 }
-                rows.push(row);
+                rows.push(row)?;
                 last = Some((target, solved, state.clone()));
             }
             Err(residual) => {
-                if rows.is_empty() {
+                if rows.summary.rows == 0 && rows.recent.is_empty() {
                     let failure = m.hold(at, &mut state).err();
                     return Err(CurveError::NoStart(failure.unwrap_or(PoseFailure {
                         leg: 0,
                         failure: LegFailure::NotConverged { iterations: 0, residual },
                     })));
                 }
-                rows.push(not_converged_row(step, &tracer, target, residual));
+                rows.push(not_converged_row(step, &tracer, target, residual))?;
                 break;
             }
         }
     }
-    if matches!(control, Control::Force(_)) {
-        mark_limit_points(&mut rows);
+    rows.finish().map_err(CurveError::Write)
+}
+
+/// The rows not yet written: a row is final once the next one is known (a limit point is a converged row
+/// whose load factor exceeds both neighbours'), so at most three are held, with their path lengths.
+struct Window<'e> {
+    recent: Vec<(CurveRow, f64)>,
+    /// Mark limit points (force control).
+    limit_points: bool,
+    emit: &'e mut dyn FnMut(&CurveRow) -> std::io::Result<()>,
+    summary: CurveSummary,
+}
+
+impl Window<'_> {
+    /// The rows held, oldest first.
+    fn rows(&self) -> Vec<&CurveRow> {
+        self.recent.iter().map(|(r, _)| r).collect()
     }
-    Ok(rows)
+
+    fn last(&self) -> Option<&CurveRow> {
+        self.recent.last().map(|(r, _)| r)
+    }
+
+    fn push(&mut self, row: CurveRow) -> Result<(), CurveError> {
+        let path = match (self.recent.last(), row.displacement) {
+            (Some((prev, s)), Some(d)) => s + prev.displacement.map_or(0.0, |p| (d - p).norm()),
+            (Some((_, s)), None) => *s,
+            (None, _) => 0.0,
+        };
+        self.recent.push((row, path));
+        if self.recent.len() == 3 {
+            if self.limit_points {
+                mark_limit_point(&mut self.recent);
+            }
+            let (first, _) = self.recent.remove(0);
+            self.write(first).map_err(CurveError::Write)?;
+        }
+        Ok(())
+    }
+
+    fn write(&mut self, row: CurveRow) -> std::io::Result<()> {
+        self.summary.add(&row);
+        (self.emit)(&row)
+    }
+
+    fn finish(mut self) -> std::io::Result<CurveSummary> {
+        for (row, _) in std::mem::take(&mut self.recent) {
+            self.write(row)?;
+        }
+        Ok(self.summary)
+    }
 }
 
 fn same_kind(a: Target, b: Target) -> bool {
@@ -412,7 +493,7 @@ fn same_kind(a: Target, b: Target) -> bool {
 
 /// The displacement increment that continues the path past a failed force step: the last increment along
 /// the path, or at the first step the tangent compliance times the load increment.
-fn continuation_step(rows: &[CurveRow], prev: &Solved, load_step: &Vec6) -> Option<Vec6> {
+fn continuation_step(rows: &[&CurveRow], prev: &Solved, load_step: &Vec6) -> Option<Vec6> {
     let n = rows.len();
     if n >= 2 {
         if let (Some(a), Some(b)) = (rows[n - 2].displacement, rows[n - 1].displacement) {
@@ -444,29 +525,14 @@ fn not_converged_row(step: usize, tracer: &Tracer, target: Target, residual: f64
     }
 }
 
-/// A limit point: a converged row whose load factor exceeds both neighbours' along the path; the maximum
-/// of the parabola through the three (against path length) locates it.
-fn mark_limit_points(rows: &mut [CurveRow]) {
-    let path: Vec<f64> = rows
-        .iter()
-        .scan((0.0, None::<Vec6>), |(s, prev), r| {
-            if let (Some(p), Some(d)) = (*prev, r.displacement) {
-                *s += (d - p).norm();
-            }
-            *prev = r.displacement.or(*prev);
-            Some(*s)
-        })
-        .collect();
-    for i in 1..rows.len().saturating_sub(1) {
-        let (a, b, c) = (&rows[i - 1], &rows[i], &rows[i + 1]);
-        if !(a.converged() && b.converged() && c.converged()) {
-            continue;
-        }
-        if b.load_factor > a.load_factor && b.load_factor > c.load_factor {
-            let peak =
-                parabola_peak((path[i - 1], a.load_factor), (path[i], b.load_factor), (path[i + 1], c.load_factor));
-            rows[i].add_event("limit_point", peak);
-        }
+/// A limit point: the middle of three consecutive converged rows, its load factor above both neighbours'
+/// along the path; the maximum of the parabola through the three (against path length) locates it.
+fn mark_limit_point(three: &mut [(CurveRow, f64)]) {
+    let [(a, pa), (b, pb), (c, pc)] = three else { return };
+    if a.converged() && b.converged() && c.converged() && b.load_factor > a.load_factor && b.load_factor > c.load_factor
+    {
+        let peak = parabola_peak((*pa, a.load_factor), (*pb, b.load_factor), (*pc, c.load_factor));
+        b.add_event("limit_point", peak);
     }
 }
 
@@ -493,25 +559,74 @@ pub fn critical_load_factor(rows: &[CurveRow]) -> Option<f64> {
     rows.iter().find(|r| r.event.split(';').any(|e| e == "buckling")).and_then(|r| r.event_load_factor)
 }
 
-/// The closing summary on stderr, derived from the rows the CSV holds.
-pub fn summary(rows: &[CurveRow], length_scale: f64) -> String {
-    let mut lines = Vec::new();
-    let converged: Vec<&CurveRow> = rows.iter().filter(|r| r.converged()).collect();
-    if let (Some(first), Some(last)) = (converged.first(), converged.last()) {
-        if !first.positive_definite {
-            lines.push(format!(
-                "the tangent stiffness is not positive definite at the start (load factor {}): the manipulator is \
-                 singular or unstable there",
-                first.load_factor
-            ));
-        } else if converged.iter().all(|r| r.positive_definite) {
-            lines.push(format!("the tangent stiffness stays positive definite up to load factor {}", last.load_factor));
+/// What the closing summary says, accumulated from the rows as they are written (so it is derived from
+/// exactly the rows of the CSV).
+#[derive(Clone, Debug, Default)]
+pub struct CurveSummary {
+    /// Rows written.
+    pub rows: usize,
+    /// First converged row: positive definite, load factor.
+    first: Option<(bool, f64)>,
+    /// A converged row that is not positive definite was seen.
+    any_indefinite: bool,
+    last_load_factor: Option<f64>,
+    /// (step, event, where), the first `MAX_EVENTS_LISTED`.
+    events: Vec<(usize, String, Option<f64>)>,
+    more_events: usize,
+    first_unstable_legs: Option<(usize, String)>,
+    first_force_row: bool,
+    switched_at: Option<usize>,
+    stopped: Option<(usize, RowStatus)>,
+}
+
+/// Events listed in the summary (an oscillating path could have thousands).
+const MAX_EVENTS_LISTED: usize = 20;
+
+impl CurveSummary {
+    fn add(&mut self, r: &CurveRow) {
+        if self.rows == 0 {
+            self.first_force_row = r.control == "force";
+        }
+        self.rows += 1;
+        if self.first_force_row && r.control == "displacement" && self.switched_at.is_none() {
+            self.switched_at = Some(r.step);
+        }
+        if !r.converged() {
+            self.stopped = Some((r.step, r.status));
+            return;
+        }
+        self.first.get_or_insert((r.positive_definite, r.load_factor));
+        self.any_indefinite |= !r.positive_definite;
+        self.last_load_factor = Some(r.load_factor);
+        if !r.unstable_legs.is_empty() && self.first_unstable_legs.is_none() {
+            let legs: Vec<String> = r.unstable_legs.iter().map(|l| format!("leg {}", l + 1)).collect();
+            self.first_unstable_legs = Some((r.step, legs.join(", ")));
+        }
+        for e in r.event.split(';').filter(|e| !e.is_empty()) {
+            if self.events.len() < MAX_EVENTS_LISTED {
+                self.events.push((r.step, e.to_string(), r.event_load_factor));
+            } else {
+                self.more_events += 1;
+            }
         }
     }
-    for r in rows {
-        for e in r.event.split(';').filter(|e| !e.is_empty()) {
-            let at = r.event_load_factor.map_or(String::from("?"), |v| format!("{v:.6}"));
-            let what = match e {
+
+    /// The closing summary on stderr.
+    pub fn text(&self, length_scale: f64) -> String {
+        let mut lines = Vec::new();
+        match (self.first, self.last_load_factor) {
+            (Some((false, at)), _) => lines.push(format!(
+                "the tangent stiffness is not positive definite at the start (load factor {at}): the manipulator is \
+                 singular or unstable there"
+            )),
+            (Some((true, _)), Some(last)) if !self.any_indefinite => {
+                lines.push(format!("the tangent stiffness stays positive definite up to load factor {last}"))
+            }
+            _ => {}
+        }
+        for (step, e, at) in &self.events {
+            let at = at.map_or(String::from("?"), |v| format!("{v:.6}"));
+            let what = match e.as_str() {
                 "buckling" => "the tangent stiffness stops being positive definite (buckling)",
                 "restabilised" => "the tangent stiffness is positive definite again",
                 "limit_point" => "the load reaches a maximum (limit point)",
@@ -519,40 +634,32 @@ pub fn summary(rows: &[CurveRow], length_scale: f64) -> String {
                 "leg_stable" => "every leg is stable again",
                 other => other,
             };
-            lines.push(format!("step {}: {what} at load factor {at}", r.step));
+            lines.push(format!("step {step}: {what} at load factor {at}"));
         }
-    }
-    if let Some(r) = rows.iter().find(|r| r.control == "displacement") {
-        if r.step > 0 && rows.first().is_some_and(|f| f.control == "force") {
+        if self.more_events > 0 {
+            lines.push(format!("... and {} more events (see the event column)", self.more_events));
+        }
+        if let Some(step) = self.switched_at {
             lines.push(format!(
-                "from step {}, no equilibrium under force control: path followed by displacement control",
-                r.step
+                "from step {step}, no equilibrium under force control: path followed by displacement control"
             ));
         }
-    }
-    if let Some(r) = rows.iter().find(|r| r.converged() && !r.unstable_legs.is_empty()) {
+        if let Some((step, legs)) = &self.first_unstable_legs {
+            lines.push(format!("from step {step}, {legs} unstable with its end held: the curve is unstable there"));
+        }
+        match self.stopped {
+            Some((step, RowStatus::Overflow)) => lines.push(format!(
+                "step {step}: the numbers overflowed (a load beyond what doubles hold); the curve stops there ({} rows \
+                 written)",
+                self.rows
+            )),
+            Some((step, _)) => lines
+                .push(format!("step {step}: no equilibrium found; the curve stops there ({} rows written)", self.rows)),
+            None => {}
+        }
         lines.push(format!(
-            "from step {}, {} unstable with its end held: the curve is unstable there",
-            r.step,
-            r.instability().split(';').filter(|p| p.starts_with("leg")).collect::<Vec<_>>().join(", ")
+            "k_scaled_min weighs rotations by the model's length scale, {length_scale:.6} mm/rad (README: force-deflection curves)"
         ));
+        lines.join("\n")
     }
-    match rows.iter().find(|r| !r.converged()) {
-        Some(r) if r.status == RowStatus::Overflow => lines.push(format!(
-            "step {}: the numbers overflowed (a load beyond what doubles hold); the curve stops there ({} rows \
-             written)",
-            r.step,
-            rows.len()
-        )),
-        Some(r) => lines.push(format!(
-            "step {}: no equilibrium found; the curve stops there ({} rows written)",
-            r.step,
-            rows.len()
-        )),
-        None => {}
-    }
-    lines.push(format!(
-        "k_scaled_min weighs rotations by the model's length scale, {length_scale:.6} mm/rad (README: force-deflection curves)"
-    ));
-    lines.join("\n")
 }
