@@ -417,6 +417,10 @@ fn map(a: MapArgs) -> Result<()> {
     }
     let options = MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded };
     plot_needs_output(&a.plot, &a.output, "map")?;
+    if a.plot.is_some() {
+        let header = crate::output::table::map_header(&crate::study::map::map_columns(&points, &options));
+        crate::plot::check_map_options(&header, &a.style.options())?;
+    }
     let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
     sink.finish()?;
     bar.finish_and_clear();
@@ -482,24 +486,28 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let problem = Problem::new(&model, &data, weights, a.loaded, needs_loaded)
         .map_err(|b| anyhow::anyhow!("{}, line {}: pose `{}`: {}", a.data.display(), b.line, b.pose_id, b.why))?;
     let options = select::Options { alpha: a.alpha, loaded: a.loaded, max_effects: 3 };
+    // The outputs are opened before the work, so an unwritable path fails at once.
+    let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
+    let model_sink = a.model_out.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
+    let plot_sink = a.plot.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let d = select::diagnose(&problem, sigma, source, &options)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
     write_stdout(&report::text(&d, &name))?;
     let json = report::json(&d, &name);
-    if let Some(path) = &a.json {
-        let mut sink = Sink::create(Some(path))?;
+    if let Some(mut sink) = json_sink {
         serde_json::to_writer_pretty(&mut *sink.writer(), &json)?;
         sink.finish()?;
     }
-    if let Some(path) = &a.plot {
-        write_plot(&json.to_string(), path, &PlotStyle::default())?;
+    if let Some(mut sink) = plot_sink {
+        let svg = crate::plot::plot_text(&json.to_string(), &PlotStyle::default().options())?;
+        sink.writer().write_all(svg.as_bytes())?;
+        sink.finish()?;
     }
-    if let Some(path) = &a.model_out {
+    if let Some(mut sink) = model_sink {
         let source = read_text(&a.model.model)?;
         let dir = a.model.model.parent().map(|p| p.to_path_buf()).unwrap_or_default();
         let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
-        let mut sink = Sink::create(Some(path))?;
         sink.writer().write_all(report::corrected_model(&source, &dir, &d).as_bytes())?;
         sink.finish()?;
     }

@@ -226,9 +226,8 @@ pub struct PoseModel {
 impl PoseModel {
     pub fn at(m: &Manipulator, pose: &Frame, state: &mut ManipulatorState) -> Result<PoseModel, String> {
         let mut legs = Vec::with_capacity(m.legs.len());
-        let total = m
-            .unloaded_each(pose, state, |_, r| legs.push(r.stiffness))
-            .map_err(|e| format!("leg {} fails there ({:?})", e.leg + 1, e.failure))?;
+        let total =
+            m.unloaded_each(pose, state, |_, r| legs.push(r.stiffness)).map_err(|e| format!("it fails there ({e})"))?;
         let Some(&compliance) = analyse(&total.stiffness, &total.magnitude, m.length_scale, true).compliance() else {
             return Err("the manipulator is singular or ill-conditioned there".into());
         };

@@ -66,7 +66,7 @@ impl<'a> Problem<'a> {
                 let d = model.deflect(&pose, &r.wrench, None, &mut state).map_err(|e| BadPose {
                     pose_id: r.pose_id.clone(),
                     line: r.line,
-                    why: format!("no loaded equilibrium under the row's wrench ({e:?})"),
+                    why: format!("no loaded equilibrium under the row's wrench: {e}"),
                 })?;
                 out.push(d.displacement);
             }

@@ -4,8 +4,9 @@ use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
-    #[error("cannot read {}: {source}", path.display())]
-    Read { path: PathBuf, source: std::io::Error },
+    /// The cause is written here, once: it is not also a `source`, which `{:#}` would print again.
+    #[error("cannot read {}: {cause}", path.display())]
+    Read { path: PathBuf, cause: std::io::Error },
     #[error("{}: {message}", path.display())]
     Syntax { path: PathBuf, message: String },
     #[error("{}, line {line}, column {column}: {message}", path.display())]
@@ -28,7 +29,34 @@ pub struct Locator<'a> {
     pub source: &'a str,
 }
 
+/// The one rule every reader of numbers applies (grids, points CSV, error files, command-line values): the
+/// message for a value that is not a finite number.
+pub fn not_finite(text: &str) -> String {
+    format!("`{text}` is not a finite number")
+}
+
 impl Locator<'_> {
+    /// An array of exactly `N` finite numbers, or a located error naming the key.
+    pub fn finite_array<const N: usize>(&self, v: &toml::Spanned<Vec<f64>>, key: &str) -> Result<[f64; N], InputError> {
+        let values = v.get_ref();
+        if values.len() != N {
+            return Err(self.at(v.span(), format!("`{key}` needs {N} numbers, got {}", values.len())));
+        }
+        if let Some(bad) = values.iter().find(|x| !x.is_finite()) {
+            return Err(self.at(v.span(), format!("`{key}`: {}", not_finite(&bad.to_string()))));
+        }
+        Ok(std::array::from_fn(|k| values[k]))
+    }
+
+    /// As `finite_array`, for an optional key.
+    pub fn optional_array<const N: usize>(
+        &self,
+        v: &Option<toml::Spanned<Vec<f64>>>,
+        key: &str,
+    ) -> Result<Option<[f64; N]>, InputError> {
+        v.as_ref().map(|v| self.finite_array(v, key)).transpose()
+    }
+
     pub fn at(&self, span: std::ops::Range<usize>, message: impl Into<String>) -> InputError {
         let (line, column) = line_column(self.source, span.start);
         InputError::At { path: self.path.to_path_buf(), line, column, message: message.into() }
@@ -44,5 +72,5 @@ impl Locator<'_> {
 }
 
 pub fn read_text(path: &Path) -> Result<String, InputError> {
-    std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.to_path_buf(), source })
+    std::fs::read_to_string(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })
 }

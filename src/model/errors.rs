@@ -11,7 +11,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::build::parse_with;
-use super::error::{read_text, InputError, Locator};
+use super::error::{not_finite, read_text, InputError, Locator};
 use crate::kinematics::frame::{rotation_about, Frame, Vec3, Vec6};
 use crate::platform::leg::Leg;
 use crate::platform::manipulator::Manipulator;
@@ -47,9 +47,9 @@ struct LegErrorSpec {
 #[serde(deny_unknown_fields)]
 struct EpsSpec {
     #[serde(default)]
-    translation_mm: [f64; 3],
+    translation_mm: Option<Spanned<Vec<f64>>>,
     #[serde(default)]
-    rotation_deg: [f64; 3],
+    rotation_deg: Option<Spanned<Vec<f64>>>,
 }
 
 /// A rigid error of the whole leg from its base: a rotation by `rotation_deg` about the line along
@@ -58,13 +58,13 @@ struct EpsSpec {
 #[serde(deny_unknown_fields)]
 struct BaseSpec {
     #[serde(default)]
-    rotation_axis: Option<[f64; 3]>,
+    rotation_axis: Option<Spanned<Vec<f64>>>,
     #[serde(default)]
-    rotation_deg: f64,
+    rotation_deg: Option<Spanned<f64>>,
     #[serde(default)]
-    through: [f64; 3],
+    through: Option<Spanned<Vec<f64>>>,
     #[serde(default)]
-    translation_mm: [f64; 3],
+    translation_mm: Option<Spanned<Vec<f64>>>,
 }
 
 /// One leg's errors, resolved in the base frame.
@@ -155,30 +155,42 @@ impl ErrorSet {
                 named[k] = true;
                 let place = if leg_frame { m.legs[k].copy_frame() } else { Frame::IDENTITY };
                 let e = &mut legs[k];
+                let vector = |v: &Option<Spanned<Vec<f64>>>, key: &str| -> Result<Vec3, InputError> {
+                    Ok(Vec3::from(loc.optional_array(v, key)?.unwrap_or([0.0; 3])))
+                };
                 if let Some(eps) = &s.eps {
-                    let t = place.rot * Vec3::from(eps.translation_mm);
-                    let r = place.rot * Vec3::from(eps.rotation_deg).map(f64::to_radians);
+                    let t = place.rot * vector(&eps.translation_mm, "translation_mm")?;
+                    let r = place.rot * vector(&eps.rotation_deg, "rotation_deg")?.map(f64::to_radians);
                     e.eps += Vec6::new(t.x, t.y, t.z, r.x, r.y, r.z);
                 }
                 if let Some(b) = &s.base {
-                    let axis = match b.rotation_axis {
-                        Some(a) => {
-                            let a = Vec3::from(a);
+                    let rotation_deg = match &b.rotation_deg {
+                        Some(d) if !d.get_ref().is_finite() => {
+                            return Err(
+                                loc.at(d.span(), format!("`rotation_deg`: {}", not_finite(&d.get_ref().to_string())))
+                            )
+                        }
+                        Some(d) => *d.get_ref(),
+                        None => 0.0,
+                    };
+                    let axis = match &b.rotation_axis {
+                        Some(_) => {
+                            let a = vector(&b.rotation_axis, "rotation_axis")?;
                             if !(a.norm() > 0.0) {
                                 return Err(loc.at(spec.span(), "`rotation_axis` must be a non-zero vector"));
                             }
                             a.normalize()
                         }
-                        None if b.rotation_deg != 0.0 => {
+                        None if rotation_deg != 0.0 => {
                             return Err(loc.at(spec.span(), "a base rotation needs its `rotation_axis`"))
                         }
                         None => Vec3::x(),
                     };
                     // Rotation about the line through c, then translation: x -> R (x - c) + c + t, in the leg
                     // frame; carried to the base frame by the copy's place.
-                    let rot = rotation_about(&axis, b.rotation_deg.to_radians());
-                    let c = Vec3::from(b.through);
-                    let local = Frame::new(rot, c - rot * c + Vec3::from(b.translation_mm));
+                    let rot = rotation_about(&axis, rotation_deg.to_radians());
+                    let c = vector(&b.through, "through")?;
+                    let local = Frame::new(rot, c - rot * c + vector(&b.translation_mm, "translation_mm")?);
                     let world = place.compose(&local).compose(&place.inverse());
                     e.base = Frame::IDENTITY.error_to(&world);
                 }

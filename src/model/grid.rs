@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
+pub use super::error::not_finite;
 use super::error::{read_text, InputError, Locator};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 
@@ -68,32 +69,6 @@ struct PointSpec {
 /// Most points a grid may hold: at the fastest model's ~200,000 points/s on two cores, 1e12 points are
 /// two months of computing; a larger request is a typo or wants splitting (README).
 pub const MAX_GRID_POINTS: u64 = 1_000_000_000_000;
-
-/// The one rule every reader of numbers applies (grids, points CSV, command-line values): the message
-/// for a value that is not a finite number.
-pub fn not_finite(text: &str) -> String {
-    format!("`{text}` is not a finite number")
-}
-
-/// An array of exactly `N` finite numbers, or a located error naming the key.
-fn finite_array<const N: usize>(loc: &Locator, v: &Spanned<Vec<f64>>, key: &str) -> Result<[f64; N], InputError> {
-    let values = v.get_ref();
-    if values.len() != N {
-        return Err(loc.at(v.span(), format!("`{key}` needs {N} numbers, got {}", values.len())));
-    }
-    if let Some(bad) = values.iter().find(|x| !x.is_finite()) {
-        return Err(loc.at(v.span(), format!("`{key}`: {}", not_finite(&bad.to_string()))));
-    }
-    Ok(std::array::from_fn(|k| values[k]))
-}
-
-fn optional_array<const N: usize>(
-    loc: &Locator,
-    v: &Option<Spanned<Vec<f64>>>,
-    key: &str,
-) -> Result<Option<[f64; N]>, InputError> {
-    v.as_ref().map(|v| finite_array(loc, v, key)).transpose()
-}
 
 #[derive(Clone, Debug)]
 struct BoxGrid {
@@ -202,8 +177,8 @@ impl PointSet {
             None => None,
             Some(b) => {
                 let s = b.get_ref();
-                let from: [f64; 3] = finite_array(&loc, &s.from, "from")?;
-                let to: [f64; 3] = finite_array(&loc, &s.to, "to")?;
+                let from: [f64; 3] = loc.finite_array(&s.from, "from")?;
+                let to: [f64; 3] = loc.finite_array(&s.to, "to")?;
                 let counts = s.steps.get_ref();
                 if counts.len() != 3 {
                     return Err(loc.at(s.steps.span(), format!("`steps` needs 3 numbers, got {}", counts.len())));
@@ -237,8 +212,8 @@ impl PointSet {
                     to: Vec3::from(to),
                     steps,
                     decimals: [0, 1, 2].map(|k| grid_decimals(from[k], to[k], steps[k])),
-                    rotation: Vec3::from(optional_array(&loc, &s.orientation, "orientation")?.unwrap_or([0.0; 3])),
-                    wrench: optional_array(&loc, &s.wrench, "wrench")?.map(Vec6::from),
+                    rotation: Vec3::from(loc.optional_array(&s.orientation, "orientation")?.unwrap_or([0.0; 3])),
+                    wrench: loc.optional_array(&s.wrench, "wrench")?.map(Vec6::from),
                 })
             }
         };
@@ -248,9 +223,9 @@ impl PointSet {
             .map(|p| {
                 Ok(PosePoint {
                     name: Some(p.name.clone()),
-                    position: Vec3::from(finite_array(&loc, &p.at, "at")?),
-                    rotation: Vec3::from(optional_array(&loc, &p.orientation, "orientation")?.unwrap_or([0.0; 3])),
-                    wrench: optional_array(&loc, &p.wrench, "wrench")?.map(Vec6::from),
+                    position: Vec3::from(loc.finite_array(&p.at, "at")?),
+                    rotation: Vec3::from(loc.optional_array(&p.orientation, "orientation")?.unwrap_or([0.0; 3])),
+                    wrench: loc.optional_array(&p.wrench, "wrench")?.map(Vec6::from),
                 })
             })
             .collect::<Result<_, InputError>>()?;
@@ -268,7 +243,7 @@ impl PointSet {
     /// A CSV with columns `x_mm,y_mm,z_mm`, optionally `name`, `pose_rx_rad,pose_ry_rad,pose_rz_rad` and
     /// `Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm`.
     pub fn from_points_csv(path: &Path) -> Result<Self, InputError> {
-        let file = File::open(path).map_err(|source| InputError::Read { path: path.to_path_buf(), source })?;
+        let file = File::open(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
         let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(file);
         let whole = |m: String| InputError::Whole { path: path.to_path_buf(), message: m };
         let headers = reader.headers().map_err(|e| whole(format!("cannot read the header: {e}")))?.clone();

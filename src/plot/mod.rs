@@ -96,6 +96,30 @@ fn spacing(values: &[f64]) -> f64 {
     d.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min)
 }
 
+/// A `--section AXIS=VALUE`: the axis (0, 1, 2 for x, y, z) and the value (mm).
+pub fn parse_section(s: &str) -> Result<(usize, f64)> {
+    let (a, v) = s.split_once('=').ok_or_else(|| anyhow!("--section wants AXIS=VALUE, e.g. z=0"))?;
+    let axis = AXES.iter().position(|x| *x == a.trim()).ok_or_else(|| anyhow!("--section axis must be x, y or z"))?;
+    let v: f64 = v.trim().parse().map_err(|_| anyhow!("--section value `{v}` is not a number"))?;
+    if !v.is_finite() {
+        bail!("--section value `{v}` is not a finite number");
+    }
+    Ok((axis, v))
+}
+
+/// Checks a map picture's options against the header of the map that will be written, before the map is
+/// computed (a bad `--section` used to fail after a million-point map was written).
+pub fn check_map_options(header: &str, o: &PlotOptions) -> Result<()> {
+    if let Some(s) = &o.section {
+        parse_section(s)?;
+    }
+    let column = o.column.as_deref().unwrap_or("c_tran_max_mm_per_N");
+    if !header.trim_end().split(',').any(|h| h == column) {
+        bail!("--plot-column: the map has no column `{column}` (columns: {})", header.trim_end());
+    }
+    Ok(())
+}
+
 /// A colour map of one column over planar sections of the grid (one panel per section).
 fn map(t: &Table, o: &PlotOptions) -> Result<String> {
     let column = o.column.clone().unwrap_or_else(|| "c_tran_max_mm_per_N".to_string());
@@ -107,10 +131,8 @@ fn map(t: &Table, o: &PlotOptions) -> Result<String> {
     // The section axis: given, else the single-valued axis, else z (small multiples over its values).
     let (axis, levels) = match &o.section {
         Some(s) => {
-            let (a, v) = s.split_once('=').ok_or_else(|| anyhow!("--section wants AXIS=VALUE, e.g. z=0"))?;
-            let axis =
-                AXES.iter().position(|x| *x == a.trim()).ok_or_else(|| anyhow!("--section axis must be x, y or z"))?;
-            let v: f64 = v.trim().parse().map_err(|_| anyhow!("--section value `{v}` is not a number"))?;
+            let (axis, v) = parse_section(s)?;
+            let a = AXES[axis];
             let levels = distinct(&coords[axis]);
             let nearest = levels
                 .iter()

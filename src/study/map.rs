@@ -80,6 +80,17 @@ impl Tally for MapSummary {
     }
 }
 
+/// The columns a map of these points with these options writes (known before the first row).
+pub fn map_columns(points: &PointSet, options: &MapOptions) -> MapColumns {
+    let loaded = options.wrench.is_some() || options.use_point_wrench;
+    MapColumns {
+        orientation: points.has_orientation,
+        stiffness: options.stiffness,
+        deflection: points.has_wrench || loaded,
+        loaded,
+    }
+}
+
 pub fn run_map(
     pool: &rayon::ThreadPool,
     m: &Manipulator,
@@ -88,13 +99,8 @@ pub fn run_map(
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<MapSummary> {
-    let loaded = options.wrench.is_some() || options.use_point_wrench;
-    let columns = MapColumns {
-        orientation: points.has_orientation,
-        stiffness: options.stiffness,
-        deflection: points.has_wrench || loaded,
-        loaded,
-    };
+    let columns = map_columns(points, &options);
+    let loaded = columns.loaded;
     stream_rows(pool, points, &map_header(&columns), out, progress, |first_index, run| {
         let mut state = m.new_state();
         let mut text = String::with_capacity(run.len() * 700);
