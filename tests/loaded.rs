@@ -61,15 +61,7 @@ fn loaded_stiffness_matches_differences_of_equilibria() {
             let mut s = m.new_state();
             m.place(&commanded, &mut s).unwrap();
             let k = m.hold(&actual, &mut s).unwrap().stiffness;
-            let mut fd = Mat6::zeros();
-            for c in 0..6 {
-                let h = if c < 3 { 1e-4 } else { 1e-7 };
-                let mut e = Vec6::zeros();
-                e[c] = h;
-                let plus = m.hold(&apply_twist(&actual, &e), &mut s).unwrap().force;
-                let minus = m.hold(&apply_twist(&actual, &-e), &mut s).unwrap().force;
-                fd.set_column(c, &((plus - minus) / (2.0 * h)));
-            }
+            let fd = held_differences(&m, &mut s, &actual);
             assert!(scaled_rel_diff(&k, &fd, 300.0) < 1e-5, "at {x}: {k}\nvs differences\n{fd}");
             // A real load: the loaded stiffness differs from the unloaded one.
             let k0 = m.unloaded(&commanded, &mut m.new_state()).unwrap().stiffness;

@@ -8,7 +8,6 @@ use std::path::Path;
 
 use common::*;
 use stiff::kinematics::frame::{skew, Frame, Mat3, Mat6, Vec3, Vec6};
-use stiff::platform::leg::apply_twist;
 use stiff::platform::manipulator::Manipulator;
 
 /// Paper 000 s. 5.2's groove-milling wrench (N, N mm).
@@ -24,17 +23,7 @@ fn tangent_and_differences(m: &Manipulator, commanded: &Frame, wrench: &Vec6) ->
     let mut s = m.new_state();
     m.place(commanded, &mut s).unwrap();
     let d = m.deflect(commanded, wrench, None, &mut s).unwrap();
-    let k = d.held.stiffness;
-    let mut fd = Mat6::zeros();
-    for c in 0..6 {
-        let h = if c < 3 { 1e-4 } else { 1e-7 };
-        let mut e = Vec6::zeros();
-        e[c] = h;
-        let plus = m.hold(&apply_twist(&d.pose, &e), &mut s).unwrap().force;
-        let minus = m.hold(&apply_twist(&d.pose, &-e), &mut s).unwrap().force;
-        fd.set_column(c, &((plus - minus) / (2.0 * h)));
-    }
-    (k, fd)
+    (d.held.stiffness, held_differences(m, &mut s, &d.pose))
 }
 
 /// Under the milling wrench (a moment of 21.5 N m) the Orthoglide's tangent stiffness equals central
@@ -131,15 +120,7 @@ fn prpar_loaded_stiffness_matches_differences_with_the_posture_dependent_spring(
         let mut s = m.new_state();
         m.place(&commanded, &mut s).unwrap();
         let k = m.hold(&actual, &mut s).unwrap().stiffness;
-        let mut fd = Mat6::zeros();
-        for c in 0..6 {
-            let h = if c < 3 { 1e-4 } else { 1e-7 };
-            let mut e = Vec6::zeros();
-            e[c] = h;
-            let plus = m.hold(&apply_twist(&actual, &e), &mut s).unwrap().force;
-            let minus = m.hold(&apply_twist(&actual, &-e), &mut s).unwrap().force;
-            fd.set_column(c, &((plus - minus) / (2.0 * h)));
-        }
+        let fd = held_differences(&m, &mut s, &actual);
         assert!(scaled_rel_diff(&k, &fd, 300.0) < 1e-6, "at {x}: {k}\nvs differences\n{fd}");
     }
 }

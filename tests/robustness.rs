@@ -3,6 +3,7 @@
 //! doubles hold (a modulus of 5e-324, a length of 1e200, a load of 1e308) give no finite stiffness, so the
 //! answer is a located error or a row status, never a panic (exit 101), an endless loop or a NaN under `ok`.
 
+mod common;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -14,38 +15,9 @@ fn bin() -> PathBuf {
 
 /// Runs stiff with a deadline; panics (failing the test) on a hang.
 fn run_in(dir: &Path, args: &[&str], deadline: Duration) -> Output {
-    let mut child = Command::new(bin())
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut out = child.stdout.take().unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let o = std::thread::spawn(move || {
-        let mut v = Vec::new();
-        let _ = out.read_to_end(&mut v);
-        v
-    });
-    let e = std::thread::spawn(move || {
-        let mut v = Vec::new();
-        let _ = err.read_to_end(&mut v);
-        v
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > deadline {
-            let _ = child.kill();
-            panic!("stiff {} did not finish within {deadline:?} (a hang)", args.join(" "));
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    Output { status, stdout: o.join().unwrap(), stderr: e.join().unwrap() }
+    let done = common::run_with_deadline(Command::new(bin()).args(args).current_dir(dir), usize::MAX, deadline)
+        .unwrap_or_else(|| panic!("stiff {} did not finish within {deadline:?} (a hang)", args.join(" ")));
+    Output { status: done.status, stdout: done.stdout, stderr: done.stderr.into_bytes() }
 }
 
 fn root() -> PathBuf {

@@ -66,9 +66,9 @@ struct PointSpec {
     wrench: Option<Spanned<Vec<f64>>>,
 }
 
-/// Most points a grid may hold: at the fastest model's ~200,000 points/s on two cores, 1e12 points are
-/// two months of computing; a larger request is a typo or wants splitting (README).
-pub const MAX_GRID_POINTS: u64 = 1_000_000_000_000;
+/// Most points a grid may hold: at the fastest model's ~200,000 points/s on two cores, 1e10 points are
+/// 14 hours of computing, a long cluster job; a larger request is a typo or wants splitting (README).
+pub const MAX_GRID_POINTS: u64 = 10_000_000_000;
 
 #[derive(Clone, Debug)]
 struct BoxGrid {
@@ -201,7 +201,7 @@ impl PointSet {
                     return Err(loc.at(
                         s.steps.span(),
                         format!(
-                            "{} x {} x {} points is more than a grid may hold ({MAX_GRID_POINTS}: two months of \
+                            "{} x {} x {} points is more than a grid may hold ({MAX_GRID_POINTS}: 14 hours of \
                              computing at 200,000 points/s); split it into several grids",
                             steps[0], steps[1], steps[2]
                         ),

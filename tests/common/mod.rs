@@ -172,3 +172,67 @@ pub fn random_chain(r: &mut StdRng, joints: usize, masses: bool) -> ChainBuilder
     b.fixed(random_frame(r, 80.0));
     b
 }
+
+/// The tangent stiffness at `pose` by central differences of the wrench that holds the platform at poses
+/// displaced from it (steps 1e-4 mm and 1e-7 rad), the legs placed as `state` holds them.
+pub fn held_differences(
+    m: &Manipulator,
+    state: &mut stiff::platform::manipulator::ManipulatorState,
+    pose: &Frame,
+) -> Mat6 {
+    let mut fd = Mat6::zeros();
+    for c in 0..6 {
+        let h = if c < 3 { 1e-4 } else { 1e-7 };
+        let mut e = Vec6::zeros();
+        e[c] = h;
+        let plus = m.hold(&stiff::platform::leg::apply_twist(pose, &e), state).unwrap().force;
+        let minus = m.hold(&stiff::platform::leg::apply_twist(pose, &-e), state).unwrap().force;
+        fd.set_column(c, &((plus - minus) / (2.0 * h)));
+    }
+    fd
+}
+
+/// What a command did within its deadline: its status, at most `stdout_limit` bytes of its stdout (the
+/// pipe is closed after them), and its stderr.
+pub struct Finished {
+    pub status: std::process::ExitStatus,
+    pub stdout: Vec<u8>,
+    pub stderr: String,
+}
+
+/// Runs `cmd` (stdout and stderr piped) and waits at most `deadline`; None when it had to be killed (a hang).
+pub fn run_with_deadline(
+    cmd: &mut std::process::Command,
+    stdout_limit: usize,
+    deadline: std::time::Duration,
+) -> Option<Finished> {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let out_reader = std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        let _ = (&mut stdout).take(stdout_limit as u64).read_to_end(&mut buf);
+        buf // the pipe closes here
+    });
+    let err_reader = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        let _ = stderr.read_to_end(&mut s);
+        String::from_utf8_lossy(&s).into_owned()
+    });
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if start.elapsed() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    };
+    let (stdout, stderr) = (out_reader.join().unwrap(), err_reader.join().unwrap());
+    status.map(|status| Finished { status, stdout, stderr })
+}
