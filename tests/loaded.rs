@@ -274,6 +274,25 @@ chain = [
 "#
     ));
     let at = Frame::translation(Vec3::new(0.0, 0.0, h));
+    // Displacement control passes the peak and the snap-through branch (load falling, then rising again
+    // past w = h) with every row on the closed form; the stiffness along z changes sign exactly where the
+    // closed-form load peaks, so the buckling events bracket the snap-through (no limit point is marked:
+    // that is a force-control event).
+    let w_max = 2.2 * h;
+    let rows = run_curve(&m, &at, Control::Displacement(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), w_max, 44).unwrap();
+    assert_eq!(rows.len(), 45);
+    for r in &rows {
+        let w = -r.displacement.unwrap()[2];
+        let force = -r.wrench.unwrap()[2];
+        assert!((force - load(w)).abs() < 1e-6 * p_max, "w {w}: {force} vs {}", load(w));
+        assert!(!r.event.contains("limit_point"));
+    }
+    let buckling = rows.iter().find(|r| r.event.contains("buckling")).expect("the peak is passed");
+    let restabilised = rows.iter().find(|r| r.event.contains("restabilised")).expect("and the valley");
+    // dP/dw = 0 at the peak and the valley of P(w), symmetric about w = h.
+    let w_peak = (0..200_000).map(|i| h * i as f64 / 200_000.0).max_by(|x, y| load(*x).total_cmp(&load(*y))).unwrap();
+    assert!((buckling.event_load_factor.unwrap() - w_peak).abs() < 1e-3 * h, "{:?} vs {w_peak}", buckling.event_load_factor);
+    assert!((restabilised.event_load_factor.unwrap() - (2.0 * h - w_peak)).abs() < 1e-3 * h);
     let rows = run_curve(&m, &at, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.3 * p_max, 40).unwrap();
     // The limit point is found from the path (the load factor's maximum), not from the solver's failure.
     let limit = rows.iter().find(|r| r.event.contains("limit_point")).expect("a limit point");
