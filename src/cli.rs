@@ -360,6 +360,9 @@ pub fn run() -> Result<()> {
     }
 }
 
+/// Most tolerance samples per point (`assemble --samples`): each row waits for all of its samples.
+const MAX_SAMPLES: usize = 10_000_000;
+
 /// Most worker threads a run starts: each holds its own buffers and a run in flight, and starting a
 /// million of them hangs the pool setup.
 const MAX_THREADS: usize = 1024;
@@ -457,6 +460,13 @@ fn assemble(a: AssembleArgs) -> Result<()> {
     let mut sink = Sink::create(a.output.as_deref())?;
     let bar = progress_bar(points.len, a.run.quiet);
     let options = AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed };
+    if a.samples > MAX_SAMPLES {
+        bail!(
+            "--samples {} is more than a point may take ({MAX_SAMPLES}: about 5 s per point at 2 million \
+             assemblies/s; the spread converges long before)",
+            a.samples
+        );
+    }
     if a.plot.is_some() && a.samples > 0 {
         bail!("--plot draws an assembly path, not a tolerance study (--samples)");
     }

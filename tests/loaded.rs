@@ -291,7 +291,11 @@ chain = [
     let restabilised = rows.iter().find(|r| r.event.contains("restabilised")).expect("and the valley");
     // dP/dw = 0 at the peak and the valley of P(w), symmetric about w = h.
     let w_peak = (0..200_000).map(|i| h * i as f64 / 200_000.0).max_by(|x, y| load(*x).total_cmp(&load(*y))).unwrap();
-    assert!((buckling.event_load_factor.unwrap() - w_peak).abs() < 1e-3 * h, "{:?} vs {w_peak}", buckling.event_load_factor);
+    assert!(
+        (buckling.event_load_factor.unwrap() - w_peak).abs() < 1e-3 * h,
+        "{:?} vs {w_peak}",
+        buckling.event_load_factor
+    );
     assert!((restabilised.event_load_factor.unwrap() - (2.0 * h - w_peak)).abs() < 1e-3 * h);
     let rows = run_curve(&m, &at, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.3 * p_max, 40).unwrap();
     // The limit point is found from the path (the load factor's maximum), not from the solver's failure.

@@ -199,7 +199,7 @@ fn an_interrupted_run_leaves_no_partial_file() {
 }
 
 /// Regression: size requests beyond what the machine can do hung or aborted (`curve --steps 4294967297`
-/// allocated 721 GB, `--threads 1000000` hung the pool setup, `steps = [2^32, 2^32, 1]` wrapped to zero
+/// allocated 721 GB, `--threads 1000000` hung the pool setup, `assemble --samples 4294967297` never wrote a row, `steps = [2^32, 2^32, 1]` wrapped to zero
 /// points). They are refused up front, saying the limit.
 #[test]
 fn impossible_sizes_are_refused_with_their_limit() {
@@ -218,6 +218,17 @@ fn impossible_sizes_are_refused_with_their_limit() {
     assert!(e.contains("1000000"), "{e}");
     let e = refused(&run(&["map", PUU, "--grid", SMALL, "--threads", "1000000"]));
     assert!(e.contains("1024"), "{e}");
+    let e = refused(&run(&[
+        "assemble",
+        PUU,
+        "--errors",
+        "manipulators/errors/orthoglide-case-a.toml",
+        "--grid",
+        SMALL,
+        "--samples",
+        "4294967297",
+    ]));
+    assert!(e.contains("10000000"), "{e}");
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("g.toml"),
