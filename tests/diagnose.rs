@@ -216,3 +216,35 @@ fn loaded_mode_predicts_the_loaded_response() {
     let d = run(&m, &data);
     assert_eq!(d.accepted.first().map(|a| a.effect.kind), Some(Kind::LoadedNonlinearity));
 }
+
+/// Regression: scaling the 3-PRPaR's parallelogram spring (`link-compliance:parallelogram`) had no effect
+/// at all, because that spring is rebuilt from its bars at every posture and the scaling edited only its
+/// stored matrices. The bars' compliance is proportional to 1/E in every direction (axial L/EA, bending
+/// L^3/3EI, torsion L/GJ with G = E/2(1 + nu)), so the scaled model must equal one whose parallelogram bars
+/// have E/3, at every pose, unloaded and loaded.
+#[test]
+fn scaling_a_posture_dependent_spring_acts_at_every_posture() {
+    use stiff::kinematics::frame::Frame;
+    let path = Path::new("manipulators/orthoglide-3prpar.toml");
+    let m = stiff::model::load_manipulator(path).unwrap();
+    let effect = Effect::parse("link-compliance:parallelogram=3", &m).unwrap();
+    let scaled = stiff::diagnose::effects::scaled(&m, &[effect]);
+    let text = std::fs::read_to_string(path).unwrap();
+    let softer = text.replace("parallelogram = { E = \"E\",", "parallelogram = { E = \"E / 3\",");
+    assert_ne!(softer, text);
+    let reference = stiff::model::parse_manipulator(path, &softer).unwrap();
+    for x in [0.0, -73.65, 126.35, 40.0] {
+        let pose = Frame::translation(Vec3::new(x, -0.5 * x, 0.3 * x));
+        let k = |m: &Manipulator| m.unloaded(&pose, &mut m.new_state()).unwrap().stiffness;
+        let (a, b, original) = (k(&scaled), k(&reference), k(&m));
+        assert!((a - b).abs().max() <= 1e-9 * b.abs().max(), "at {x}: scaled model differs from E/3");
+        assert!((a - original).abs().max() > 1e-3 * original.abs().max(), "at {x}: the scaling has an effect");
+        let loaded = |m: &Manipulator| {
+            let mut s = m.new_state();
+            m.place(&pose, &mut s).unwrap();
+            m.deflect(&pose, &Vec6::new(200.0, -100.0, 50.0, 0.0, 3000.0, 0.0), None, &mut s).unwrap().displacement
+        };
+        let (da, db) = (loaded(&scaled), loaded(&reference));
+        assert!((da - db).norm() <= 1e-8 * db.norm(), "at {x}: loaded {da} vs {db}");
+    }
+}

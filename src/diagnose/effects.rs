@@ -205,8 +205,7 @@ pub fn scaled(m: &Manipulator, effects: &[Effect]) -> Manipulator {
                     _ => false,
                 };
                 if hit {
-                    s.stiffness /= e.values[0];
-                    s.compliance *= e.values[0];
+                    s.scale_compliance(e.values[0]);
                 }
             }
         }

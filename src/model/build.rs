@@ -333,6 +333,7 @@ impl Builder<'_> {
             length: self.positive(&s.length, "length")?,
             separation: self.positive(&s.separation, "separation")?,
             angle,
+            compliance_factor: 1.0,
         })
     }
 

@@ -24,6 +24,9 @@ pub struct Parallelogram {
     pub separation: f64,
     /// Index of the passive coordinate that is the parallelogram angle.
     pub angle: usize,
+    /// Factor on the compliance derived from the bars (1 as built; `SpringGroup::scale_compliance` changes
+    /// it, so a scaling reaches every posture).
+    pub compliance_factor: f64,
 }
 
 impl Parallelogram {
@@ -67,7 +70,7 @@ impl Parallelogram {
         let motion = Vec6::new(-q.sin(), q.cos(), 0.0, 0.0, 0.0, 0.0);
         let scale = total.trace() / 6.0;
         total += motion * motion.transpose() * scale;
-        Some((total + total.transpose()) * 0.5).filter(|k| k.iter().all(|v| v.is_finite()))
+        Some((total + total.transpose()) * (0.5 / self.compliance_factor)).filter(|k| k.iter().all(|v| v.is_finite()))
     }
 }
 
@@ -76,7 +79,13 @@ mod tests {
     use super::*;
 
     fn sample() -> Parallelogram {
-        Parallelogram { bar: BeamSection::round(210000.0, 80769.0, 8.5), length: 310.25, separation: 196.0, angle: 0 }
+        Parallelogram {
+            bar: BeamSection::round(210000.0, 80769.0, 8.5),
+            length: 310.25,
+            separation: 196.0,
+            angle: 0,
+            compliance_factor: 1.0,
+        }
     }
 
     /// At angle 0 the bars run along x, pinned at both ends in the plane: the end side resists a pull along

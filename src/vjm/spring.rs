@@ -22,6 +22,16 @@ pub struct SpringGroup {
 }
 
 impl SpringGroup {
+    /// Multiplies the spring's compliance by `factor` (divides its stiffness), at every posture: a
+    /// posture-dependent spring is rebuilt by `at` from its own derivation, so the factor goes there too.
+    pub fn scale_compliance(&mut self, factor: f64) {
+        self.stiffness /= factor;
+        self.compliance *= factor;
+        if let Some(p) = &mut self.posture {
+            p.compliance_factor *= factor;
+        }
+    }
+
     /// Stiffness and compliance at the given passive coordinates. Where a posture-dependent spring has no
     /// finite value (`Parallelogram::stiffness`), both are NaN: the leg's answer is then not finite and
     /// its point is reported as `overflow` (statuses in README), never a panic.
