@@ -98,8 +98,9 @@ fn length_weights(length_scale: f64) -> Vec6 {
 
 /// Eigenvalues (ascending) of a symmetric 3x3 matrix. The closed-form trigonometric method is exact away
 /// from repeated roots, but loses half its digits near them (its angle is an arccos near +-1, as on the
-/// Orthoglide's diagonal x = y = z): there nalgebra's iterative solver (with an iteration cap) takes over.
-/// None on non-finite input.
+/// Orthoglide's diagonal x = y = z). Near a double root the isolated root is still exact (the cosine is flat
+/// there), so the other two come from the 2x2 matrix on the plane orthogonal to its eigenvector, whose
+/// eigenvalues `(a + c)/2 +- hypot((a - c)/2, b)` keep their digits. None on non-finite input.
 pub fn symmetric_eigenvalues3(m: &Mat3) -> Option<[f64; 3]> {
     if !m.iter().all(|v| v.is_finite()) {
         return None;
@@ -109,20 +110,44 @@ pub fn symmetric_eigenvalues3(m: &Mat3) -> Option<[f64; 3]> {
     let q = tr / 3.0;
     let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
     let p = (p2 / 6.0).sqrt();
-    if p > 0.0 {
-        let r = ((m - Mat3::identity() * q) / p).determinant() / 2.0;
-        // |r| = 1 exactly at a double root; 1e-3 away the arccos has lost at most ~5e-15 of its argument.
-        if r.abs() < 1.0 - 1e-3 {
-            let phi = r.acos() / 3.0;
-            let largest = q + 2.0 * p * phi.cos();
-            let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
-            return Some([smallest, tr - largest - smallest, largest]);
-        }
+    if p == 0.0 {
+        return Some([q, q, q]);
     }
-    let e = SymmetricEigen::try_new(*m, f64::EPSILON, MAX_SWEEPS)?.eigenvalues;
-    let mut v = [e[0], e[1], e[2]];
+    let r = (((m - Mat3::identity() * q) / p).determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let largest = q + 2.0 * p * phi.cos();
+    let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+    // 1e-3 from +-1 the arccos has lost at most ~5e-15 of its argument.
+    if r.abs() < 1.0 - 1e-3 {
+        return Some([smallest, tr - largest - smallest, largest]);
+    }
+    let isolated = if r > 0.0 { largest } else { smallest };
+    let pair = deflated_pair(m, isolated)?;
+    let mut v = [isolated, pair.0, pair.1];
     v.sort_by(f64::total_cmp);
     Some(v)
+}
+
+/// The two eigenvalues of a symmetric 3x3 matrix other than `isolated` (a simple eigenvalue, well
+/// separated): its eigenvector is the largest cross product of two rows of `m - isolated I`; on the plane
+/// orthogonal to it `m` is a 2x2 symmetric matrix.
+fn deflated_pair(m: &Mat3, isolated: f64) -> Option<(f64, f64)> {
+    let a = m - Mat3::identity() * isolated;
+    let rows = [a.row(0).transpose(), a.row(1).transpose(), a.row(2).transpose()];
+    let v = [rows[0].cross(&rows[1]), rows[0].cross(&rows[2]), rows[1].cross(&rows[2])]
+        .into_iter()
+        .max_by(|x, y| x.norm_squared().total_cmp(&y.norm_squared()))?;
+    if !(v.norm() > 0.0) {
+        return None;
+    }
+    let v = v.normalize();
+    let helper =
+        if v.x.abs() < 0.9 { crate::kinematics::frame::Vec3::x() } else { crate::kinematics::frame::Vec3::y() };
+    let u = v.cross(&helper).normalize();
+    let w = v.cross(&u);
+    let (aa, cc, bb) = (u.dot(&(m * u)), w.dot(&(m * w)), u.dot(&(m * w)));
+    let (mid, half) = (0.5 * (aa + cc), (0.5 * (aa - cc)).hypot(bb));
+    Some((mid - half, mid + half))
 }
 
 /// Smallest eigenvalue of the symmetric part of the equilibrated stiffness, relative to the largest:
@@ -290,4 +315,27 @@ pub fn spectrum(k: &Mat6, length_scale: f64) -> Option<Spectrum> {
         scaled_min: e.eigenvalues[i],
         critical_mode: mode,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Near a double root the closed form loses half its digits; the deflated pair keeps them. A rotated
+    /// diag(2, 1 + d, 1) with d from 1e-3 down to 0: eigenvalues to 1e-14.
+    #[test]
+    fn eigenvalues_near_a_double_root_keep_their_digits() {
+        let r = crate::kinematics::frame::rotation_from_vector(&crate::kinematics::frame::Vec3::new(0.3, -0.7, 0.4));
+        for d in [1e-3, 1e-6, 1e-9, 1e-12, 0.0] {
+            for (a, b, c) in [(2.0, 1.0 + d, 1.0), (1.0, 2.0 + d, 2.0)] {
+                let m = r * Mat3::from_diagonal(&crate::kinematics::frame::Vec3::new(a, b, c)) * r.transpose();
+                let got = symmetric_eigenvalues3(&((m + m.transpose()) * 0.5)).unwrap();
+                let mut want = [a, b, c];
+                want.sort_by(f64::total_cmp);
+                for k in 0..3 {
+                    assert!((got[k] - want[k]).abs() < 1e-14 * 2.0, "d {d}: {got:?} vs {want:?}");
+                }
+            }
+        }
+    }
 }
