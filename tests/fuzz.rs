@@ -408,14 +408,21 @@ fn campaign(seed: u64, cases: usize) -> Vec<(String, Failure)> {
         .unwrap_or_else(|_| PathBuf::from(env!("CARGO_BIN_EXE_stiff")));
     let mut r = StdRng::seed_from_u64(seed);
     let mut failures = Vec::new();
+    let mut slowest = (0.0f64, 0usize);
     for k in 0..cases {
         let c = case(&mut r);
         let dir = tempfile::tempdir().unwrap();
-        if let Some(f) = run(&bin, &c, dir.path()) {
+        let start = Instant::now();
+        let outcome = run(&bin, &c, dir.path());
+        if start.elapsed().as_secs_f64() > slowest.0 {
+            slowest = (start.elapsed().as_secs_f64(), k);
+        }
+        if let Some(f) = outcome {
             let files: Vec<String> = c.files.iter().map(|(n, t)| format!("{n}:\n{t}")).collect();
             failures.push((format!("case {k}: stiff {}\n{}", c.args.join(" "), files.join("\n")), f));
         }
     }
+    eprintln!("fuzz: slowest case {} took {:.2} s", slowest.1, slowest.0);
     failures
 }
 
