@@ -87,6 +87,16 @@ pub fn synthesize(
         let predicted = problem.predict(&o.effects, &rows).map_err(SynthError::Pose)?;
         let mut text = String::new();
         for (row, d) in data.rows.iter().zip(predicted) {
+            // What synth writes, diagnose must be able to read: the same bound on every number.
+            let readable = |v: &f64| v.is_finite() && v.abs() <= super::data::MAX_MAGNITUDE;
+            if !(d.iter().all(readable) && row.wrench.iter().all(readable)) {
+                return Err(SynthError::Pose(format!(
+                    "pose {}: the load or the effects give a displacement beyond {:e} (or not finite): not a \
+                     measurement",
+                    row.pose_id,
+                    super::data::MAX_MAGNITUDE
+                )));
+            }
             push_text(&mut text, &row.pose_id);
             let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
             for v in row.position.iter().chain(row.wrench.iter()).chain(noisy.iter()) {
