@@ -330,7 +330,7 @@ fn parse_numbers(s: &str, n: usize) -> Result<Vec<f64>, String> {
         .iter()
         .map(|t| match t.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok(v),
-            Ok(_) => Err(crate::model::grid::not_finite(t)),
+            Ok(_) => Err(crate::model::error::not_finite(t)),
             Err(_) => Err(format!("`{t}` is not a number")),
         })
         .collect()

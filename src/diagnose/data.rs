@@ -80,7 +80,7 @@ impl Dataset {
                     return Err(at(
                         line,
                         c + 1,
-                        format!("column `{}`: {}", &header[c], crate::model::grid::not_finite(text)),
+                        format!("column `{}`: {}", &header[c], crate::model::error::not_finite(text)),
                     ));
                 }
                 // Residuals are squared and weighted: a value beyond 1e100 overflows there (and is no

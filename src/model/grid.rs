@@ -7,8 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
-pub use super::error::not_finite;
-use super::error::{read_text, InputError, Locator};
+use super::error::{not_finite, read_text, InputError, Locator};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 
 /// One pose to evaluate.

@@ -14,6 +14,7 @@
 use nalgebra::{SymmetricEigen, SVD};
 
 use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec6};
+use crate::linalg::{MAX_ENTRY, MAX_SWEEPS};
 
 /// Relative singular value of the equilibrated stiffness below which a direction is free: a few hundred
 /// times round-off.
@@ -30,10 +31,6 @@ pub const CANCELLATION_TOLERANCE: f64 = 1e-12;
 /// on x, and by 1e-3 at 3.1e6.
 /// Beyond 1e6 fewer than four digits of C can be trusted, so none are written.
 pub const CONDITION_LIMIT: f64 = 1e6;
-
-/// Iteration cap for the 6x6 SVD and symmetric eigen-solvers (nalgebra iterates without one by default;
-/// these converge in a few dozen sweeps on finite input).
-const MAX_SWEEPS: usize = 200;
 
 #[derive(Clone, Debug)]
 pub enum Outcome {
@@ -237,7 +234,7 @@ fn norm1(m: &Mat6) -> f64 {
 /// iteration cap, so it is called only on finite entries of bounded size (an equilibrated matrix has a
 /// unit diagonal), where its shifted QR converges.
 fn capped_eigenvalues(m: &Mat6) -> Option<Vec6> {
-    (m.iter().all(|v| v.is_finite() && v.abs() < 1e150)).then(|| m.symmetric_eigenvalues())
+    (m.iter().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY)).then(|| m.symmetric_eigenvalues())
 }
 
 /// The null space of the equilibrated stiffness mapped back to twists: orthonormal in the length-scaled

@@ -159,7 +159,7 @@ impl LoadedChain<'_> {
             // A spring whose stiffness depends on a passive coordinate q (paper 000 s. 6: "an equivalent
             // non-linear virtual spring whose stiffness depends on the internal variable"): its energy
             // 1/2 dtheta^T K(q) dtheta also pushes on q, and both statics rows depend on q.
-            if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive) {
+            if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive, &stiffness) {
                 let d = nalgebra::DVector::from_fn(s.dim, |j, _| deflection(j));
                 let dk = dk.view((0, 0), (s.dim, s.dim));
                 let dk_d = dk * &d;

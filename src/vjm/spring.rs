@@ -58,13 +58,14 @@ impl SpringGroup {
     /// coordinate's index and dK/dq, d2K/dq2 at the given posture, by central differences of the spring's own
     /// derivation. The loaded equilibrium needs them: with the energy 1/2 dtheta^T K(q) dtheta, q feels
     /// 1/2 dtheta^T K'(q) dtheta and the Newton matrix gains K'(q) dtheta and 1/2 dtheta^T K''(q) dtheta.
-    pub fn posture_derivatives(&self, passive: &[f64]) -> Option<(usize, Mat6, Mat6)> {
+    /// `mid` is the stiffness at the posture itself, as `at` gave it (not derived twice).
+    pub fn posture_derivatives(&self, passive: &[f64], mid: &Mat6) -> Option<(usize, Mat6, Mat6)> {
         let p = self.posture.as_ref()?;
         let q = passive.get(p.angle).copied().unwrap_or(0.0);
         let h = POSTURE_STEP;
         let not_finite = Mat6::from_element(f64::NAN);
         let at = |q: f64| p.stiffness(q).unwrap_or(not_finite);
-        let (minus, mid, plus) = (at(q - h), at(q), at(q + h));
+        let (minus, plus) = (at(q - h), at(q + h));
         Some((p.angle, (plus - minus) / (2.0 * h), (plus - mid * 2.0 + minus) / (h * h)))
     }
 }
