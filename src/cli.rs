@@ -11,7 +11,7 @@ use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::error::read_text;
 use crate::model::errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
-use crate::model::parse_with;
+use crate::model::{parse_with, Model};
 use crate::output::report::point_report;
 use crate::output::sink::Sink;
 use crate::platform::manipulator::Manipulator;
@@ -280,6 +280,11 @@ pub struct ModelArgs {
 
 impl ModelArgs {
     fn load(&self) -> Result<Manipulator> {
+        Ok(self.load_model()?.manipulator)
+    }
+
+    /// The description with its measurement-model terms (diagnose, synth).
+    fn load_model(&self) -> Result<Model> {
         let source = read_text(&self.model)?;
         let overrides = self.set.iter().cloned().collect();
         Ok(parse_with(&self.model, &source, &overrides, 0)?)
@@ -485,7 +490,7 @@ fn assemble(a: AssembleArgs) -> Result<()> {
 
 fn diagnose(a: DiagnoseArgs) -> Result<()> {
     use crate::diagnose::{data::Dataset, fit::Problem, report, select};
-    let model = a.model.load()?;
+    let model = a.model.load_model()?;
     let data = Dataset::read(&a.data)?;
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         bail!("--alpha must lie in (0, 1)");
@@ -493,7 +498,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let (weights, sigma, source) =
         select::noise(&data, a.sigma).map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let needs_loaded = !a.loaded;
-    let problem = Problem::new(&model, &data, weights, a.loaded, needs_loaded)
+    let problem = Problem::new(&model.manipulator, &model.measurement_terms, &data, weights, a.loaded, needs_loaded)
         .map_err(|b| anyhow::anyhow!("{}, line {}: pose `{}`: {}", a.data.display(), b.line, b.pose_id, b.why))?;
     let options = select::Options { alpha: a.alpha, loaded: a.loaded, max_effects: 3 };
     // The outputs are opened before the work, so an unwritable path fails at once.
@@ -525,12 +530,13 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
 }
 
 fn synth(a: SynthArgs) -> Result<()> {
-    use crate::diagnose::{effects::Effect, synth};
-    let model = a.model.load()?;
+    use crate::diagnose::synth;
+    use crate::model::effect::Effect;
+    let model = a.model.load_model()?;
     let effects = a
         .effects
         .iter()
-        .map(|e| Effect::parse(e, &model))
+        .map(|e| Effect::parse(e, &model.manipulator))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("--effect {e}"))?;
     let wrenches = a

@@ -1,6 +1,8 @@
 //! stiff: stiffness of parallel robots by the Virtual Joint Method (see ARCHITECTURE.md).
+pub mod beam;
 pub mod cli;
 pub mod diagnose;
+pub mod expr;
 pub mod kinematics;
 pub mod linalg;
 pub mod model;

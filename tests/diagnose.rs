@@ -7,7 +7,8 @@
 use std::path::Path;
 
 use stiff::diagnose::data::Dataset;
-use stiff::diagnose::effects::{Effect, Kind, Target};
+use stiff::model::Model;
+use stiff::model::effect::{Effect, Kind, Target};
 use stiff::diagnose::fit::Problem;
 use stiff::diagnose::report::corrected_model;
 use stiff::diagnose::select::{diagnose, noise, Diagnosis, Options, Verdict};
@@ -52,7 +53,7 @@ fn wrenches() -> Vec<Vec6> {
 fn synth(m: &Manipulator, effects: &[Effect], wrenches: &[Vec6], noise_mm: f64, seed: u64) -> Dataset {
     let o = SynthOptions { effects: effects.to_vec(), wrenches: wrenches.to_vec(), noise: noise_mm, seed, repeats: 1 };
     let mut text = Vec::new();
-    synthesize(m, &mut PointSet::from_points(poses()), &o, &mut text).unwrap();
+    synthesize(&Model::nominal(m.clone()), &mut PointSet::from_points(poses()), &o, &mut text).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("data.csv");
     std::fs::write(&path, text).unwrap();
@@ -60,8 +61,13 @@ fn synth(m: &Manipulator, effects: &[Effect], wrenches: &[Vec6], noise_mm: f64, 
 }
 
 fn run(m: &Manipulator, data: &Dataset) -> Diagnosis {
+    run_model(&Model::nominal(m.clone()), data)
+}
+
+/// As `run`, with the description's own measurement-model terms (`[[effect]]` entries).
+fn run_model(model: &Model, data: &Dataset) -> Diagnosis {
     let (weights, sigma, source) = noise(data, None).unwrap();
-    let problem = Problem::new(m, data, weights, false, true).unwrap();
+    let problem = Problem::new(&model.manipulator, &model.measurement_terms, data, weights, false, true).unwrap();
     diagnose(&problem, sigma, source, &Options::default()).unwrap()
 }
 
@@ -197,8 +203,8 @@ fn two_effects_are_named_and_the_corrected_model_is_clean() {
     let dir = tempfile::tempdir().unwrap();
     let fixed = dir.path().join("fixed.toml");
     std::fs::write(&fixed, corrected_model(&source, Path::new("manipulators"), &d)).unwrap();
-    let corrected = stiff::model::load_manipulator(&fixed).unwrap();
-    let again = run(&corrected, &data);
+    let corrected = stiff::model::load_model(&fixed).unwrap();
+    let again = run_model(&corrected, &data);
     assert_eq!(again.verdict, Verdict::None, "{}", stiff::diagnose::report::sentence(&again));
 }
 
@@ -209,7 +215,7 @@ fn loaded_mode_predicts_the_loaded_response() {
     let m = model();
     let data = synth(&m, &[Effect::parse("loaded-nonlinearity=1", &m).unwrap()], &wrenches(), SIGMA, 8);
     let (weights, sigma, source) = noise(&data, None).unwrap();
-    let problem = Problem::new(&m, &data, weights, true, true).unwrap();
+    let problem = Problem::new(&m, &[], &data, weights, true, true).unwrap();
     let options = Options { loaded: true, ..Options::default() };
     let d = diagnose(&problem, sigma, source, &options).unwrap();
     assert_eq!(d.verdict, Verdict::None, "{}", stiff::diagnose::report::sentence(&d));
@@ -228,7 +234,7 @@ fn scaling_a_posture_dependent_spring_acts_at_every_posture() {
     let path = Path::new("manipulators/orthoglide-3prpar.toml");
     let m = stiff::model::load_manipulator(path).unwrap();
     let effect = Effect::parse("link-compliance:parallelogram=3", &m).unwrap();
-    let scaled = stiff::diagnose::effects::scaled(&m, &[effect]);
+    let scaled = stiff::model::effect::scaled(&m, &[effect]);
     let text = std::fs::read_to_string(path).unwrap();
     let softer = text.replace("parallelogram = { E = \"E\",", "parallelogram = { E = \"E / 3\",");
     assert_ne!(softer, text);

@@ -9,7 +9,7 @@ use stiff::kinematics::chain::{Chain, Element as ChainElement, JointKind, Role};
 use stiff::kinematics::frame::{block_rotation, Frame, Mat6, Vec3, Vec6};
 use stiff::msa::{beam_stiffness, link_stiffness, Connection, Element, Structure};
 use stiff::platform::leg::Leg;
-use stiff::vjm::spring::BeamSection;
+use stiff::beam::BeamSection;
 
 fn section() -> BeamSection {
     BeamSection { e: 210000.0, g: 80769.0, area: 120.0, iy: 1500.0, iz: 900.0, j: 2100.0 }
@@ -333,7 +333,7 @@ fn model_with(path: &str, overrides: &[(&str, f64)]) -> stiff::platform::manipul
     let p = std::path::Path::new(path);
     let source = std::fs::read_to_string(p).unwrap();
     let o = overrides.iter().map(|(n, v)| (n.to_string(), *v)).collect();
-    stiff::model::parse_with(p, &source, &o, 0).unwrap()
+    stiff::model::parse_with(p, &source, &o, 0).unwrap().manipulator
 }
 
 /// NaVARo II leg 1's base pivot A (navaro2-leg-passive.toml: radius 400 mm at 90 degrees), bar length 250 mm.

@@ -126,17 +126,17 @@ fn diagnose_plot_has_arrows_and_bars() {
             wrenches.push(w);
         }
     }
-    let effect = stiff::diagnose::effects::Effect::parse("tool-offset=0.05,0,0", &m).unwrap();
+    let effect = stiff::model::effect::Effect::parse("tool-offset=0.05,0,0", &m).unwrap();
     let o = stiff::diagnose::synth::SynthOptions { effects: vec![effect], wrenches, noise: 0.002, seed: 1, repeats: 1 };
     let mut text = Vec::new();
     let mut points = stiff::model::grid::PointSet::from_points(points);
-    stiff::diagnose::synth::synthesize(&m, &mut points, &o, &mut text).unwrap();
+    stiff::diagnose::synth::synthesize(&stiff::model::Model::nominal(m.clone()), &mut points, &o, &mut text).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("d.csv");
     std::fs::write(&path, text).unwrap();
     let data = stiff::diagnose::data::Dataset::read(&path).unwrap();
     let (weights, sigma, source) = stiff::diagnose::select::noise(&data, None).unwrap();
-    let problem = stiff::diagnose::fit::Problem::new(&m, &data, weights, false, true).unwrap();
+    let problem = stiff::diagnose::fit::Problem::new(&m, &[], &data, weights, false, true).unwrap();
     let d = stiff::diagnose::select::diagnose(&problem, sigma, source, &Default::default()).unwrap();
     let json = stiff::diagnose::report::json(&d, "model");
     let svg = plot_text(&json.to_string(), &PlotOptions::default()).unwrap();

@@ -5,13 +5,16 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::data::Dataset;
-use super::effects::{gravity_of, scaled, Effect, Kind, PoseModel, Target};
+use super::measurement::{gravity_of, PoseModel};
+use crate::model::effect::{scaled, Effect, Kind, Target};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::platform::manipulator::Manipulator;
 
 /// The model, the data and what does not change between fits.
 pub struct Problem<'a> {
     pub model: &'a Manipulator,
+    /// The description's own measurement-model terms (`[[effect]]` entries that are not spring scalings).
+    pub terms: &'a [Effect],
     pub data: &'a Dataset,
     /// 1 / sigma per row (mm^-1).
     pub weights: Vec<f64>,
@@ -36,6 +39,7 @@ pub struct BadPose {
 impl<'a> Problem<'a> {
     pub fn new(
         model: &'a Manipulator,
+        terms: &'a [Effect],
         data: &'a Dataset,
         weights: Vec<f64>,
         loaded_mode: bool,
@@ -74,7 +78,7 @@ impl<'a> Problem<'a> {
         } else {
             None
         };
-        Ok(Problem { model, data, weights, loaded_mode, gravity: gravity_of(model), poses, loaded, pose_of })
+        Ok(Problem { model, terms, data, weights, loaded_mode, gravity: gravity_of(model), poses, loaded, pose_of })
     }
 
     pub fn observations(&self, rows: &[usize]) -> usize {
@@ -85,7 +89,7 @@ impl<'a> Problem<'a> {
     pub fn predict(&self, effects: &[Effect], rows: &[usize]) -> Result<Vec<Vec3>, String> {
         let scalings: Vec<Effect> = effects.iter().filter(|e| e.scales_springs()).cloned().collect();
         let terms: Vec<Effect> =
-            self.model.effects.iter().chain(effects).filter(|e| !e.scales_springs()).cloned().collect();
+            self.terms.iter().chain(effects).filter(|e| !e.scales_springs()).cloned().collect();
         let mut poses: Vec<Option<PoseModel>> = vec![None; self.poses.len()];
         let changed = if scalings.is_empty() { None } else { Some(scaled(self.model, &scalings)) };
         let mut state = changed.as_ref().map(|m| m.new_state());

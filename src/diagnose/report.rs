@@ -184,7 +184,7 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, d: &Diagnosis)
     let _ = writeln!(out, "\n# Added by stiff diagnose: {}", sentence(d));
     for a in &d.accepted {
         let _ = writeln!(out, "\n[[effect]]\nname = \"{}\"", a.effect.kind.name());
-        if a.effect.kind.target() != super::effects::TargetKind::None {
+        if a.effect.kind.target() != crate::model::effect::TargetKind::None {
             let _ = writeln!(out, "target = \"{}\"", a.effect.target);
         }
         let values: Vec<String> = a.effect.values.iter().map(|v| format!("{v:e}")).collect();

@@ -9,10 +9,9 @@ use nalgebra::{DMatrix, DVector};
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use super::data::Dataset;
-use super::effects::{Effect, Kind, Target};
+use crate::model::effect::{Effect, Kind, Target};
 use super::fit::{effects_of, fit, jacobian, Candidate, Fit, Problem};
 use crate::kinematics::frame::{Vec3, Vec6};
-use crate::platform::leg::Leg;
 
 #[derive(Clone, Debug)]
 pub struct Options {
@@ -129,24 +128,12 @@ pub struct Diagnosis {
 pub fn candidates(problem: &Problem, loaded: bool) -> Vec<Candidate> {
     let m = problem.model;
     let mut out = Vec::new();
-    let vjm = |k: usize| matches!(m.legs[k], Leg::Vjm(_));
-    let has_actuator = |k: usize| matches!(&m.legs[k], Leg::Vjm(v) if v.springs.iter().any(|s| s.actuator));
     for k in 0..m.legs.len() {
-        if has_actuator(k) {
+        if m.legs[k].has_actuator_spring() {
             out.push(Candidate { kind: Kind::ActuatorCompliance, target: Target::Leg(k), basis: None });
         }
     }
-    let mut groups: Vec<String> = Vec::new();
-    for l in &m.legs {
-        if let Leg::Vjm(v) = l {
-            for s in v.springs.iter().filter(|s| !s.actuator) {
-                if !groups.contains(&s.name) {
-                    groups.push(s.name.clone());
-                }
-            }
-        }
-    }
-    for g in groups {
+    for g in m.link_spring_groups() {
         out.push(Candidate { kind: Kind::LinkCompliance, target: Target::Group(g), basis: None });
     }
     out.push(Candidate { kind: Kind::Gravity, target: Target::None, basis: None });
@@ -157,7 +144,7 @@ pub fn candidates(problem: &Problem, loaded: bool) -> Vec<Candidate> {
         }
     }
     for k in 0..m.legs.len() {
-        if vjm(k) && has_actuator(k) {
+        if m.legs[k].has_actuator_spring() {
             out.push(Candidate { kind: Kind::Preload, target: Target::Leg(k), basis: None });
             out.push(Candidate { kind: Kind::Backlash, target: Target::Leg(k), basis: None });
         }
@@ -166,29 +153,70 @@ pub fn candidates(problem: &Problem, loaded: bool) -> Vec<Candidate> {
         out.push(Candidate { kind: Kind::LoadedNonlinearity, target: Target::None, basis: None });
     }
     out.push(Candidate { kind: Kind::ToolOffset, target: Target::None, basis: None });
+    // A candidate that changes no prediction cannot be named by any data of this design (a compliance
+    // factor where no row is loaded, backlash where no actuator carries load): not offered.
+    out.retain(|c| has_signature(problem, c, &all));
     out
 }
 
-/// The directions of leg k's end-point error that change the predictions (SVD of the signature).
+/// Smallest change of a weighted residual (in units of sigma) by a probe-sized effect that counts as a
+/// signature: far below anything a fit could use, far above the round-off of a prediction.
+const SIGNATURE_FLOOR: f64 = 1e-9;
+
+/// A typical size of each effect (its value away from neutral) at which its signature is looked for.
+fn probe_step(kind: Kind) -> f64 {
+    match kind {
+        Kind::ActuatorCompliance | Kind::LinkCompliance => 1.0, // compliance doubled
+        Kind::Gravity => 1.0,                                    // 1 kg
+        Kind::LegGeometry | Kind::Preload | Kind::Backlash | Kind::ToolOffset => 0.01, // mm (basis units)
+        Kind::LoadedNonlinearity => 1.0,                         // the whole loaded response
+    }
+}
+
+/// Whether some value of the candidate, one coordinate at a time at its probe size, changes a prediction.
+pub fn has_signature(problem: &Problem, c: &Candidate, rows: &[usize]) -> bool {
+    let Ok(base) = problem.residuals(&[], rows) else { return false };
+    (0..c.dim()).any(|i| {
+        let mut p = c.neutral();
+        p[i] += probe_step(c.kind);
+        match problem.residuals(&[c.effect(&p)], rows) {
+            Ok(r) => (r - &base).amax() > SIGNATURE_FLOOR,
+            Err(_) => false,
+        }
+    })
+}
+
+/// Step of the end-point error (mm, and mm / length scale for rotations) by which the signature of a
+/// leg-geometry error is differentiated: the predictions are linear in it, so only round-off matters.
+const END_ERROR_STEP: f64 = 1e-3;
+/// Singular values of the end-error signature below this share of the largest are directions the data
+/// cannot see (round-off of the differences is ~1e-10 of the largest).
+const VISIBLE_SHARE: f64 = 1e-6;
+
+/// The directions of leg k's end-point error that change the predictions (SVD of the signature). Rotations
+/// are weighed by the model's length scale (mm/rad), so that a rotation and a translation of the same
+/// effect on the end point compare alike; the basis is returned in (mm, rad).
 fn visible_end_errors(problem: &Problem, k: usize, rows: &[usize]) -> Option<DMatrix<f64>> {
     let full = Candidate { kind: Kind::LegGeometry, target: Target::Leg(k), basis: Some(DMatrix::identity(6, 6)) };
     let base = problem.residuals(&[], rows).ok()?;
+    let scale = problem.model.length_scale;
+    let unit = |c: usize| if c < 3 { 1.0 } else { 1.0 / scale };
     let mut s = DMatrix::zeros(base.len(), 6);
     for c in 0..6 {
         let mut p = vec![0.0; 6];
-        p[c] = 1e-3;
+        p[c] = END_ERROR_STEP * unit(c);
         let r = problem.residuals(&[full.effect(&p)], rows).ok()?;
-        s.set_column(c, &((&base - r) / 1e-3));
+        s.set_column(c, &((&base - r) / END_ERROR_STEP));
     }
     let svd = crate::linalg::capped_svd(s, false, true)?;
     let v_t = svd.v_t?;
     let top = svd.singular_values.max();
     let keep: Vec<usize> =
-        (0..svd.singular_values.len()).filter(|&i| svd.singular_values[i] > 1e-6 * top && top > 0.0).collect();
+        (0..svd.singular_values.len()).filter(|&i| svd.singular_values[i] > VISIBLE_SHARE * top && top > 0.0).collect();
     if keep.is_empty() {
         return None;
     }
-    Some(DMatrix::from_fn(6, keep.len(), |r, c| v_t[(keep[c], r)]))
+    Some(DMatrix::from_fn(6, keep.len(), |r, c| v_t[(keep[c], r)] * unit(r)))
 }
 
 /// Upper-tail probabilities by the distributions' survival functions: `1 - cdf` underflows to 0 beyond
@@ -421,7 +449,7 @@ fn separating_advice(problem: &Problem, a: &CandidateRow, b: &CandidateRow) -> S
         for r in scaled.rows.iter_mut() {
             r.wrench *= factor;
         }
-        let Ok(p) = Problem::new(problem.model, &scaled, problem.weights.clone(), problem.loaded_mode, false) else {
+        let Ok(p) = Problem::new(problem.model, problem.terms, &scaled, problem.weights.clone(), problem.loaded_mode, false) else {
             continue;
         };
         let rows: Vec<usize> = (0..scaled.rows.len()).collect();

@@ -4,12 +4,13 @@
 use rand::{Rng, SeedableRng};
 
 use super::data::{Dataset, Measurement, Pose, REQUIRED};
-use super::effects::{Effect, Kind, PoseModel};
+use super::measurement::PoseModel;
+use crate::model::effect::{Effect, Kind};
 use super::fit::Problem;
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::grid::PointSet;
 use crate::output::table::{push_number, push_text};
-use crate::platform::manipulator::Manipulator;
+use crate::model::Model;
 
 pub struct SynthOptions {
     pub effects: Vec<Effect>,
@@ -36,11 +37,12 @@ const BLOCK: usize = 256;
 /// `p` and its index in the input), and returns the number of poses left out as unreachable or singular.
 /// The noise generator is drawn in row order, so the bytes do not depend on the block size.
 pub fn synthesize(
-    m: &Manipulator,
+    model: &Model,
     points: &mut PointSet,
     o: &SynthOptions,
     out: &mut dyn std::io::Write,
 ) -> Result<usize, SynthError> {
+    let m = &model.manipulator;
     let mut state = m.new_state();
     let mut rng = rand::rngs::StdRng::seed_from_u64(o.seed);
     out.write_all((REQUIRED.join(",") + ",sigma_mm\n").as_bytes())?;
@@ -81,7 +83,7 @@ pub fn synthesize(
         }
         let loaded = o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
         let weights = vec![1.0; data.rows.len()];
-        let problem = Problem::new(m, &data, weights, false, loaded)
+        let problem = Problem::new(m, &model.measurement_terms, &data, weights, false, loaded)
             .map_err(|b| SynthError::Pose(format!("pose {}: {}", b.pose_id, b.why)))?;
         let rows: Vec<usize> = (0..data.rows.len()).collect();
         let predicted = problem.predict(&o.effects, &rows).map_err(SynthError::Pose)?;

@@ -7,40 +7,65 @@ use std::path::Path;
 use toml::Spanned;
 
 use super::error::{read_text, InputError, Locator};
-use super::expr::ExprSrc;
-use super::expr::Scope;
+use crate::expr::ExprSrc;
+use crate::expr::Scope;
 use super::schema::{AxisSpec, BeamSpec, ElementSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
+use super::effect::{scaled, Effect, EffectError, Kind};
 use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::Manipulator;
 use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
-use crate::vjm::spring::{beam_compliance, BeamSection, SpringGroup, SIX_DOF};
+use crate::beam::{beam_compliance, BeamSection};
+use crate::vjm::spring::{SpringGroup, SIX_DOF};
 
-/// Reads and validates a manipulator description.
-pub fn load_manipulator(path: &Path) -> Result<Manipulator, InputError> {
+/// A description as built: the manipulator (with the spring scalings of its `[[effect]]` entries applied)
+/// and, side by side, the effects that are terms of the measurement model (used by diagnose and synth).
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// The manipulator every study analyses.
+    pub manipulator: Manipulator,
+    /// `[[effect]]` entries that are not spring scalings: gravity, leg geometry, preload, ...
+    pub measurement_terms: Vec<Effect>,
+}
+
+impl Model {
+    /// A manipulator with no measurement-model terms.
+    pub fn nominal(manipulator: Manipulator) -> Model {
+        Model { manipulator, measurement_terms: Vec::new() }
+    }
+}
+
+/// Reads and validates a description, with its `[[effect]]` entries.
+pub fn load_model(path: &Path) -> Result<Model, InputError> {
     let source = read_text(path)?;
-    parse_manipulator(path, &source)
+    parse_with(path, &source, &BTreeMap::new(), 0)
 }
 
+/// Reads and validates a manipulator description (its spring scalings applied).
+pub fn load_manipulator(path: &Path) -> Result<Manipulator, InputError> {
+    Ok(load_model(path)?.manipulator)
+}
+
+/// As `load_manipulator`, from the file's text.
 pub fn parse_manipulator(path: &Path, source: &str) -> Result<Manipulator, InputError> {
-    parse_with(path, source, &BTreeMap::new(), 0)
+    Ok(parse_with(path, source, &BTreeMap::new(), 0)?.manipulator)
 }
 
-/// As `parse_manipulator`, with some parameters replaced by given values (a parametric study, or a leg
-/// taken `from` this file by another), `depth` files down a chain of `from`.
+/// As `load_model`, from the file's text, with some parameters replaced by given values (a parametric
+/// study, or a leg taken `from` this file by another), `depth` files down a chain of `from`.
 pub fn parse_with(
     path: &Path,
     source: &str,
     overrides: &BTreeMap<String, f64>,
     depth: usize,
-) -> Result<Manipulator, InputError> {
+) -> Result<Model, InputError> {
     let loc = Locator { path, source };
     let file: ModelFile = toml::from_str(source).map_err(|e| loc.syntax(e))?;
     let params = file_parameters(&loc, &file, overrides)?;
     let b = Builder { loc, params };
-    b.manipulator(&file, depth)
+    b.model(&file, depth)
 }
 
 /// The evaluated parameters of a model file: its own, those it shares by `parameters_from`, with
@@ -535,7 +560,7 @@ impl Builder<'_> {
         Ok(())
     }
 
-    fn manipulator(&self, file: &ModelFile, depth: usize) -> Result<Manipulator, InputError> {
+    fn model(&self, file: &ModelFile, depth: usize) -> Result<Model, InputError> {
         let gravity = match &file.gravity {
             Some(g) => self.vec3(g)?,
             None => Vec3::zeros(),
@@ -587,20 +612,19 @@ impl Builder<'_> {
             legs,
             length_scale,
             gravity: file.gravity.as_ref().map(|_| gravity),
-            effects: Vec::new(),
         };
         let mut effects = Vec::with_capacity(file.effects.len());
         for spec in &file.effects {
             let s = spec.get_ref();
-            let kind = crate::diagnose::effects::Kind::parse(&s.name)
-                .ok_or_else(|| self.loc.at(spec.span(), format!("unknown effect `{}`", s.name)))?;
-            let e = crate::diagnose::effects::Effect::new(kind, s.target.as_deref(), s.values.clone(), &nominal)
-                .map_err(|e| self.loc.at(spec.span(), e))?;
+            let kind = Kind::parse(&s.name)
+                .ok_or_else(|| self.loc.at(spec.span(), EffectError::UnknownKind(s.name.clone()).to_string()))?;
+            let e = Effect::new(kind, s.target.as_deref(), s.values.clone(), &nominal)
+                .map_err(|e| self.loc.at(spec.span(), e.to_string()))?;
             effects.push(e);
         }
-        let mut m = crate::diagnose::effects::scaled(&nominal, &effects);
-        m.effects = effects;
-        Ok(m)
+        let manipulator = scaled(&nominal, &effects);
+        let measurement_terms = effects.into_iter().filter(|e| !e.scales_springs()).collect();
+        Ok(Model { manipulator, measurement_terms })
     }
 
     /// One leg as written (a chain, an MSA structure, or the leg of another file), before copies.
@@ -668,7 +692,7 @@ impl Builder<'_> {
             .collect::<Result<BTreeMap<_, _>, InputError>>()?;
         let source = read_text(&path)?;
         let other = parse_with(&path, &source, &overrides, depth + 1)?;
-        let mut legs = other.legs.into_iter();
+        let mut legs = other.manipulator.legs.into_iter();
         match (legs.next(), legs.next()) {
             (Some(leg), None) => Ok(match leg {
                 Leg::Vjm(v) => Leg::Vjm(VjmLeg { name: spec.name.clone(), gravity, ..v }),

@@ -9,10 +9,10 @@ use toml::Spanned;
 
 use super::build::Builder;
 use super::error::InputError;
-use super::expr::{Expr, ExprSrc};
+use crate::expr::{Expr, ExprSrc};
 use super::schema::{AxisSpec, MsaJointSpec, MsaLinkSpec, MsaSpec, NodeSpec, SectionSpec};
 use crate::msa::template::{DirectionTemplate, ElementTemplate, Template, END_VARIABLES};
-use crate::vjm::spring::BeamSection;
+use crate::beam::BeamSection;
 
 /// Names visible to a leg's formulas: parameters (constants) and per-pose slots.
 struct Names<'a> {

@@ -220,7 +220,7 @@ impl ErrorSet {
             let overrides: BTreeMap<String, f64> =
                 e.parameters.iter().map(|(n, d)| (n.clone(), self.nominal_parameters[n] + scale * d)).collect();
             let m = parse_with(&self.model_path, &self.model_source, &overrides, 0)?;
-            out.push(m.legs.into_iter().nth(k));
+            out.push(m.manipulator.legs.into_iter().nth(k));
         }
         Ok(out)
     }

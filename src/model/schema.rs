@@ -8,7 +8,7 @@ use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::expr::ExprSrc;
+use crate::expr::ExprSrc;
 
 pub type Num = Spanned<ExprSrc>;
 

@@ -129,6 +129,30 @@ impl Leg {
     }
 
     /// The frame of the leg as written (before its copy moved it), in the base frame.
+    /// The leg's spring groups: (name, whether it is an actuator's spring). An MSA leg has none (its
+    /// elasticity is in its beams and elastic joints).
+    pub fn spring_groups(&self) -> impl Iterator<Item = (&str, bool)> {
+        let springs: &[SpringGroup] = match self {
+            Leg::Vjm(v) => &v.springs,
+            Leg::Msa(_) => &[],
+        };
+        springs.iter().map(|s| (s.name.as_str(), s.actuator))
+    }
+
+    /// Whether the leg has an actuator spring (effects on the actuator act through it).
+    pub fn has_actuator_spring(&self) -> bool {
+        self.spring_groups().any(|(_, actuator)| actuator)
+    }
+
+    /// Multiplies the compliance of the spring groups `select(name, actuator)` picks by `factor`.
+    pub fn scale_springs(&mut self, select: impl Fn(&str, bool) -> bool, factor: f64) {
+        if let Leg::Vjm(v) = self {
+            for s in v.springs.iter_mut().filter(|s| select(&s.name, s.actuator)) {
+                s.scale_compliance(factor);
+            }
+        }
+    }
+
     pub fn copy_frame(&self) -> Frame {
         match self {
             Leg::Vjm(l) => l.place,

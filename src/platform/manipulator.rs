@@ -11,9 +11,6 @@ pub struct Manipulator {
     pub length_scale: f64,
     /// The model's gravity (m/s^2), when it gives one.
     pub gravity: Option<crate::kinematics::frame::Vec3>,
-    /// Corrections found by `stiff diagnose` (`[[effect]]` in the description): spring scalings are
-    /// already applied to the legs; the others are terms of the measurement model (diagnose, synth).
-    pub effects: Vec<crate::diagnose::effects::Effect>,
 }
 
 /// Warm starts of every leg, carried from one point to the next by one worker.
@@ -48,7 +45,44 @@ impl std::fmt::Display for PoseFailure {
 
 impl std::error::Error for PoseFailure {}
 
+/// The springs a compliance scaling acts on.
+#[derive(Clone, Copy, Debug)]
+pub enum SpringSet<'a> {
+    /// The actuator springs of one leg (0-based).
+    ActuatorOf(usize),
+    /// Every spring group of this name, in every leg.
+    Group(&'a str),
+}
+
 impl Manipulator {
+    /// Multiplies the compliance of a set of springs by `factor` (a model correction such as a softer
+    /// actuator). Posture-dependent springs carry the factor into their derivation, so it acts at every pose.
+    pub fn scale_compliance(&mut self, set: &SpringSet, factor: f64) {
+        for (k, leg) in self.legs.iter_mut().enumerate() {
+            match set {
+                SpringSet::ActuatorOf(target) if *target == k => leg.scale_springs(|_, actuator| actuator, factor),
+                SpringSet::Group(name) => leg.scale_springs(|group, _| group == *name, factor),
+                SpringSet::ActuatorOf(_) => {}
+            }
+        }
+    }
+
+    /// Whether some leg has a spring group of this name.
+    pub fn has_spring_group(&self, name: &str) -> bool {
+        self.legs.iter().any(|l| l.spring_groups().any(|(group, _)| group == name))
+    }
+
+    /// The names of the link (not actuator) spring groups, each once, in order of first appearance.
+    pub fn link_spring_groups(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for (name, actuator) in self.legs.iter().flat_map(Leg::spring_groups) {
+            if !actuator && !out.iter().any(|n| n == name) {
+                out.push(name.to_string());
+            }
+        }
+        out
+    }
+
     pub fn new_state(&self) -> ManipulatorState {
         ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect() }
     }

@@ -6,7 +6,7 @@
 //! its passive joint pair Rz(q) ... Rz(-q); a stiffness along that motion is added only to make the spring
 //! invertible, and cancels out of every result (tested). The spring depends on the parallelogram angle q.
 
-use super::spring::{beam_compliance, BeamSection};
+use crate::beam::{beam_compliance, BeamSection};
 use super::spring::{push_six_dof, SpringGroup};
 use super::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates, Element, Joint, JointKind, Role};

@@ -1,0 +1,84 @@
+//! Straight beams: cross-section, material and the compliance of a clamped-free beam (Euler-Bernoulli),
+//! shared by VJM link springs (paper 001 s. 4.2) and MSA flexible links (paper 003 eq 3).
+
+use crate::kinematics::frame::{block_rotation, Mat3, Mat6, Vec3};
+
+/// Cross-section and material of a straight beam; units N, mm.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BeamSection {
+    /// Young's modulus, N/mm^2 (MPa).
+    pub e: f64,
+    /// Shear modulus, N/mm^2.
+    pub g: f64,
+    /// Area, mm^2.
+    pub area: f64,
+    /// Second moments of area about the section's y and z axes, mm^4.
+    pub iy: f64,
+    pub iz: f64,
+    /// Torsion constant, mm^4.
+    pub j: f64,
+}
+
+impl BeamSection {
+    /// A round solid section of diameter `d` (mm).
+    pub fn round(e: f64, g: f64, d: f64) -> Self {
+        let area = std::f64::consts::PI * d * d / 4.0;
+        let i = std::f64::consts::PI * d.powi(4) / 64.0;
+        Self { e, g, area, iy: i, iz: i, j: 2.0 * i }
+    }
+}
+
+/// Compliance of a clamped-free beam of length `l` along its local x axis, at its free end, in the frame of
+/// the free end (Euler-Bernoulli; translations first, then rotations; units mm/N, 1/N, rad/(N mm)).
+pub fn cantilever_compliance(s: &BeamSection, l: f64) -> Mat6 {
+    let mut c = Mat6::zeros();
+    c[(0, 0)] = l / (s.e * s.area);
+    c[(1, 1)] = l.powi(3) / (3.0 * s.e * s.iz);
+    c[(2, 2)] = l.powi(3) / (3.0 * s.e * s.iy);
+    c[(3, 3)] = l / (s.g * s.j);
+    c[(4, 4)] = l / (s.e * s.iy);
+    c[(5, 5)] = l / (s.e * s.iz);
+    // Bending couples: a force Fy turns the tip about +z, a force Fz about -y.
+    c[(1, 5)] = l * l / (2.0 * s.e * s.iz);
+    c[(5, 1)] = c[(1, 5)];
+    c[(2, 4)] = -l * l / (2.0 * s.e * s.iy);
+    c[(4, 2)] = c[(2, 4)];
+    c
+}
+
+/// A rotation taking the x axis to `direction` (the beam's axis); the section's y axis is chosen
+/// perpendicular to it in a fixed way (irrelevant for round sections).
+pub fn frame_along(direction: &Vec3) -> Mat3 {
+    let x = direction.normalize();
+    let helper = if x.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
+    let y = helper.cross(&x).normalize();
+    let z = x.cross(&y);
+    Mat3::from_columns(&[x, y, z])
+}
+
+/// The compliance of a beam along `direction`, expressed in the spring's frame.
+pub fn beam_compliance(s: &BeamSection, l: f64, direction: &Vec3) -> Mat6 {
+    let r = block_rotation(&frame_along(direction));
+    r * cantilever_compliance(s, l) * r.transpose()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cantilever_compliance_is_symmetric_positive_definite() {
+        let s = BeamSection::round(210000.0, 80769.0, 12.0);
+        let c = cantilever_compliance(&s, 300.0);
+        assert_eq!(c, c.transpose());
+        assert!(c.cholesky().is_some());
+    }
+
+    #[test]
+    fn beam_along_x_keeps_the_local_compliance() {
+        let s = BeamSection { e: 2e5, g: 8e4, area: 100.0, iy: 900.0, iz: 400.0, j: 1300.0 };
+        let c0 = cantilever_compliance(&s, 250.0);
+        let c1 = beam_compliance(&s, 250.0, &Vec3::new(3.0, 0.0, 0.0));
+        assert!((c0 - c1).abs().max() < 1e-15 * c0.abs().max());
+    }
+}

@@ -1,0 +1,269 @@
+//! The `[[effect]]` entries of a description, and `--effect NAME[:TARGET]=V1,V2,...` on the command line:
+//! physical effects a measurement may show that the nominal model lacks (found by `stiff diagnose`, injected
+//! by `stiff synth`). Spring scalings (actuator-compliance, link-compliance) are applied to the legs when the
+//! model is built, so every study sees them (`Manipulator::scale_compliance`); the others are terms of the
+//! measurement model that `diagnose` evaluates (`diagnose::effects`).
+
+use std::fmt;
+
+use crate::platform::manipulator::{Manipulator, SpringSet};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Kind {
+    ActuatorCompliance,
+    LinkCompliance,
+    Gravity,
+    LegGeometry,
+    Preload,
+    LoadedNonlinearity,
+    Backlash,
+    ToolOffset,
+}
+
+pub const KINDS: [Kind; 8] = [
+    Kind::ActuatorCompliance,
+    Kind::LinkCompliance,
+    Kind::Gravity,
+    Kind::LegGeometry,
+    Kind::Preload,
+    Kind::LoadedNonlinearity,
+    Kind::Backlash,
+    Kind::ToolOffset,
+];
+
+impl Kind {
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::ActuatorCompliance => "actuator-compliance",
+            Kind::LinkCompliance => "link-compliance",
+            Kind::Gravity => "gravity",
+            Kind::LegGeometry => "leg-geometry",
+            Kind::Preload => "preload",
+            Kind::LoadedNonlinearity => "loaded-nonlinearity",
+            Kind::Backlash => "backlash",
+            Kind::ToolOffset => "tool-offset",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<Kind> {
+        KINDS.iter().copied().find(|k| k.name() == name)
+    }
+
+    /// Number of values, and what they mean (for messages and reports).
+    pub fn values(self) -> (usize, &'static str) {
+        match self {
+            Kind::ActuatorCompliance => (1, "compliance factor of the leg's actuator spring (1 = nominal)"),
+            Kind::LinkCompliance => (1, "compliance factor of the spring group (1 = nominal)"),
+            Kind::Gravity => (1, "mass carried at the reference point, kg, under the model's gravity"),
+            Kind::LegGeometry => (6, "the leg's end-point error eps: dx, dy, dz (mm), rx, ry, rz (rad)"),
+            Kind::Preload => (1, "preload theta0 of the leg's actuator spring, mm"),
+            Kind::LoadedNonlinearity => (1, "share of the loaded (large-deflection) response, 1 = all"),
+            Kind::Backlash => (1, "half clearance of the leg's actuator, mm"),
+            Kind::ToolOffset => (3, "offset of the measured point from the reference point, mm"),
+        }
+    }
+
+    /// What a target names: a leg (1-based), a spring group, or nothing.
+    pub fn target(self) -> TargetKind {
+        match self {
+            Kind::ActuatorCompliance | Kind::LegGeometry | Kind::Preload | Kind::Backlash => TargetKind::Leg,
+            Kind::LinkCompliance => TargetKind::Group,
+            _ => TargetKind::None,
+        }
+    }
+
+    /// Spring scalings change the legs; the other kinds are terms of the measurement model.
+    pub fn scales_springs(self) -> bool {
+        matches!(self, Kind::ActuatorCompliance | Kind::LinkCompliance)
+    }
+
+    /// Effects that act through a leg's actuator spring (its compliance, its rest length, its clearance).
+    pub fn needs_actuator_spring(self) -> bool {
+        matches!(self, Kind::ActuatorCompliance | Kind::Preload | Kind::Backlash)
+    }
+
+    /// The parameter values of the nominal model (no effect).
+    pub fn neutral(self) -> f64 {
+        match self {
+            Kind::ActuatorCompliance | Kind::LinkCompliance => 1.0,
+            _ => 0.0,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetKind {
+    Leg,
+    Group,
+    None,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Target {
+    None,
+    /// A leg, 0-based (written 1-based).
+    Leg(usize),
+    /// A spring group by name, in every leg.
+    Group(String),
+}
+
+impl fmt::Display for Target {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        match self {
+            Target::None => Ok(()),
+            Target::Leg(k) => write!(f, "{}", k + 1),
+            Target::Group(g) => f.write_str(g),
+        }
+    }
+}
+
+/// One effect with its values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Effect {
+    pub kind: Kind,
+    pub target: Target,
+    pub values: Vec<f64>,
+}
+
+impl fmt::Display for Effect {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str(self.kind.name())?;
+        if self.target != Target::None {
+            write!(f, ":{}", self.target)?;
+        }
+        f.write_str("=")?;
+        let v: Vec<String> = self.values.iter().map(|v| format!("{v}")).collect();
+        f.write_str(&v.join(","))
+    }
+}
+
+/// Why an effect cannot be built for a manipulator.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EffectError {
+    /// `NAME[:TARGET]=V1,...` did not have that shape.
+    Syntax(String),
+    /// No effect of that name.
+    UnknownKind(String),
+    /// A value is not a number.
+    NotANumber { text: String, value: String },
+    /// Wrong number of values, or a non-finite one.
+    Values { kind: Kind },
+    /// A target given to an effect that takes none.
+    UnexpectedTarget { kind: Kind, target: String },
+    /// No target given to an effect that needs one.
+    MissingTarget { kind: Kind },
+    /// The target is not a leg number, or no such leg.
+    NoLeg { kind: Kind, target: String, legs: usize },
+    /// The leg has no actuator spring (an MSA leg, or a chain without `actuator = true`).
+    NoActuatorSpring { kind: Kind, leg: usize },
+    /// No spring group of that name.
+    NoGroup { kind: Kind, group: String },
+    /// A compliance factor that is zero or negative.
+    NotPositive { kind: Kind },
+}
+
+impl fmt::Display for EffectError {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        match self {
+            EffectError::Syntax(text) => write!(f, "`{text}`: expected NAME[:TARGET]=V1,..."),
+            EffectError::UnknownKind(name) => {
+                let names: Vec<&str> = KINDS.iter().map(|k| k.name()).collect();
+                write!(f, "unknown effect `{name}` (known: {})", names.join(", "))
+            }
+            EffectError::NotANumber { text, value } => write!(f, "`{text}`: `{value}` is not a number"),
+            EffectError::Values { kind } => {
+                let (n, meaning) = kind.values();
+                write!(f, "`{}` takes {n} finite value(s): {meaning}", kind.name())
+            }
+            EffectError::UnexpectedTarget { kind, target } => {
+                write!(f, "`{}` takes no target (got `{target}`)", kind.name())
+            }
+            EffectError::MissingTarget { kind } => {
+                write!(f, "`{}` needs a target: `{}:TARGET=...`", kind.name(), kind.name())
+            }
+            EffectError::NoLeg { kind, target, legs } => {
+                write!(f, "`{}`: target `{target}` is not a leg (legs 1 to {legs})", kind.name())
+            }
+            EffectError::NoActuatorSpring { kind, leg } => write!(
+                f,
+                "`{}` needs a leg with an actuator spring; leg {} has none (an MSA leg, or a chain without \
+                 `actuator = true`)",
+                kind.name(),
+                leg + 1
+            ),
+            EffectError::NoGroup { kind, group } => write!(f, "`{}`: no spring group named `{group}`", kind.name()),
+            EffectError::NotPositive { kind } => write!(f, "`{}`: a compliance factor must be positive", kind.name()),
+        }
+    }
+}
+
+impl std::error::Error for EffectError {}
+
+impl Effect {
+    /// Checks and builds an effect for manipulator `m` (targets resolved, value count checked).
+    pub fn new(kind: Kind, target: Option<&str>, values: Vec<f64>, m: &Manipulator) -> Result<Effect, EffectError> {
+        let (n, _) = kind.values();
+        if values.len() != n || !values.iter().all(|v| v.is_finite()) {
+            return Err(EffectError::Values { kind });
+        }
+        let target = match (kind.target(), target) {
+            (TargetKind::None, None) => Target::None,
+            (TargetKind::None, Some(t)) => return Err(EffectError::UnexpectedTarget { kind, target: t.into() }),
+            (_, None) => return Err(EffectError::MissingTarget { kind }),
+            (TargetKind::Leg, Some(t)) => {
+                let legs = m.legs.len();
+                let k = t.parse::<usize>().ok().filter(|k| (1..=legs).contains(k));
+                let Some(k) = k else { return Err(EffectError::NoLeg { kind, target: t.into(), legs }) };
+                if kind.needs_actuator_spring() && !m.legs[k - 1].has_actuator_spring() {
+                    return Err(EffectError::NoActuatorSpring { kind, leg: k - 1 });
+                }
+                Target::Leg(k - 1)
+            }
+            (TargetKind::Group, Some(g)) => {
+                if !m.has_spring_group(g) {
+                    return Err(EffectError::NoGroup { kind, group: g.into() });
+                }
+                Target::Group(g.to_string())
+            }
+        };
+        if kind.scales_springs() && values[0] <= 0.0 {
+            return Err(EffectError::NotPositive { kind });
+        }
+        Ok(Effect { kind, target, values })
+    }
+
+    /// Parses `NAME[:TARGET]=V1,V2,...`.
+    pub fn parse(text: &str, m: &Manipulator) -> Result<Effect, EffectError> {
+        let (head, values) = text.split_once('=').ok_or_else(|| EffectError::Syntax(text.into()))?;
+        let (name, target) = match head.split_once(':') {
+            Some((n, t)) => (n, Some(t)),
+            None => (head, None),
+        };
+        let kind = Kind::parse(name.trim()).ok_or_else(|| EffectError::UnknownKind(name.into()))?;
+        let values = values
+            .split(',')
+            .map(|v| {
+                v.trim().parse::<f64>().map_err(|_| EffectError::NotANumber { text: text.into(), value: v.into() })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Effect::new(kind, target.map(str::trim), values, m)
+    }
+
+    /// Whether the effect scales springs (applied to the legs) rather than adding a measurement term.
+    pub fn scales_springs(&self) -> bool {
+        self.kind.scales_springs()
+    }
+}
+
+/// The manipulator with the spring scalings of `effects` applied (compliance times the factor).
+pub fn scaled(m: &Manipulator, effects: &[Effect]) -> Manipulator {
+    let mut out = m.clone();
+    for e in effects {
+        match (&e.kind, &e.target) {
+            (Kind::ActuatorCompliance, Target::Leg(k)) => out.scale_compliance(&SpringSet::ActuatorOf(*k), e.values[0]),
+            (Kind::LinkCompliance, Target::Group(g)) => out.scale_compliance(&SpringSet::Group(g), e.values[0]),
+            _ => {}
+        }
+    }
+    out
+}
