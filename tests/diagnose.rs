@@ -7,15 +7,15 @@
 use std::path::Path;
 
 use stiff::diagnose::data::Dataset;
-use stiff::model::Model;
-use stiff::model::effect::{Effect, Kind, Target};
 use stiff::diagnose::fit::Problem;
 use stiff::diagnose::report::corrected_model;
 use stiff::diagnose::select::{diagnose, noise, Diagnosis, Options, Verdict};
 use stiff::diagnose::synth::{synthesize, SynthOptions};
 use stiff::kinematics::frame::{Vec3, Vec6};
+use stiff::model::effect::{Effect, Kind, Target};
 use stiff::model::grid::PointSet;
 use stiff::model::grid::PosePoint;
+use stiff::model::Model;
 use stiff::platform::manipulator::Manipulator;
 
 const MODEL: &str = "manipulators/orthoglide-3puu.toml";
@@ -115,10 +115,17 @@ fn every_effect_is_named_and_recovered() {
                 assert_eq!(d.accepted.len(), 1, "{what}: {}", stiff::diagnose::report::sentence(&d));
                 let a = &d.accepted[0];
                 assert_eq!((a.effect.kind, &a.effect.target), (hidden.kind, &hidden.target), "{what}");
-                // The true value in the fitted parameters' coordinates, within 1.96 standard errors.
+                // The true value in the fitted parameters' coordinates, within 1.96 standard errors. A
+                // leg-geometry basis B is orthonormal in the metric G = diag(1, 1, 1, L^2, L^2, L^2) (rotations
+                // weighed by the length scale L), and the directions the data cannot see are G-orthogonal to
+                // it, so the visible part of eps has coordinates B^T G eps.
+                let l2 = m.length_scale * m.length_scale;
+                let metric = Vec6::new(1.0, 1.0, 1.0, l2, l2, l2);
                 let truth: Vec<f64> = match &a.basis {
                     Some(b) => {
-                        (b.transpose() * nalgebra::DVector::from_column_slice(&hidden.values)).iter().copied().collect()
+                        let eps =
+                            nalgebra::DVector::from_iterator(6, hidden.values.iter().zip(&metric).map(|(v, g)| v * g));
+                        (b.transpose() * eps).iter().copied().collect()
                     }
                     None => hidden.values.clone(),
                 };
@@ -253,4 +260,95 @@ fn scaling_a_posture_dependent_spring_acts_at_every_posture() {
         let (da, db) = (loaded(&scaled), loaded(&reference));
         assert!((da - db).norm() <= 1e-8 * db.norm(), "at {x}: loaded {da} vs {db}");
     }
+}
+
+/// Regression: `link-compliance:parallelogram` was offered and written back although it changed nothing.
+/// A diagnosis can only name an effect that changes what the model predicts, so for every shipped model
+/// and every effect the library can attach to it (each kind with each target the model has), a value away
+/// from neutral changes some predicted displacement exactly when the candidate list offers it: with loads
+/// along every axis, and with no load at all (where no compliance factor, backlash or loaded
+/// non-linearity can show).
+#[test]
+fn an_effect_is_offered_exactly_when_it_changes_a_prediction() {
+    use stiff::diagnose::select::candidates;
+    use stiff::model::effect::{TargetKind, KINDS};
+    // Stewart-Gough case A is left out: its leg lines meet in one point, so it is singular (rank 3) at every
+    // pose and predicts no compliance to measure against.
+    let shipped = [
+        ("orthoglide-3puu", Vec3::zeros()),
+        ("orthoglide-3puu-msa", Vec3::zeros()),
+        ("orthoglide-3prpar", Vec3::zeros()),
+        ("stewart-gough-b", Vec3::new(0.0, 0.0, 300.0)),
+        ("navaro2", Vec3::zeros()),
+    ];
+    let mut offered_parallelogram = false;
+    for (name, centre) in shipped {
+        let m = stiff::model::load_manipulator(Path::new(&format!("manipulators/{name}.toml"))).unwrap();
+        let mut points = Vec::new();
+        for (dx, dy) in [(0.0, 0.0), (15.0, 0.0), (0.0, 15.0), (-10.0, -10.0)] {
+            let position = centre + Vec3::new(dx, dy, 0.0);
+            points.push(PosePoint { name: None, position, rotation: Vec3::zeros(), wrench: None });
+        }
+        for loads in [wrenches(), vec![Vec6::zeros()]] {
+            let o = SynthOptions { effects: vec![], wrenches: loads.clone(), noise: 0.0, seed: 1, repeats: 1 };
+            let mut text = Vec::new();
+            synthesize(&Model::nominal(m.clone()), &mut PointSet::from_points(points.clone()), &o, &mut text).unwrap();
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("data.csv");
+            std::fs::write(&path, text).unwrap();
+            let data = Dataset::read(&path).unwrap();
+            assert!(data.poses.len() >= 3, "{name}: the poses are reachable");
+            let weights = vec![1.0 / SIGMA; data.rows.len()];
+            let problem = Problem::new(&m, &[], &data, weights, false, true).unwrap();
+            let rows: Vec<usize> = (0..data.rows.len()).collect();
+            let nominal = problem.predict(&[], &rows).unwrap();
+            let offered: Vec<(Kind, Target)> =
+                candidates(&problem, false).into_iter().map(|c| (c.kind, c.target)).collect();
+            let loaded = loads.len() > 1;
+            for kind in KINDS {
+                let targets: Vec<Option<String>> = match kind.target() {
+                    TargetKind::None => vec![None],
+                    TargetKind::Leg => (1..=m.legs.len()).map(|k| Some(k.to_string())).collect(),
+                    TargetKind::Group => m.link_spring_groups().into_iter().map(Some).collect(),
+                };
+                for target in targets {
+                    // Away from neutral one value at a time: factor 1.5, 2 kg, 0.02 mm, 1e-4 rad, the whole
+                    // loaded response.
+                    let n = kind.values().0;
+                    let mut largest_change: f64 = 0.0;
+                    let mut effect = None;
+                    for i in 0..n {
+                        let mut values = vec![kind.neutral(); n];
+                        values[i] += match (kind, i) {
+                            (Kind::LegGeometry, 3..) => 1e-4,
+                            (Kind::ActuatorCompliance | Kind::LinkCompliance, _) => 0.5,
+                            (Kind::Gravity, _) => 2.0,
+                            (Kind::LoadedNonlinearity, _) => 1.0,
+                            _ => 0.02,
+                        };
+                        let Ok(e) = Effect::new(kind, target.as_deref(), values, &m) else { continue };
+                        let p = problem.predict(std::slice::from_ref(&e), &rows).unwrap();
+                        let change = p.iter().zip(&nominal).map(|(a, b)| (a - b).amax()).fold(0.0, f64::max);
+                        largest_change = largest_change.max(change);
+                        effect = Some(e);
+                    }
+                    let Some(e) = effect else { continue };
+                    let is_offered = offered.contains(&(e.kind, e.target.clone()));
+                    let what = format!(
+                        "{name}, {}: {e} changes predictions by up to {largest_change:e} mm",
+                        if loaded { "loaded data" } else { "unloaded data" }
+                    );
+                    assert!(largest_change > 1e-9 || largest_change < 1e-14, "{what}: neither clearly nor not");
+                    assert_eq!(is_offered, largest_change > 1e-9, "{what}; offered: {is_offered}");
+                    if loaded && e.target == Target::Group("parallelogram".into()) {
+                        offered_parallelogram = true;
+                    }
+                    if loaded && kind.scales_springs() {
+                        assert!(is_offered, "{what}: a compliance factor shows under load");
+                    }
+                }
+            }
+        }
+    }
+    assert!(offered_parallelogram, "the 3-PRPaR's parallelogram spring is a candidate");
 }

@@ -5,11 +5,11 @@ mod common;
 use common::*;
 use nalgebra::DMatrix;
 use rand::Rng;
+use stiff::beam::BeamSection;
 use stiff::kinematics::chain::{Chain, Element as ChainElement, JointKind, Role};
 use stiff::kinematics::frame::{block_rotation, Frame, Mat6, Vec3, Vec6};
 use stiff::msa::{beam_stiffness, link_stiffness, Connection, Element, Structure};
 use stiff::platform::leg::Leg;
-use stiff::beam::BeamSection;
 
 fn section() -> BeamSection {
     BeamSection { e: 210000.0, g: 80769.0, area: 120.0, iy: 1500.0, iz: 900.0, j: 2100.0 }

@@ -6,8 +6,8 @@ use nalgebra::{DMatrix, DVector};
 
 use super::data::Dataset;
 use super::measurement::{gravity_of, PoseModel};
-use crate::model::effect::{scaled, Effect, Kind, Target};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::model::effect::{scaled, Effect, Kind, Target};
 use crate::platform::manipulator::Manipulator;
 
 /// The model, the data and what does not change between fits.
@@ -88,8 +88,7 @@ impl<'a> Problem<'a> {
     /// Predicted displacements (mm) of `rows` with the model's own effects and `effects`.
     pub fn predict(&self, effects: &[Effect], rows: &[usize]) -> Result<Vec<Vec3>, String> {
         let scalings: Vec<Effect> = effects.iter().filter(|e| e.scales_springs()).cloned().collect();
-        let terms: Vec<Effect> =
-            self.terms.iter().chain(effects).filter(|e| !e.scales_springs()).cloned().collect();
+        let terms: Vec<Effect> = self.terms.iter().chain(effects).filter(|e| !e.scales_springs()).cloned().collect();
         let mut poses: Vec<Option<PoseModel>> = vec![None; self.poses.len()];
         let changed = if scalings.is_empty() { None } else { Some(scaled(self.model, &scalings)) };
         let mut state = changed.as_ref().map(|m| m.new_state());

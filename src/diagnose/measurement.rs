@@ -6,8 +6,8 @@
 //! scalings are not terms here: they change the manipulator itself (`model::effect::scaled`).
 
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
-use crate::platform::compliance::analyse;
 use crate::model::effect::{Effect, Kind, Target};
+use crate::platform::compliance::analyse;
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 /// What the model says at one pose: compliance, the legs' stiffnesses at the reference point and each

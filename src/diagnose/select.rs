@@ -9,9 +9,9 @@ use nalgebra::{DMatrix, DVector};
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use super::data::Dataset;
-use crate::model::effect::{Effect, Kind, Target};
 use super::fit::{effects_of, fit, jacobian, Candidate, Fit, Problem};
 use crate::kinematics::frame::{Vec3, Vec6};
+use crate::model::effect::{Effect, Kind, Target};
 
 #[derive(Clone, Debug)]
 pub struct Options {
@@ -167,9 +167,9 @@ const SIGNATURE_FLOOR: f64 = 1e-9;
 fn probe_step(kind: Kind) -> f64 {
     match kind {
         Kind::ActuatorCompliance | Kind::LinkCompliance => 1.0, // compliance doubled
-        Kind::Gravity => 1.0,                                    // 1 kg
+        Kind::Gravity => 1.0,                                   // 1 kg
         Kind::LegGeometry | Kind::Preload | Kind::Backlash | Kind::ToolOffset => 0.01, // mm (basis units)
-        Kind::LoadedNonlinearity => 1.0,                         // the whole loaded response
+        Kind::LoadedNonlinearity => 1.0,                        // the whole loaded response
     }
 }
 
@@ -195,7 +195,9 @@ const VISIBLE_SHARE: f64 = 1e-6;
 
 /// The directions of leg k's end-point error that change the predictions (SVD of the signature). Rotations
 /// are weighed by the model's length scale (mm/rad), so that a rotation and a translation of the same
-/// effect on the end point compare alike; the basis is returned in (mm, rad).
+/// effect on the end point compare alike; the basis is returned in (mm, rad), its columns orthonormal in
+/// the metric diag(1, 1, 1, L^2, L^2, L^2) (L the length scale), in which the invisible directions are
+/// orthogonal to them.
 fn visible_end_errors(problem: &Problem, k: usize, rows: &[usize]) -> Option<DMatrix<f64>> {
     let full = Candidate { kind: Kind::LegGeometry, target: Target::Leg(k), basis: Some(DMatrix::identity(6, 6)) };
     let base = problem.residuals(&[], rows).ok()?;
@@ -449,7 +451,9 @@ fn separating_advice(problem: &Problem, a: &CandidateRow, b: &CandidateRow) -> S
         for r in scaled.rows.iter_mut() {
             r.wrench *= factor;
         }
-        let Ok(p) = Problem::new(problem.model, problem.terms, &scaled, problem.weights.clone(), problem.loaded_mode, false) else {
+        let Ok(p) =
+            Problem::new(problem.model, problem.terms, &scaled, problem.weights.clone(), problem.loaded_mode, false)
+        else {
             continue;
         };
         let rows: Vec<usize> = (0..scaled.rows.len()).collect();

@@ -4,13 +4,13 @@
 use rand::{Rng, SeedableRng};
 
 use super::data::{Dataset, Measurement, Pose, REQUIRED};
-use super::measurement::PoseModel;
-use crate::model::effect::{Effect, Kind};
 use super::fit::Problem;
+use super::measurement::PoseModel;
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::model::effect::{Effect, Kind};
 use crate::model::grid::PointSet;
-use crate::output::table::{push_number, push_text};
 use crate::model::Model;
+use crate::output::table::{push_number, push_text};
 
 pub struct SynthOptions {
     pub effects: Vec<Effect>,

@@ -6,18 +6,18 @@ use std::path::Path;
 
 use toml::Spanned;
 
+use super::effect::{scaled, Effect, EffectError, Kind};
 use super::error::{read_text, InputError, Locator};
+use super::schema::{AxisSpec, BeamSpec, ElementSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
+use crate::beam::{beam_compliance, BeamSection};
 use crate::expr::ExprSrc;
 use crate::expr::Scope;
-use super::schema::{AxisSpec, BeamSpec, ElementSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
-use super::effect::{scaled, Effect, EffectError, Kind};
 use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::Manipulator;
 use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
-use crate::beam::{beam_compliance, BeamSection};
 use crate::vjm::spring::{SpringGroup, SIX_DOF};
 
 /// A description as built: the manipulator (with the spring scalings of its `[[effect]]` entries applied)

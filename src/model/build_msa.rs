@@ -9,10 +9,10 @@ use toml::Spanned;
 
 use super::build::Builder;
 use super::error::InputError;
-use crate::expr::{Expr, ExprSrc};
 use super::schema::{AxisSpec, MsaJointSpec, MsaLinkSpec, MsaSpec, NodeSpec, SectionSpec};
-use crate::msa::template::{DirectionTemplate, ElementTemplate, Template, END_VARIABLES};
 use crate::beam::BeamSection;
+use crate::expr::{Expr, ExprSrc};
+use crate::msa::template::{DirectionTemplate, ElementTemplate, Template, END_VARIABLES};
 
 /// Names visible to a leg's formulas: parameters (constants) and per-pose slots.
 struct Names<'a> {

@@ -18,8 +18,8 @@ pub mod template;
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::kinematics::frame::{block_rotation, point_shift, Mat3, Mat6, Vec3, Vec6};
 use crate::beam::{cantilever_compliance, frame_along, BeamSection};
+use crate::kinematics::frame::{block_rotation, point_shift, Mat3, Mat6, Vec3, Vec6};
 
 /// How two nodes (or a node and the base) are joined, at the second node's point: the relative small
 /// displacement `dt = t_j - A_ij t_i` (`A_ij` carries i's twist to j's point, so for coincident nodes

@@ -6,9 +6,9 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::{link_stiffness, oriented_beam_stiffness, Connection, Element, Structure};
-use crate::kinematics::frame::{block_rotation, rotation_vector, Frame, Mat6, Vec3, Vec6};
-use crate::expr::Expr;
 use crate::beam::BeamSection;
+use crate::expr::Expr;
+use crate::kinematics::frame::{block_rotation, rotation_vector, Frame, Mat6, Vec3, Vec6};
 
 /// Slots 0..6 of every evaluation: the leg's end point and its orientation (rotation vector), in the leg's
 /// own frame (before the copy that places the leg).

@@ -6,9 +6,9 @@
 //! its passive joint pair Rz(q) ... Rz(-q); a stiffness along that motion is added only to make the spring
 //! invertible, and cancels out of every result (tested). The spring depends on the parallelogram angle q.
 
-use crate::beam::{beam_compliance, BeamSection};
 use super::spring::{push_six_dof, SpringGroup};
 use super::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
+use crate::beam::{beam_compliance, BeamSection};
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3, Vec6};
 
