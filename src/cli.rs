@@ -16,7 +16,7 @@ use crate::output::report::point_report;
 use crate::output::sink::Sink;
 use crate::platform::manipulator::Manipulator;
 use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
-use crate::study::curve::{push_curve_row, run_curve, Control, CURVE_HEADER, MAX_INTERVALS};
+use crate::study::curve::{push_curve_row, curve_header, run_curve, Control, MAX_INTERVALS};
 use crate::study::map::{run_map, MapOptions};
 use crate::study::point::{loaded_point, unloaded_point, LoadedHistory};
 
@@ -426,7 +426,7 @@ fn map(a: MapArgs) -> Result<()> {
     let options = MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded };
     plot_needs_output(&a.plot, &a.output, "map")?;
     if a.plot.is_some() {
-        let header = crate::output::table::map_header(&crate::study::map::map_columns(&points, &options));
+        let header = crate::study::map::map_header(&crate::study::map::map_columns(&points, &options));
         crate::plot::check_map_options(&header, &a.style.options())?;
     }
     let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
@@ -598,9 +598,9 @@ fn curve(a: CurveArgs) -> Result<()> {
     }
     let mut sink = Sink::create(a.output.as_deref())?;
     // Rows are written as they become final; the picture, if asked, is drawn from the same text.
-    let mut picture = a.plot.as_ref().map(|_| String::from(CURVE_HEADER));
+    let mut picture = a.plot.as_ref().map(|_| curve_header());
     let writer = sink.writer();
-    writer.write_all(CURVE_HEADER.as_bytes())?;
+    writer.write_all(curve_header().as_bytes())?;
     let mut line = String::new();
     let summary = run_curve(&model, &at, control, a.max, a.steps, &mut |r| {
         line.clear();

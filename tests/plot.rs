@@ -55,7 +55,7 @@ fn map_plot_has_a_cell_per_point_and_units() {
 #[test]
 fn curve_plot_marks_events_and_dashes_the_unstable_branch() {
     let csv = std::fs::read_to_string("tests/golden/curve-small.csv").unwrap();
-    assert!(csv.starts_with(stiff::study::curve::CURVE_HEADER), "the curve CSV format");
+    assert!(csv.starts_with(&stiff::study::curve::curve_header()), "the curve CSV format");
     let svg = plot_text(&csv, &PlotOptions::default()).unwrap();
     let doc = parse(&svg);
     assert_eq!(count(&doc, "polyline", "stable"), 2);

@@ -1,9 +1,183 @@
-//! CSV rows of a map: every column names its unit; numbers in shortest round-trip form, so the bytes are
-//! the same for any thread count.
+//! CSV tables: every column name, once, with its unit; the `Record` through which a study's row type
+//! writes its header and its cells from the same code (`Row`); numbers in shortest round-trip form, so the
+//! bytes are the same for any thread count; one rule for a missing value: an empty cell.
+
+use std::fmt::Display;
 
 use crate::kinematics::frame::{Mat6, Vec6};
-use crate::model::grid::PosePoint;
-use crate::study::point::PointResult;
+
+/// Column names shared by several tables (each spelled here and nowhere else).
+pub mod names {
+    /// Row number in input order, from 0.
+    pub const INDEX: &str = "index";
+    /// The point's name, where the input gives one.
+    pub const NAME: &str = "name";
+    /// Commanded position of the platform's reference point.
+    pub const POSITION: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
+    /// Commanded orientation, a rotation vector.
+    pub const ORIENTATION: [&str; 3] = ["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"];
+    /// A small displacement of the reference point: translation, then rotation vector.
+    pub const DISPLACEMENT: [&str; 6] = ["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad"];
+    /// A wrench at the reference point.
+    pub const WRENCH: [&str; 6] = ["Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm"];
+    /// The outcome of a point or row (README lists the statuses).
+    pub const STATUS: &str = "status";
+    /// Newton iterations.
+    pub const ITERATIONS: &str = "iterations";
+    /// Curves: the load factor of a row (marks a curve for `stiff plot`).
+    pub const LOAD_FACTOR: &str = "load_factor";
+    /// Curves: whether the row's equilibrium is stable.
+    pub const STABLE: &str = "stable";
+    /// Curves: events at a row.
+    pub const EVENT: &str = "event";
+    /// Assembly: the prefix of the non-linear assembly's displacement (marks an assembly for `stiff plot`).
+    pub const NONLINEAR: &str = "nl";
+    /// Measurements: the pose a row belongs to.
+    pub const POSE_ID: &str = "pose_id";
+    /// Measurements: the standard deviation of a measured coordinate.
+    pub const SIGMA: &str = "sigma_mm";
+}
+
+/// Which 6x6 matrix a block of columns holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Matrix {
+    /// Compliance, `C{i}{j}_{unit}`.
+    Compliance,
+    /// Stiffness, `K{i}{j}_{unit}`.
+    Stiffness,
+}
+
+/// Where a row's cells go: `Header` keeps their names, `Cells` writes their values. A row type names each
+/// cell as it writes it (`Row::record`), so its header and its cells cannot disagree.
+pub trait Record {
+    /// A number; an empty cell where it is not finite.
+    fn number(&mut self, name: impl Display, v: f64);
+    /// A number or an empty cell.
+    fn optional(&mut self, name: impl Display, v: Option<f64>);
+    /// A count or an empty cell.
+    fn count(&mut self, name: impl Display, v: Option<u64>);
+    /// A text, quoted where CSV needs it.
+    fn text(&mut self, name: impl Display, v: &str);
+    /// A 6x6 matrix: all 36 entries row by row where `full`, else the 21 of the upper triangle.
+    fn matrix(&mut self, which: Matrix, m: Option<&Mat6>, full: bool);
+    /// Free directions in one field (`push_free_directions`).
+    fn free_directions(&mut self, name: impl Display, free: &[Vec6]);
+
+    /// Six numbers, or six empty cells.
+    fn six(&mut self, names: [&str; 6], v: Option<&Vec6>) {
+        for (k, name) in names.iter().enumerate() {
+            self.optional(name, v.map(|v| v[k]));
+        }
+    }
+
+    /// Six numbers under `prefix_` + the displacement names, or six empty cells.
+    fn prefixed_six(&mut self, prefix: &str, names: [&str; 6], v: Option<&Vec6>) {
+        for (k, name) in names.iter().enumerate() {
+            self.optional(format_args!("{prefix}_{name}"), v.map(|v| v[k]));
+        }
+    }
+}
+
+/// A table's row: `Layout` is what fixes the columns before the first row (options, counts of legs).
+pub trait Row {
+    /// What fixes the columns.
+    type Layout;
+    /// Names and writes every cell, in order; the cells written must not depend on the row's values.
+    fn record(&self, layout: &Self::Layout, r: &mut impl Record);
+}
+
+/// The header line of `row`'s table (any row of it, typically a blank one).
+pub fn header<T: Row>(row: &T, layout: &T::Layout) -> String {
+    let mut h = Header(Vec::new());
+    row.record(layout, &mut h);
+    let mut s = h.0.join(",");
+    s.push('\n');
+    s
+}
+
+/// Appends `row` as one CSV line.
+pub fn write_row<T: Row>(row: &T, layout: &T::Layout, out: &mut String) {
+    let mut cells = Cells { out, first: true };
+    row.record(layout, &mut cells);
+    out.push('\n');
+}
+
+/// Collects column names.
+struct Header(Vec<String>);
+
+impl Record for Header {
+    fn number(&mut self, name: impl Display, _: f64) {
+        self.0.push(name.to_string());
+    }
+    fn optional(&mut self, name: impl Display, _: Option<f64>) {
+        self.0.push(name.to_string());
+    }
+    fn count(&mut self, name: impl Display, _: Option<u64>) {
+        self.0.push(name.to_string());
+    }
+    fn text(&mut self, name: impl Display, _: &str) {
+        self.0.push(name.to_string());
+    }
+    fn matrix(&mut self, which: Matrix, _: Option<&Mat6>, full: bool) {
+        for (i, j) in matrix_entries(full) {
+            self.0.push(match which {
+                Matrix::Compliance => format!("C{i}{j}_{}", compliance_unit(i, j)),
+                Matrix::Stiffness => format!("K{i}{j}_{}", stiffness_unit(i, j)),
+            });
+        }
+    }
+    fn free_directions(&mut self, name: impl Display, _: &[Vec6]) {
+        self.0.push(name.to_string());
+    }
+}
+
+/// Writes cell values (names unused: they are formatted only by `Header`).
+struct Cells<'a> {
+    out: &'a mut String,
+    first: bool,
+}
+
+impl Cells<'_> {
+    fn next(&mut self) -> &mut String {
+        if !self.first {
+            self.out.push(',');
+        }
+        self.first = false;
+        self.out
+    }
+}
+
+impl Record for Cells<'_> {
+    fn number(&mut self, _: impl Display, v: f64) {
+        push_number(self.next(), v);
+    }
+    fn optional(&mut self, _: impl Display, v: Option<f64>) {
+        let out = self.next();
+        if let Some(v) = v {
+            push_number(out, v);
+        }
+    }
+    fn count(&mut self, _: impl Display, v: Option<u64>) {
+        let out = self.next();
+        if let Some(v) = v {
+            out.push_str(itoa::Buffer::new().format(v));
+        }
+    }
+    fn text(&mut self, _: impl Display, v: &str) {
+        push_text(self.next(), v);
+    }
+    fn matrix(&mut self, _: Matrix, m: Option<&Mat6>, full: bool) {
+        for (i, j) in matrix_entries(full) {
+            let out = self.next();
+            if let Some(m) = m {
+                push_number(out, m[(i - 1, j - 1)]);
+            }
+        }
+    }
+    fn free_directions(&mut self, _: impl Display, free: &[Vec6]) {
+        push_free_directions(self.next(), free);
+    }
+}
 
 /// Unit of entry (i, j) (1-based) of a 6x6 compliance matrix: it maps a wrench (N, N mm) to a displacement
 /// (mm, rad).
@@ -39,41 +213,6 @@ pub fn matrix_entries(full: bool) -> Vec<(usize, usize)> {
     } else {
         upper_triangle().collect()
     }
-}
-
-/// Which optional columns a map has; fixed by the input before the first row.
-#[derive(Clone, Copy, Debug)]
-pub struct MapColumns {
-    pub orientation: bool,
-    pub stiffness: bool,
-    pub deflection: bool,
-    /// Loaded mode: the compliance is the tangent compliance at the loaded equilibrium (all 36 entries of
-    /// it and of K, which are not symmetric), the deflection that equilibrium's displacement; appends the
-    /// Newton iteration count.
-    pub loaded: bool,
-}
-
-pub fn map_header(c: &MapColumns) -> String {
-    let mut h: Vec<String> = vec!["index".into(), "name".into(), "x_mm".into(), "y_mm".into(), "z_mm".into()];
-    if c.orientation {
-        h.extend(["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"].map(String::from));
-    }
-    h.extend(["status", "rank", "free_directions", "condition"].map(String::from));
-    h.extend(["c_tran_max_mm_per_N", "c_tran_min_mm_per_N", "c_rot_max_rad_per_Nmm"].map(String::from));
-    if c.deflection {
-        h.extend(["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad", "deflection_mm"].map(String::from));
-    }
-    let entries = matrix_entries(c.loaded);
-    h.extend(entries.iter().map(|&(i, j)| format!("C{i}{j}_{}", compliance_unit(i, j))));
-    if c.stiffness {
-        h.extend(entries.iter().map(|&(i, j)| format!("K{i}{j}_{}", stiffness_unit(i, j))));
-    }
-    if c.loaded {
-        h.push("iterations".into());
-    }
-    let mut s = h.join(",");
-    s.push('\n');
-    s
 }
 
 /// Appends one number in shortest round-trip form; nothing for a non-finite one (one rule for missing
@@ -113,62 +252,3 @@ pub fn push_text(out: &mut String, t: &str) {
     }
 }
 
-fn push_optional(out: &mut String, v: Option<f64>) {
-    out.push(',');
-    if let Some(v) = v {
-        push_number(out, v);
-    }
-}
-
-fn push_matrix(out: &mut String, m: Option<&Mat6>, full: bool) {
-    for (i, j) in matrix_entries(full) {
-        push_optional(out, m.map(|m| m[(i - 1, j - 1)]));
-    }
-}
-
-pub fn push_map_row(out: &mut String, c: &MapColumns, index: u64, p: &PosePoint, r: &PointResult) {
-    out.push_str(itoa::Buffer::new().format(index));
-    out.push(',');
-    if let Some(n) = &p.name {
-        push_text(out, n);
-    }
-    for k in 0..3 {
-        out.push(',');
-        push_number(out, p.position[k]);
-    }
-    if c.orientation {
-        for k in 0..3 {
-            out.push(',');
-            push_number(out, p.rotation[k]);
-        }
-    }
-    out.push(',');
-    out.push_str(r.status.as_str());
-    out.push(',');
-    if let Some(rank) = r.rank {
-        out.push_str(itoa::Buffer::new().format(rank));
-    }
-    out.push(',');
-    push_free_directions(out, &r.free);
-    push_optional(out, r.condition.filter(|c| c.is_finite()));
-    let pc = r.principal;
-    push_optional(out, pc.map(|p| p.translation_max));
-    push_optional(out, pc.map(|p| p.translation_min));
-    push_optional(out, pc.map(|p| p.rotation_max));
-    if c.deflection {
-        let d: Option<Vec6> = r.deflection;
-        for k in 0..6 {
-            push_optional(out, d.map(|d| d[k]));
-        }
-        push_optional(out, d.map(|d| d.fixed_rows::<3>(0).norm()));
-    }
-    push_matrix(out, r.compliance.as_ref(), c.loaded);
-    if c.stiffness {
-        push_matrix(out, r.stiffness.as_ref(), c.loaded);
-    }
-    if c.loaded {
-        out.push(',');
-        out.push_str(itoa::Buffer::new().format(r.iterations));
-    }
-    out.push('\n');
-}

@@ -20,7 +20,7 @@
 //!   every earlier row is kept.
 
 use crate::kinematics::frame::{Frame, Vec6};
-use crate::output::table::push_number;
+use crate::output::table::{header, names, write_row, Record, Row};
 use crate::platform::compliance::{positive_definite, spectrum, Spectrum};
 use crate::platform::leg::{apply_twist, LegFailure};
 use crate::platform::loaded::Held;
@@ -111,52 +111,62 @@ impl CurveRow {
     }
 }
 
-pub const CURVE_HEADER: &str = "step,control,load_factor,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,rx_rad,ry_rad,rz_rad,k_tran_min_N_per_mm,k_rot_min_Nmm_per_rad,k_scaled_min_N_per_mm,mode_dx,mode_dy,mode_dz,mode_rx,mode_ry,mode_rz,stable,instability,iterations,status,residual,event,event_load_factor\n";
+impl Row for CurveRow {
+    type Layout = ();
 
-fn push_cell(out: &mut String, v: Option<f64>) {
-    out.push(',');
-    if let Some(v) = v {
-        push_number(out, v);
+    fn record(&self, _: &(), r: &mut impl Record) {
+        r.count("step", Some(self.step as u64));
+        r.text("control", self.control);
+        r.number(names::LOAD_FACTOR, self.load_factor);
+        r.six(names::WRENCH, self.wrench.as_ref());
+        r.six(names::DISPLACEMENT, self.displacement.as_ref());
+        let s = self.spectrum;
+        r.optional("k_tran_min_N_per_mm", s.map(|s| s.translational_min));
+        r.optional("k_rot_min_Nmm_per_rad", s.map(|s| s.rotational_min));
+        r.optional("k_scaled_min_N_per_mm", s.map(|s| s.scaled_min));
+        r.prefixed_six("mode", ["dx", "dy", "dz", "rx", "ry", "rz"], s.map(|s| s.critical_mode).as_ref());
+        let stable = match (self.converged(), self.stable()) {
+            (false, _) => "",
+            (true, true) => "true",
+            (true, false) => "false",
+        };
+        r.text(names::STABLE, stable);
+        r.text("instability", &self.instability());
+        r.count(names::ITERATIONS, Some(self.iterations as u64));
+        let (status, residual) = match self.status {
+            RowStatus::Ok => ("ok", None),
+            RowStatus::NotConverged { residual } => ("not_converged", Some(residual).filter(|r| r.is_finite())),
+            RowStatus::Overflow => ("overflow", None),
+        };
+        r.text(names::STATUS, status);
+        r.optional("residual", residual);
+        r.text(names::EVENT, &self.event);
+        r.optional("event_load_factor", self.event_load_factor);
     }
 }
 
+/// The header line of a curve.
+pub fn curve_header() -> String {
+    let blank = CurveRow {
+        step: 0,
+        control: "",
+        load_factor: 0.0,
+        wrench: None,
+        displacement: None,
+        spectrum: None,
+        positive_definite: false,
+        unstable_legs: Vec::new(),
+        iterations: 0,
+        status: RowStatus::Ok,
+        event: String::new(),
+        event_load_factor: None,
+    };
+    header(&blank, &())
+}
+
+/// Appends one curve row as a CSV line.
 pub fn push_curve_row(out: &mut String, r: &CurveRow) {
-    out.push_str(&format!("{},{},", r.step, r.control));
-    push_number(out, r.load_factor);
-    for k in 0..6 {
-        push_cell(out, r.wrench.map(|w| w[k]));
-    }
-    for k in 0..6 {
-        push_cell(out, r.displacement.map(|d| d[k]));
-    }
-    let s = r.spectrum;
-    push_cell(out, s.map(|s| s.translational_min));
-    push_cell(out, s.map(|s| s.rotational_min));
-    push_cell(out, s.map(|s| s.scaled_min));
-    for k in 0..6 {
-        push_cell(out, s.map(|s| s.critical_mode[k]));
-    }
-    out.push(',');
-    if r.converged() {
-        out.push_str(if r.stable() { "true" } else { "false" });
-    }
-    out.push(',');
-    out.push_str(&r.instability());
-    out.push_str(&format!(",{},", r.iterations));
-    match r.status {
-        RowStatus::Ok => out.push_str("ok,"),
-        RowStatus::NotConverged { residual } => {
-            out.push_str("not_converged,");
-            if residual.is_finite() {
-                push_number(out, residual);
-            }
-        }
-        RowStatus::Overflow => out.push_str("overflow,"),
-    }
-    out.push(',');
-    out.push_str(&r.event);
-    push_cell(out, r.event_load_factor);
-    out.push('\n');
+    write_row(r, &(), out);
 }
 
 /// Why a curve could not start or be written.

@@ -5,11 +5,12 @@ use std::io::Write;
 use anyhow::Result;
 use indicatif::ProgressBar;
 
-use super::point::{loaded_point, unloaded_point, LoadedHistory, Status};
+use super::point::{loaded_point, unloaded_point, LoadedHistory, PointResult, Status};
 use super::stream::{stream_rows, Tally};
 use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
-use crate::output::table::{map_header, push_map_row, MapColumns};
+use crate::model::grid::PosePoint;
+use crate::output::table::{header, names, write_row, Matrix, Record, Row};
 use crate::platform::manipulator::Manipulator;
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -80,6 +81,74 @@ impl Tally for MapSummary {
     }
 }
 
+/// Which optional columns a map has; fixed by the input before the first row.
+#[derive(Clone, Copy, Debug)]
+pub struct MapColumns {
+    /// The points give orientations.
+    pub orientation: bool,
+    /// Also the stiffness matrix.
+    pub stiffness: bool,
+    /// The deflection under the point's (or the map's) wrench.
+    pub deflection: bool,
+    /// Loaded mode: the compliance is the tangent compliance at the loaded equilibrium (all 36 entries of
+    /// it and of K, which are not symmetric), the deflection that equilibrium's displacement; appends the
+    /// Newton iteration count.
+    pub loaded: bool,
+}
+
+/// One row of a map: a point and what the study found there.
+pub struct MapRow<'a> {
+    /// Row number in input order.
+    pub index: u64,
+    /// The point as requested.
+    pub point: &'a PosePoint,
+    /// What was found there.
+    pub result: &'a PointResult,
+}
+
+impl Row for MapRow<'_> {
+    type Layout = MapColumns;
+
+    fn record(&self, c: &MapColumns, r: &mut impl Record) {
+        let (p, res) = (self.point, self.result);
+        r.count(names::INDEX, Some(self.index));
+        r.text(names::NAME, p.name.as_deref().unwrap_or(""));
+        for k in 0..3 {
+            r.number(names::POSITION[k], p.position[k]);
+        }
+        if c.orientation {
+            for k in 0..3 {
+                r.number(names::ORIENTATION[k], p.rotation[k]);
+            }
+        }
+        r.text(names::STATUS, res.status.as_str());
+        r.count("rank", res.rank.map(|k| k as u64));
+        r.free_directions("free_directions", &res.free);
+        r.optional("condition", res.condition.filter(|c| c.is_finite()));
+        let pc = res.principal;
+        r.optional("c_tran_max_mm_per_N", pc.map(|p| p.translation_max));
+        r.optional("c_tran_min_mm_per_N", pc.map(|p| p.translation_min));
+        r.optional("c_rot_max_rad_per_Nmm", pc.map(|p| p.rotation_max));
+        if c.deflection {
+            r.six(names::DISPLACEMENT, res.deflection.as_ref());
+            r.optional("deflection_mm", res.deflection.map(|d| d.fixed_rows::<3>(0).norm()));
+        }
+        r.matrix(Matrix::Compliance, res.compliance.as_ref(), c.loaded);
+        if c.stiffness {
+            r.matrix(Matrix::Stiffness, res.stiffness.as_ref(), c.loaded);
+        }
+        if c.loaded {
+            r.count(names::ITERATIONS, Some(res.iterations as u64));
+        }
+    }
+}
+
+/// The header line of a map with these columns.
+pub fn map_header(c: &MapColumns) -> String {
+    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    header(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c)
+}
+
 /// The columns a map of these points with these options writes (known before the first row).
 pub fn map_columns(points: &PointSet, options: &MapOptions) -> MapColumns {
     let loaded = options.wrench.is_some() || options.use_point_wrench;
@@ -114,7 +183,7 @@ pub fn run_map(
                 (true, None) => loaded_point(m, p, &Vec6::zeros(), &mut state, &mut history),
             };
             summary.add(r.status);
-            push_map_row(&mut text, &columns, first_index + k as u64, p, &r);
+            write_row(&MapRow { index: first_index + k as u64, point: p, result: &r }, &columns, &mut text);
         }
         (text, summary)
     })

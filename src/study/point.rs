@@ -76,6 +76,11 @@ pub struct PointResult {
 }
 
 impl PointResult {
+    /// A result with nothing computed (a header's blank row).
+    pub fn blank() -> Self {
+        Self::failed(Status::Ok)
+    }
+
     fn failed(status: Status) -> Self {
         Self {
             status,
