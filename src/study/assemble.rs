@@ -17,7 +17,7 @@ use super::stream::{stream_rows, Tally};
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::model::errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
-use crate::output::table::{push_number, push_text};
+use crate::output::table::{header, names, write_row, Record, Row};
 use crate::platform::assembly::{linear_assembly, JointDeflections};
 use crate::platform::leg::{EndErrors, Leg, LegResponse};
 use crate::platform::loaded::DeflectionFailure;
@@ -35,50 +35,112 @@ pub struct AssembleOptions {
     pub seed: u64,
 }
 
-const DISPLACEMENT: [&str; 6] = ["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad"];
+/// What fixes an assembly table's columns.
+#[derive(Clone, Copy, Debug)]
+pub struct AssembleLayout {
+    /// Number of legs (a load per leg).
+    pub legs: usize,
+    /// An external wrench is given (load, total and superposition columns).
+    pub wrench: bool,
+    /// A tolerance study: the samples' statistics instead of one assembly.
+    pub samples: usize,
+}
+
+impl AssembleLayout {
+    /// The columns of an assembly of `m` with these options.
+    pub fn new(legs: usize, o: &AssembleOptions) -> Self {
+        AssembleLayout { legs, wrench: o.wrench.is_some(), samples: o.samples }
+    }
+}
+
+/// The outcome of one point: an assembly, the statistics of a tolerance study, or a status.
+pub enum AssemblyOutcome {
+    /// One assembly with the errors as given.
+    Assembled(Box<Assembled>),
+    /// A tolerance study: mean displacement, and mean / std / worst of the displacement norm, the largest
+    /// leg force and the largest leg moment.
+    Sampled(Vec6, [Stats; 3]),
+    /// Nothing assembled, and why.
+    Failed(Status),
+}
+
+/// One row of an assembly table.
+pub struct AssemblyRow<'a> {
+    /// Row number in input order.
+    pub index: u64,
+    /// The point.
+    pub point: &'a PosePoint,
+    /// What was found there.
+    pub outcome: AssemblyOutcome,
+}
+
+impl Row for AssemblyRow<'_> {
+    type Layout = AssembleLayout;
+
+    fn record(&self, l: &AssembleLayout, r: &mut impl Record) {
+        let p = self.point;
+        r.count(names::INDEX, Some(self.index));
+        r.text(names::NAME, p.name.as_deref().unwrap_or(""));
+        for k in 0..3 {
+            r.number(names::POSITION[k], p.position[k]);
+        }
+        let (assembled, sampled) = match &self.outcome {
+            AssemblyOutcome::Assembled(a) => (Some(&**a), None),
+            AssemblyOutcome::Sampled(mean, stats) => (None, Some((mean, stats))),
+            AssemblyOutcome::Failed(_) => (None, None),
+        };
+        let status = match &self.outcome {
+            AssemblyOutcome::Assembled(a) if a.nonlinear.is_none() => Status::NotConverged,
+            AssemblyOutcome::Assembled(_) | AssemblyOutcome::Sampled(..) => Status::Ok,
+            AssemblyOutcome::Failed(s) => *s,
+        };
+        r.text(names::STATUS, status.as_str());
+        if l.samples > 0 {
+            r.count("samples", sampled.map(|_| l.samples as u64));
+            // dx_mm ... rz_rad: the mean platform displacement over the samples.
+            r.six(names::DISPLACEMENT, sampled.map(|(mean, _)| mean));
+            for (k, (q, u)) in [("displacement", "mm"), ("force_max", "N"), ("moment_max", "Nmm")].iter().enumerate() {
+                let st = sampled.map(|(_, stats)| &stats[k]);
+                r.optional(format_args!("{q}_mean_{u}"), st.map(Stats::mean));
+                r.optional(format_args!("{q}_std_{u}"), st.map(Stats::std));
+                r.optional(format_args!("{q}_worst_{u}"), st.map(|s| s.worst));
+            }
+            return;
+        }
+        r.six(names::DISPLACEMENT, assembled.map(|a| &a.displacement));
+        r.prefixed_six(names::NONLINEAR, names::DISPLACEMENT, assembled.and_then(|a| a.nonlinear.as_ref()));
+        let force = |w: &Vec6| w.fixed_rows::<3>(0).norm();
+        let moment = |w: &Vec6| w.fixed_rows::<3>(3).norm();
+        let loads = assembled.map(|a| &a.loads);
+        r.optional("force_max_N", loads.map(|l| l.iter().map(force).fold(0.0, f64::max)));
+        r.optional("moment_max_Nmm", loads.map(|l| l.iter().map(moment).fold(0.0, f64::max)));
+        r.optional("force_sum_N", loads.map(|l| force(&l.iter().sum())));
+        let j = assembled.and_then(|a| a.joints.as_ref());
+        r.optional("passive_max_rad", j.map(|j| j.passive_max));
+        r.optional("spring_deflection_max_mm", j.map(|j| j.spring_deflection_max));
+        r.optional("spring_force_max_N", j.map(|j| j.spring_force_max));
+        r.optional("spring_rotation_max_rad", j.map(|j| j.spring_rotation_max));
+        r.optional("spring_torque_max_Nmm", j.map(|j| j.spring_torque_max));
+        for k in 0..l.legs {
+            let load = loads.and_then(|l| l.get(k));
+            r.optional(format_args!("leg{}_force_N", k + 1), load.map(force));
+            r.optional(format_args!("leg{}_moment_Nmm", k + 1), load.map(moment));
+        }
+        if l.wrench {
+            let loaded = assembled.and_then(|a| a.loaded.as_ref());
+            r.prefixed_six("load", names::DISPLACEMENT, loaded.map(|(load, _, _)| load));
+            r.prefixed_six("total", names::DISPLACEMENT, loaded.map(|(_, total, _)| total));
+            r.prefixed_six("super", names::DISPLACEMENT, loaded.map(|(_, _, sup)| sup));
+            r.optional("superposition_gap_mm", loaded.map(|(_, total, sup)| (total - sup).fixed_rows::<3>(0).norm()));
+        }
+    }
+}
 
 /// The CSV header for `legs` legs.
 pub fn assemble_header(legs: usize, o: &AssembleOptions) -> String {
-    let mut h: Vec<String> =
-        ["index", "name", "x_mm", "y_mm", "z_mm", "status"].iter().map(|s| s.to_string()).collect();
-    if o.samples > 0 {
-        // dx_mm ... rz_rad: the mean platform displacement over the samples.
-        h.push("samples".into());
-        h.extend(DISPLACEMENT.iter().map(|c| c.to_string()));
-        for (q, u) in [("displacement", "mm"), ("force_max", "N"), ("moment_max", "Nmm")] {
-            for s in ["mean", "std", "worst"] {
-                h.push(format!("{q}_{s}_{u}"));
-            }
-        }
-    } else {
-        h.extend(DISPLACEMENT.iter().map(|c| c.to_string()));
-        h.extend(DISPLACEMENT.iter().map(|c| format!("nl_{c}")));
-        h.extend(
-            [
-                "force_max_N",
-                "moment_max_Nmm",
-                "force_sum_N",
-                "passive_max_rad",
-                "spring_deflection_max_mm",
-                "spring_force_max_N",
-                "spring_rotation_max_rad",
-                "spring_torque_max_Nmm",
-            ]
-            .iter()
-            .map(|s| s.to_string()),
-        );
-        for k in 1..=legs {
-            h.push(format!("leg{k}_force_N"));
-            h.push(format!("leg{k}_moment_Nmm"));
-        }
-        if o.wrench.is_some() {
-            for prefix in ["load", "total", "super"] {
-                h.extend(DISPLACEMENT.iter().map(|c| format!("{prefix}_{c}")));
-            }
-            h.push("superposition_gap_mm".into());
-        }
-    }
-    h.join(",") + "\n"
+    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    let blank = AssemblyRow { index: 0, point: &point, outcome: AssemblyOutcome::Failed(Status::Ok) };
+    header(&blank, &AssembleLayout::new(legs, o))
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -286,19 +348,6 @@ fn sample_point(
     Ok((mean, stats))
 }
 
-fn push_fields(out: &mut String, values: impl IntoIterator<Item = f64>) {
-    for v in values {
-        out.push(',');
-        push_number(out, v);
-    }
-}
-
-fn push_empty(out: &mut String, n: usize) {
-    for _ in 0..n {
-        out.push(',');
-    }
-}
-
 pub fn run_assemble(
     pool: &rayon::ThreadPool,
     m: &Manipulator,
@@ -309,104 +358,27 @@ pub fn run_assemble(
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<AssembleSummary> {
-    let legs = m.legs.len();
-    let header = assemble_header(legs, o);
-    let fields = header.split(',').count() - 6;
-    stream_rows(pool, points, &header, out, progress, |first_index, run| {
+    let layout = AssembleLayout::new(m.legs.len(), o);
+    stream_rows(pool, points, &assemble_header(m.legs.len(), o), out, progress, |first_index, run| {
         let mut state = m.new_state();
         let mut text = String::with_capacity(run.len() * 600);
         let mut summary = AssembleSummary::default();
         for (k, p) in run.iter().enumerate() {
             let index = first_index + k as u64;
-            text.push_str(itoa::Buffer::new().format(index));
-            text.push(',');
-            if let Some(n) = &p.name {
-                push_text(&mut text, n);
-            }
-            for c in 0..3 {
-                text.push(',');
-                push_number(&mut text, p.position[c]);
-            }
-            text.push(',');
-            summary.points += 1;
-            if o.samples > 0 {
+            let outcome = if o.samples > 0 {
                 match sample_point(m, set, perturbed, index, p, o, &mut state) {
-                    Ok((mean, stats)) => {
-                        summary.ok += 1;
-                        text.push_str(Status::Ok.as_str());
-                        text.push(',');
-                        text.push_str(itoa::Buffer::new().format(o.samples));
-                        push_fields(&mut text, mean.iter().copied());
-                        for s in &stats {
-                            push_fields(&mut text, [s.mean(), s.std(), s.worst]);
-                        }
-                    }
-                    Err(s) => {
-                        text.push_str(s.as_str());
-                        push_empty(&mut text, fields);
-                    }
+                    Ok((mean, stats)) => AssemblyOutcome::Sampled(mean, stats),
+                    Err(s) => AssemblyOutcome::Failed(s),
                 }
-                text.push('\n');
-                continue;
-            }
-            match assemble_point(m, set, perturbed, p, o, &mut state) {
-                Ok(a) => {
-                    summary.ok += 1;
-                    text.push_str(if a.nonlinear.is_some() {
-                        Status::Ok.as_str()
-                    } else {
-                        Status::NotConverged.as_str()
-                    });
-                    push_fields(&mut text, a.displacement.iter().copied());
-                    match a.nonlinear {
-                        Some(d) => push_fields(&mut text, d.iter().copied()),
-                        None => push_empty(&mut text, 6),
-                    }
-                    let force = |w: &Vec6| w.fixed_rows::<3>(0).norm();
-                    let moment = |w: &Vec6| w.fixed_rows::<3>(3).norm();
-                    let sum: Vec6 = a.loads.iter().sum();
-                    push_fields(
-                        &mut text,
-                        [
-                            a.loads.iter().map(force).fold(0.0, f64::max),
-                            a.loads.iter().map(moment).fold(0.0, f64::max),
-                            force(&sum),
-                        ],
-                    );
-                    match a.joints {
-                        Some(j) => push_fields(
-                            &mut text,
-                            [
-                                j.passive_max,
-                                j.spring_deflection_max,
-                                j.spring_force_max,
-                                j.spring_rotation_max,
-                                j.spring_torque_max,
-                            ],
-                        ),
-                        None => push_empty(&mut text, 5),
-                    }
-                    for l in &a.loads {
-                        push_fields(&mut text, [force(l), moment(l)]);
-                    }
-                    if o.wrench.is_some() {
-                        match a.loaded {
-                            Some((load, total, sup)) => {
-                                push_fields(&mut text, load.iter().copied());
-                                push_fields(&mut text, total.iter().copied());
-                                push_fields(&mut text, sup.iter().copied());
-                                push_fields(&mut text, [(total - sup).fixed_rows::<3>(0).norm()]);
-                            }
-                            None => push_empty(&mut text, 19),
-                        }
-                    }
+            } else {
+                match assemble_point(m, set, perturbed, p, o, &mut state) {
+                    Ok(a) => AssemblyOutcome::Assembled(Box::new(a)),
+                    Err(s) => AssemblyOutcome::Failed(s),
                 }
-                Err(s) => {
-                    text.push_str(s.as_str());
-                    push_empty(&mut text, fields);
-                }
-            }
-            text.push('\n');
+            };
+            summary.points += 1;
+            summary.ok += u64::from(!matches!(outcome, AssemblyOutcome::Failed(_)));
+            write_row(&AssemblyRow { index, point: p, outcome }, &layout, &mut text);
         }
         (text, summary)
     })
