@@ -12,12 +12,12 @@ use crate::model::error::read_text;
 use crate::model::errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::model::{parse_with, Model};
-use crate::output::report::point_report;
 use crate::output::sink::Sink;
 use crate::platform::manipulator::Manipulator;
 use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
-use crate::study::curve::{push_curve_row, curve_header, run_curve, Control, MAX_INTERVALS};
+use crate::study::curve::{curve_header, push_curve_row, run_curve, Control, MAX_INTERVALS};
 use crate::study::map::{run_map, MapOptions};
+use crate::study::point::point_report;
 use crate::study::point::{loaded_point, unloaded_point, LoadedHistory};
 
 #[derive(Parser, Debug)]

@@ -1,14 +1,18 @@
 //! Measured deflections (CSV): `pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm`,
-//! optionally `rx_rad,ry_rad,rz_rad` and `sigma_mm`, any order, extra columns ignored. Every error is located.
+//! optionally `sigma_mm`, any order, extra columns (measured rotations among them) ignored: the measurement
+//! model predicts the measured point's translation only. Every error is located.
 
 use std::path::Path;
 
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::error::InputError;
+use crate::output::table::names;
 
-pub const REQUIRED: [&str; 13] = [
-    "pose_id", "x_mm", "y_mm", "z_mm", "Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm", "dx_mm", "dy_mm", "dz_mm",
-];
+/// The columns a measurement file must have, in the order `stiff synth` writes them.
+pub const REQUIRED: [&str; 13] = {
+    let (p, w, d) = (names::POSITION, names::WRENCH, names::DISPLACEMENT);
+    [names::POSE_ID, p[0], p[1], p[2], w[0], w[1], w[2], w[3], w[4], w[5], d[0], d[1], d[2]]
+};
 
 /// Largest magnitude a measured number may have (mm, N, N mm): residuals are squared and weighted, and
 /// 1e100 squared is still far from overflowing.
@@ -66,7 +70,7 @@ impl Dataset {
                     .ok_or_else(|| at(1, 1, format!("missing column `{name}` (needs {})", REQUIRED.join(","))))?,
             );
         }
-        let sigma_column = find("sigma_mm");
+        let sigma_column = find(names::SIGMA);
         let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
         for record in reader.records() {
             let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;

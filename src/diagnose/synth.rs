@@ -10,7 +10,7 @@ use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::effect::{Effect, Kind};
 use crate::model::grid::PointSet;
 use crate::model::Model;
-use crate::output::table::{push_number, push_text};
+use crate::output::table::{header, names, write_row, Record, Row};
 
 pub struct SynthOptions {
     pub effects: Vec<Effect>,
@@ -45,7 +45,7 @@ pub fn synthesize(
     let m = &model.manipulator;
     let mut state = m.new_state();
     let mut rng = rand::rngs::StdRng::seed_from_u64(o.seed);
-    out.write_all((REQUIRED.join(",") + ",sigma_mm\n").as_bytes())?;
+    out.write_all(header(&blank_row(), &()).as_bytes())?;
     let (mut skipped, mut written, mut index) = (0, 0, 0usize);
     let mut block = Vec::with_capacity(BLOCK);
     loop {
@@ -99,18 +99,10 @@ pub fn synthesize(
                     super::data::MAX_MAGNITUDE
                 )));
             }
-            push_text(&mut text, &row.pose_id);
             let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
-            for v in row.position.iter().chain(row.wrench.iter()).chain(noisy.iter()) {
-                text.push(',');
-                push_number(&mut text, *v);
-            }
             // Noise-free data has no sigma (a zero sigma is not a measurement's).
-            text.push(',');
-            if o.noise > 0.0 {
-                push_number(&mut text, o.noise);
-            }
-            text.push('\n');
+            let sigma = Some(o.noise).filter(|s| *s > 0.0);
+            write_row(&MeasurementRow { measurement: row, displacement: noisy, sigma }, &(), &mut text);
         }
         out.write_all(text.as_bytes())?;
         written += data.rows.len();
@@ -160,5 +152,45 @@ impl From<std::io::Error> for SynthError {
 impl From<crate::model::error::InputError> for SynthError {
     fn from(e: crate::model::error::InputError) -> Self {
         SynthError::Input(e)
+    }
+}
+
+/// One written measurement: the row's pose and wrench, the displacement with its noise, and sigma.
+struct MeasurementRow<'a> {
+    measurement: &'a Measurement,
+    displacement: Vec3,
+    sigma: Option<f64>,
+}
+
+fn blank_row() -> MeasurementRow<'static> {
+    static BLANK: std::sync::OnceLock<Measurement> = std::sync::OnceLock::new();
+    let measurement = BLANK.get_or_init(|| Measurement {
+        pose_id: String::new(),
+        position: Vec3::zeros(),
+        wrench: Vec6::zeros(),
+        displacement: Vec3::zeros(),
+        sigma: None,
+        line: 0,
+    });
+    MeasurementRow { measurement, displacement: Vec3::zeros(), sigma: None }
+}
+
+impl Row for MeasurementRow<'_> {
+    type Layout = ();
+
+    /// The columns `diagnose` reads (`REQUIRED`, then `sigma_mm`).
+    fn record(&self, _: &(), r: &mut impl Record) {
+        let m = self.measurement;
+        r.text(REQUIRED[0], &m.pose_id);
+        for k in 0..3 {
+            r.number(REQUIRED[1 + k], m.position[k]);
+        }
+        for k in 0..6 {
+            r.number(REQUIRED[4 + k], m.wrench[k]);
+        }
+        for k in 0..3 {
+            r.number(REQUIRED[10 + k], self.displacement[k]);
+        }
+        r.optional(names::SIGMA, self.sigma);
     }
 }

@@ -22,6 +22,8 @@ pub mod names {
     pub const WRENCH: [&str; 6] = ["Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm"];
     /// The outcome of a point or row (README lists the statuses).
     pub const STATUS: &str = "status";
+    /// Maps: the largest principal translational compliance (the default column of a map's picture).
+    pub const C_TRAN_MAX: &str = "c_tran_max_mm_per_N";
     /// Newton iterations.
     pub const ITERATIONS: &str = "iterations";
     /// Curves: the load factor of a row (marks a curve for `stiff plot`).
@@ -251,4 +253,3 @@ pub fn push_text(out: &mut String, t: &str) {
         out.push_str(t);
     }
 }
-

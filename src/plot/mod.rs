@@ -7,6 +7,8 @@ pub mod svg;
 use anyhow::{anyhow, bail, Context, Result};
 use serde_json::Value;
 
+use crate::output::table::names;
+
 use svg::{axes, frame, label, tick_label, unit_of, viridis, Axis, Svg};
 
 /// A CSV held as text cells.
@@ -58,6 +60,9 @@ pub struct PlotOptions {
     pub direction: Option<String>,
 }
 
+/// The map column drawn when `--plot-column` is not given.
+const DEFAULT_MAP_COLUMN: &str = names::C_TRAN_MAX;
+
 /// Draws a study's output: a map, curve or assemble CSV, or a diagnose JSON.
 pub fn plot_text(text: &str, o: &PlotOptions) -> Result<String> {
     if text.trim_start().starts_with('{') {
@@ -65,11 +70,12 @@ pub fn plot_text(text: &str, o: &PlotOptions) -> Result<String> {
         return diagnosis(&v);
     }
     let t = Table::parse(text)?;
-    if t.has("load_factor") {
+    // Each study's table has a column no other has (`output::table::names`).
+    if t.has(names::LOAD_FACTOR) {
         curve(&t, o)
-    } else if t.has("nl_dx_mm") {
+    } else if t.has(&format!("{}_{}", names::NONLINEAR, names::DISPLACEMENT[0])) {
         assembly(&t)
-    } else if t.has("c_tran_max_mm_per_N") || o.column.as_deref().is_some_and(|c| t.has(c)) {
+    } else if t.has(DEFAULT_MAP_COLUMN) || o.column.as_deref().is_some_and(|c| t.has(c)) {
         map(&t, o)
     } else {
         bail!("not a map, curve, assemble CSV or diagnose JSON (columns: {})", t.header.join(", "))
@@ -113,7 +119,7 @@ pub fn check_map_options(header: &str, o: &PlotOptions) -> Result<()> {
     if let Some(s) = &o.section {
         parse_section(s)?;
     }
-    let column = o.column.as_deref().unwrap_or("c_tran_max_mm_per_N");
+    let column = o.column.as_deref().unwrap_or(DEFAULT_MAP_COLUMN);
     if !header.trim_end().split(',').any(|h| h == column) {
         bail!("--plot-column: the map has no column `{column}` (columns: {})", header.trim_end());
     }
@@ -122,9 +128,9 @@ pub fn check_map_options(header: &str, o: &PlotOptions) -> Result<()> {
 
 /// A colour map of one column over planar sections of the grid (one panel per section).
 fn map(t: &Table, o: &PlotOptions) -> Result<String> {
-    let column = o.column.clone().unwrap_or_else(|| "c_tran_max_mm_per_N".to_string());
+    let column = o.column.clone().unwrap_or_else(|| DEFAULT_MAP_COLUMN.to_string());
     let values = t.numbers(&column)?;
-    let coords: Vec<Vec<f64>> = ["x_mm", "y_mm", "z_mm"]
+    let coords: Vec<Vec<f64>> = names::POSITION
         .iter()
         .map(|c| t.numbers(c).map(|v| v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect()))
         .collect::<Result<_>>()?;
@@ -221,8 +227,7 @@ fn map(t: &Table, o: &PlotOptions) -> Result<String> {
 /// Force against displacement along one direction: stable branches solid, unstable dashed, events marked.
 fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
     let names = ["x", "y", "z", "rx", "ry", "rz"];
-    let disp = ["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad"];
-    let force = ["Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm"];
+    let (disp, force) = (names::DISPLACEMENT, names::WRENCH);
     let k = match &o.direction {
         Some(d) => names
             .iter()
@@ -235,8 +240,8 @@ fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
     };
     let x: Vec<f64> = t.numbers(disp[k])?.into_iter().map(|v| v.unwrap_or(f64::NAN)).collect();
     let y: Vec<f64> = t.numbers(force[k])?.into_iter().map(|v| v.unwrap_or(f64::NAN)).collect();
-    let stable = t.texts("stable")?;
-    let events = t.texts("event")?;
+    let stable = t.texts(names::STABLE)?;
+    let events = t.texts(names::EVENT)?;
     let (w, h, left, top) = (640.0, 440.0, 90.0, 40.0);
     let mut s = Svg::new(w, h);
     let ax = Axis::new(x.iter().copied(), left, w - 30.0);
@@ -281,7 +286,7 @@ fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
 
 /// Displacements along an assembly path (paper 000 Figures 10-11): one panel per axis x, y, z.
 fn assembly(t: &Table) -> Result<String> {
-    let coords: Vec<Vec<f64>> = ["x_mm", "y_mm", "z_mm"]
+    let coords: Vec<Vec<f64>> = names::POSITION
         .iter()
         .map(|c| t.numbers(c).map(|v| v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect()))
         .collect::<Result<_>>()?;

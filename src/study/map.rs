@@ -126,7 +126,7 @@ impl Row for MapRow<'_> {
         r.free_directions("free_directions", &res.free);
         r.optional("condition", res.condition.filter(|c| c.is_finite()));
         let pc = res.principal;
-        r.optional("c_tran_max_mm_per_N", pc.map(|p| p.translation_max));
+        r.optional(names::C_TRAN_MAX, pc.map(|p| p.translation_max));
         r.optional("c_tran_min_mm_per_N", pc.map(|p| p.translation_min));
         r.optional("c_rot_max_rad_per_Nmm", pc.map(|p| p.rotation_max));
         if c.deflection {
