@@ -489,17 +489,21 @@ fn assemble(a: AssembleArgs) -> Result<()> {
 }
 
 fn diagnose(a: DiagnoseArgs) -> Result<()> {
-    use crate::diagnose::{data::Dataset, fit::Problem, report, select};
+    use crate::diagnose::{data::Dataset, error::DiagnoseError, fit::Problem, report, select};
     let model = a.model.load_model()?;
     let data = Dataset::read(&a.data)?;
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         bail!("--alpha must lie in (0, 1)");
     }
-    let (weights, sigma, source) =
-        select::noise(&data, a.sigma).map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    let (weights, sigma, source) = select::noise(&data, a.sigma).map_err(|e| match e {
+        // The command line says how to give the noise level: its flag.
+        DiagnoseError::NoiseUnknown => anyhow::anyhow!("{}: {e}: --sigma MM", a.data.display()),
+        DiagnoseError::NoiseOutOfRange { .. } => anyhow::anyhow!("--sigma: {e}"),
+        e => anyhow::anyhow!("{}: {e}", a.data.display()),
+    })?;
     let needs_loaded = !a.loaded;
     let problem = Problem::new(&model.manipulator, &model.measurement_terms, &data, weights, a.loaded, needs_loaded)
-        .map_err(|b| anyhow::anyhow!("{}, line {}: pose `{}`: {}", a.data.display(), b.line, b.pose_id, b.why))?;
+        .map_err(|e| anyhow::anyhow!("{}, {e}", a.data.display()))?;
     let options = select::Options { alpha: a.alpha, loaded: a.loaded, max_effects: 3 };
     // The outputs are opened before the work, so an unwritable path fails at once.
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;

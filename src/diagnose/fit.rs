@@ -5,6 +5,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::data::Dataset;
+use super::error::{DiagnoseError, PoseError};
 use super::measurement::{gravity_of, PoseModel};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::effect::{scaled, Effect, Kind, Target};
@@ -28,14 +29,6 @@ pub struct Problem<'a> {
     pose_of: Vec<usize>,
 }
 
-/// A pose the model cannot evaluate (unreachable, singular): a data error.
-#[derive(Debug)]
-pub struct BadPose {
-    pub pose_id: String,
-    pub line: usize,
-    pub why: String,
-}
-
 impl<'a> Problem<'a> {
     pub fn new(
         model: &'a Manipulator,
@@ -44,7 +37,7 @@ impl<'a> Problem<'a> {
         weights: Vec<f64>,
         loaded_mode: bool,
         with_loaded: bool,
-    ) -> Result<Self, BadPose> {
+    ) -> Result<Self, DiagnoseError> {
         let mut pose_of = vec![0; data.rows.len()];
         for (k, p) in data.poses.iter().enumerate() {
             for &r in &p.rows {
@@ -52,25 +45,23 @@ impl<'a> Problem<'a> {
             }
         }
         let mut state = model.new_state();
-        let poses = data
-            .poses
-            .iter()
-            .map(|p| {
-                PoseModel::at(model, &Frame::translation(p.position), &mut state).map_err(|why| BadPose {
-                    pose_id: p.id.clone(),
-                    line: data.rows[p.rows[0]].line,
-                    why,
+        let poses =
+            data.poses
+                .iter()
+                .map(|p| {
+                    PoseModel::at(model, &Frame::translation(p.position), &mut state).map_err(|why| {
+                        DiagnoseError::Pose { pose_id: p.id.clone(), line: data.rows[p.rows[0]].line, why }
+                    })
                 })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+                .collect::<Result<Vec<_>, _>>()?;
         let loaded = if with_loaded || loaded_mode {
             let mut out = Vec::with_capacity(data.rows.len());
             for r in &data.rows {
                 let pose = Frame::translation(r.position);
-                let d = model.deflect(&pose, &r.wrench, None, &mut state).map_err(|e| BadPose {
+                let d = model.deflect(&pose, &r.wrench, None, &mut state).map_err(|e| DiagnoseError::Pose {
                     pose_id: r.pose_id.clone(),
                     line: r.line,
-                    why: format!("no loaded equilibrium under the row's wrench: {e}"),
+                    why: PoseError::NoLoadedEquilibrium(e),
                 })?;
                 out.push(d.displacement);
             }
@@ -86,7 +77,7 @@ impl<'a> Problem<'a> {
     }
 
     /// Predicted displacements (mm) of `rows` with the model's own effects and `effects`.
-    pub fn predict(&self, effects: &[Effect], rows: &[usize]) -> Result<Vec<Vec3>, String> {
+    pub fn predict(&self, effects: &[Effect], rows: &[usize]) -> Result<Vec<Vec3>, PoseError> {
         let scalings: Vec<Effect> = effects.iter().filter(|e| e.scales_springs()).cloned().collect();
         let terms: Vec<Effect> = self.terms.iter().chain(effects).filter(|e| !e.scales_springs()).cloned().collect();
         let mut poses: Vec<Option<PoseModel>> = vec![None; self.poses.len()];
@@ -113,7 +104,7 @@ impl<'a> Problem<'a> {
     }
 
     /// Weighted residuals (measured - predicted) / sigma, three per row.
-    pub fn residuals(&self, effects: &[Effect], rows: &[usize]) -> Result<DVector<f64>, String> {
+    pub fn residuals(&self, effects: &[Effect], rows: &[usize]) -> Result<DVector<f64>, PoseError> {
         let p = self.predict(effects, rows)?;
         let mut r = DVector::zeros(3 * rows.len());
         for (i, (&row, pred)) in rows.iter().zip(&p).enumerate() {
@@ -191,7 +182,7 @@ pub fn jacobian(
     theta: &[f64],
     from: usize,
     rows: &[usize],
-) -> Result<DMatrix<f64>, String> {
+) -> Result<DMatrix<f64>, PoseError> {
     let n = problem.observations(rows);
     let mut j = DMatrix::zeros(n, theta.len() - from);
     for k in from..theta.len() {
@@ -207,7 +198,7 @@ pub fn jacobian(
 }
 
 /// Levenberg-Marquardt from the neutral values (or `start`), on `rows`.
-pub fn fit(problem: &Problem, cands: &[Candidate], rows: &[usize], start: Option<&[f64]>) -> Result<Fit, String> {
+pub fn fit(problem: &Problem, cands: &[Candidate], rows: &[usize], start: Option<&[f64]>) -> Result<Fit, PoseError> {
     let mut theta: Vec<f64> = match start {
         Some(s) => s.to_vec(),
         None => cands.iter().flat_map(|c| c.neutral()).collect(),

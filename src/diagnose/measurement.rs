@@ -5,6 +5,7 @@
 //! the leg's load; tool-offset r + dp + dphi x r; loaded-nonlinearity lambda (loaded - linear). Spring
 //! scalings are not terms here: they change the manipulator itself (`model::effect::scaled`).
 
+use super::error::PoseError;
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use crate::model::effect::{Effect, Kind, Target};
 use crate::platform::compliance::analyse;
@@ -20,12 +21,11 @@ pub struct PoseModel {
 }
 
 impl PoseModel {
-    pub fn at(m: &Manipulator, pose: &Frame, state: &mut ManipulatorState) -> Result<PoseModel, String> {
+    pub fn at(m: &Manipulator, pose: &Frame, state: &mut ManipulatorState) -> Result<PoseModel, PoseError> {
         let mut legs = Vec::with_capacity(m.legs.len());
-        let total =
-            m.unloaded_each(pose, state, |_, r| legs.push(r.stiffness)).map_err(|e| format!("it fails there ({e})"))?;
+        let total = m.unloaded_each(pose, state, |_, r| legs.push(r.stiffness)).map_err(PoseError::Fails)?;
         let Some(&compliance) = analyse(&total.stiffness, &total.magnitude, m.length_scale, true).compliance() else {
-            return Err("the manipulator is singular or ill-conditioned there".into());
+            return Err(PoseError::NoCompliance);
         };
         let actuators = m
             .legs

@@ -2,6 +2,7 @@
 //! effect of a library explains it (with the statistics to back the name), and synthetic measurements with
 //! hidden effects to test the workflow and plan experiments.
 pub mod data;
+pub mod error;
 pub mod fit;
 pub mod measurement;
 pub mod report;

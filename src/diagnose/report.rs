@@ -9,7 +9,7 @@ use super::select::{Diagnosis, SigmaSource, Verdict};
 fn source_text(s: &SigmaSource) -> String {
     match s {
         SigmaSource::Column => "the data's sigma_mm column".into(),
-        SigmaSource::Given => "--sigma".into(),
+        SigmaSource::Given => "the noise level given".into(),
         SigmaSource::Repeats { dof } => format!("repeated rows ({dof} degrees of freedom of pure error)"),
     }
 }

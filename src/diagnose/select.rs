@@ -9,6 +9,7 @@ use nalgebra::{DMatrix, DVector};
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use super::data::Dataset;
+use super::error::{DiagnoseError, PoseError};
 use super::fit::{effects_of, fit, jacobian, Candidate, Fit, Problem};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::effect::{Effect, Kind, Target};
@@ -251,7 +252,7 @@ fn rms(problem: &Problem, rows: &[usize], r: &DVector<f64>) -> Vec3 {
 }
 
 /// The noise level and where it comes from, and the weights.
-pub fn noise(data: &Dataset, sigma: Option<f64>) -> Result<(Vec<f64>, f64, SigmaSource), String> {
+pub fn noise(data: &Dataset, sigma: Option<f64>) -> Result<(Vec<f64>, f64, SigmaSource), DiagnoseError> {
     if data.rows.iter().all(|r| r.sigma.is_some()) {
         let w: Vec<f64> = data.rows.iter().map(|r| 1.0 / r.sigma.expect("checked")).collect();
         let typical = data.rows.iter().map(|r| r.sigma.expect("checked")).sum::<f64>() / data.rows.len() as f64;
@@ -259,11 +260,7 @@ pub fn noise(data: &Dataset, sigma: Option<f64>) -> Result<(Vec<f64>, f64, Sigma
     }
     if let Some(s) = sigma {
         if !(super::data::MIN_SIGMA_MM..=super::data::MAX_MAGNITUDE).contains(&s) {
-            return Err(format!(
-                "the noise must lie in [{:e}, {:e}] mm, got {s}",
-                super::data::MIN_SIGMA_MM,
-                super::data::MAX_MAGNITUDE
-            ));
+            return Err(DiagnoseError::NoiseOutOfRange { sigma: s });
         }
         return Ok((vec![1.0 / s; data.rows.len()], s, SigmaSource::Given));
     }
@@ -275,10 +272,7 @@ pub fn noise(data: &Dataset, sigma: Option<f64>) -> Result<(Vec<f64>, f64, Sigma
         dof += 3 * (g.len() - 1);
     }
     if dof < 3 || ss <= 0.0 {
-        return Err(
-            "the noise level is unknown: give a sigma_mm column, --sigma, or repeated rows (same pose and wrench)"
-                .into(),
-        );
+        return Err(DiagnoseError::NoiseUnknown);
     }
     let s = (ss / dof as f64).sqrt();
     Ok((vec![1.0 / s; data.rows.len()], s, SigmaSource::Repeats { dof }))
@@ -324,7 +318,7 @@ impl Step<'_> {
         let sig = match jacobian(self.problem, &cands, &theta, k0, &self.rows) {
             Ok(s) => s,
             Err(e) => {
-                row.note = e;
+                row.note = e.to_string();
                 return row;
             }
         };
@@ -421,7 +415,7 @@ fn nested(problem: &Problem, a: &Candidate, b: &Candidate, rows: &[usize]) -> bo
 }
 
 /// Leave-pose-out residuals of the model with `cands` refitted without each pose (from `start`).
-fn heldout(problem: &Problem, cands: &[Candidate], start: &[f64]) -> Result<(f64, Vec3), String> {
+fn heldout(problem: &Problem, cands: &[Candidate], start: &[f64]) -> Result<(f64, Vec3), PoseError> {
     let data = problem.data;
     let mut ssr = 0.0;
     let mut axis = Vec3::zeros();
@@ -480,13 +474,13 @@ fn separating_advice(problem: &Problem, a: &CandidateRow, b: &CandidateRow) -> S
     best.1
 }
 
-pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options) -> Result<Diagnosis, String> {
+pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options) -> Result<Diagnosis, DiagnoseError> {
     let data = problem.data;
     let rows: Vec<usize> = (0..data.rows.len()).collect();
     let n = problem.observations(&rows);
     let cands = candidates(problem, o.loaded);
     if n <= cands.iter().map(|c| c.dim()).max().unwrap_or(0) + 1 {
-        return Err(format!("{} measurements are too few for the candidates' parameters", data.rows.len()));
+        return Err(DiagnoseError::TooFewMeasurements { rows: data.rows.len() });
     }
     let nominal = fit(problem, &[], &rows, None)?;
     let (statistic, p0) = match source {

@@ -4,6 +4,7 @@
 use rand::{Rng, SeedableRng};
 
 use super::data::{Dataset, Measurement, Pose, REQUIRED};
+use super::error::DiagnoseError;
 use super::fit::Problem;
 use super::measurement::PoseModel;
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
@@ -83,21 +84,16 @@ pub fn synthesize(
         }
         let loaded = o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
         let weights = vec![1.0; data.rows.len()];
-        let problem = Problem::new(m, &model.measurement_terms, &data, weights, false, loaded)
-            .map_err(|b| SynthError::Pose(format!("pose {}: {}", b.pose_id, b.why)))?;
+        let problem =
+            Problem::new(m, &model.measurement_terms, &data, weights, false, loaded).map_err(SynthError::Model)?;
         let rows: Vec<usize> = (0..data.rows.len()).collect();
-        let predicted = problem.predict(&o.effects, &rows).map_err(SynthError::Pose)?;
+        let predicted = problem.predict(&o.effects, &rows).map_err(|e| SynthError::Model(e.into()))?;
         let mut text = String::new();
         for (row, d) in data.rows.iter().zip(predicted) {
             // What synth writes, diagnose must be able to read: the same bound on every number.
             let readable = |v: &f64| v.is_finite() && v.abs() <= super::data::MAX_MAGNITUDE;
             if !(d.iter().all(readable) && row.wrench.iter().all(readable)) {
-                return Err(SynthError::Pose(format!(
-                    "pose {}: the load or the effects give a displacement beyond {:e} (or not finite): not a \
-                     measurement",
-                    row.pose_id,
-                    super::data::MAX_MAGNITUDE
-                )));
+                return Err(SynthError::Unreadable { pose_id: row.pose_id.clone() });
             }
             let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
             // Noise-free data has no sigma (a zero sigma is not a measurement's).
@@ -108,7 +104,7 @@ pub fn synthesize(
         written += data.rows.len();
     }
     if written == 0 {
-        return Err(SynthError::Pose("no reachable pose to measure".into()));
+        return Err(SynthError::NoReachablePose);
     }
     Ok(skipped)
 }
@@ -118,8 +114,12 @@ pub fn synthesize(
 pub enum SynthError {
     /// The points file could not be read.
     Input(crate::model::error::InputError),
-    /// A pose could not be modelled (the message says which and why).
-    Pose(String),
+    /// The model could not predict a measurement.
+    Model(DiagnoseError),
+    /// The load or the effects give a displacement `diagnose` could not read (beyond `MAX_MAGNITUDE`).
+    Unreadable { pose_id: String },
+    /// No pose of the input is reachable and regular.
+    NoReachablePose,
     /// Writing the output failed (a closed pipe, a full disk).
     Write(std::io::Error),
 }
@@ -128,7 +128,14 @@ impl std::fmt::Display for SynthError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             SynthError::Input(e) => write!(f, "{e}"),
-            SynthError::Pose(why) => write!(f, "{why}"),
+            SynthError::Model(e) => write!(f, "{e}"),
+            SynthError::Unreadable { pose_id } => write!(
+                f,
+                "pose {pose_id}: the load or the effects give a displacement beyond {:e} (or not finite): not a \
+                 measurement",
+                super::data::MAX_MAGNITUDE
+            ),
+            SynthError::NoReachablePose => f.write_str("no reachable pose to measure"),
             SynthError::Write(e) => write!(f, "cannot write the measurements: {e}"),
         }
     }
