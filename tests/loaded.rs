@@ -4,8 +4,8 @@
 
 mod common;
 use common::*;
+use stiff::kinematics::frame::apply_twist;
 use stiff::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
-use stiff::platform::leg::apply_twist;
 use stiff::platform::manipulator::Manipulator;
 use stiff::study::curve::{critical_load_factor, curve_rows as run_curve, Control};
 

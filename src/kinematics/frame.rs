@@ -177,6 +177,18 @@ pub fn shift_stiffness(k: &Mat6, v: &Vec3) -> Mat6 {
     out
 }
 
+/// The frame a fraction `a` of the way along the twist `delta` from `start` (rotation about a fixed axis).
+pub fn interpolate(start: &Frame, delta: &Vec6, a: f64) -> Frame {
+    apply_twist(start, &(delta * a))
+}
+
+/// `start` moved by a small displacement (translation, base-frame rotation vector): the inverse of
+/// `Frame::error_to`.
+pub fn apply_twist(start: &Frame, d: &Vec6) -> Frame {
+    let r = rotation_from_vector(&Vec3::new(d[3], d[4], d[5]));
+    Frame::new(r * start.rot, start.pos + Vec3::new(d[0], d[1], d[2]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

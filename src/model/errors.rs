@@ -86,7 +86,7 @@ impl LegErrors {
 
     /// The rigid motion of the base error, scaled, as a frame.
     pub fn base_frame(&self, scale: f64) -> Frame {
-        crate::platform::leg::apply_twist(&Frame::IDENTITY, &(self.base * scale))
+        crate::kinematics::frame::apply_twist(&Frame::IDENTITY, &(self.base * scale))
     }
 }
 

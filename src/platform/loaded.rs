@@ -3,8 +3,8 @@
 //! method with load continuation (eq 73-75).
 
 use super::compliance::positive_definite;
-use super::leg::apply_twist;
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
+use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
 
 /// The manipulator held at a platform pose, its legs placed for the commanded pose before.

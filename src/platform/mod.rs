@@ -2,6 +2,8 @@
 pub mod assembly;
 pub mod compliance;
 pub mod leg;
+pub mod leg_state;
 pub mod loaded;
 pub mod manipulator;
 pub mod msa_leg;
+pub mod vjm_leg;

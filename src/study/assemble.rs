@@ -18,8 +18,9 @@ use crate::kinematics::frame::{Frame, Vec6};
 use crate::model::errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header, names, write_row, Record, Row};
+use crate::platform::assembly::EndErrors;
 use crate::platform::assembly::{linear_assembly, JointDeflections};
-use crate::platform::leg::{EndErrors, Leg, LegResponse};
+use crate::platform::leg::{Leg, LegResponse};
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 

@@ -19,10 +19,11 @@
 //! - `not_converged`: a row's equilibrium was not found (with the residual); the curve stops there and
 //!   every earlier row is kept.
 
+use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::output::table::{header, names, write_row, Record, Row};
 use crate::platform::compliance::{positive_definite, spectrum, Spectrum};
-use crate::platform::leg::{apply_twist, LegFailure};
+use crate::platform::leg::LegFailure;
 use crate::platform::loaded::Held;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 

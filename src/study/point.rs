@@ -3,11 +3,12 @@
 
 use std::fmt::Write;
 
+use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{Mat6, Vec3, Vec6};
 use crate::model::grid::PosePoint;
 use crate::output::report::{fmt6, matrix, TWIST, WRENCH};
 use crate::platform::compliance::{analyse, principal, Outcome, PrincipalCompliance};
-use crate::platform::leg::{apply_twist, LegFailure, LoadedOffsets};
+use crate::platform::leg::{LegFailure, LoadedOffsets};
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 

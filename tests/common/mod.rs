@@ -185,8 +185,8 @@ pub fn held_differences(
         let h = if c < 3 { 1e-4 } else { 1e-7 };
         let mut e = Vec6::zeros();
         e[c] = h;
-        let plus = m.hold(&stiff::platform::leg::apply_twist(pose, &e), state).unwrap().force;
-        let minus = m.hold(&stiff::platform::leg::apply_twist(pose, &-e), state).unwrap().force;
+        let plus = m.hold(&stiff::kinematics::frame::apply_twist(pose, &e), state).unwrap().force;
+        let minus = m.hold(&stiff::kinematics::frame::apply_twist(pose, &-e), state).unwrap().force;
         fd.set_column(c, &((plus - minus) / (2.0 * h)));
     }
     fd
