@@ -8,13 +8,13 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::model::assembly_errors::ErrorSet;
 use crate::model::error::read_text;
-use crate::model::errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::model::{parse_with, Model};
 use crate::output::sink::Sink;
 use crate::platform::manipulator::Manipulator;
-use crate::study::assemble::{path_points, run_assemble, AssembleOptions};
+use crate::study::assemble::{path_points, run_assemble, AssembleOptions, LegErrors};
 use crate::study::curve::{curve_header, push_curve_row, run_curve, Control, MAX_INTERVALS};
 use crate::study::map::{run_map, MapOptions};
 use crate::study::point::point_report;
@@ -476,7 +476,15 @@ fn assemble(a: AssembleArgs) -> Result<()> {
         bail!("--plot draws an assembly path, not a tolerance study (--samples)");
     }
     plot_needs_output(&a.plot, &a.output, "assemble")?;
-    let summary = run_assemble(&pool, &model, &set, &perturbed, &mut points, &options, sink.writer(), &bar)?;
+    let summary = run_assemble(
+        &pool,
+        &model,
+        &LegErrors { set: &set, perturbed: &perturbed },
+        &mut points,
+        &options,
+        sink.writer(),
+        &bar,
+    )?;
     sink.finish()?;
     bar.finish_and_clear();
     if let Some(plot) = &a.plot {

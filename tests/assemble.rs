@@ -3,7 +3,7 @@
 
 use std::path::Path;
 use stiff::kinematics::frame::{Frame, Vec3, Vec6};
-use stiff::model::errors::ErrorSet;
+use stiff::model::assembly_errors::ErrorSet;
 use stiff::model::grid::PosePoint;
 use stiff::platform::manipulator::Manipulator;
 use stiff::study::assemble::{assemble_point, place_with_errors, AssembleOptions, Assembled};
@@ -50,8 +50,8 @@ fn table_4_case_a() {
     ];
     for ((name, at), (d, dq)) in POINTS.iter().zip(table) {
         let a = assemble(VJM, CASE_A, *at, 1.0, None);
-        for k in 0..3 {
-            assert!((a.displacement[k] - d[k]).abs() <= 0.005, "{name}: {} vs {}", a.displacement, d[k]);
+        for (k, published) in d.iter().enumerate() {
+            assert!((a.displacement[k] - published).abs() <= 0.005, "{name}: {} vs {published}", a.displacement);
         }
         assert!(a.displacement.fixed_rows::<3>(3).norm() < 1e-12, "{name}: no rotation");
         for l in &a.loads {
@@ -102,7 +102,7 @@ fn internal_loads_sum_to_zero() {
     for (_, at) in POINTS {
         let a = assemble("manipulators/orthoglide-3prpar.toml", CASE_B, at, 1.0, None);
         let sum: Vec6 = a.loads.iter().sum();
-        let largest = a.loads.iter().map(|l| weigh(l)).fold(0.0, f64::max);
+        let largest = a.loads.iter().map(weigh).fold(0.0, f64::max);
         assert!(largest > 1.0, "Case B loads the 3-PRPaR: {largest}");
         assert!(weigh(&sum) < 1e-9 * largest, "sum {sum}");
     }

@@ -338,7 +338,7 @@ fn an_effect_is_offered_exactly_when_it_changes_a_prediction() {
                         "{name}, {}: {e} changes predictions by up to {largest_change:e} mm",
                         if loaded { "loaded data" } else { "unloaded data" }
                     );
-                    assert!(largest_change > 1e-9 || largest_change < 1e-14, "{what}: neither clearly nor not");
+                    assert!(!(1e-14..=1e-9).contains(&largest_change), "{what}: neither clearly nor not");
                     assert_eq!(is_offered, largest_change > 1e-9, "{what}; offered: {is_offered}");
                     if loaded && e.target == Target::Group("parallelogram".into()) {
                         offered_parallelogram = true;

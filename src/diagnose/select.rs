@@ -160,6 +160,26 @@ pub fn candidates(problem: &Problem, loaded: bool) -> Vec<Candidate> {
     out
 }
 
+// The thresholds of selection, each with its reason.
+
+/// A signature (weighted residuals per unit parameter) below this times sqrt(observations) is none: its
+/// effect would need values beyond any physical size to move a residual by one sigma.
+const NO_SIGNATURE: f64 = 1e-9;
+/// A signature whose columns are this ill-conditioned cannot fix all the candidate's parameters.
+const RANK_DEFICIENT: f64 = 1e8;
+/// A candidate whose signature keeps less than this share outside what the accepted effects explain is
+/// absorbed by them.
+const ABSORBED_SHARE: f64 = 0.05;
+/// A fitted value counts as away from neutral when at least this many standard errors from it.
+const SIGNIFICANT_T: f64 = 3.0;
+/// Delta BIC below -10: "very strong" evidence (Kass and Raftery 1995, Bayes factors, JASA 90:773).
+const STRONG_BIC: f64 = 10.0;
+/// Two passing candidates whose residual changes are this parallel (cosine), with BIC within
+/// `STRONG_BIC`, explain the same thing: ambiguous.
+const PARALLEL_CHANGES: f64 = 0.95;
+/// One signature lies inside another when its residual after projection is below this share.
+const NESTED_SHARE: f64 = 1e-3;
+
 /// Smallest change of a weighted residual (in units of sigma) by a probe-sized effect that counts as a
 /// signature: far below anything a fit could use, far above the round-off of a prediction.
 const SIGNATURE_FLOOR: f64 = 1e-9;
@@ -342,15 +362,16 @@ impl Step<'_> {
                 Err(_) => 0.0,
             }
         };
-        if !(own > 1e-9 * (self.n as f64).sqrt()) {
+        // NaN (a signature that is not finite) is no signature either.
+        if own.is_nan() || own <= NO_SIGNATURE * (self.n as f64).sqrt() {
             row.note = "no signature on this data".into();
             return row;
         }
-        if row.condition > 1e8 {
+        if row.condition > RANK_DEFICIENT {
             row.note = format!("rank-deficient signature (condition {:.1e})", row.condition);
             return row;
         }
-        if row.orthogonal < 0.05 {
+        if row.orthogonal < ABSORBED_SHARE {
             row.note = "absorbed by the effects already accepted".into();
             return row;
         }
@@ -376,16 +397,18 @@ impl Step<'_> {
         let neutral = c.neutral();
         let t_max =
             row.values.iter().zip(&row.se).zip(&neutral).map(|((v, s), n)| (v - n).abs() / s).fold(0.0, f64::max);
-        row.significant_params = t_max >= 3.0;
+        row.significant_params = t_max >= SIGNIFICANT_T;
         row.plausible = plausible(c, &row.values, &row.se);
         row.change = &base.residuals - &f.residuals;
-        row.passes = row.p_value < alpha_c && row.delta_bic < -10.0 && row.plausible && row.significant_params;
+        row.passes = row.p_value < alpha_c && row.delta_bic < -STRONG_BIC && row.plausible && row.significant_params;
         row.fit = Some(f);
         row
     }
 }
 
-/// Physically possible values (within two standard errors).
+/// Physically possible values (within two standard errors): a compliance factor between 1/20 and 20 (a
+/// spring 20 times softer or stiffer than modelled is a wrong model, not an effect), a non-negative mass and
+/// clearance, a share of the loaded response between 0 and 5.
 fn plausible(c: &Candidate, v: &[f64], se: &[f64]) -> bool {
     match c.kind {
         Kind::ActuatorCompliance | Kind::LinkCompliance => v[0] > 0.05 && v[0] < 20.0,
@@ -409,7 +432,7 @@ fn nested(problem: &Problem, a: &Candidate, b: &Candidate, rows: &[usize]) -> bo
     let (Some(sa), Some(sb)) = (sig(a), sig(b)) else { return false };
     let inside = |x: &DMatrix<f64>, y: &DMatrix<f64>| {
         let q = y.clone().qr().q();
-        (x - &q * (q.transpose() * x)).norm() <= 1e-3 * x.norm()
+        (x - &q * (q.transpose() * x)).norm() <= NESTED_SHARE * x.norm()
     };
     inside(&sa, &sb) || inside(&sb, &sa)
 }
@@ -532,8 +555,8 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
             let Some(best) = passing.first().copied() else { break };
             // Two candidates explaining the same thing: parallel changes of the residuals, BIC within 10.
             if let Some(rival) = passing.iter().skip(1).find(|r| {
-                r.delta_bic - best.delta_bic < 10.0
-                    && cosine(&r.change, &best.change) > 0.95
+                r.delta_bic - best.delta_bic < STRONG_BIC
+                    && cosine(&r.change, &best.change) > PARALLEL_CHANGES
                     && !nested(problem, &r.candidate, &best.candidate, &rows)
             }) {
                 out.ambiguous =

@@ -156,11 +156,6 @@ fn unknown_index(j: &Joint, n_passive: usize) -> Option<usize> {
 }
 
 impl ChainJacobians {
-    /// The points where masses sit in this evaluation, with their masses (kg).
-    pub fn mass_points(&self) -> impl Iterator<Item = (f64, Vec3)> + '_ {
-        self.masses.iter().map(|m| (m.kg, m.point))
-    }
-
     /// Generalised forces on the unknowns (passive, then virtual coordinates) of a wrench `w` (force,
     /// moment) acting on the chain's end and of the weights `kg * gravity` (N, gravity in m/s^2) of its
     /// masses: `J^T w + sum_j J_j^T G_j` (paper 000 eq 28-29). Added into `out`.

@@ -1,6 +1,6 @@
 //! Rigid frames, rotation vectors and the small linear-algebra vocabulary of the engine.
 //!
-//! Conventions (DESIGN.md): lengths in mm, angles in rad. A small displacement or a pose error is
+//! Conventions (ARCHITECTURE.md): lengths in mm, angles in rad. A small displacement or a pose error is
 //! (x, y, z, rx, ry, rz): translation first, then a rotation vector expressed in the base frame.
 
 use nalgebra::{Matrix3, Matrix6, Rotation3, Unit, Vector3, Vector6};

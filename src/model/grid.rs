@@ -117,15 +117,15 @@ fn grid_decimals(from: f64, to: f64, n: usize) -> Option<u32> {
     if n < 2 {
         return None;
     }
-    (0..=9u32).find_map(|d| {
+    (0..=9u32).find(|&d| {
         let scale = 10f64.powi(d as i32);
         let (f, t) = (from * scale, to * scale);
         let exact = |v: f64| v.abs() < 1e15 && (v - v.round()).abs() <= 4.0 * f64::EPSILON * v.abs().max(1.0);
         if !(exact(f) && exact(t)) {
-            return None;
+            return false;
         }
         let span = t.round() as i128 - f.round() as i128;
-        (span % (n as i128 - 1) == 0).then_some(d)
+        span % (n as i128 - 1) == 0
     })
 }
 

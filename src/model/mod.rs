@@ -1,9 +1,9 @@
 //! Input files: the TOML description of a manipulator, grids and points, and their validation.
+pub mod assembly_errors;
 pub mod build;
 mod build_msa;
 pub mod effect;
 pub mod error;
-pub mod errors;
 pub mod grid;
 pub mod schema;
 

@@ -10,11 +10,30 @@
 //! outside the forest close loops: their rigid directions become constraints held by Lagrange multipliers
 //! (the internal wrenches of eq 15), their elastic directions springs on the relative displacement. The
 //! remaining system, symmetric and of the size of the structure's joint coordinates plus its loop
-//! constraints, is factorised once per pose with partial-pivoting LU and condensed onto the end node's six
+//! constraints, is factorised once per pose (Cholesky where no loop closes, else LU with partial pivoting)
+//! and condensed onto the end node's six
 //! coordinates (eq 17). A singular system (a mechanism with the end held: a redundant passive joint, or a
 //! node left free) is reported with its number of free motions and the nodes they move.
 
 pub mod template;
+
+// Tolerances of the reduced system, relative to the sizes they compare (unit twists, row norms, the largest
+// pivot or singular value), each well above round-off (~1e-16 per operation) and well below any real size.
+
+/// A motion twist independent of those kept: its residual after projection exceeds this (unit twists).
+const MOVING_INDEPENDENCE: f64 = 1e-12;
+/// A unit twist completing the complement of the motions: a looser floor, as it only fills the rest.
+const COMPLEMENT_INDEPENDENCE: f64 = 1e-9;
+/// A constraint row independent of those kept: its residual exceeds this share of its norm.
+const ROW_INDEPENDENCE: f64 = 1e-10;
+/// A pivot (Cholesky L_ii^2, LU |U_ii|) below this share of the largest marks a mechanism.
+const PIVOT_RATIO: f64 = 1e-12;
+/// Singular values of a singular system below this share of the largest span its free motions.
+const NULL_SHARE: f64 = 1e-11;
+/// A null vector whose coordinates are below this is a pattern of multipliers only, not a motion.
+const MOTION_FLOOR: f64 = 1e-9;
+/// A node moves with a free motion where its twist exceeds this share of the motion's size.
+const NODE_MOVES: f64 = 1e-6;
 
 use nalgebra::{DMatrix, DVector};
 
@@ -63,6 +82,9 @@ impl Connection {
 }
 
 #[derive(Clone, Debug, PartialEq)]
+// A structure holds a few dozen elements, built once per pose; boxing the 12x12 block would add an
+// allocation per beam per pose for no saving that matters.
+#[allow(clippy::large_enum_variant)]
 pub enum Element {
     /// A flexible link: the 12x12 stiffness relating the wrenches at nodes i and j to their displacements
     /// (eq 1), base frame.
@@ -102,16 +124,6 @@ pub struct EndAnswer {
     pub stiffness: Mat6,
     /// Wrench applied to the end node from outside to keep its displacement zero (N, N mm).
     pub holding_wrench: Vec6,
-}
-
-/// The size of the reduced system solved at one pose, for comparison with the paper's bookkeeping.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SystemSize {
-    pub nodes: usize,
-    /// Forest coordinates (root twists and joint motions) besides the end node's six.
-    pub coordinates: usize,
-    /// Loop-closure constraints (rigid directions of connections outside the forest).
-    pub constraints: usize,
 }
 
 /// The 12x12 stiffness of a straight beam from `pi` to `pj` (Euler-Bernoulli), built from the clamped-free
@@ -175,11 +187,11 @@ fn complement(moving: &[Vec6]) -> Vec<Vec6> {
         }
     };
     for m in moving {
-        add(*m, 1e-12, &mut basis);
+        add(*m, MOVING_INDEPENDENCE, &mut basis);
     }
     let n_moving = basis.len();
     for k in 0..6 {
-        add(Vec6::from_fn(|r, _| if r == k { 1.0 } else { 0.0 }), 1e-9, &mut basis);
+        add(Vec6::from_fn(|r, _| if r == k { 1.0 } else { 0.0 }), COMPLEMENT_INDEPENDENCE, &mut basis);
     }
     basis.split_off(n_moving)
 }
@@ -198,12 +210,6 @@ impl Structure {
     /// The Cartesian stiffness at the end node (eq 17), base frame, at the end node's point.
     pub fn end_stiffness(&self) -> Result<Mat6, MsaFailure> {
         self.condense().map(|a| a.stiffness)
-    }
-
-    /// The reduced system's size (see `SystemSize`).
-    pub fn system_size(&self) -> Result<SystemSize, MsaFailure> {
-        let plan = self.plan()?;
-        Ok(SystemSize { nodes: self.nodes.len(), coordinates: plan.n_y, constraints: plan.n_constraints })
     }
 
     fn edges(&self) -> Result<Vec<Edge<'_>>, MsaFailure> {
@@ -444,7 +450,7 @@ impl Structure {
             Ok(null) => {
                 // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
                 let mut nodes: Vec<usize> = (0..n)
-                    .filter(|&v| null.iter().any(|y| (&t[v].columns(0, n_y) * y).norm() > 1e-6 * y.norm()))
+                    .filter(|&v| null.iter().any(|y| (t[v].columns(0, n_y) * y).norm() > NODE_MOVES * y.norm()))
                     .collect();
                 nodes.sort_unstable();
                 MsaFailure::Mechanism { free: null.len(), nodes }
@@ -479,7 +485,7 @@ fn independent(rows: Vec<DVector<f64>>) -> Vec<DVector<f64>> {
             }
         }
         let n = v.norm();
-        if n > 1e-10 * row.norm() {
+        if n > ROW_INDEPENDENCE * row.norm() {
             basis.push(v / n);
             kept.push(row);
         }
@@ -532,14 +538,14 @@ fn solve_condensed(
                 let l = c.l_dirty();
                 let diag = (0..size).map(|i| l[(i, i)] * l[(i, i)]);
                 let (lo, hi) = diag.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
-                (lo > 1e-12 * hi).then(|| c.solve(&rhs))
+                (lo > PIVOT_RATIO * hi).then(|| c.solve(&rhs))
             })
         } else {
             let lu = a.clone().lu();
             let u = lu.u();
             let pivots = (0..size).map(|i| u[(i, i)].abs());
             let (lo, hi) = pivots.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
-            if lo > 1e-12 * hi {
+            if lo > PIVOT_RATIO * hi {
                 lu.solve(&rhs)
             } else {
                 None
@@ -582,8 +588,8 @@ fn null_space(a: &DMatrix<f64>, n_y: usize) -> Result<Vec<DVector<f64>>, MsaFail
         .singular_values
         .iter()
         .enumerate()
-        .filter(|(_, s)| **s <= 1e-11 * top)
+        .filter(|(_, s)| **s <= NULL_SHARE * top)
         .map(|(k, _)| v_t.row(k).columns(0, n_y).transpose())
-        .filter(|y| y.norm() > 1e-9)
+        .filter(|y| y.norm() > MOTION_FLOOR)
         .collect())
 }

@@ -33,6 +33,8 @@ pub const CANCELLATION_TOLERANCE: f64 = 1e-12;
 pub const CONDITION_LIMIT: f64 = 1e6;
 
 #[derive(Clone, Debug)]
+// Returned by value once per point on the hot path of every map; boxing the 6x6 would allocate there.
+#[allow(clippy::large_enum_variant)]
 pub enum Outcome {
     /// Full rank, condition within `CONDITION_LIMIT`: C = K^-1 (LU with pivoting; symmetrised where K is).
     Regular { compliance: Mat6 },
@@ -134,7 +136,7 @@ fn deflated_pair(m: &Mat3, isolated: f64) -> Option<(f64, f64)> {
     let v = [rows[0].cross(&rows[1]), rows[0].cross(&rows[2]), rows[1].cross(&rows[2])]
         .into_iter()
         .max_by(|x, y| x.norm_squared().total_cmp(&y.norm_squared()))?;
-    if !(v.norm() > 0.0) {
+    if v.norm().is_nan() || v.norm() <= 0.0 {
         return None;
     }
     let v = v.normalize();

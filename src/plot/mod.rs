@@ -277,7 +277,7 @@ fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
         }
     }
     axes(&mut s, &ax, &ay, &label(disp[k]), &label(force[k]));
-    s.line(w - 200.0, top + 10.0, w - 170.0, top + 10.0, "#1f5fa8", 2.0, "legend");
+    s.line((w - 200.0, top + 10.0), (w - 170.0, top + 10.0), "#1f5fa8", 2.0, "legend");
     s.text(w - 165.0, top + 14.0, "stable", 11.0, "start", 0.0);
     s.polyline(&[(w - 200.0, top + 28.0), (w - 170.0, top + 28.0)], "#c0392b", 2.0, true, "legend");
     s.text(w - 165.0, top + 32.0, "unstable", 11.0, "start", 0.0);
@@ -311,7 +311,7 @@ fn assembly(t: &Table) -> Result<String> {
             series.iter().map(|(p, ..)| t.numbers(&format!("{p}{a}_mm"))).collect::<Result<_>>()?;
         let ax = Axis::new(s_values.iter().copied(), left, w - 250.0);
         let ay = Axis::new(data.iter().flatten().flatten().copied().chain(std::iter::once(0.0)), y0 + panel_h, y0);
-        s.line(ax.from, ay.px(0.0), ax.to, ay.px(0.0), "#999", 1.0, "target");
+        s.line((ax.from, ay.px(0.0)), (ax.to, ay.px(0.0)), "#999", 1.0, "target");
         for ((_, _, colour, dashed), d) in series.iter().zip(&data) {
             let pts: Vec<(f64, f64)> =
                 s_values.iter().zip(d).filter_map(|(x, y)| y.map(|y| (ax.px(*x), ay.px(y)))).collect();
@@ -320,7 +320,7 @@ fn assembly(t: &Table) -> Result<String> {
         axes(&mut s, &ax, &ay, &format!("{} [mm] along the path", AXES[along]), &format!("d{a} [mm]"));
     }
     let lx = w - 235.0;
-    s.line(lx, top + 10.0, lx + 25.0, top + 10.0, "#999", 1.0, "legend");
+    s.line((lx, top + 10.0), (lx + 25.0, top + 10.0), "#999", 1.0, "legend");
     s.text(lx + 30.0, top + 14.0, "target path", 11.0, "start", 0.0);
     for (k, (_, name, colour, dashed)) in series.iter().enumerate() {
         let yy = top + 28.0 + 18.0 * k as f64;
@@ -389,7 +389,7 @@ fn diagnosis(v: &Value) -> Result<String> {
     }
     axes(&mut s, &ax, &ay, &format!("{} [mm]", AXES[u]), &format!("{} [mm]", AXES[w_axis]));
     let key = longest / 2.0;
-    s.line(x0, y0 + size + 50.0, x0 + key * scale, y0 + size + 50.0, "#333", 2.0, "key");
+    s.line((x0, y0 + size + 50.0), (x0 + key * scale, y0 + size + 50.0), "#333", 2.0, "key");
     s.text(
         x0 + key * scale + 6.0,
         y0 + size + 54.0,
@@ -450,7 +450,7 @@ fn diagnosis(v: &Value) -> Result<String> {
         );
         s.text(cx - 6.0, yy + 0.65 * row_h, name, 9.0, "end", 0.0);
     }
-    s.line(bic.px(slog(-10.0)), y0, bic.px(slog(-10.0)), y0 + size, "#c0392b", 1.0, "threshold");
+    s.line((bic.px(slog(-10.0)), y0), (bic.px(slog(-10.0)), y0 + size), "#c0392b", 1.0, "threshold");
     let ay_cat = Axis { lo: 0.0, hi: 1.0, from: y0 + size, to: y0 };
     frame(&mut s, &bic, &ay_cat, "delta BIC (log scale; green: passes; red line: -10)", "", false, false);
     for e in 0..8 {
@@ -459,7 +459,7 @@ fn diagnosis(v: &Value) -> Result<String> {
             let x = slog(d);
             if x >= bic.lo && x <= bic.hi && e % 2 == 1 {
                 let p = bic.px(x);
-                s.line(p, y0 + size, p, y0 + size + 4.0, "#333", 1.0, "tick");
+                s.line((p, y0 + size), (p, y0 + size + 4.0), "#333", 1.0, "tick");
                 s.text(p, y0 + size + 16.0, &format!("{}1e{e}", if sign < 0.0 { "-" } else { "" }), 9.0, "middle", 0.0);
             }
         }

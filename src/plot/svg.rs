@@ -40,7 +40,7 @@ impl Svg {
         );
     }
 
-    pub fn line(&mut self, x1: f64, y1: f64, x2: f64, y2: f64, stroke: &str, width: f64, class: &str) {
+    pub fn line(&mut self, (x1, y1): (f64, f64), (x2, y2): (f64, f64), stroke: &str, width: f64, class: &str) {
         let _ = writeln!(
             self.body,
             r#"<line class="{class}" x1="{}" y1="{}" x2="{}" y2="{}" stroke="{stroke}" stroke-width="{}"/>"#,
@@ -93,7 +93,7 @@ impl Svg {
     pub fn arrow(&mut self, x1: f64, y1: f64, x2: f64, y2: f64, stroke: &str, class: &str) {
         let (dx, dy) = (x2 - x1, y2 - y1);
         let len = (dx * dx + dy * dy).sqrt();
-        self.line(x1, y1, x2, y2, stroke, 1.5, class);
+        self.line((x1, y1), (x2, y2), stroke, 1.5, class);
         if len > 1e-9 {
             let (ux, uy) = (dx / len, dy / len);
             let head = 5.0f64.min(0.5 * len);
@@ -184,19 +184,19 @@ pub fn frame(svg: &mut Svg, x: &Axis, y: &Axis, x_label: &str, y_label: &str, x_
     for (x1, y1, x2, y2) in
         [(left, bottom, right, bottom), (left, top, left, bottom), (left, top, right, top), (right, top, right, bottom)]
     {
-        svg.line(x1, y1, x2, y2, "#333", 1.0, "frame");
+        svg.line((x1, y1), (x2, y2), "#333", 1.0, "frame");
     }
     if x_ticks {
         for t in x.ticks() {
             let p = x.px(t);
-            svg.line(p, bottom, p, bottom + 4.0, "#333", 1.0, "tick");
+            svg.line((p, bottom), (p, bottom + 4.0), "#333", 1.0, "tick");
             svg.text(p, bottom + 16.0, &tick_label(t), 11.0, "middle", 0.0);
         }
     }
     if y_ticks {
         for t in y.ticks() {
             let p = y.px(t);
-            svg.line(left - 4.0, p, left, p, "#333", 1.0, "tick");
+            svg.line((left - 4.0, p), (left, p), "#333", 1.0, "tick");
             svg.text(left - 6.0, p + 4.0, &tick_label(t), 11.0, "end", 0.0);
         }
     }

@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 use super::point::Status;
 use super::stream::{stream_rows, Tally};
 use crate::kinematics::frame::{Frame, Vec6};
-use crate::model::errors::ErrorSet;
+use crate::model::assembly_errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header, names, write_row, Record, Row};
 use crate::platform::assembly::EndErrors;
@@ -269,7 +269,7 @@ pub fn assemble_point(
                 .map_err(deflection_status)?;
             Some((load, total.displacement, load + assembled.displacement))
         }
-        (Some(_), Err(e)) => return Err(deflection_status(e.clone())),
+        (Some(_), Err(e)) => return Err(deflection_status(*e)),
         (None, _) => None,
     };
     Ok(Assembled { displacement, loads, joints, nonlinear, loaded })
@@ -349,16 +349,27 @@ fn sample_point(
     Ok((mean, stats))
 }
 
+/// The legs' geometric errors: as read, and each leg rebuilt with its parameter errors (None where it has
+/// none).
+#[derive(Clone, Copy)]
+pub struct LegErrors<'a> {
+    /// The error file, resolved for the model.
+    pub set: &'a ErrorSet,
+    /// Legs rebuilt with their parameter errors.
+    pub perturbed: &'a [Option<Leg>],
+}
+
+/// Assembles the legs with their errors at every point, streaming rows to `out` in input order.
 pub fn run_assemble(
     pool: &rayon::ThreadPool,
     m: &Manipulator,
-    set: &ErrorSet,
-    perturbed: &[Option<Leg>],
+    errors: &LegErrors,
     points: &mut PointSet,
     o: &AssembleOptions,
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<AssembleSummary> {
+    let LegErrors { set, perturbed } = *errors;
     let layout = AssembleLayout::new(m.legs.len(), o);
     stream_rows(pool, points, &assemble_header(m.legs.len(), o), out, progress, |first_index, run| {
         let mut state = m.new_state();

@@ -46,15 +46,14 @@ fn six_dof_spring_compliance(cols: &[Vec6], c: &Mat6) -> Mat6 {
     let c12: Mat3 = c.fixed_view::<3, 3>(0, 3).into();
     let c21: Mat3 = c.fixed_view::<3, 3>(3, 0).into();
     let c22: Mat3 = c.fixed_view::<3, 3>(3, 3).into();
-    // M = J C = [[A C11 + B C21, A C12 + B C22], [D C21, D C22]]
+    // M = J C = [[A C11 + B C21, A C12 + B C22], [D C21, D C22]]; S = M J^T needs no D C21 (its block
+    // below the diagonal is the transpose of the one above).
     let m11 = a * c11 + b * c21;
     let m12 = a * c12 + b * c22;
-    let m21 = d * c21;
     let m22 = d * c22;
     let top = m11 * a.transpose() + m12 * b.transpose();
     let off = m12 * d.transpose();
     let bottom = m22 * d.transpose();
-    let _ = m21;
     let mut s = Mat6::zeros();
     s.fixed_view_mut::<3, 3>(0, 0).copy_from(&top);
     s.fixed_view_mut::<3, 3>(0, 3).copy_from(&off);
@@ -76,8 +75,6 @@ pub struct PassiveRange {
     /// `transmitted[..6 - rank]` spans the wrenches F with J_q^T F = 0.
     pub transmitted: [Vec6; 6],
     pub rank: usize,
-    /// Smallest accepted pivot over the largest column norm (1 when there are no passive joints).
-    pub smallest_pivot_ratio: f64,
 }
 
 /// Modified Gram-Schmidt with column pivoting (a rank-revealing QR) in the weighted metric, then completed
@@ -96,7 +93,7 @@ pub fn passive_range(j_passive: &[Vec6], length_scale: f64) -> PassiveRange {
     }
     let largest = cols.iter().map(|c| c.norm()).fold(0.0, f64::max);
     let mut q = [Vec6::zeros(); 6];
-    let mut out = PassiveRange { basis: q, transmitted: q, rank: 0, smallest_pivot_ratio: 1.0 };
+    let mut out = PassiveRange { basis: q, transmitted: q, rank: 0 };
     let mut live = cols.len();
     while out.rank < 6 && live > 0 && largest > 0.0 {
         let (best, norm) = (0..live).map(|i| (i, cols[i].norm())).fold((0, -1.0), |a, b| if b.1 > a.1 { b } else { a });
@@ -111,7 +108,6 @@ pub fn passive_range(j_passive: &[Vec6], length_scale: f64) -> PassiveRange {
         }
         q[out.rank] = v;
         out.basis[out.rank] = weigh_rotations(&v, 1.0 / length_scale);
-        out.smallest_pivot_ratio = norm / largest;
         out.rank += 1;
     }
     // Complete to a basis of R^6 from the projector onto the orthogonal complement of the range: its

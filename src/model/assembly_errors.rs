@@ -176,7 +176,7 @@ impl ErrorSet {
                     let axis = match &b.rotation_axis {
                         Some(_) => {
                             let a = vector(&b.rotation_axis, "rotation_axis")?;
-                            if !(a.norm() > 0.0) {
+                            if a.norm().is_nan() || a.norm() <= 0.0 {
                                 return Err(loc.at(spec.span(), "`rotation_axis` must be a non-zero vector"));
                             }
                             a.normalize()
