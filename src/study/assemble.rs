@@ -13,7 +13,7 @@ use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 
 use super::point::Status;
-use super::stream::{stream_rows, Tally};
+use super::stream::{stream, Study, Tally};
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::model::assembly_errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
@@ -369,31 +369,54 @@ pub fn run_assemble(
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<AssembleSummary> {
-    let LegErrors { set, perturbed } = *errors;
-    let layout = AssembleLayout::new(m.legs.len(), o);
-    stream_rows(pool, points, &assemble_header(m.legs.len(), o), out, progress, |first_index, run| {
-        let mut state = m.new_state();
-        let mut text = String::with_capacity(run.len() * 600);
-        let mut summary = AssembleSummary::default();
-        for (k, p) in run.iter().enumerate() {
-            let index = first_index + k as u64;
-            let outcome = if o.samples > 0 {
-                match sample_point(m, set, perturbed, index, p, o, &mut state) {
-                    Ok((mean, stats)) => AssemblyOutcome::Sampled(mean, stats),
-                    Err(s) => AssemblyOutcome::Failed(s),
-                }
-            } else {
-                match assemble_point(m, set, perturbed, p, o, &mut state) {
-                    Ok(a) => AssemblyOutcome::Assembled(Box::new(a)),
-                    Err(s) => AssemblyOutcome::Failed(s),
-                }
-            };
-            summary.points += 1;
-            summary.ok += u64::from(!matches!(outcome, AssemblyOutcome::Failed(_)));
-            write_row(&AssemblyRow { index, point: p, outcome }, &layout, &mut text);
-        }
-        (text, summary)
-    })
+    let study = AssembleStudy { m, errors: *errors, o, layout: AssembleLayout::new(m.legs.len(), o) };
+    stream(pool, &study, points, out, progress)
+}
+
+/// Assembly as a streamed study.
+struct AssembleStudy<'a> {
+    m: &'a Manipulator,
+    errors: LegErrors<'a>,
+    o: &'a AssembleOptions,
+    layout: AssembleLayout,
+}
+
+impl Study for AssembleStudy<'_> {
+    type State = ManipulatorState;
+    type Tally = AssembleSummary;
+
+    fn header(&self) -> String {
+        assemble_header(self.m.legs.len(), self.o)
+    }
+
+    fn new_state(&self) -> ManipulatorState {
+        self.m.new_state()
+    }
+
+    fn solve(
+        &self,
+        index: u64,
+        p: &PosePoint,
+        state: &mut ManipulatorState,
+        tally: &mut AssembleSummary,
+        out: &mut String,
+    ) {
+        let (m, o, LegErrors { set, perturbed }) = (self.m, self.o, self.errors);
+        let outcome = if o.samples > 0 {
+            match sample_point(m, set, perturbed, index, p, o, state) {
+                Ok((mean, stats)) => AssemblyOutcome::Sampled(mean, stats),
+                Err(s) => AssemblyOutcome::Failed(s),
+            }
+        } else {
+            match assemble_point(m, set, perturbed, p, o, state) {
+                Ok(a) => AssemblyOutcome::Assembled(Box::new(a)),
+                Err(s) => AssemblyOutcome::Failed(s),
+            }
+        };
+        tally.points += 1;
+        tally.ok += u64::from(!matches!(outcome, AssemblyOutcome::Failed(_)));
+        write_row(&AssemblyRow { index, point: p, outcome }, &self.layout, out);
+    }
 }
 
 /// Points along the straight line from `from` to `to` (mm), `steps` of them, named `path0`, `path1`, ...

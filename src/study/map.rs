@@ -6,12 +6,12 @@ use anyhow::Result;
 use indicatif::ProgressBar;
 
 use super::point::{loaded_point, unloaded_point, LoadedHistory, PointResult, Status};
-use super::stream::{stream_rows, Tally};
+use super::stream::{stream, Study, Tally};
 use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
 use crate::model::grid::PosePoint;
 use crate::output::table::{header, names, write_row, Matrix, Record, Row};
-use crate::platform::manipulator::Manipulator;
+use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MapOptions {
@@ -160,6 +160,40 @@ pub fn map_columns(points: &PointSet, options: &MapOptions) -> MapColumns {
     }
 }
 
+/// The map as a streamed study.
+struct MapStudy<'a> {
+    m: &'a Manipulator,
+    options: MapOptions,
+    columns: MapColumns,
+}
+
+impl Study for MapStudy<'_> {
+    /// Warm starts of the legs, and of the loaded equilibrium from the previous points.
+    type State = (ManipulatorState, LoadedHistory);
+    type Tally = MapSummary;
+
+    fn header(&self) -> String {
+        map_header(&self.columns)
+    }
+
+    fn new_state(&self) -> Self::State {
+        (self.m.new_state(), LoadedHistory::default())
+    }
+
+    fn solve(&self, index: u64, p: &PosePoint, state: &mut Self::State, tally: &mut MapSummary, out: &mut String) {
+        let (state, history) = state;
+        let wrench = if self.options.use_point_wrench { p.wrench } else { self.options.wrench };
+        let r = match (self.columns.loaded, wrench) {
+            (false, _) => unloaded_point(self.m, p, state),
+            (true, Some(w)) => loaded_point(self.m, p, &w, state, history),
+            (true, None) => loaded_point(self.m, p, &Vec6::zeros(), state, history),
+        };
+        tally.add(r.status);
+        write_row(&MapRow { index, point: p, result: &r }, &self.columns, out);
+    }
+}
+
+/// The map of `m` over `points`, streamed to `out` in input order; the count of each status.
 pub fn run_map(
     pool: &rayon::ThreadPool,
     m: &Manipulator,
@@ -169,22 +203,5 @@ pub fn run_map(
     progress: &ProgressBar,
 ) -> Result<MapSummary> {
     let columns = map_columns(points, &options);
-    let loaded = columns.loaded;
-    stream_rows(pool, points, &map_header(&columns), out, progress, |first_index, run| {
-        let mut state = m.new_state();
-        let mut text = String::with_capacity(run.len() * 700);
-        let mut summary = MapSummary::default();
-        let mut history = LoadedHistory::default();
-        for (k, p) in run.iter().enumerate() {
-            let wrench = if options.use_point_wrench { p.wrench } else { options.wrench };
-            let r = match (loaded, wrench) {
-                (false, _) => unloaded_point(m, p, &mut state),
-                (true, Some(w)) => loaded_point(m, p, &w, &mut state, &mut history),
-                (true, None) => loaded_point(m, p, &Vec6::zeros(), &mut state, &mut history),
-            };
-            summary.add(r.status);
-            write_row(&MapRow { index: first_index + k as u64, point: p, result: &r }, &columns, &mut text);
-        }
-        (text, summary)
-    })
+    stream(pool, &MapStudy { m, options, columns }, points, out, progress)
 }

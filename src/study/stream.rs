@@ -26,9 +26,46 @@ pub trait Tally: Default + Send {
     fn merge(&mut self, other: &Self);
 }
 
+/// A batch study over points, as every streamed command runs it: a header, then one row per point in
+/// input order, each solved by a worker with the state it carries from the previous point of its run.
+pub trait Study: Sync {
+    /// What a worker carries from one point to the next (warm starts); fresh at the start of each run.
+    type State;
+    /// Counts over the rows (the summary on stderr).
+    type Tally: Tally;
+    /// The table's header line.
+    fn header(&self) -> String;
+    /// A worker's state at the start of a run.
+    fn new_state(&self) -> Self::State;
+    /// Solves the point with input index `index`, appends its row to `out` and counts it in `tally`.
+    fn solve(&self, index: u64, point: &PosePoint, state: &mut Self::State, tally: &mut Self::Tally, out: &mut String);
+}
+
+/// Runs `study` over `points` on `pool`, writing its table to `out`; returns the summed tally.
+pub fn stream<S: Study>(
+    pool: &rayon::ThreadPool,
+    study: &S,
+    points: &mut PointSet,
+    out: &mut (dyn Write + Send),
+    progress: &ProgressBar,
+) -> Result<S::Tally> {
+    stream_rows(pool, points, &study.header(), out, progress, |first_index, run| {
+        let mut state = study.new_state();
+        let mut tally = S::Tally::default();
+        let mut text = String::with_capacity(run.len() * TYPICAL_ROW_BYTES);
+        for (k, p) in run.iter().enumerate() {
+            study.solve(first_index + k as u64, p, &mut state, &mut tally, &mut text);
+        }
+        (text, tally)
+    })
+}
+
+/// Room reserved per row (a map row with K and C is ~700 bytes; the buffer grows if needed).
+const TYPICAL_ROW_BYTES: usize = 700;
+
 /// Writes `header`, then for every run of points the text `solve_run(first_index, points)` returns, in
 /// input order.
-pub fn stream_rows<T, F>(
+fn stream_rows<T, F>(
     pool: &rayon::ThreadPool,
     points: &mut PointSet,
     header: &str,
@@ -43,7 +80,7 @@ where
     out.write_all(header.as_bytes())?;
     let window = WINDOW_PER_THREAD * pool.current_num_threads();
     let (run_tx, run_rx) = sync_channel::<Result<Vec<PosePoint>>>(window);
-    let (done_tx, done_rx) = channel::<(usize, String, T)>();
+    let (done_tx, done_rx) = channel::<(usize, usize, String, T)>();
     let (token_tx, token_rx) = sync_channel::<()>(window);
     for _ in 0..window {
         token_tx.send(()).expect("the token channel holds the window");
@@ -69,12 +106,12 @@ where
         });
         let writer = threads.spawn(move || -> Result<T> {
             let mut tally = T::default();
-            let mut pending: BTreeMap<usize, (String, T)> = BTreeMap::new();
+            let mut pending: BTreeMap<usize, (usize, String, T)> = BTreeMap::new();
             let mut next = 0usize;
             let mut failure: Option<std::io::Error> = None;
-            for (index, text, t) in done_rx {
-                pending.insert(index, (text, t));
-                while let Some((text, t)) = pending.remove(&next) {
+            for (index, points, text, t) in done_rx {
+                pending.insert(index, (points, text, t));
+                while let Some((points, text, t)) = pending.remove(&next) {
                     // After a write error keep draining, so that workers and the dispatcher never block.
                     if failure.is_none() {
                         if let Err(e) = out.write_all(text.as_bytes()) {
@@ -83,7 +120,7 @@ where
                         }
                     }
                     tally.merge(&t);
-                    progress.inc(text.lines().count() as u64);
+                    progress.inc(points as u64);
                     next += 1;
                     let _ = token_tx.send(());
                 }
@@ -113,7 +150,7 @@ where
                 first_index += run.len() as u64;
                 scope.spawn(move |_| {
                     let (text, t) = solve_run(first, &run);
-                    let _ = done.send((index, text, t));
+                    let _ = done.send((index, run.len(), text, t));
                 });
             }
             drop(run_rx);

@@ -1,0 +1,184 @@
+//! Argument groups shared by several commands, and what they set up: the model, the run (threads,
+//! progress), pictures and standard output.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use super::parse::parse_assignment;
+use crate::model::error::read_text;
+use crate::model::grid::PointSet;
+use crate::model::{parse_with, Model};
+use crate::output::sink::Sink;
+use crate::platform::manipulator::Manipulator;
+
+#[derive(Args, Debug)]
+pub(crate) struct ModelArgs {
+    /// Manipulator description (TOML), e.g. manipulators/orthoglide-3puu.toml.
+    pub(crate) model: PathBuf,
+    /// Replace a parameter of the description for this run, e.g. --set mode=1 (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_assignment)]
+    pub(crate) set: Vec<(String, f64)>,
+}
+
+impl ModelArgs {
+    pub(crate) fn load(&self) -> Result<Manipulator> {
+        Ok(self.load_model()?.manipulator)
+    }
+
+    /// The description with its measurement-model terms (diagnose, synth).
+    pub(crate) fn load_model(&self) -> Result<Model> {
+        let source = read_text(&self.model)?;
+        let overrides = self.set.iter().cloned().collect();
+        Ok(parse_with(&self.model, &source, &overrides, 0)?)
+    }
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct RunArgs {
+    /// Worker threads (default and 0: all cores; at most 1024). The output is the same for any number.
+    #[arg(long)]
+    pub(crate) threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub(crate) quiet: bool,
+}
+
+/// How to draw (maps and curves).
+#[derive(Args, Debug, Default)]
+pub(crate) struct PlotStyle {
+    /// Map: the column to colour (default c_tran_max_mm_per_N).
+    #[arg(long = "plot-column")]
+    pub(crate) column: Option<String>,
+    /// Map: a planar section AXIS=VALUE (mm), e.g. z=0; default: every section (up to six) of a 3-D grid.
+    #[arg(long)]
+    pub(crate) section: Option<String>,
+    /// Curve: the direction to draw (x, y, z, rx, ry, rz; default: the one that moves most).
+    #[arg(long)]
+    pub(crate) direction: Option<String>,
+}
+
+impl PlotStyle {
+    pub(crate) fn options(&self) -> crate::plot::PlotOptions {
+        crate::plot::PlotOptions {
+            column: self.column.clone(),
+            section: self.section.clone(),
+            direction: self.direction.clone(),
+        }
+    }
+}
+
+/// Where the poses come from: a grid file or a points file.
+#[derive(Args, Debug)]
+pub(crate) struct PointsArgs {
+    /// Grid file (TOML): a [box] and/or named [[point]]s.
+    #[arg(long, conflicts_with = "points", required_unless_present = "points")]
+    pub(crate) grid: Option<PathBuf>,
+    /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name; a map also reads pose_r*_rad and
+    /// Fx_N..Mz_Nmm).
+    #[arg(long)]
+    pub(crate) points: Option<PathBuf>,
+}
+
+impl PointsArgs {
+    /// The poses of `--grid` or `--points`.
+    pub(crate) fn load(&self) -> Result<PointSet> {
+        point_set(&self.grid, &self.points)
+    }
+}
+
+/// Where a table goes.
+#[derive(Args, Debug)]
+pub(crate) struct OutputArgs {
+    /// Output CSV; `-` or absent: stdout. A file is written to a temporary name and renamed on success.
+    #[arg(short, long)]
+    pub(crate) output: Option<PathBuf>,
+}
+
+impl OutputArgs {
+    /// The output, opened before the work so that an unwritable path fails at once.
+    pub(crate) fn open(&self) -> Result<Sink> {
+        Sink::create(self.output.as_deref())
+    }
+}
+
+/// Most worker threads a run starts: each holds its own buffers and a run in flight, and starting a
+/// million of them hangs the pool setup.
+const MAX_THREADS: usize = 1024;
+
+pub(crate) fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        if n > MAX_THREADS {
+            bail!(
+                "--threads {n} is more than stiff starts ({MAX_THREADS}): this machine has {cores} cores, and \
+                 threads beyond the cores only add overhead (0 means all cores)"
+            );
+        }
+        // 0: all cores (rayon's default), as ripgrep reads it.
+        b = b.num_threads(n);
+    }
+    b.build().context("cannot start the worker threads")
+}
+
+pub(crate) fn progress_bar(len: Option<u64>, quiet: bool) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::with_draw_target(len, ProgressDrawTarget::hidden());
+    }
+    let bar = match len {
+        Some(n) => ProgressBar::new(n),
+        None => ProgressBar::new_spinner(),
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{wide_bar}] {human_pos}/{human_len} points, {per_sec}, eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// The poses of `--grid` or `--points` (clap keeps the two exclusive).
+pub(crate) fn point_set(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Result<PointSet> {
+    Ok(match (grid, points) {
+        (Some(g), None) => PointSet::from_grid_file(g)?,
+        (None, Some(p)) => PointSet::from_points_csv(p)?,
+        _ => bail!("give exactly one of --grid and --points"),
+    })
+}
+
+/// Draws `text` (a study's output) into the SVG file `path`.
+pub(crate) fn write_plot(text: &str, path: &Path, style: &PlotStyle) -> Result<()> {
+    let svg = crate::plot::plot_text(text, &style.options())?;
+    let mut sink = Sink::create(Some(path))?;
+    sink.writer().write_all(svg.as_bytes())?;
+    sink.finish()?;
+    Ok(())
+}
+
+/// A picture is drawn from the CSV a study writes, so `--plot` needs `-o FILE`: checked before the run.
+pub(crate) fn plot_needs_output(plot: &Option<PathBuf>, output: &Option<PathBuf>, what: &str) -> Result<()> {
+    match (plot, output.as_deref()) {
+        (Some(_), None) => bail!("{what} --plot needs -o FILE (the picture is drawn from the CSV written)"),
+        (Some(_), Some(p)) if p == Path::new("-") => bail!("{what} --plot needs -o FILE, not stdout"),
+        _ => Ok(()),
+    }
+}
+
+/// The output file just written, for its picture.
+pub(crate) fn written(output: &Option<PathBuf>) -> Result<String> {
+    let path = output.as_deref().expect("checked by plot_needs_output");
+    Ok(read_text(path)?)
+}
+
+/// Writes a report to stdout, reporting a failed write (a full disk, a closed pipe) instead of panicking
+/// as `print!` does.
+pub(crate) fn write_stdout(text: &str) -> Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes()).and_then(|_| out.flush()).context("cannot write to stdout")
+}

@@ -1,0 +1,112 @@
+//! `stiff assemble`: legs with geometric errors put together.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+
+use super::args::{
+    plot_needs_output, point_set, progress_bar, thread_pool, write_plot, written, ModelArgs, OutputArgs, PlotStyle,
+    RunArgs,
+};
+use super::parse::{parse_vec3, parse_vec6};
+use crate::kinematics::frame::Vec6;
+use crate::model::assembly_errors::ErrorSet;
+use crate::model::grid::PointSet;
+use crate::study::assemble::{path_points, run_assemble, AssembleOptions, LegErrors};
+
+/// Most tolerance samples per point (`assemble --samples`): each row waits for all of its samples.
+const MAX_SAMPLES: usize = 10_000_000;
+
+#[derive(Args, Debug)]
+pub(crate) struct AssembleArgs {
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
+    /// Error file (TOML): per leg, eps, a base error and/or parameter values, e.g.
+    /// manipulators/errors/orthoglide-case-a.toml.
+    #[arg(long)]
+    pub(crate) errors: PathBuf,
+    /// Grid file (TOML).
+    #[arg(long, conflicts_with_all = ["points", "path"], required_unless_present_any = ["points", "path"])]
+    pub(crate) grid: Option<PathBuf>,
+    /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name).
+    #[arg(long, conflicts_with = "path")]
+    pub(crate) points: Option<PathBuf>,
+    /// A straight path: FROM x,y,z (mm), TO x,y,z (mm), number of points.
+    #[arg(long, num_args = 3, value_names = ["FROM", "TO", "STEPS"], allow_hyphen_values = true)]
+    pub(crate) path: Option<Vec<String>>,
+    /// External wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): adds the load, total and superposition columns.
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
+    pub(crate) wrench: Option<Vec6>,
+    /// Factor on every error (default 1).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) scale: f64,
+    /// Tolerance study: this many random draws of the errors within +-(scale x the given values).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) samples: usize,
+    /// Seed of the random draws (with --samples).
+    #[arg(long, default_value_t = 1)]
+    pub(crate) seed: u64,
+    #[command(flatten)]
+    pub(crate) output: OutputArgs,
+    /// Also draw the displacements along the path (SVG, paper 000 Figures 10-11).
+    #[arg(long)]
+    pub(crate) plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) run: RunArgs,
+}
+
+pub(crate) fn run(a: AssembleArgs) -> Result<()> {
+    let model = a.model.load()?;
+    let set = ErrorSet::load(&a.errors, &a.model.model, &model)?;
+    if !(a.scale.is_finite()) {
+        bail!("--scale must be a finite number");
+    }
+    let perturbed = set.perturbed_legs(a.scale)?;
+    let mut points = match &a.path {
+        None => point_set(&a.grid, &a.points)?,
+        Some(path) => {
+            let from = parse_vec3(&path[0]).map_err(|e| anyhow::anyhow!("--path FROM: {e}"))?;
+            let to = parse_vec3(&path[1]).map_err(|e| anyhow::anyhow!("--path TO: {e}"))?;
+            let steps: usize =
+                path[2].parse().map_err(|_| anyhow::anyhow!("--path STEPS: `{}` is not a count", path[2]))?;
+            if steps == 0 {
+                bail!("--path needs at least one step");
+            }
+            PointSet::from_points(path_points(&from, &to, steps))
+        }
+    };
+    let pool = thread_pool(a.run.threads)?;
+    let mut sink = a.output.open()?;
+    let bar = progress_bar(points.len, a.run.quiet);
+    let options = AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed };
+    if a.samples > MAX_SAMPLES {
+        bail!(
+            "--samples {} is more than a point may take ({MAX_SAMPLES}: about 5 s per point at 2 million \
+             assemblies/s; the spread converges long before)",
+            a.samples
+        );
+    }
+    if a.plot.is_some() && a.samples > 0 {
+        bail!("--plot draws an assembly path, not a tolerance study (--samples)");
+    }
+    plot_needs_output(&a.plot, &a.output.output, "assemble")?;
+    let summary = run_assemble(
+        &pool,
+        &model,
+        &LegErrors { set: &set, perturbed: &perturbed },
+        &mut points,
+        &options,
+        sink.writer(),
+        &bar,
+    )?;
+    sink.finish()?;
+    bar.finish_and_clear();
+    if let Some(plot) = &a.plot {
+        write_plot(&written(&a.output.output)?, plot, &PlotStyle::default())?;
+    }
+    if !a.run.quiet {
+        eprintln!("{} points: {} assembled", summary.points, summary.ok);
+    }
+    Ok(())
+}

@@ -1,0 +1,85 @@
+//! `stiff curve`: a force-deflection curve at one pose.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+
+use super::args::{write_plot, ModelArgs, OutputArgs, PlotStyle};
+use super::parse::{parse_vec3, parse_vec6};
+use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::study::curve::{curve_header, push_curve_row, run_curve, Control, MAX_INTERVALS};
+
+#[derive(Args, Debug)]
+pub(crate) struct CurveArgs {
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
+    /// Commanded platform reference point x,y,z in mm.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub(crate) at: Vec3,
+    /// Commanded orientation as a rotation vector rx,ry,rz in rad (default 0,0,0).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub(crate) orientation: Option<Vec3>,
+    /// Force control: the wrench is load_factor * W (Fx,Fy,Fz in N, Mx,My,Mz in N mm).
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true, conflicts_with = "displacement_direction", required_unless_present = "displacement_direction")]
+    pub(crate) wrench_direction: Option<Vec6>,
+    /// Displacement control: the displacement is load_factor * D (dx,dy,dz in mm, rx,ry,rz in rad).
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
+    pub(crate) displacement_direction: Option<Vec6>,
+    /// Largest load factor.
+    #[arg(long)]
+    pub(crate) max: f64,
+    /// Number of steps from 0 to --max.
+    #[arg(long, default_value_t = 50)]
+    pub(crate) steps: usize,
+    #[command(flatten)]
+    pub(crate) output: OutputArgs,
+    /// No summary on stderr.
+    #[arg(long, short)]
+    pub(crate) quiet: bool,
+    /// Also draw the curve (SVG).
+    #[arg(long)]
+    pub(crate) plot: Option<PathBuf>,
+    /// The direction to draw (x, y, z, rx, ry, rz; default: the one that moves most).
+    #[arg(long)]
+    pub(crate) direction: Option<String>,
+}
+
+pub(crate) fn run(a: CurveArgs) -> Result<()> {
+    let model = a.model.load()?;
+    let at = Frame::from_position_rotvec(a.at, a.orientation.unwrap_or_else(Vec3::zeros));
+    let control = match (a.wrench_direction, a.displacement_direction) {
+        (Some(w), None) => Control::Force(w),
+        (None, Some(d)) => Control::Displacement(d),
+        _ => bail!("give exactly one of --wrench-direction and --displacement-direction"),
+    };
+    if !(1..=MAX_INTERVALS).contains(&a.steps) {
+        bail!("--steps must lie between 1 and {MAX_INTERVALS} (each step is a loaded equilibrium kept in memory)");
+    }
+    if !(a.max.is_finite() && a.max > 0.0) {
+        bail!("--max must be a positive finite number, got {}", a.max);
+    }
+    let mut sink = a.output.open()?;
+    // Rows are written as they become final; the picture, if asked, is drawn from the same text.
+    let mut picture = a.plot.as_ref().map(|_| curve_header());
+    let writer = sink.writer();
+    writer.write_all(curve_header().as_bytes())?;
+    let mut line = String::new();
+    let summary = run_curve(&model, &at, control, a.max, a.steps, &mut |r| {
+        line.clear();
+        push_curve_row(&mut line, r);
+        if let Some(p) = picture.as_mut() {
+            p.push_str(&line);
+        }
+        writer.write_all(line.as_bytes())
+    })?;
+    sink.finish()?;
+    if let (Some(plot), Some(text)) = (&a.plot, &picture) {
+        let style = PlotStyle { direction: a.direction.clone(), ..PlotStyle::default() };
+        write_plot(text, plot, &style)?;
+    }
+    if !a.quiet {
+        eprintln!("{}", summary.text(model.length_scale));
+    }
+    Ok(())
+}

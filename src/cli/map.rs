@@ -1,0 +1,68 @@
+//! `stiff map`: a compliance map over a grid or points.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+
+use super::args::{
+    plot_needs_output, progress_bar, thread_pool, write_plot, written, ModelArgs, OutputArgs, PlotStyle, PointsArgs,
+    RunArgs,
+};
+use super::parse::parse_vec6;
+use crate::kinematics::frame::Vec6;
+use crate::study::map::{run_map, MapOptions};
+
+#[derive(Args, Debug)]
+pub(crate) struct MapArgs {
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
+    #[command(flatten)]
+    pub(crate) points: PointsArgs,
+    #[command(flatten)]
+    pub(crate) output: OutputArgs,
+    /// Also write the 21 entries of the stiffness matrix (K11..K66).
+    #[arg(long)]
+    pub(crate) stiffness: bool,
+    /// Loaded mode: at every point, the equilibrium under this wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm) at the
+    /// reference point; the map then reports its displacement and the tangent compliance there.
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true, conflicts_with = "loaded")]
+    pub(crate) wrench: Option<Vec6>,
+    /// Loaded mode under each point's reference wrench (from the grid or the points file).
+    #[arg(long)]
+    pub(crate) loaded: bool,
+    /// Also draw the map (SVG): a colour map over grid sections.
+    #[arg(long)]
+    pub(crate) plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) style: PlotStyle,
+    #[command(flatten)]
+    pub(crate) run: RunArgs,
+}
+
+pub(crate) fn run(a: MapArgs) -> Result<()> {
+    let model = a.model.load()?;
+    let mut points = a.points.load()?;
+    let pool = thread_pool(a.run.threads)?;
+    let mut sink = a.output.open()?;
+    let bar = progress_bar(points.len, a.run.quiet);
+    if a.loaded && !points.has_wrench {
+        bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
+    }
+    let options = MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded };
+    plot_needs_output(&a.plot, &a.output.output, "map")?;
+    if a.plot.is_some() {
+        let header = crate::study::map::map_header(&crate::study::map::map_columns(&points, &options));
+        crate::plot::check_map_options(&header, &a.style.options())?;
+    }
+    let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
+    sink.finish()?;
+    bar.finish_and_clear();
+    if let Some(plot) = &a.plot {
+        write_plot(&written(&a.output.output)?, plot, &a.style)?;
+    }
+    if !a.run.quiet {
+        eprintln!("{}", summary.line());
+    }
+    Ok(())
+}

@@ -1,0 +1,61 @@
+//! The command line: one file per command (its arguments, their checks, the study, the output), argument
+//! groups shared by several commands (`args.rs`) and value parsers (`parse.rs`). Lower layers never word a
+//! message as a flag: each command checks its flags and says them.
+
+mod args;
+mod assemble;
+mod curve;
+mod diagnose;
+mod map;
+mod parse;
+mod plot;
+mod point;
+mod synth;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+/// `stiff`'s arguments.
+#[derive(Parser, Debug)]
+#[command(name = "stiff", version, about = "Stiffness of parallel robots: maps, points (units: mm, N, N mm, rad)")]
+pub struct Cli {
+    /// What to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+#[allow(private_interfaces)]
+pub enum Command {
+    /// Compliance map over a grid or a list of points, as CSV (one row per point, in input order).
+    Map(map::MapArgs),
+    /// Stiffness and compliance matrices at one pose, printed with units.
+    Point(point::PointArgs),
+    /// Force-deflection curve at one pose (loaded mode), as CSV.
+    Curve(curve::CurveArgs),
+    /// Assembly of legs with geometric errors (paper 000 s. 4.2): platform displacement, internal loads,
+    /// joint deflections, linear and non-linear, with an optional external wrench; tolerance studies.
+    Assemble(assemble::AssembleArgs),
+    /// Where measured deflections and the model disagree: names the missing effect (or none), fits it,
+    /// and writes the corrected model.
+    Diagnose(diagnose::DiagnoseArgs),
+    /// Synthetic measurements with hidden effects, in the format `diagnose` reads.
+    Synth(synth::SynthArgs),
+    /// An SVG picture of a study's output (map, curve or assemble CSV, or diagnose JSON).
+    Plot(plot::PlotArgs),
+}
+
+/// Parses the command line and runs the command.
+pub fn run() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Map(a) => map::run(a),
+        Command::Point(a) => point::run(a),
+        Command::Curve(a) => curve::run(a),
+        Command::Assemble(a) => assemble::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::Synth(a) => synth::run(a),
+        Command::Plot(a) => plot::run(a),
+    }
+}

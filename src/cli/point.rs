@@ -1,0 +1,41 @@
+//! `stiff point`: stiffness and compliance at one pose, as a report.
+
+use anyhow::Result;
+use clap::Args;
+
+use super::args::{write_stdout, ModelArgs};
+use super::parse::{parse_vec3, parse_vec6};
+use crate::kinematics::frame::{Vec3, Vec6};
+use crate::model::grid::PosePoint;
+use crate::study::point::{loaded_point, point_report, unloaded_point, LoadedHistory};
+
+#[derive(Args, Debug)]
+pub(crate) struct PointArgs {
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
+    /// Platform reference point x,y,z in mm.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub(crate) at: Vec3,
+    /// Platform orientation as a rotation vector rx,ry,rz in rad (default 0,0,0).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub(crate) orientation: Option<Vec3>,
+    /// A wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): reports its linear deflection C w and the loaded equilibrium
+    /// under it (displacement, tangent stiffness and its full inverse).
+    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
+    pub(crate) wrench: Option<Vec6>,
+}
+
+pub(crate) fn run(a: PointArgs) -> Result<()> {
+    let model = a.model.load()?;
+    let p =
+        PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
+    let mut state = model.new_state();
+    let r = unloaded_point(&model, &p, &mut state);
+    let mut text = point_report(&model.name, &p, &r, false);
+    if let Some(w) = &a.wrench {
+        let loaded = loaded_point(&model, &p, w, &mut state, &mut LoadedHistory::default());
+        text.push_str("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)\n");
+        text.push_str(&point_report(&model.name, &p, &loaded, true));
+    }
+    write_stdout(&text)
+}

@@ -1,0 +1,61 @@
+//! `stiff synth`: synthetic measurements with hidden effects.
+
+use anyhow::{bail, Result};
+use clap::Args;
+
+use super::args::{ModelArgs, OutputArgs, PointsArgs};
+use super::parse::parse_vec6;
+
+#[derive(Args, Debug)]
+pub(crate) struct SynthArgs {
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
+    /// A hidden effect NAME[:TARGET]=V1,V2,... (repeatable), e.g. actuator-compliance:2=1.5, tool-offset=0.05,0,0.
+    #[arg(long = "effect", value_name = "NAME[:TARGET]=VALUES")]
+    pub(crate) effects: Vec<String>,
+    #[command(flatten)]
+    pub(crate) points: PointsArgs,
+    /// Wrenches applied at every pose: Fx,Fy,Fz,Mx,My,Mz (N, N mm) separated by `;`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub(crate) wrenches: String,
+    /// Standard deviation of the measurement noise, mm.
+    #[arg(long)]
+    pub(crate) noise: f64,
+    #[arg(long)]
+    pub(crate) seed: u64,
+    /// Measurements per pose and wrench.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) repeats: usize,
+    #[command(flatten)]
+    pub(crate) output: OutputArgs,
+}
+
+pub(crate) fn run(a: SynthArgs) -> Result<()> {
+    use crate::diagnose::synth;
+    use crate::model::effect::Effect;
+    let model = a.model.load_model()?;
+    let effects = a
+        .effects
+        .iter()
+        .map(|e| Effect::parse(e, &model.manipulator))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("--effect {e}"))?;
+    let wrenches = a
+        .wrenches
+        .split(';')
+        .map(|w| parse_vec6(w.trim()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("--wrenches: {e}"))?;
+    if !(a.noise >= 0.0 && a.noise.is_finite()) {
+        bail!("--noise must be >= 0 (mm)");
+    }
+    let mut points = a.points.load()?;
+    let options = synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats };
+    let mut sink = a.output.open()?;
+    let skipped = synth::synthesize(&model, &mut points, &options, sink.writer())?;
+    sink.finish()?;
+    if skipped > 0 {
+        eprintln!("{skipped} poses left out (unreachable or singular)");
+    }
+    Ok(())
+}
