@@ -139,7 +139,7 @@ fn diagnose_plot_has_arrows_and_bars() {
     let problem = stiff::diagnose::fit::Problem::new(&m, &[], &data, weights, false, true).unwrap();
     let d = stiff::diagnose::select::diagnose(&problem, sigma, source, &Default::default()).unwrap();
     let json = stiff::diagnose::report::json(&d, "model");
-    let svg = plot_text(&json.to_string(), &PlotOptions::default()).unwrap();
+    let svg = plot_text(&serde_json::to_string(&json).unwrap(), &PlotOptions::default()).unwrap();
     let doc = parse(&svg);
     assert_eq!(count(&doc, "line", "before"), 5);
     assert_eq!(count(&doc, "line", "after"), 5);

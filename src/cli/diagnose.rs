@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{write_stdout, ModelArgs, PlotStyle};
+use super::args::{write_stdout, ModelArgs};
 use crate::model::error::read_text;
 use crate::output::sink::Sink;
 
@@ -67,7 +67,7 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         sink.finish()?;
     }
     if let Some(mut sink) = plot_sink {
-        let svg = crate::plot::plot_text(&json.to_string(), &PlotStyle::default().options())?;
+        let svg = crate::plot::diagnosis(&json)?;
         sink.writer().write_all(svg.as_bytes())?;
         sink.finish()?;
     }

@@ -2,7 +2,9 @@
 
 use std::fmt::Write;
 
-use serde_json::{json, Value};
+use crate::output::diagnosis::{
+    finite, Ambiguity, CandidateReport, DiagnosisReport, EffectReport, NominalTest, PoseResidual, ResidualRms,
+};
 
 use super::select::{Diagnosis, SigmaSource, Verdict};
 
@@ -97,65 +99,69 @@ pub fn text(d: &Diagnosis, model: &str) -> String {
     s
 }
 
-pub fn json(d: &Diagnosis, model: &str) -> Value {
-    let effects: Vec<Value> = d
+/// The diagnosis as the JSON file `--json` writes (`output::diagnosis`).
+pub fn json(d: &Diagnosis, model: &str) -> DiagnosisReport {
+    let arr = |v: &crate::kinematics::frame::Vec3| [v.x, v.y, v.z];
+    let effects = d
         .accepted
         .iter()
-        .map(|a| {
-            json!({
-                "name": a.effect.kind.name(),
-                "target": a.effect.target.to_string(),
-                "values": a.effect.values,
-                "meaning": a.effect.kind.values().1,
-                "parameters": a.params,
-                "standard_errors": a.se,
-                "p_value": a.p_value,
-                "delta_bic": a.delta_bic,
-            })
+        .map(|a| EffectReport {
+            name: a.effect.kind.name().into(),
+            target: a.effect.target.to_string(),
+            values: a.effect.values.clone(),
+            meaning: a.effect.kind.values().1.into(),
+            parameters: a.params.clone(),
+            standard_errors: a.se.iter().map(|v| finite(*v)).collect(),
+            p_value: a.p_value,
+            delta_bic: a.delta_bic,
         })
         .collect();
-    let table: Vec<Value> = d
+    let candidates = d
         .table
         .iter()
-        .map(|r| {
-            json!({
-                "candidate": r.label, "dim": r.dim, "identifiable": r.identifiable, "note": r.note,
-                "condition": finite(r.condition), "orthogonal_share": r.orthogonal, "ssr": r.ssr,
-                "delta_bic": r.delta_bic, "f": finite(r.f), "p_value": r.p_value, "values": r.values,
-                "standard_errors": r.se.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
-                "plausible": r.plausible, "passes": r.passes,
-            })
+        .map(|r| CandidateReport {
+            candidate: r.label.clone(),
+            dim: r.dim,
+            identifiable: r.identifiable,
+            note: r.note.clone(),
+            condition: finite(r.condition),
+            orthogonal_share: r.orthogonal,
+            ssr: finite(r.ssr),
+            delta_bic: finite(r.delta_bic),
+            f: finite(r.f),
+            p_value: finite(r.p_value),
+            values: r.values.iter().map(|v| finite(*v)).collect(),
+            standard_errors: r.se.iter().map(|v| finite(*v)).collect(),
+            plausible: r.plausible,
+            passes: r.passes,
         })
         .collect();
-    json!({
-        "model": model,
-        "verdict": d.verdict.as_str(),
-        "sentence": sentence(d),
-        "sigma_mm": d.sigma,
-        "sigma_source": source_text(&d.sigma_source),
-        "rows": d.rows,
-        "nominal": {"statistic": d.nominal_statistic, "p_value": d.nominal_p},
-        "effects": effects,
-        "final_p_value": d.final_p,
-        "ambiguous": d.ambiguous.as_ref().map(|(a, b, advice)| json!({"candidates": [a, b], "separate_by": advice})),
-        "candidates": table,
-        "residuals": d.per_pose.iter().map(|(p, b, a)| json!({
-            "position_mm": [p.x, p.y, p.z], "before_mm": [b.x, b.y, b.z], "after_mm": [a.x, a.y, a.z],
-        })).collect::<Vec<_>>(),
-        "rms_mm": {
-            "fit_before": [d.rms_before.x, d.rms_before.y, d.rms_before.z],
-            "fit_after": [d.rms_after.x, d.rms_after.y, d.rms_after.z],
-            "heldout_before": [d.heldout_before.x, d.heldout_before.y, d.heldout_before.z],
-            "heldout_after": [d.heldout_after.x, d.heldout_after.y, d.heldout_after.z],
+    DiagnosisReport {
+        model: model.into(),
+        verdict: d.verdict.as_str().into(),
+        sentence: sentence(d),
+        sigma_mm: d.sigma,
+        sigma_source: source_text(&d.sigma_source),
+        rows: d.rows,
+        nominal: NominalTest { statistic: d.nominal_statistic, p_value: d.nominal_p },
+        effects,
+        final_p_value: d.final_p,
+        ambiguous: d
+            .ambiguous
+            .as_ref()
+            .map(|(a, b, advice)| Ambiguity { candidates: [a.clone(), b.clone()], separate_by: advice.clone() }),
+        candidates,
+        residuals: d
+            .per_pose
+            .iter()
+            .map(|(p, b, a)| PoseResidual { position_mm: arr(p), before_mm: arr(b), after_mm: arr(a) })
+            .collect(),
+        rms_mm: ResidualRms {
+            fit_before: arr(&d.rms_before),
+            fit_after: arr(&d.rms_after),
+            heldout_before: arr(&d.heldout_before),
+            heldout_after: arr(&d.heldout_after),
         },
-    })
-}
-
-fn finite(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else {
-        Value::Null
     }
 }
 

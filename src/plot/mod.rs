@@ -4,8 +4,8 @@
 //! Figures 10-11), and a diagnosis (residual arrows before and after, per-axis RMS, the candidates' delta BIC).
 pub mod svg;
 
+use crate::output::diagnosis::DiagnosisReport;
 use anyhow::{anyhow, bail, Context, Result};
-use serde_json::Value;
 
 use crate::output::table::names;
 
@@ -66,8 +66,9 @@ const DEFAULT_MAP_COLUMN: &str = names::C_TRAN_MAX;
 /// Draws a study's output: a map, curve or assemble CSV, or a diagnose JSON.
 pub fn plot_text(text: &str, o: &PlotOptions) -> Result<String> {
     if text.trim_start().starts_with('{') {
-        let v: Value = serde_json::from_str(text).context("reading the diagnosis JSON")?;
-        return diagnosis(&v);
+        let report: DiagnosisReport =
+            serde_json::from_str(text).context("reading the diagnosis JSON (written by stiff diagnose --json?)")?;
+        return diagnosis(&report);
     }
     let t = Table::parse(text)?;
     // Each study's table has a column no other has (`output::table::names`).
@@ -330,48 +331,26 @@ fn assembly(t: &Table) -> Result<String> {
     Ok(s.finish())
 }
 
-fn vec3(v: &Value) -> Option<[f64; 3]> {
-    let a = v.as_array()?;
-    Some([a.first()?.as_f64()?, a.get(1)?.as_f64()?, a.get(2)?.as_f64()?])
-}
-
 /// Residual arrows over the workspace (before red, after blue) on the plane of the two axes the poses
 /// spread most over; per-axis RMS before and after; the candidates' delta BIC.
-fn diagnosis(v: &Value) -> Result<String> {
-    let residuals =
-        v["residuals"].as_array().ok_or_else(|| anyhow!("the JSON has no `residuals` (not from stiff diagnose?)"))?;
-    let mut pos = Vec::new();
-    let mut before = Vec::new();
-    let mut after = Vec::new();
-    for r in residuals {
-        pos.push(vec3(&r["position_mm"]).ok_or_else(|| anyhow!("bad residual entry"))?);
-        before.push(vec3(&r["before_mm"]).ok_or_else(|| anyhow!("bad residual entry"))?);
-        after.push(vec3(&r["after_mm"]).ok_or_else(|| anyhow!("bad residual entry"))?);
-    }
+pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
+    let pos: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.position_mm).collect();
+    let before: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.before_mm).collect();
+    let after: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.after_mm).collect();
     let spread = |k: usize| extent(pos.iter().map(|p| p[k]));
     let mut order = [0usize, 1, 2];
     order.sort_by(|a, b| spread(*b).total_cmp(&spread(*a)));
     let (u, w_axis) = (order[0].min(order[1]), order[0].max(order[1]));
     let (width, height) = (1010.0, 470.0);
     let mut s = Svg::new(width, height);
-    let named: Vec<String> = v["effects"]
-        .as_array()
-        .map(|a| {
-            a.iter()
-                .map(|e| {
-                    let (n, t) = (e["name"].as_str().unwrap_or(""), e["target"].as_str().unwrap_or(""));
-                    if t.is_empty() {
-                        n.to_string()
-                    } else {
-                        format!("{n}:{t}")
-                    }
-                })
-                .collect()
-        })
-        .unwrap_or_default();
+    let named: Vec<String> = v
+        .effects
+        .iter()
+        .map(|e| if e.target.is_empty() { e.name.clone() } else { format!("{}:{}", e.name, e.target) })
+        .collect();
     let title = format!(
         "verdict: {}{}",
-        v["verdict"].as_str().unwrap_or("?"),
+        v.verdict,
         if named.is_empty() { String::new() } else { format!(" ({})", named.join(", ")) }
     );
     s.text(width / 2.0, 20.0, &title, 13.0, "middle", 0.0);
@@ -399,9 +378,8 @@ fn diagnosis(v: &Value) -> Result<String> {
         0.0,
     );
     // Per-axis RMS.
-    let rms = &v["rms_mm"];
-    let (rb, ra) = (vec3(&rms["fit_before"]).unwrap_or([0.0; 3]), vec3(&rms["fit_after"]).unwrap_or([0.0; 3]));
-    let (hb, ha) = (vec3(&rms["heldout_before"]).unwrap_or([0.0; 3]), vec3(&rms["heldout_after"]).unwrap_or([0.0; 3]));
+    let rms = &v.rms_mm;
+    let (rb, ra, hb, ha) = (rms.fit_before, rms.fit_after, rms.heldout_before, rms.heldout_after);
     let (bx, bw) = (490.0, 170.0);
     let rms_axis =
         Axis::new(rb.iter().chain(&ra).chain(&hb).chain(&ha).copied().chain(std::iter::once(0.0)), y0 + size, y0);
@@ -419,17 +397,11 @@ fn diagnosis(v: &Value) -> Result<String> {
     frame(&mut s, &cat, &rms_axis, "axis", "residual RMS [mm]", false, true);
     s.text(bx, y0 - 10.0, "RMS: fit before / held-out before / fit after / held-out after", 9.0, "start", 0.0);
     // Candidates' delta BIC (identifiable ones), accepted first step's passes marked.
-    let cands = v["candidates"].as_array().cloned().unwrap_or_default();
-    let rows: Vec<(String, f64, bool)> = cands
+    let rows: Vec<(String, f64, bool)> = v
+        .candidates
         .iter()
-        .filter(|c| c["identifiable"].as_bool() == Some(true))
-        .filter_map(|c| {
-            Some((
-                c["candidate"].as_str()?.to_string(),
-                c["delta_bic"].as_f64()?,
-                c["passes"].as_bool().unwrap_or(false),
-            ))
-        })
+        .filter(|c| c.identifiable)
+        .filter_map(|c| Some((c.candidate.clone(), c.delta_bic?, c.passes)))
         .collect();
     let (cx, cw) = (760.0, 190.0);
     let n = rows.len().max(1) as f64;
