@@ -362,9 +362,53 @@ impl Builder<'_> {
         })
     }
 
+    /// One element of a chain, appended to `parts` (joints, springs, fixed transforms, masses).
     fn element(&self, e: &Spanned<ElementSpec>, position: usize, parts: &mut ChainParts) -> Result<(), InputError> {
         let s = e.get_ref();
         let kind = s.kind.get_ref().as_str();
+        self.check_keys(e, kind)?;
+        let name = s.name.clone().unwrap_or_else(|| format!("{kind}{}", position + 1));
+        match kind {
+            "fixed" => {
+                let f = self.transform(&s.translation, &s.rotation_axis, &s.rotation_deg, e.span())?;
+                parts.elements.push(Element::Fixed(f));
+            }
+            "prismatic" | "revolute" => self.single_joint(e, kind, name, parts)?,
+            "universal" => {
+                let axes =
+                    s.axes.as_ref().ok_or_else(|| self.loc.at(e.span(), "a universal joint needs two `axes`"))?;
+                if axes.get_ref().len() != 2 {
+                    return Err(self.loc.at(axes.span(), "a universal joint has exactly two axes"));
+                }
+                for a in axes.get_ref() {
+                    parts.joint(JointKind::Revolute, self.axis(a)?, Role::Passive);
+                }
+            }
+            "mass" => {
+                let kg = match &s.mass_kg {
+                    Some(m) => self.positive(m, "mass_kg")?,
+                    None => return Err(self.loc.at(e.span(), "a mass needs `mass_kg`")),
+                };
+                let centre = match &s.centre {
+                    Some(c) => self.vec3(c)?,
+                    None => Vec3::zeros(),
+                };
+                parts.elements.push(Element::Mass { kg, centre });
+            }
+            "spherical" => {
+                for (_, a) in &SIX_DOF[3..] {
+                    parts.joint(JointKind::Revolute, *a, Role::Passive);
+                }
+            }
+            "spring6" => self.spring6(e, name, parts)?,
+            _ => unreachable!("element types are checked by check_keys"),
+        }
+        Ok(())
+    }
+
+    /// The element's type is known and it has only the keys that apply to it.
+    fn check_keys(&self, e: &Spanned<ElementSpec>, kind: &str) -> Result<(), InputError> {
+        let s = e.get_ref();
         let present = [
             ("translation", s.translation.is_some()),
             ("rotation_axis", s.rotation_axis.is_some()),
@@ -402,161 +446,130 @@ impl Builder<'_> {
         if let Some((key, _)) = present.iter().find(|(k, p)| *p && !allowed.contains(k)) {
             return Err(self.loc.at(e.span(), format!("`{key}` does not apply to a `{kind}` element")));
         }
-        let name = s.name.clone().unwrap_or_else(|| format!("{kind}{}", position + 1));
-        let preload = |dim: usize| -> Result<Vec<f64>, InputError> {
-            match &s.preload {
-                None => Ok(vec![0.0; dim]),
-                Some(p) if p.get_ref().len() == dim => p.get_ref().iter().map(|v| self.num(v)).collect(),
-                Some(p) => {
-                    Err(self.loc.at(p.span(), format!("`preload` needs {dim} values, one per spring coordinate")))
-                }
-            }
-        };
-        match kind {
-            "fixed" => {
-                let f = self.transform(&s.translation, &s.rotation_axis, &s.rotation_deg, e.span())?;
-                parts.elements.push(Element::Fixed(f));
-            }
-            "prismatic" | "revolute" => {
-                let jk = if kind == "prismatic" { JointKind::Prismatic } else { JointKind::Revolute };
-                let axis = match &s.axis {
-                    Some(a) => self.axis(a)?,
-                    None => return Err(self.loc.at(e.span(), format!("a `{kind}` joint needs an `axis`"))),
-                };
-                let role = s.role.as_ref().ok_or_else(|| {
-                    self.loc.at(e.span(), format!("a `{kind}` joint needs a `role`: actuated, passive or elastic"))
-                })?;
-                let stiffness = match &s.stiffness {
-                    Some(k) => Some(self.positive(k, "stiffness")?),
-                    None => None,
-                };
-                if s.preload.is_some() && stiffness.is_none() {
-                    return Err(self.loc.at(e.span(), "`preload` applies to a joint's spring: give a `stiffness`"));
-                }
-                let theta0 = preload(1)?;
-                let spring = |parts: &mut ChainParts, k: f64| {
-                    let mut km = Mat6::zeros();
-                    km[(0, 0)] = k;
-                    let mut cm = Mat6::zeros();
-                    cm[(0, 0)] = 1.0 / k;
-                    parts.spring(name.clone(), &[(jk, axis)], km, cm, &theta0, None);
-                };
-                match (role.get_ref().as_str(), stiffness) {
-                    // V_a(q + theta): the actuator and its control-loop spring move along one axis (eq 1).
-                    ("actuated", k) => {
-                        parts.joint(jk, axis, Role::Actuated);
-                        if let Some(k) = k {
-                            spring(parts, k);
-                        }
-                    }
-                    ("passive", None) => match &s.follows {
-                        None => {
-                            parts.passive_names.push((name.clone(), parts.n_passive));
-                            parts.joint(jk, axis, Role::Passive)
-                        }
-                        Some(leader) => {
-                            let index = parts.passive_index(leader).ok_or_else(|| {
-                                self.loc.at(
-                                    leader.span(),
-                                    format!("no passive joint named `{}` before this one", leader.get_ref()),
-                                )
-                            })?;
-                            let gain = match &s.gain {
-                                Some(g) => self.num(g)?,
-                                None => 1.0,
-                            };
-                            parts.elements.push(Element::Joint(Joint {
-                                kind: jk,
-                                axis,
-                                role: Role::Passive,
-                                index,
-                                gain,
-                            }));
-                        }
-                    },
-                    ("passive", Some(_)) => {
-                        return Err(self.loc.at(e.span(), "a passive joint has no stiffness: use role = \"elastic\""))
-                    }
-                    ("elastic", Some(k)) => spring(parts, k),
-                    ("elastic", None) => return Err(self.loc.at(e.span(), "an elastic joint needs a `stiffness`")),
-                    (other, _) => {
-                        return Err(self
-                            .loc
-                            .at(role.span(), format!("unknown role `{other}`: use actuated, passive or elastic")))
-                    }
-                }
-            }
-            "universal" => {
-                let axes =
-                    s.axes.as_ref().ok_or_else(|| self.loc.at(e.span(), "a universal joint needs two `axes`"))?;
-                if axes.get_ref().len() != 2 {
-                    return Err(self.loc.at(axes.span(), "a universal joint has exactly two axes"));
-                }
-                for a in axes.get_ref() {
-                    parts.joint(JointKind::Revolute, self.axis(a)?, Role::Passive);
-                }
-            }
-            "mass" => {
-                let kg = match &s.mass_kg {
-                    Some(m) => self.positive(m, "mass_kg")?,
-                    None => return Err(self.loc.at(e.span(), "a mass needs `mass_kg`")),
-                };
-                let centre = match &s.centre {
-                    Some(c) => self.vec3(c)?,
-                    None => Vec3::zeros(),
-                };
-                parts.elements.push(Element::Mass { kg, centre });
-            }
-            "spherical" => {
-                for (_, a) in &SIX_DOF[3..] {
-                    parts.joint(JointKind::Revolute, *a, Role::Passive);
-                }
-            }
-            "spring6" => {
-                let mut posture = None;
-                let compliance = match (&s.stiffness_matrix, &s.compliance_matrix, &s.beam, &s.parallelogram) {
-                    (Some(k), None, None, None) => self.matrix6(k, "stiffness_matrix")?.try_inverse(),
-                    (None, Some(c), None, None) => Some(self.matrix6(c, "compliance_matrix")?),
-                    (None, None, Some(b), None) => Some(self.beam(b)?),
-                    (None, None, None, Some(p)) => {
-                        let spec = self.parallelogram(p, parts)?;
-                        let k = spec.stiffness(0.0).ok_or_else(|| {
-                            self.loc.at(
-                                e.span(),
-                                "the parallelogram's bars give no finite stiffness: check E, bar_diameter, length \
-                                 and separation",
-                            )
-                        })?;
-                        posture = Some(spec);
-                        k.try_inverse()
-                    }
-                    _ => {
-                        return Err(self.loc.at(
-                            e.span(),
-                            "a spring6 needs exactly one of `stiffness_matrix`, `compliance_matrix`, `beam` and `parallelogram`",
-                        ))
-                    }
-                };
-                let finite = |m: &Mat6| m.iter().all(|v| v.is_finite());
-                let compliance = compliance.filter(finite).ok_or_else(|| {
-                    self.loc
-                        .at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
-                })?;
-                let stiffness = compliance.try_inverse().filter(finite).ok_or_else(|| {
-                    self.loc
-                        .at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
-                })?;
-                parts.spring(
-                    name,
-                    &SIX_DOF,
-                    (stiffness + stiffness.transpose()) * 0.5,
-                    compliance,
-                    &preload(6)?,
-                    posture,
-                );
-            }
-            _ => unreachable!("element types are checked above"),
+        Ok(())
+    }
+
+    /// The spring's rest values (preload), `dim` of them (zeros when not given).
+    fn preload(&self, s: &ElementSpec, dim: usize) -> Result<Vec<f64>, InputError> {
+        match &s.preload {
+            None => Ok(vec![0.0; dim]),
+            Some(p) if p.get_ref().len() == dim => p.get_ref().iter().map(|v| self.num(v)).collect(),
+            Some(p) => Err(self.loc.at(p.span(), format!("`preload` needs {dim} values, one per spring coordinate"))),
         }
+    }
+
+    /// A prismatic or revolute joint: actuated (with its control-loop spring), passive (possibly following
+    /// another), or elastic.
+    fn single_joint(
+        &self,
+        e: &Spanned<ElementSpec>,
+        kind: &str,
+        name: String,
+        parts: &mut ChainParts,
+    ) -> Result<(), InputError> {
+        let s = e.get_ref();
+        let jk = if kind == "prismatic" { JointKind::Prismatic } else { JointKind::Revolute };
+        let axis = match &s.axis {
+            Some(a) => self.axis(a)?,
+            None => return Err(self.loc.at(e.span(), format!("a `{kind}` joint needs an `axis`"))),
+        };
+        let role = s.role.as_ref().ok_or_else(|| {
+            self.loc.at(e.span(), format!("a `{kind}` joint needs a `role`: actuated, passive or elastic"))
+        })?;
+        let stiffness = match &s.stiffness {
+            Some(k) => Some(self.positive(k, "stiffness")?),
+            None => None,
+        };
+        if s.preload.is_some() && stiffness.is_none() {
+            return Err(self.loc.at(e.span(), "`preload` applies to a joint's spring: give a `stiffness`"));
+        }
+        let theta0 = self.preload(s, 1)?;
+        let spring = |parts: &mut ChainParts, k: f64| {
+            let mut km = Mat6::zeros();
+            km[(0, 0)] = k;
+            let mut cm = Mat6::zeros();
+            cm[(0, 0)] = 1.0 / k;
+            parts.spring(name.clone(), &[(jk, axis)], km, cm, &theta0, None);
+        };
+        match (role.get_ref().as_str(), stiffness) {
+            // V_a(q + theta): the actuator and its control-loop spring move along one axis (eq 1).
+            ("actuated", k) => {
+                parts.joint(jk, axis, Role::Actuated);
+                if let Some(k) = k {
+                    spring(parts, k);
+                }
+            }
+            ("passive", None) => match &s.follows {
+                None => {
+                    parts.passive_names.push((name.clone(), parts.n_passive));
+                    parts.joint(jk, axis, Role::Passive)
+                }
+                Some(leader) => {
+                    let index = parts.passive_index(leader).ok_or_else(|| {
+                        self.loc
+                            .at(leader.span(), format!("no passive joint named `{}` before this one", leader.get_ref()))
+                    })?;
+                    let gain = match &s.gain {
+                        Some(g) => self.num(g)?,
+                        None => 1.0,
+                    };
+                    parts.elements.push(Element::Joint(Joint { kind: jk, axis, role: Role::Passive, index, gain }));
+                }
+            },
+            ("passive", Some(_)) => {
+                return Err(self.loc.at(e.span(), "a passive joint has no stiffness: use role = \"elastic\""))
+            }
+            ("elastic", Some(k)) => spring(parts, k),
+            ("elastic", None) => return Err(self.loc.at(e.span(), "an elastic joint needs a `stiffness`")),
+            (other, _) => {
+                return Err(self
+                    .loc
+                    .at(role.span(), format!("unknown role `{other}`: use actuated, passive or elastic")))
+            }
+        }
+        Ok(())
+    }
+
+    /// A 6-dof spring from its stiffness or compliance matrix, a beam, or a parallelogram's bars.
+    fn spring6(&self, e: &Spanned<ElementSpec>, name: String, parts: &mut ChainParts) -> Result<(), InputError> {
+        let s = e.get_ref();
+        let mut posture = None;
+        let compliance = match (&s.stiffness_matrix, &s.compliance_matrix, &s.beam, &s.parallelogram) {
+            (Some(k), None, None, None) => self.matrix6(k, "stiffness_matrix")?.try_inverse(),
+            (None, Some(c), None, None) => Some(self.matrix6(c, "compliance_matrix")?),
+            (None, None, Some(b), None) => Some(self.beam(b)?),
+            (None, None, None, Some(p)) => {
+                let spec = self.parallelogram(p, parts)?;
+                let k = spec.stiffness(0.0).ok_or_else(|| {
+                    self.loc.at(
+                        e.span(),
+                        "the parallelogram's bars give no finite stiffness: check E, bar_diameter, length \
+                         and separation",
+                    )
+                })?;
+                posture = Some(spec);
+                k.try_inverse()
+            }
+            _ => return Err(self.loc.at(
+                e.span(),
+                "a spring6 needs exactly one of `stiffness_matrix`, `compliance_matrix`, `beam` and `parallelogram`",
+            )),
+        };
+        let finite = |m: &Mat6| m.iter().all(|v| v.is_finite());
+        let compliance = compliance.filter(finite).ok_or_else(|| {
+            self.loc.at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
+        })?;
+        let stiffness = compliance.try_inverse().filter(finite).ok_or_else(|| {
+            self.loc.at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
+        })?;
+        parts.spring(
+            name,
+            &SIX_DOF,
+            (stiffness + stiffness.transpose()) * 0.5,
+            compliance,
+            &self.preload(s, 6)?,
+            posture,
+        );
         Ok(())
     }
 

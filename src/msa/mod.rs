@@ -330,18 +330,53 @@ impl Structure {
     /// Solves the structure (eq 15-17): the end node's stiffness and the wrench holding it against preloads.
     pub fn condense(&self) -> Result<EndAnswer, MsaFailure> {
         let plan = self.plan()?;
+        let (n_y, nz) = (plan.n_y, plan.n_y + 6);
+        let mut sys = Reduced {
+            kz: DMatrix::zeros(nz, nz),
+            f: DVector::zeros(nz),
+            constraints: Vec::with_capacity(plan.n_constraints),
+        };
+        let t = self.node_maps(&plan, &mut sys);
+        self.close_loops(&plan, &t, &mut sys);
+        if !plan.end_is_root {
+            // The end node reached through the forest: its twist must equal the prescribed u.
+            for r in 0..6 {
+                let mut row = t[self.end].row(r).transpose();
+                row[n_y + r] -= 1.0;
+                sys.constraints.push(row);
+            }
+        }
+        self.add_flexible_links(&t, &mut sys);
+        let n = self.nodes.len();
+        let constraints = independent(sys.constraints);
+        solve_condensed(&sys.kz, &sys.f, &constraints, n_y).map_err(|null| match null {
+            Err(failure) => failure,
+            Ok(null) => {
+                // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
+                let mut nodes: Vec<usize> = (0..n)
+                    .filter(|&v| null.iter().any(|y| (t[v].columns(0, n_y) * y).norm() > NODE_MOVES * y.norm()))
+                    .collect();
+                nodes.sort_unstable();
+                MsaFailure::Mechanism { free: null.len(), nodes }
+            }
+        })
+    }
+
+    /// Carries a twist at node `from` (the base where None) to node `to`'s point.
+    fn shift(&self, from: Option<usize>, to: usize) -> Mat6 {
+        match from {
+            Some(a) => point_shift(&(self.nodes[to] - self.nodes[a])),
+            None => Mat6::identity(),
+        }
+    }
+
+    /// Each node's twist as a linear map of the reduced coordinates, along the spanning forest; the tree
+    /// joints' springs act on their own coordinates (energy 1/2 (s - s0)^T K (s - s0)).
+    fn node_maps(&self, plan: &Plan, sys: &mut Reduced) -> Vec<Map> {
         let n = self.nodes.len();
         let (n_y, nz) = (plan.n_y, plan.n_y + 6);
         let mut t: Vec<Map> = vec![Map::zeros(0, 0); n];
-        let mut kz = DMatrix::<f64>::zeros(nz, nz);
-        let mut f = DVector::<f64>::zeros(nz);
-        let mut constraints: Vec<DVector<f64>> = Vec::with_capacity(plan.n_constraints);
         let base = Map::zeros(6, nz);
-        let shift = |from: Option<usize>, to: usize| match from {
-            Some(a) => point_shift(&(self.nodes[to] - self.nodes[a])),
-            None => Mat6::identity(),
-        };
-        // Node maps along the forest, and the tree joints' springs on their own coordinates.
         for (slot, &(v, via)) in plan.order.iter().enumerate() {
             let c0 = plan.first[slot];
             t[v] = match via {
@@ -366,7 +401,7 @@ impl Structure {
                     };
                     let mut m = if parent_is_a {
                         // t_b = A_ab t_a + dt
-                        to_dmatrix(&shift(e.a, e.b)) * tp
+                        to_dmatrix(&self.shift(e.a, e.b)) * tp
                     } else {
                         // t_a = A_ba (t_b - dt)
                         to_dmatrix(&point_shift(&(self.nodes[v] - self.nodes[e.b]))) * tp
@@ -380,16 +415,22 @@ impl Structure {
                     let ne = e.connection.elastic.len();
                     if ne > 0 {
                         let s0 = c0 + e.connection.free.len();
-                        let mut block = kz.view_mut((s0, s0), (ne, ne));
+                        let mut block = sys.kz.view_mut((s0, s0), (ne, ne));
                         block += &e.connection.stiffness;
-                        let mut rows = f.rows_mut(s0, ne);
+                        let mut rows = sys.f.rows_mut(s0, ne);
                         rows += &e.connection.stiffness * &e.connection.preload;
                     }
                     m
                 }
             };
         }
-        // Loop-closing connections: rigid directions constrained, elastic ones sprung on dt.
+        t
+    }
+
+    /// Connections outside the forest close loops: their rigid directions become constraints, their
+    /// elastic ones springs on the relative displacement dt.
+    fn close_loops(&self, plan: &Plan, t: &[Map], sys: &mut Reduced) {
+        let base = Map::zeros(6, plan.n_y + 6);
         for (k, e) in plan.edges.iter().enumerate() {
             if plan.tree_edge[k] {
                 continue;
@@ -398,30 +439,26 @@ impl Structure {
                 Some(a) => &t[a],
                 None => &base,
             };
-            let dt: Map = &t[e.b] - to_dmatrix(&shift(e.a, e.b)) * ta;
+            let dt: Map = &t[e.b] - to_dmatrix(&self.shift(e.a, e.b)) * ta;
             let (_, rigid) = e.connection.moving_and_rigid();
             for d in &rigid {
-                constraints.push(dt.tr_mul(&DVector::from_column_slice(d.as_slice())));
+                sys.constraints.push(dt.tr_mul(&DVector::from_column_slice(d.as_slice())));
             }
             let ne = e.connection.elastic.len();
             if ne > 0 {
                 let l = DMatrix::from_fn(ne, 6, |r, c| e.connection.elastic[r][c]);
                 let b = l * &dt;
                 let kb = &e.connection.stiffness * &b;
-                kz += b.transpose() * &kb;
-                f += b.transpose() * (&e.connection.stiffness * &e.connection.preload);
+                sys.kz += b.transpose() * &kb;
+                sys.f += b.transpose() * (&e.connection.stiffness * &e.connection.preload);
             }
         }
-        if !plan.end_is_root {
-            // The end node reached through the forest: its twist must equal the prescribed u.
-            for r in 0..6 {
-                let mut row = t[self.end].row(r).transpose();
-                row[n_y + r] -= 1.0;
-                constraints.push(row);
-            }
-        }
-        // Flexible links (eq 1): energy 1/2 [t_i; t_j]^T K [t_i; t_j], over the few coordinates that move
-        // nodes i and j (those along their forest paths), not all of them.
+    }
+
+    /// Flexible links (eq 1): energy 1/2 [t_i; t_j]^T K [t_i; t_j], over the few coordinates that move
+    /// nodes i and j (those along their forest paths), not all of them.
+    fn add_flexible_links(&self, t: &[Map], sys: &mut Reduced) {
+        let nz = sys.f.len();
         let used: Vec<Vec<usize>> =
             t.iter().map(|m| (0..nz).filter(|&c| m.column(c).iter().any(|v| *v != 0.0)).collect()).collect();
         for e in &self.elements {
@@ -439,24 +476,20 @@ impl Structure {
                 let kc = tij.transpose() * (k12 * &tij);
                 for (a, &ca) in cols.iter().enumerate() {
                     for (b, &cb) in cols.iter().enumerate() {
-                        kz[(ca, cb)] += kc[(a, b)];
+                        sys.kz[(ca, cb)] += kc[(a, b)];
                     }
                 }
             }
         }
-        let constraints = independent(constraints);
-        solve_condensed(&kz, &f, &constraints, n_y).map_err(|null| match null {
-            Err(failure) => failure,
-            Ok(null) => {
-                // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
-                let mut nodes: Vec<usize> = (0..n)
-                    .filter(|&v| null.iter().any(|y| (t[v].columns(0, n_y) * y).norm() > NODE_MOVES * y.norm()))
-                    .collect();
-                nodes.sort_unstable();
-                MsaFailure::Mechanism { free: null.len(), nodes }
-            }
-        })
     }
+}
+
+/// The reduced system being assembled: stiffness and load on the forest's coordinates and the end's six,
+/// and the loop-closure constraint rows.
+struct Reduced {
+    kz: DMatrix<f64>,
+    f: DVector<f64>,
+    constraints: Vec<DVector<f64>>,
 }
 
 struct Plan<'a> {
