@@ -506,19 +506,10 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
         return Err(DiagnoseError::TooFewMeasurements { rows: data.rows.len() });
     }
     let nominal = fit(problem, &[], &rows, None)?;
-    let (statistic, p0) = match source {
-        SigmaSource::Repeats { dof } => {
-            // Lack of fit against pure error (in units of the pooled sigma, SS_pe = dof).
-            let ss_pe = dof as f64;
-            let lof_dof = n.saturating_sub(dof).max(1);
-            let f = ((nominal.ssr - ss_pe).max(0.0) / lof_dof as f64) / (ss_pe / dof as f64);
-            (f, f_sf(f, lof_dof, dof))
-        }
-        _ => (nominal.ssr, chi2_sf(nominal.ssr, n)),
-    };
+    let (statistic, p0) = nominal_test(nominal.ssr, n, &source);
     let rms_before = rms(problem, &rows, &nominal.residuals);
     // The nominal model has no parameters: its held-out residuals are its residuals, pose by pose.
-    let (mut cv_current, heldout_before) = heldout(problem, &[], &[])?;
+    let (cv_current, heldout_before) = heldout(problem, &[], &[])?;
     let mut out = Diagnosis {
         verdict: Verdict::None,
         sigma,
@@ -539,58 +530,9 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
     };
     let step = Step { problem, rows: rows.clone(), n, ln_n: (n as f64).ln() };
     let alpha_c = o.alpha / cands.len() as f64;
-    let mut accepted: Vec<Candidate> = Vec::new();
-    let mut current = nominal;
     let significant = p0 < o.alpha;
-    if significant {
-        for _ in 0..o.max_effects {
-            let remaining: Vec<&Candidate> = cands.iter().filter(|c| !accepted.contains(c)).collect();
-            let table: Vec<CandidateRow> =
-                remaining.iter().map(|c| step.evaluate(&accepted, &current, c, alpha_c)).collect();
-            if out.table.is_empty() {
-                out.table = table.clone();
-            }
-            let mut passing: Vec<&CandidateRow> = table.iter().filter(|r| r.passes).collect();
-            passing.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
-            let Some(best) = passing.first().copied() else { break };
-            // Two candidates explaining the same thing: parallel changes of the residuals, BIC within 10.
-            if let Some(rival) = passing.iter().skip(1).find(|r| {
-                r.delta_bic - best.delta_bic < STRONG_BIC
-                    && cosine(&r.change, &best.change) > PARALLEL_CHANGES
-                    && !nested(problem, &r.candidate, &best.candidate, &rows)
-            }) {
-                out.ambiguous =
-                    Some((best.label.clone(), rival.label.clone(), separating_advice(problem, best, rival)));
-                out.verdict = Verdict::Ambiguous;
-                break;
-            }
-            let mut trial = accepted.clone();
-            trial.push(best.candidate.clone());
-            let f = best.fit.clone().expect("a passing candidate was fitted");
-            let (cv, cv_axis) = heldout(problem, &trial, &f.theta)?;
-            if cv >= cv_current {
-                break;
-            }
-            cv_current = cv;
-            out.heldout_after = cv_axis;
-            let k0 = current.theta.len();
-            accepted = trial;
-            out.accepted.push(Accepted {
-                effect: best.candidate.effect(&f.theta[k0..]),
-                basis: best.candidate.basis.clone(),
-                label: best.label.clone(),
-                params: f.theta[k0..].to_vec(),
-                se: best.se.clone(),
-                p_value: best.p_value,
-                delta_bic: best.delta_bic,
-            });
-            current = f;
-            let k = current.theta.len();
-            out.final_p = chi2_sf(current.ssr, n.saturating_sub(k).max(1));
-            if out.final_p >= o.alpha {
-                break;
-            }
-        }
+    let current = if significant {
+        let (accepted, current) = select_effects(&step, &cands, o, alpha_c, nominal, cv_current, &mut out)?;
         // The accepted effects with their values refitted together.
         for (a, e) in out.accepted.iter_mut().zip(effects_of(&accepted, &current.theta)) {
             a.effect = e;
@@ -600,18 +542,108 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
             out.verdict =
                 if accepted.is_empty() || out.final_p < o.alpha { Verdict::Unexplained } else { Verdict::Effect };
         }
+        current
     } else {
         // Not significant: the candidates are still tabulated (for planning), none is named.
-        out.table = cands.iter().map(|c| step.evaluate(&[], &current, c, alpha_c)).collect();
+        out.table = cands.iter().map(|c| step.evaluate(&[], &nominal, c, alpha_c)).collect();
+        nominal
+    };
+    out.per_pose = per_pose_residuals(problem, &rows, &current)?;
+    Ok(out)
+}
+
+/// The nominal model's test: chi-square of its weighted residuals, or with repeated rows the lack-of-fit F
+/// against pure error (in units of the pooled sigma, SS_pe = dof).
+fn nominal_test(ssr: f64, n: usize, source: &SigmaSource) -> (f64, f64) {
+    match *source {
+        SigmaSource::Repeats { dof } => {
+            let ss_pe = dof as f64;
+            let lof_dof = n.saturating_sub(dof).max(1);
+            let f = ((ssr - ss_pe).max(0.0) / lof_dof as f64) / (ss_pe / dof as f64);
+            (f, f_sf(f, lof_dof, dof))
+        }
+        _ => (ssr, chi2_sf(ssr, n)),
     }
+}
+
+/// Forward selection: at each step the passing candidate with the lowest delta BIC is accepted if it
+/// lowers the held-out error, until the residuals are within the noise, nothing passes, two candidates
+/// cannot be told apart (ambiguous) or `max_effects` are named. Returns the accepted candidates and their
+/// joint fit; fills the table, the accepted effects and the held-out error of `out`.
+fn select_effects(
+    step: &Step,
+    cands: &[Candidate],
+    o: &Options,
+    alpha_c: f64,
+    nominal: Fit,
+    mut cv_current: f64,
+    out: &mut Diagnosis,
+) -> Result<(Vec<Candidate>, Fit), DiagnoseError> {
+    let (problem, rows, n) = (step.problem, &step.rows, step.n);
+    let mut accepted: Vec<Candidate> = Vec::new();
+    let mut current = nominal;
+    for _ in 0..o.max_effects {
+        let remaining: Vec<&Candidate> = cands.iter().filter(|c| !accepted.contains(c)).collect();
+        let table: Vec<CandidateRow> =
+            remaining.iter().map(|c| step.evaluate(&accepted, &current, c, alpha_c)).collect();
+        if out.table.is_empty() {
+            out.table = table.clone();
+        }
+        let mut passing: Vec<&CandidateRow> = table.iter().filter(|r| r.passes).collect();
+        passing.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+        let Some(best) = passing.first().copied() else { break };
+        // Two candidates explaining the same thing: parallel changes of the residuals, BIC within 10.
+        if let Some(rival) = passing.iter().skip(1).find(|r| {
+            r.delta_bic - best.delta_bic < STRONG_BIC
+                && cosine(&r.change, &best.change) > PARALLEL_CHANGES
+                && !nested(problem, &r.candidate, &best.candidate, rows)
+        }) {
+            out.ambiguous = Some((best.label.clone(), rival.label.clone(), separating_advice(problem, best, rival)));
+            out.verdict = Verdict::Ambiguous;
+            break;
+        }
+        let mut trial = accepted.clone();
+        trial.push(best.candidate.clone());
+        let f = best.fit.clone().expect("a passing candidate was fitted");
+        let (cv, cv_axis) = heldout(problem, &trial, &f.theta)?;
+        if cv >= cv_current {
+            break;
+        }
+        cv_current = cv;
+        out.heldout_after = cv_axis;
+        let k0 = current.theta.len();
+        accepted = trial;
+        out.accepted.push(Accepted {
+            effect: best.candidate.effect(&f.theta[k0..]),
+            basis: best.candidate.basis.clone(),
+            label: best.label.clone(),
+            params: f.theta[k0..].to_vec(),
+            se: best.se.clone(),
+            p_value: best.p_value,
+            delta_bic: best.delta_bic,
+        });
+        current = f;
+        let k = current.theta.len();
+        out.final_p = chi2_sf(current.ssr, n.saturating_sub(k).max(1));
+        if out.final_p >= o.alpha {
+            break;
+        }
+    }
+    Ok((accepted, current))
+}
+
+/// Per pose: its position and the residual (mm) of its row with the largest nominal residual, before and
+/// after the accepted effects (`current`).
+fn per_pose_residuals(problem: &Problem, rows: &[usize], current: &Fit) -> Result<Vec<(Vec3, Vec3, Vec3)>, PoseError> {
     let mm =
         |r: &DVector<f64>, row: usize| Vec3::new(r[3 * row], r[3 * row + 1], r[3 * row + 2]) / problem.weights[row];
-    let nominal_r = problem.residuals(&[], &rows)?;
-    for p in &data.poses {
+    let nominal_r = problem.residuals(&[], rows)?;
+    let mut out = Vec::new();
+    for p in &problem.data.poses {
         let worst =
             p.rows.iter().copied().max_by(|a, b| mm(&nominal_r, *a).norm().total_cmp(&mm(&nominal_r, *b).norm()));
         if let Some(w) = worst {
-            out.per_pose.push((p.position, mm(&nominal_r, w), mm(&current.residuals, w)));
+            out.push((p.position, mm(&nominal_r, w), mm(&current.residuals, w)));
         }
     }
     Ok(out)

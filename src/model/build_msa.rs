@@ -260,6 +260,8 @@ impl Builder<'_> {
         }
     }
 
+    /// A joint between two nodes of an MSA structure: its free and elastic directions, as templates
+    /// evaluated at each pose.
     fn msa_joint<F>(
         &self,
         joint: &Spanned<MsaJointSpec>,
@@ -272,6 +274,51 @@ impl Builder<'_> {
         let s = joint.get_ref();
         let kind = s.kind.get_ref().as_str();
         let (i, j) = self.node_pair(&s.nodes, index)?;
+        self.check_joint_keys(joint, kind)?;
+        let mut m = Motions::default();
+        match kind {
+            "rigid" => {}
+            "spherical" => m.free.extend((3..6).map(unit_direction)),
+            "revolute" | "prismatic" => m = self.axial_joint(joint, kind, names)?,
+            "universal" => {
+                let axes =
+                    s.axes.as_ref().ok_or_else(|| self.loc.at(joint.span(), "a universal joint needs two `axes`"))?;
+                if axes.get_ref().len() != 2 {
+                    return Err(self.loc.at(axes.span(), "a universal joint has exactly two axes"));
+                }
+                for a in axes.get_ref() {
+                    m.free.push(rotation_direction(self.axis_template(a, names)?));
+                }
+            }
+            "free" => {
+                let rows = s.free.as_ref().expect("checked by check_joint_keys");
+                for row in rows.get_ref() {
+                    let twist = std::array::from_fn(|k| names.compile(&row[k]));
+                    if let Some(Err(e)) = twist.iter().find(|t| t.is_err()) {
+                        return Err(self.loc.at(rows.span(), e.clone()));
+                    }
+                    m.free.push(DirectionTemplate { twist: twist.map(|t| t.expect("checked")) });
+                }
+            }
+            "spring" => {
+                let spec = s
+                    .stiffness_matrix
+                    .as_ref()
+                    .ok_or_else(|| self.loc.at(joint.span(), "a `spring` joint needs its `stiffness_matrix`"))?;
+                let k = self.matrix6(spec, "stiffness_matrix")?;
+                m.elastic.extend((0..6).map(unit_direction));
+                m.stiffness = DMatrix::from_fn(6, 6, |r, c| k[(r, c)]);
+                m.preload = DVector::zeros(6);
+            }
+            _ => unreachable!("joint types are checked by check_joint_keys"),
+        }
+        let Motions { free, elastic, stiffness, preload } = m;
+        Ok(ElementTemplate::Joint { i, j, free, elastic, stiffness, preload })
+    }
+
+    /// The joint's type is known and it has only the keys that apply to it.
+    fn check_joint_keys(&self, joint: &Spanned<MsaJointSpec>, kind: &str) -> Result<(), InputError> {
+        let s = joint.get_ref();
         let present = [
             ("axis", s.axis.is_some()),
             ("axes", s.axes.is_some()),
@@ -296,88 +343,67 @@ impl Builder<'_> {
         if let Some((key, _)) = present.iter().find(|(k, p)| *p && !allowed.contains(k)) {
             return Err(self.loc.at(joint.span(), format!("`{key}` does not apply to a `{kind}` joint")));
         }
-        let zero = || Expr::Const(0.0);
-        let rotation = |a: [Expr; 3]| {
-            let [x, y, z] = a;
-            DirectionTemplate { twist: [zero(), zero(), zero(), x, y, z] }
-        };
-        let unit = |k: usize| DirectionTemplate {
-            twist: std::array::from_fn(|r| Expr::Const(if r == k { 1.0 } else { 0.0 })),
-        };
-        let (mut free, mut elastic) = (Vec::new(), Vec::new());
-        let (mut stiffness, mut preload) = (DMatrix::zeros(0, 0), DVector::zeros(0));
-        match kind {
-            "rigid" => {}
-            "spherical" => free.extend((3..6).map(unit)),
-            "revolute" | "prismatic" => {
-                let a = s
-                    .axis
-                    .as_ref()
-                    .ok_or_else(|| self.loc.at(joint.span(), format!("a `{kind}` joint needs an `axis`")))?;
-                let a = self.axis_template(a, names)?;
-                let d = if kind == "revolute" {
-                    rotation(a)
-                } else {
-                    let [x, y, z] = a;
-                    DirectionTemplate { twist: [x, y, z, zero(), zero(), zero()] }
-                };
-                match &s.stiffness {
-                    // Zero stiffness is a passive joint (a clutch let go): no constraint, no spring.
-                    Some(k) => {
-                        let k = self.num(k)?;
-                        if !(k >= 0.0 && k.is_finite()) {
-                            return Err(self.loc.at(joint.span(), format!("stiffness must be >= 0, got {k}")));
-                        }
-                        elastic.push(d);
-                        stiffness = DMatrix::from_element(1, 1, k);
-                        preload = DVector::from_element(
-                            1,
-                            match &s.preload {
-                                Some(p) => self.num(p)?,
-                                None => 0.0,
-                            },
-                        );
-                    }
-                    None if s.preload.is_some() => {
-                        return Err(self
-                            .loc
-                            .at(joint.span(), "`preload` applies to an elastic joint: give a `stiffness`"))
-                    }
-                    None => free.push(d),
-                }
-            }
-            "universal" => {
-                let axes =
-                    s.axes.as_ref().ok_or_else(|| self.loc.at(joint.span(), "a universal joint needs two `axes`"))?;
-                if axes.get_ref().len() != 2 {
-                    return Err(self.loc.at(axes.span(), "a universal joint has exactly two axes"));
-                }
-                for a in axes.get_ref() {
-                    free.push(rotation(self.axis_template(a, names)?));
-                }
-            }
-            "free" => {
-                let rows = s.free.as_ref().expect("checked by `allowed`");
-                for row in rows.get_ref() {
-                    let twist = std::array::from_fn(|k| names.compile(&row[k]));
-                    if let Some(Err(e)) = twist.iter().find(|t| t.is_err()) {
-                        return Err(self.loc.at(rows.span(), e.clone()));
-                    }
-                    free.push(DirectionTemplate { twist: twist.map(|t| t.expect("checked")) });
-                }
-            }
-            "spring" => {
-                let m = s
-                    .stiffness_matrix
-                    .as_ref()
-                    .ok_or_else(|| self.loc.at(joint.span(), "a `spring` joint needs its `stiffness_matrix`"))?;
-                let k = self.matrix6(m, "stiffness_matrix")?;
-                elastic.extend((0..6).map(unit));
-                stiffness = DMatrix::from_fn(6, 6, |r, c| k[(r, c)]);
-                preload = DVector::zeros(6);
-            }
-            _ => unreachable!("joint types are checked above"),
-        }
-        Ok(ElementTemplate::Joint { i, j, free, elastic, stiffness, preload })
+        Ok(())
     }
+
+    /// A revolute or prismatic joint: free about / along its axis, or elastic with a stiffness (zero
+    /// stiffness is a passive joint).
+    fn axial_joint(&self, joint: &Spanned<MsaJointSpec>, kind: &str, names: &Names) -> Result<Motions, InputError> {
+        let s = joint.get_ref();
+        let a =
+            s.axis.as_ref().ok_or_else(|| self.loc.at(joint.span(), format!("a `{kind}` joint needs an `axis`")))?;
+        let a = self.axis_template(a, names)?;
+        let d = if kind == "revolute" {
+            rotation_direction(a)
+        } else {
+            let [x, y, z] = a;
+            let zero = || Expr::Const(0.0);
+            DirectionTemplate { twist: [x, y, z, zero(), zero(), zero()] }
+        };
+        let mut m = Motions::default();
+        match &s.stiffness {
+            // Zero stiffness is a passive joint (a clutch let go): no constraint, no spring.
+            Some(k) => {
+                let k = self.num(k)?;
+                if !(k >= 0.0 && k.is_finite()) {
+                    return Err(self.loc.at(joint.span(), format!("stiffness must be >= 0, got {k}")));
+                }
+                m.elastic.push(d);
+                m.stiffness = DMatrix::from_element(1, 1, k);
+                m.preload = DVector::from_element(
+                    1,
+                    match &s.preload {
+                        Some(p) => self.num(p)?,
+                        None => 0.0,
+                    },
+                );
+            }
+            None if s.preload.is_some() => {
+                return Err(self.loc.at(joint.span(), "`preload` applies to an elastic joint: give a `stiffness`"))
+            }
+            None => m.free.push(d),
+        }
+        Ok(m)
+    }
+}
+
+/// A joint's motions: free directions, elastic ones with their stiffness and rest values.
+#[derive(Default)]
+struct Motions {
+    free: Vec<DirectionTemplate>,
+    elastic: Vec<DirectionTemplate>,
+    stiffness: DMatrix<f64>,
+    preload: DVector<f64>,
+}
+
+/// A rotation about the axis `a` as a twist template.
+fn rotation_direction(a: [Expr; 3]) -> DirectionTemplate {
+    let zero = || Expr::Const(0.0);
+    let [x, y, z] = a;
+    DirectionTemplate { twist: [zero(), zero(), zero(), x, y, z] }
+}
+
+/// The unit twist along coordinate k.
+fn unit_direction(k: usize) -> DirectionTemplate {
+    DirectionTemplate { twist: std::array::from_fn(|r| Expr::Const(if r == k { 1.0 } else { 0.0 })) }
 }
