@@ -4,7 +4,7 @@
 //! Figures 10-11), and a diagnosis (residual arrows before and after, per-axis RMS, the candidates' delta BIC).
 pub mod svg;
 
-use crate::output::diagnosis::DiagnosisReport;
+use crate::output::diagnosis::{DiagnosisReport, ResidualRms};
 use anyhow::{anyhow, bail, Context, Result};
 
 use crate::output::table::names;
@@ -335,8 +335,6 @@ fn assembly(t: &Table) -> Result<String> {
 /// spread most over; per-axis RMS before and after; the candidates' delta BIC.
 pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
     let pos: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.position_mm).collect();
-    let before: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.before_mm).collect();
-    let after: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.after_mm).collect();
     let spread = |k: usize| extent(pos.iter().map(|p| p[k]));
     let mut order = [0usize, 1, 2];
     order.sort_by(|a, b| spread(*b).total_cmp(&spread(*a)));
@@ -354,8 +352,19 @@ pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
         if named.is_empty() { String::new() } else { format!(" ({})", named.join(", ")) }
     );
     s.text(width / 2.0, 20.0, &title, 13.0, "middle", 0.0);
-    // Quiver.
-    let (x0, y0, size) = (80.0, 60.0, 330.0);
+    let (y0, size) = (60.0, 330.0);
+    quiver(&mut s, v, (u, w_axis), y0, size);
+    rms_bars(&mut s, &v.rms_mm, y0, size);
+    delta_bic_bars(&mut s, v, y0, size);
+    Ok(s.finish())
+}
+
+/// Residual arrows at each pose on the plane of axes `(u, w)`: before red, after blue, with a key.
+fn quiver(s: &mut Svg, v: &DiagnosisReport, (u, w_axis): (usize, usize), y0: f64, size: f64) {
+    let pos: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.position_mm).collect();
+    let before: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.before_mm).collect();
+    let after: Vec<[f64; 3]> = v.residuals.iter().map(|r| r.after_mm).collect();
+    let x0 = 80.0;
     let ax = Axis::new(pos.iter().map(|p| p[u]), x0, x0 + size);
     let ay = Axis::new(pos.iter().map(|p| p[w_axis]), y0 + size, y0);
     let longest = before.iter().chain(&after).map(|d| (d[u] * d[u] + d[w_axis] * d[w_axis]).sqrt()).fold(0.0, f64::max);
@@ -366,7 +375,7 @@ pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
         s.arrow(px, py, px + b[u] * scale, py - b[w_axis] * scale, "#c0392b", "before");
         s.arrow(px, py, px + a[u] * scale, py - a[w_axis] * scale, "#1f5fa8", "after");
     }
-    axes(&mut s, &ax, &ay, &format!("{} [mm]", AXES[u]), &format!("{} [mm]", AXES[w_axis]));
+    axes(s, &ax, &ay, &format!("{} [mm]", AXES[u]), &format!("{} [mm]", AXES[w_axis]));
     let key = longest / 2.0;
     s.line((x0, y0 + size + 50.0), (x0 + key * scale, y0 + size + 50.0), "#333", 2.0, "key");
     s.text(
@@ -377,8 +386,10 @@ pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
         "start",
         0.0,
     );
-    // Per-axis RMS.
-    let rms = &v.rms_mm;
+}
+
+/// Residual RMS per axis: fit before / held-out before / fit after / held-out after.
+fn rms_bars(s: &mut Svg, rms: &ResidualRms, y0: f64, size: f64) {
     let (rb, ra, hb, ha) = (rms.fit_before, rms.fit_after, rms.heldout_before, rms.heldout_after);
     let (bx, bw) = (490.0, 170.0);
     let rms_axis =
@@ -394,9 +405,12 @@ pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
         }
         s.text(c, y0 + size + 16.0, AXES[k], 11.0, "middle", 0.0);
     }
-    frame(&mut s, &cat, &rms_axis, "axis", "residual RMS [mm]", false, true);
+    frame(s, &cat, &rms_axis, "axis", "residual RMS [mm]", false, true);
     s.text(bx, y0 - 10.0, "RMS: fit before / held-out before / fit after / held-out after", 9.0, "start", 0.0);
-    // Candidates' delta BIC (identifiable ones), accepted first step's passes marked.
+}
+
+/// The identifiable candidates' delta BIC on a signed log scale; passing ones green, the -10 line red.
+fn delta_bic_bars(s: &mut Svg, v: &DiagnosisReport, y0: f64, size: f64) {
     let rows: Vec<(String, f64, bool)> = v
         .candidates
         .iter()
@@ -424,7 +438,7 @@ pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
     }
     s.line((bic.px(slog(-10.0)), y0), (bic.px(slog(-10.0)), y0 + size), "#c0392b", 1.0, "threshold");
     let ay_cat = Axis { lo: 0.0, hi: 1.0, from: y0 + size, to: y0 };
-    frame(&mut s, &bic, &ay_cat, "delta BIC (log scale; green: passes; red line: -10)", "", false, false);
+    frame(s, &bic, &ay_cat, "delta BIC (log scale; green: passes; red line: -10)", "", false, false);
     for e in 0..8 {
         for sign in [-1.0, 1.0] {
             let d = sign * 10f64.powi(e);
@@ -436,5 +450,4 @@ pub fn diagnosis(v: &DiagnosisReport) -> Result<String> {
             }
         }
     }
-    Ok(s.finish())
 }
