@@ -14,6 +14,7 @@ pub struct BeamSection {
     pub area: f64,
     /// Second moments of area about the section's y and z axes, mm^4.
     pub iy: f64,
+    /// Second moment of area about the section's z axis, mm^4.
     pub iz: f64,
     /// Torsion constant, mm^4.
     pub j: f64,

@@ -10,7 +10,9 @@ use serde::Deserialize;
 /// A number as written in a model file.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ExprSrc {
+    /// A literal.
     Number(f64),
+    /// A formula over named parameters.
     Formula(String),
 }
 
@@ -41,6 +43,7 @@ impl<'de> Deserialize<'de> for ExprSrc {
 
 /// Looks up a parameter's value by name (the model's parameter table).
 pub trait Scope {
+    /// The value of a name, or why there is none.
     fn lookup(&mut self, name: &str) -> Result<f64, String>;
 }
 
@@ -51,6 +54,7 @@ impl Scope for BTreeMap<String, f64> {
 }
 
 impl ExprSrc {
+    /// The value in `scope` (formulas parsed and evaluated).
     pub fn eval(&self, scope: &mut dyn Scope) -> Result<f64, String> {
         match self {
             ExprSrc::Number(v) => Ok(*v),
@@ -81,21 +85,32 @@ pub fn evaluate(text: &str, scope: &mut dyn Scope) -> Result<f64, String> {
 /// table, so that formulas evaluated at every pose (MSA geometry) are parsed once.
 #[derive(Clone, Debug)]
 pub enum Expr {
+    /// A number.
     Const(f64),
     /// The value at this index of the table handed to `eval`.
     Slot(usize),
+    /// Negation.
     Neg(Box<Expr>),
+    /// A binary operation.
     Binary(Op, Box<Expr>, Box<Expr>),
+    /// A function of one argument (sqrt, sin, deg, ...).
     Call(fn(f64) -> f64, Box<Expr>),
+    /// atan2(y, x).
     Atan2(Box<Expr>, Box<Expr>),
 }
 
+/// A binary operator.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Op {
+    /// a + b
     Add,
+    /// a - b
     Sub,
+    /// a * b
     Mul,
+    /// a / b
     Div,
+    /// a ^ b
     Pow,
 }
 

@@ -1,4 +1,5 @@
 //! stiff: stiffness of parallel robots by the Virtual Joint Method (see ARCHITECTURE.md).
+#![warn(missing_docs)]
 pub mod beam;
 pub mod cli;
 pub mod diagnose;

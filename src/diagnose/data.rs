@@ -21,8 +21,10 @@ pub const MAX_MAGNITUDE: f64 = 1e100;
 /// makes weights whose squares overflow).
 pub const MIN_SIGMA_MM: f64 = 1e-9;
 
+/// One measured row: a commanded pose, the wrench applied there and the measured displacement.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Measurement {
+    /// The id grouping rows of one pose.
     pub pose_id: String,
     /// Commanded reference point, mm.
     pub position: Vec3,
@@ -30,6 +32,7 @@ pub struct Measurement {
     pub wrench: Vec6,
     /// Measured minus commanded position of the reference point, mm.
     pub displacement: Vec3,
+    /// The row's standard deviation, mm (the `sigma_mm` column), when given.
     pub sigma: Option<f64>,
     /// Line in the file (for messages).
     pub line: usize,
@@ -38,18 +41,25 @@ pub struct Measurement {
 /// The rows of one pose.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Pose {
+    /// The pose's id.
     pub id: String,
+    /// Its commanded reference point, mm.
     pub position: Vec3,
+    /// Its rows in the dataset.
     pub rows: Vec<usize>,
 }
 
+/// A measurement file: its rows, and the poses they group into.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Dataset {
+    /// The rows, in file order.
     pub rows: Vec<Measurement>,
+    /// The poses, in order of first appearance.
     pub poses: Vec<Pose>,
 }
 
 impl Dataset {
+    /// Reads and checks a measurement CSV (columns by name, every number finite and bounded).
     pub fn read(path: &Path) -> Result<Dataset, InputError> {
         let at = |line: usize, column: usize, message: String| InputError::At {
             path: path.to_path_buf(),

@@ -33,15 +33,28 @@ impl fmt::Display for PoseError {
 #[derive(Clone, Debug, PartialEq)]
 pub enum DiagnoseError {
     /// The model cannot be evaluated at a pose of the data.
-    Pose { pose_id: String, line: usize, why: PoseError },
+    Pose {
+        /// The pose's id in the data.
+        pose_id: String,
+        /// The line of its first row.
+        line: usize,
+        /// Why.
+        why: PoseError,
+    },
     /// A given noise level outside [MIN_SIGMA_MM, MAX_MAGNITUDE].
-    NoiseOutOfRange { sigma: f64 },
+    NoiseOutOfRange {
+        /// The noise level given, mm.
+        sigma: f64,
+    },
     /// No sigma column, no noise level given and no repeated rows to estimate it from.
     NoiseUnknown,
     /// A prediction during the fits failed (a candidate's springs made a pose fail).
     Prediction(PoseError),
     /// Fewer measurements than a candidate has parameters (plus one).
-    TooFewMeasurements { rows: usize },
+    TooFewMeasurements {
+        /// Rows in the data.
+        rows: usize,
+    },
 }
 
 impl fmt::Display for DiagnoseError {

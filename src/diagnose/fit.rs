@@ -13,9 +13,11 @@ use crate::platform::manipulator::Manipulator;
 
 /// The model, the data and what does not change between fits.
 pub struct Problem<'a> {
+    /// The model predicting.
     pub model: &'a Manipulator,
     /// The description's own measurement-model terms (`[[effect]]` entries that are not spring scalings).
     pub terms: &'a [Effect],
+    /// The measurements.
     pub data: &'a Dataset,
     /// 1 / sigma per row (mm^-1).
     pub weights: Vec<f64>,
@@ -30,6 +32,8 @@ pub struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
+    /// Evaluates the model at every pose of `data` once (and the loaded equilibrium of every row when asked or
+    /// needed); a pose it cannot evaluate is a data error.
     pub fn new(
         model: &'a Manipulator,
         terms: &'a [Effect],
@@ -72,6 +76,7 @@ impl<'a> Problem<'a> {
         Ok(Problem { model, terms, data, weights, loaded_mode, gravity: gravity_of(model), poses, loaded, pose_of })
     }
 
+    /// Observations of `rows` (three translations per row).
     pub fn observations(&self, rows: &[usize]) -> usize {
         3 * rows.len()
     }
@@ -121,20 +126,26 @@ impl<'a> Problem<'a> {
 /// (an orthonormal basis of eps, 6 x r); its parameters are the coordinates in that basis.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Candidate {
+    /// The effect's kind.
     pub kind: Kind,
+    /// Its target.
     pub target: Target,
+    /// For leg geometry: the visible directions (6 x dim); the parameters are coordinates along them.
     pub basis: Option<DMatrix<f64>>,
 }
 
 impl Candidate {
+    /// Number of parameters.
     pub fn dim(&self) -> usize {
         self.basis.as_ref().map_or(self.kind.values().0, |b| b.ncols())
     }
 
+    /// The parameters of no effect.
     pub fn neutral(&self) -> Vec<f64> {
         vec![if self.basis.is_some() { 0.0 } else { self.kind.neutral() }; self.dim()]
     }
 
+    /// The effect with parameters `p`.
     pub fn effect(&self, p: &[f64]) -> Effect {
         let values = match &self.basis {
             Some(b) => (b * DVector::from_column_slice(p)).iter().copied().collect(),
@@ -143,6 +154,7 @@ impl Candidate {
         Effect { kind: self.kind, target: self.target.clone(), values }
     }
 
+    /// `NAME[:TARGET]`, as on the command line.
     pub fn label(&self) -> String {
         match &self.target {
             Target::None => self.kind.name().to_string(),
@@ -164,13 +176,16 @@ pub fn effects_of(cands: &[Candidate], theta: &[f64]) -> Vec<Effect> {
         .collect()
 }
 
+/// A Levenberg-Marquardt fit of candidates' parameters.
 #[derive(Clone, Debug)]
 pub struct Fit {
+    /// The fitted parameters, candidates concatenated.
     pub theta: Vec<f64>,
     /// Weighted sum of squared residuals (chi-square with known sigma).
     pub ssr: f64,
     /// Covariance of theta: (J^T J)^-1 for weighted residuals (None if singular).
     pub covariance: Option<DMatrix<f64>>,
+    /// The weighted residuals at the fit.
     pub residuals: DVector<f64>,
 }
 

@@ -15,12 +15,16 @@ use crate::platform::manipulator::{Manipulator, ManipulatorState};
 /// leg's first actuator twist (zero for a leg without one).
 #[derive(Clone, Debug)]
 pub struct PoseModel {
+    /// Compliance of the manipulator at the pose.
     pub compliance: Mat6,
+    /// Each leg's stiffness at the reference point.
     pub legs: Vec<Mat6>,
+    /// Each leg's first actuator twist (zero without one).
     pub actuators: Vec<Vec6>,
 }
 
 impl PoseModel {
+    /// Evaluates the model at `pose` (unloaded).
     pub fn at(m: &Manipulator, pose: &Frame, state: &mut ManipulatorState) -> Result<PoseModel, PoseError> {
         let mut legs = Vec::with_capacity(m.legs.len());
         let total = m.unloaded_each(pose, state, |_, r| legs.push(r.stiffness)).map_err(PoseError::Fails)?;

@@ -16,6 +16,7 @@ fn source_text(s: &SigmaSource) -> String {
     }
 }
 
+/// The verdict in one sentence, with the numbers that back it.
 pub fn sentence(d: &Diagnosis) -> String {
     match d.verdict {
         Verdict::None => format!(
@@ -41,6 +42,7 @@ pub fn sentence(d: &Diagnosis) -> String {
     }
 }
 
+/// The report printed on stdout: verdict, nominal test, accepted effects, candidate table, residual RMS.
 pub fn text(d: &Diagnosis, model: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "stiff diagnose: {model}");

@@ -14,10 +14,14 @@ use super::fit::{effects_of, fit, jacobian, Candidate, Fit, Problem};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::effect::{Effect, Kind, Target};
 
+/// How the selection runs.
 #[derive(Clone, Debug)]
 pub struct Options {
+    /// Significance level (candidates are tested at alpha / their number).
     pub alpha: f64,
+    /// Predictions follow the loaded equilibrium.
     pub loaded: bool,
+    /// Most effects named.
     pub max_effects: usize,
 }
 
@@ -27,25 +31,35 @@ impl Default for Options {
     }
 }
 
+/// Where the noise level comes from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum SigmaSource {
     /// The data's sigma_mm column.
     Column,
-    /// --sigma.
+    /// Given with the command (the noise level of the instrument).
     Given,
     /// Pooled from repeated rows (same pose and wrench): degrees of freedom of the pure error.
-    Repeats { dof: usize },
+    Repeats {
+        /// Degrees of freedom of the pure error.
+        dof: usize,
+    },
 }
 
+/// What the diagnosis concludes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
+    /// Effects explain the discrepancy.
     Effect,
+    /// The nominal model is within the noise.
     None,
+    /// Two candidates explain it equally well.
     Ambiguous,
+    /// Something is left that no candidate explains.
     Unexplained,
 }
 
 impl Verdict {
+    /// The verdict's name in reports and JSON.
     pub fn as_str(self) -> &'static str {
         match self {
             Verdict::Effect => "effect",
@@ -59,22 +73,35 @@ impl Verdict {
 /// One candidate evaluated at one step (added to the effects accepted before it).
 #[derive(Clone, Debug)]
 pub struct CandidateRow {
+    /// `NAME[:TARGET]`.
     pub label: String,
+    /// Number of parameters.
     pub dim: usize,
+    /// Whether the data can fix its parameters.
     pub identifiable: bool,
     /// Why not identifiable, or empty.
     pub note: String,
+    /// Condition number of its signature.
     pub condition: f64,
     /// Share of the signature outside what the accepted effects already explain (0..1).
     pub orthogonal: f64,
+    /// Weighted sum of squared residuals with it.
     pub ssr: f64,
+    /// Delta BIC against the model without it.
     pub delta_bic: f64,
+    /// Its F statistic.
     pub f: f64,
+    /// The F test's p-value.
     pub p_value: f64,
+    /// Fitted values.
     pub values: Vec<f64>,
+    /// Their standard errors.
     pub se: Vec<f64>,
+    /// Physically possible values.
     pub plausible: bool,
+    /// Some value at least `SIGNIFICANT_T` standard errors from neutral.
     pub significant_params: bool,
+    /// Passes every test.
     pub passes: bool,
     /// How the residuals change when this candidate is fitted (for parallel-signature checks).
     change: DVector<f64>,
@@ -85,27 +112,40 @@ pub struct CandidateRow {
 /// An accepted effect.
 #[derive(Clone, Debug)]
 pub struct Accepted {
+    /// The effect with its fitted values.
     pub effect: Effect,
     /// For leg-geometry: the directions of eps the data sees (6 x r), in which `params` are coordinates.
     pub basis: Option<DMatrix<f64>>,
+    /// `NAME[:TARGET]`.
     pub label: String,
     /// Fitted parameters (coordinates for leg-geometry) with standard errors.
     pub params: Vec<f64>,
+    /// Standard errors of `params`.
     pub se: Vec<f64>,
+    /// The F test's p-value when accepted.
     pub p_value: f64,
+    /// Delta BIC when accepted.
     pub delta_bic: f64,
 }
 
+/// The outcome of `diagnose`.
 #[derive(Clone, Debug)]
 pub struct Diagnosis {
+    /// The verdict.
     pub verdict: Verdict,
+    /// The noise level used, mm.
     pub sigma: f64,
+    /// Where it comes from.
     pub sigma_source: SigmaSource,
+    /// Measurement rows.
     pub rows: usize,
+    /// Observations (three per row).
     pub observations: usize,
     /// Nominal test statistic and p-value (chi-square, or lack-of-fit F with repeats).
     pub nominal_statistic: f64,
+    /// The nominal test's p-value.
     pub nominal_p: f64,
+    /// The effects accepted, in order.
     pub accepted: Vec<Accepted>,
     /// Candidate table of the first step (each candidate alone against the nominal model).
     pub table: Vec<CandidateRow>,
@@ -113,10 +153,12 @@ pub struct Diagnosis {
     pub ambiguous: Option<(String, String, String)>,
     /// Residual RMS per axis (mm) on the data, before and after the accepted effects.
     pub rms_before: Vec3,
+    /// After the accepted effects.
     pub rms_after: Vec3,
     /// Leave-pose-out residual RMS per axis (mm): nominal, and with the accepted effects refitted
     /// without the held-out pose.
     pub heldout_before: Vec3,
+    /// Held-out, with the accepted effects refitted.
     pub heldout_after: Vec3,
     /// p-value of the residuals left after the accepted effects.
     pub final_p: f64,
@@ -497,6 +539,8 @@ fn separating_advice(problem: &Problem, a: &CandidateRow, b: &CandidateRow) -> S
     best.1
 }
 
+/// Names the effects that explain where the data and the model disagree (forward selection with F tests,
+/// BIC and held-out errors), or none, or says the candidates cannot be told apart.
 pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options) -> Result<Diagnosis, DiagnoseError> {
     let data = problem.data;
     let rows: Vec<usize> = (0..data.rows.len()).collect();

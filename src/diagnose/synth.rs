@@ -13,11 +13,15 @@ use crate::model::grid::PointSet;
 use crate::model::Model;
 use crate::output::table::{header, names, write_row, Record, Row};
 
+/// What `stiff synth` measures.
 pub struct SynthOptions {
+    /// The hidden effects.
     pub effects: Vec<Effect>,
+    /// Wrenches applied at every pose.
     pub wrenches: Vec<Vec6>,
     /// Standard deviation of the measurement noise, mm (each axis).
     pub noise: f64,
+    /// Seed of the noise.
     pub seed: u64,
     /// Rows per pose and wrench (repeated measurements).
     pub repeats: usize,
@@ -117,7 +121,10 @@ pub enum SynthError {
     /// The model could not predict a measurement.
     Model(DiagnoseError),
     /// The load or the effects give a displacement `diagnose` could not read (beyond `MAX_MAGNITUDE`).
-    Unreadable { pose_id: String },
+    Unreadable {
+        /// The pose.
+        pose_id: String,
+    },
     /// No pose of the input is reachable and regular.
     NoReachablePose,
     /// Writing the output failed (a closed pipe, a full disk).

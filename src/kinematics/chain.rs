@@ -7,9 +7,12 @@
 
 use super::frame::{rotation_about, Frame, Vec3, Vec6};
 
+/// An elementary joint's motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum JointKind {
+    /// Rotation about the axis.
     Revolute,
+    /// Translation along the axis.
     Prismatic,
 }
 
@@ -17,17 +20,24 @@ pub enum JointKind {
 /// reaction at equilibrium, paper 001 eq 7) or virtual (elastic, reaction K_theta theta, eq 6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Role {
+    /// An actuator's coordinate.
     Actuated,
+    /// A passive joint's coordinate.
     Passive,
+    /// A virtual spring's coordinate.
     Virtual,
 }
 
+/// An elementary joint of a chain.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Joint {
+    /// Revolute or prismatic.
     pub kind: JointKind,
     /// Unit axis in the joint's local frame.
     pub axis: Vec3,
+    /// Which coordinate vector it reads.
     pub role: Role,
+    /// Index in that vector.
     pub index: usize,
     /// The joint value is `gain * coordinate` (a gain of -1 lets one coordinate drive two joints, as the
     /// parallelogram constraint q3 = -q2 of paper 001 eq 22 needs).
@@ -60,14 +70,19 @@ impl Joint {
     }
 }
 
+/// One element of a serial chain.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Element {
+    /// A fixed transform.
     Fixed(Frame),
+    /// A one-coordinate joint.
     Joint(Joint),
     /// A point mass (kg) at `centre` in the current frame: under the model's gravity it is an auxiliary
     /// load G_j at an intermediate node (paper 000 eq 28-31).
     Mass {
+        /// Mass, kg.
         kg: f64,
+        /// Its centre in the current frame, mm.
         centre: Vec3,
     },
 }
@@ -75,12 +90,16 @@ pub enum Element {
 /// Values of a chain's coordinates, by role.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Coordinates {
+    /// Actuated coordinates (mm or rad).
     pub actuated: Vec<f64>,
+    /// Passive coordinates.
     pub passive: Vec<f64>,
+    /// Virtual (spring) coordinates.
     pub virtual_: Vec<f64>,
 }
 
 impl Coordinates {
+    /// All coordinates of `chain` at zero.
     pub fn zeros(chain: &Chain) -> Self {
         Self {
             actuated: vec![0.0; chain.n_actuated],
@@ -89,6 +108,7 @@ impl Coordinates {
         }
     }
 
+    /// The coordinate a joint of `role` with `index` reads.
     #[inline]
     pub fn get(&self, role: Role, index: usize) -> f64 {
         match role {
@@ -134,8 +154,11 @@ struct PlacedMass {
 /// The end frame and the Jacobian columns of one evaluation; buffers are reused between calls.
 #[derive(Clone, Debug, Default)]
 pub struct ChainJacobians {
+    /// The end frame.
     pub end: Frame,
+    /// Twist columns of the actuated coordinates at the end point.
     pub actuated: Vec<Vec6>,
+    /// Twist columns of the passive coordinates.
     pub passive: Vec<Vec6>,
     /// Filled by `fill_virtual`; zero until then.
     pub virtual_: Vec<Vec6>,
@@ -261,11 +284,15 @@ impl ChainJacobians {
     }
 }
 
+/// A serial chain from the base frame to the leg's end frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Chain {
     elements: Vec<Element>,
+    /// Number of actuated coordinates.
     pub n_actuated: usize,
+    /// Number of passive coordinates.
     pub n_passive: usize,
+    /// Number of virtual coordinates.
     pub n_virtual: usize,
 }
 
@@ -307,6 +334,7 @@ impl Chain {
         kinds
     }
 
+    /// Its elements, base first.
     pub fn elements(&self) -> &[Element] {
         &self.elements
     }

@@ -5,15 +5,21 @@
 
 use nalgebra::{Matrix3, Matrix6, Rotation3, Unit, Vector3, Vector6};
 
+/// A 3-vector (mm, rad, N, N mm).
 pub type Vec3 = Vector3<f64>;
+/// A 3x3 matrix.
 pub type Mat3 = Matrix3<f64>;
+/// A twist (dx, dy, dz, rx, ry, rz) or a wrench (Fx, Fy, Fz, Mx, My, Mz).
 pub type Vec6 = Vector6<f64>;
+/// A 6x6 matrix (stiffness, compliance, Jacobian blocks).
 pub type Mat6 = Matrix6<f64>;
 
 /// A rigid transform: `p_world = rot * p_local + pos`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
+    /// Orientation.
     pub rot: Mat3,
+    /// Position, mm.
     pub pos: Vec3,
 }
 
@@ -24,17 +30,21 @@ impl Default for Frame {
 }
 
 impl Frame {
+    /// The identity.
     pub const IDENTITY: Frame =
         Frame { rot: Mat3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), pos: Vec3::new(0.0, 0.0, 0.0) };
 
+    /// A frame from its orientation and position.
     pub fn new(rot: Mat3, pos: Vec3) -> Self {
         Self { rot, pos }
     }
 
+    /// A pure translation.
     pub fn translation(pos: Vec3) -> Self {
         Self { rot: Mat3::identity(), pos }
     }
 
+    /// A pure rotation.
     pub fn rotation(rot: Mat3) -> Self {
         Self { rot, pos: Vec3::zeros() }
     }
@@ -50,11 +60,13 @@ impl Frame {
         Frame { rot: self.rot * other.rot, pos: self.pos + self.rot * other.pos }
     }
 
+    /// The inverse transform.
     pub fn inverse(&self) -> Frame {
         let rt = self.rot.transpose();
         Frame { rot: rt, pos: -(rt * self.pos) }
     }
 
+    /// A point given in this frame, in the parent frame.
     #[inline]
     pub fn transform_point(&self, p: &Vec3) -> Vec3 {
         self.pos + self.rot * p

@@ -7,6 +7,7 @@ use super::frame::{weigh_rotations, Frame, Mat6, Vec6};
 /// Why inverse kinematics gave up, with the numbers a user needs to judge it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IkFailure {
+    /// Iterations spent.
     pub iterations: usize,
     /// Remaining pose error, rotations weighted by the chain's length scale (mm).
     pub residual_mm: f64,
@@ -30,6 +31,7 @@ impl std::fmt::Display for IkFailure {
     }
 }
 
+/// Most Gauss-Newton iterations per solve.
 pub const MAX_ITERATIONS: usize = 60;
 /// Convergence: weighted pose error below this times the chain's length scale (a 900 mm leg: 1e-6 mm and
 /// 1e-9 rad), far below what changes a stiffness in its printed digits.
@@ -44,6 +46,7 @@ pub const REACH_TOLERANCE_MM: f64 = 1e-4;
 /// Buffers reused from one solve to the next (no allocation per point).
 #[derive(Clone, Debug, Default)]
 pub struct IkWorkspace {
+    /// The chain evaluated at the current coordinates.
     pub current: ChainJacobians,
     /// True when `current` was evaluated at the coordinates the next solve starts from (the previous
     /// solution), so the first Newton step needs no new evaluation.

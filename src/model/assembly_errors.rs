@@ -93,7 +93,9 @@ impl LegErrors {
 /// The errors of every leg of a manipulator, and where to rebuild legs whose parameters change.
 #[derive(Clone, Debug)]
 pub struct ErrorSet {
+    /// Free text about the errors and their source.
     pub description: Option<String>,
+    /// Per leg, its errors.
     pub legs: Vec<LegErrors>,
     model_path: PathBuf,
     model_source: String,

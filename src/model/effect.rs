@@ -8,18 +8,28 @@ use std::fmt;
 
 use crate::platform::manipulator::{Manipulator, SpringSet};
 
+/// An effect of the library.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Kind {
+    /// A leg's actuator spring softer or stiffer (compliance factor).
     ActuatorCompliance,
+    /// A spring group softer or stiffer (compliance factor).
     LinkCompliance,
+    /// A mass carried at the reference point under the model's gravity.
     Gravity,
+    /// A leg's end-point error (six values).
     LegGeometry,
+    /// A preload of a leg's actuator spring.
     Preload,
+    /// A share of the loaded (large-deflection) response.
     LoadedNonlinearity,
+    /// A clearance of a leg's actuator, taken up by the sign of its load.
     Backlash,
+    /// The measured point offset from the reference point.
     ToolOffset,
 }
 
+/// Every kind, in the order candidates are listed.
 pub const KINDS: [Kind; 8] = [
     Kind::ActuatorCompliance,
     Kind::LinkCompliance,
@@ -32,6 +42,7 @@ pub const KINDS: [Kind; 8] = [
 ];
 
 impl Kind {
+    /// The name on the command line and in `[[effect]]`.
     pub fn name(self) -> &'static str {
         match self {
             Kind::ActuatorCompliance => "actuator-compliance",
@@ -45,6 +56,7 @@ impl Kind {
         }
     }
 
+    /// The kind of this name.
     pub fn parse(name: &str) -> Option<Kind> {
         KINDS.iter().copied().find(|k| k.name() == name)
     }
@@ -91,15 +103,21 @@ impl Kind {
     }
 }
 
+/// What a target names.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TargetKind {
+    /// A leg, by number.
     Leg,
+    /// A spring group, by name.
     Group,
+    /// Nothing: the effect takes no target.
     None,
 }
 
+/// The target of an effect.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Target {
+    /// No target.
     None,
     /// A leg, 0-based (written 1-based).
     Leg(usize),
@@ -120,8 +138,11 @@ impl fmt::Display for Target {
 /// One effect with its values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Effect {
+    /// What kind of effect.
     pub kind: Kind,
+    /// What it acts on.
     pub target: Target,
+    /// Its values (`Kind::values` gives their meaning).
     pub values: Vec<f64>,
 }
 
@@ -145,21 +166,57 @@ pub enum EffectError {
     /// No effect of that name.
     UnknownKind(String),
     /// A value is not a number.
-    NotANumber { text: String, value: String },
+    NotANumber {
+        /// The whole effect as written.
+        text: String,
+        /// The value that is not a number.
+        value: String,
+    },
     /// Wrong number of values, or a non-finite one.
-    Values { kind: Kind },
+    Values {
+        /// The effect.
+        kind: Kind,
+    },
     /// A target given to an effect that takes none.
-    UnexpectedTarget { kind: Kind, target: String },
+    UnexpectedTarget {
+        /// The effect.
+        kind: Kind,
+        /// The target given.
+        target: String,
+    },
     /// No target given to an effect that needs one.
-    MissingTarget { kind: Kind },
+    MissingTarget {
+        /// The effect.
+        kind: Kind,
+    },
     /// The target is not a leg number, or no such leg.
-    NoLeg { kind: Kind, target: String, legs: usize },
+    NoLeg {
+        /// The effect.
+        kind: Kind,
+        /// The target given.
+        target: String,
+        /// The number of legs.
+        legs: usize,
+    },
     /// The leg has no actuator spring (an MSA leg, or a chain without `actuator = true`).
-    NoActuatorSpring { kind: Kind, leg: usize },
+    NoActuatorSpring {
+        /// The effect.
+        kind: Kind,
+        /// The leg, 0-based.
+        leg: usize,
+    },
     /// No spring group of that name.
-    NoGroup { kind: Kind, group: String },
+    NoGroup {
+        /// The effect.
+        kind: Kind,
+        /// The group named.
+        group: String,
+    },
     /// A compliance factor that is zero or negative.
-    NotPositive { kind: Kind },
+    NotPositive {
+        /// The effect.
+        kind: Kind,
+    },
 }
 
 impl fmt::Display for EffectError {

@@ -2,17 +2,45 @@
 
 use std::path::{Path, PathBuf};
 
+/// An input that cannot be used, located where possible (file, line, column), worded to say what to do.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
     /// The cause is written here, once: it is not also a `source`, which `{:#}` would print again.
     #[error("cannot read {}: {cause}", path.display())]
-    Read { path: PathBuf, cause: std::io::Error },
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why it could not be read.
+        cause: std::io::Error,
+    },
+    /// The file is not valid TOML (or CSV) at all.
     #[error("{}: {message}", path.display())]
-    Syntax { path: PathBuf, message: String },
+    Syntax {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message, with its location.
+        message: String,
+    },
+    /// A value at a known place is wrong.
     #[error("{}, line {line}, column {column}: {message}", path.display())]
-    At { path: PathBuf, line: usize, column: usize, message: String },
+    At {
+        /// The file.
+        path: PathBuf,
+        /// Line, from 1.
+        line: usize,
+        /// Column, from 1.
+        column: usize,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// The file as a whole is wrong (no single place to point at).
     #[error("{}: {message}", path.display())]
-    Whole { path: PathBuf, message: String },
+    Whole {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        message: String,
+    },
 }
 
 /// 1-based line and column of a byte offset.
@@ -25,7 +53,9 @@ pub fn line_column(source: &str, offset: usize) -> (usize, usize) {
 
 /// Builds located errors for one file.
 pub struct Locator<'a> {
+    /// The file.
     pub path: &'a Path,
+    /// Its text.
     pub source: &'a str,
 }
 
@@ -57,20 +87,24 @@ impl Locator<'_> {
         v.as_ref().map(|v| self.finite_array(v, key)).transpose()
     }
 
+    /// An error at the bytes `span` of the file (line and column computed).
     pub fn at(&self, span: std::ops::Range<usize>, message: impl Into<String>) -> InputError {
         let (line, column) = line_column(self.source, span.start);
         InputError::At { path: self.path.to_path_buf(), line, column, message: message.into() }
     }
 
+    /// An error about the whole file.
     pub fn whole(&self, message: impl Into<String>) -> InputError {
         InputError::Whole { path: self.path.to_path_buf(), message: message.into() }
     }
 
+    /// A TOML parse error, located.
     pub fn syntax(&self, e: toml::de::Error) -> InputError {
         InputError::Syntax { path: self.path.to_path_buf(), message: e.to_string().trim_end().to_string() }
     }
 }
 
+/// Reads a text file, with an error that names it.
 pub fn read_text(path: &Path) -> Result<String, InputError> {
     std::fs::read_to_string(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })
 }

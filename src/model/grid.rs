@@ -13,6 +13,7 @@ use crate::kinematics::frame::{Frame, Vec3, Vec6};
 /// One pose to evaluate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PosePoint {
+    /// The point's name, where the input gives one.
     pub name: Option<String>,
     /// Platform reference point, mm.
     pub position: Vec3,
@@ -23,6 +24,7 @@ pub struct PosePoint {
 }
 
 impl PosePoint {
+    /// The platform frame of this pose.
     pub fn frame(&self) -> Frame {
         Frame::from_position_rotvec(self.position, self.rotation)
     }

@@ -10,12 +10,16 @@ use toml::Spanned;
 
 use crate::expr::ExprSrc;
 
+/// A number as written: a literal or a formula, with its position for messages.
 pub type Num = Spanned<ExprSrc>;
 
+/// A manipulator description file.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ModelFile {
+    /// The manipulator's name (reports, CSV metadata).
     pub name: String,
+    /// Free text about the model and its sources.
     #[serde(default)]
     pub description: Option<String>,
     /// Named numbers, usable in any formula of the file (and in each other).
@@ -28,6 +32,7 @@ pub struct ModelFile {
     /// Gravity acting on the chains' masses, m/s^2 (default: none).
     #[serde(default)]
     pub gravity: Option<[Num; 3]>,
+    /// The legs (`[[leg]]` tables), each a chain, an MSA structure or a leg of another file.
     #[serde(rename = "leg")]
     pub legs: Spanned<Vec<Spanned<LegSpec>>>,
     /// Corrections to the nominal model, as `stiff diagnose --model-out` writes them.
@@ -39,15 +44,20 @@ pub struct ModelFile {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EffectSpec {
+    /// The effect's name, as on the command line (`actuator-compliance`, `gravity`, ...).
     pub name: String,
+    /// Its target: a leg number (1-based) or a spring group, where the effect takes one.
     #[serde(default)]
     pub target: Option<String>,
+    /// Its values, as many as the effect takes.
     pub values: Vec<f64>,
 }
 
+/// A leg: its body (chain, MSA or `from`), where it attaches, and its copies.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LegSpec {
+    /// The leg's name (a copy's name replaces it).
     pub name: String,
     /// Copies of the leg, each moved rigidly (base part and platform attachment together) about the
     /// world/platform origin; without copies the leg appears once as written.
@@ -90,8 +100,10 @@ pub struct MsaSpec {
     /// Named beam sections used by the links.
     #[serde(default)]
     pub sections: BTreeMap<String, Spanned<SectionSpec>>,
+    /// The links between nodes (`[[leg.msa.link]]`).
     #[serde(default, rename = "link")]
     pub links: Vec<Spanned<MsaLinkSpec>>,
+    /// The joints between nodes or to the base (`[[leg.msa.joint]]`).
     #[serde(default, rename = "joint")]
     pub joints: Vec<Spanned<MsaJointSpec>>,
 }
@@ -100,7 +112,9 @@ pub struct MsaSpec {
 #[derive(Debug, Deserialize)]
 #[serde(untagged)]
 pub enum NodeSpec {
+    /// Three formulas: x, y, z in mm, in the leg's frame.
     At([ExprSrc; 3]),
+    /// The name of another node at the same point.
     Same(String),
 }
 
@@ -108,20 +122,28 @@ pub enum NodeSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SectionSpec {
+    /// Young's modulus, N/mm^2.
     #[serde(rename = "E")]
     pub e: Num,
+    /// Shear modulus, N/mm^2 (or give `nu`).
     #[serde(rename = "G", default)]
     pub g: Option<Num>,
+    /// Poisson's ratio: G = E / (2 (1 + nu)).
     #[serde(default)]
     pub nu: Option<Num>,
+    /// Round solid section of this diameter (mm), instead of A, Iy, Iz, J.
     #[serde(default)]
     pub diameter: Option<Num>,
+    /// Area, mm^2.
     #[serde(rename = "A", default)]
     pub area: Option<Num>,
+    /// Second moment of area about the section's y axis, mm^4.
     #[serde(rename = "Iy", default)]
     pub iy: Option<Num>,
+    /// Second moment of area about the section's z axis, mm^4.
     #[serde(rename = "Iz", default)]
     pub iz: Option<Num>,
+    /// Torsion constant, mm^4.
     #[serde(rename = "J", default)]
     pub j: Option<Num>,
 }
@@ -131,13 +153,18 @@ pub struct SectionSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MsaLinkSpec {
+    /// `beam`, `rigid` or `link`.
     #[serde(rename = "type")]
     pub kind: Spanned<String>,
+    /// The two nodes joined, by name.
     pub nodes: Spanned<Vec<Spanned<String>>>,
+    /// A `beam`'s section, by name in `sections`.
     #[serde(default)]
     pub section: Option<Spanned<String>>,
+    /// A `beam`'s section y axis (for sections with Iy != Iz).
     #[serde(default)]
     pub y_axis: Option<Spanned<AxisSpec>>,
+    /// A `link`'s 6x6 stiffness at the second node, the first clamped (leg frame).
     #[serde(default)]
     pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
 }
@@ -150,42 +177,59 @@ pub struct MsaLinkSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MsaJointSpec {
+    /// `rigid`, `revolute`, `prismatic`, `universal`, `spherical`, `free` or `spring`.
     #[serde(rename = "type")]
     pub kind: Spanned<String>,
+    /// The two nodes joined (the first may be `base`).
     pub nodes: Spanned<Vec<Spanned<String>>>,
+    /// A revolute or prismatic joint's axis.
     #[serde(default)]
     pub axis: Option<Spanned<AxisSpec>>,
+    /// A universal joint's two axes.
     #[serde(default)]
     pub axes: Option<Spanned<Vec<Spanned<AxisSpec>>>>,
+    /// A `free` joint's passive unit twists (dx, dy, dz, rx, ry, rz), one row each.
     #[serde(default)]
     pub free: Option<Spanned<Vec<[ExprSrc; 6]>>>,
+    /// A revolute or prismatic joint's stiffness (N/mm or N mm/rad): elastic; zero: passive.
     #[serde(default)]
     pub stiffness: Option<Num>,
+    /// The rest value of an elastic joint's coordinate (mm or rad).
     #[serde(default)]
     pub preload: Option<Num>,
+    /// A `spring` joint's 6x6 stiffness (leg frame).
     #[serde(default)]
     pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
 }
 
+/// A copy of a leg, moved rigidly about the world / platform origin.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CopySpec {
+    /// The copy's name.
     pub name: String,
+    /// Translation of the copy, mm.
     #[serde(default)]
     pub translation: Option<[Num; 3]>,
+    /// Axis of the copy's rotation.
     #[serde(default)]
     pub rotation_axis: Option<Spanned<AxisSpec>>,
+    /// Angle of the copy's rotation, degrees.
     #[serde(default)]
     pub rotation_deg: Option<Num>,
 }
 
+/// A rigid transform: a translation and a rotation about an axis.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TransformSpec {
+    /// Translation, mm.
     #[serde(default)]
     pub translation: Option<[Num; 3]>,
+    /// Rotation axis.
     #[serde(default)]
     pub rotation_axis: Option<Spanned<AxisSpec>>,
+    /// Rotation angle, degrees.
     #[serde(default)]
     pub rotation_deg: Option<Num>,
 }
@@ -194,48 +238,64 @@ pub struct TransformSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ElementSpec {
+    /// `fixed`, `prismatic`, `revolute`, `universal`, `spherical`, `spring6` or `mass`.
     #[serde(rename = "type")]
     pub kind: Spanned<String>,
+    /// A name (springs are grouped by it; joints are followed by it); default: type and position.
     #[serde(default)]
     pub name: Option<String>,
     // fixed
+    /// A fixed transform's translation, mm.
     #[serde(default)]
     pub translation: Option<[Num; 3]>,
+    /// A fixed transform's rotation axis.
     #[serde(default)]
     pub rotation_axis: Option<Spanned<AxisSpec>>,
+    /// A fixed transform's rotation angle, degrees.
     #[serde(default)]
     pub rotation_deg: Option<Num>,
     // prismatic, revolute
+    /// A joint's axis.
     #[serde(default)]
     pub axis: Option<Spanned<AxisSpec>>,
+    /// A joint's role: `actuated`, `passive` or `elastic`.
     #[serde(default)]
     pub role: Option<Spanned<String>>,
+    /// A joint's spring stiffness (N/mm or N mm/rad): an actuator's control loop, or an elastic joint.
     #[serde(default)]
     pub stiffness: Option<Num>,
     /// A passive joint driven by another passive joint's coordinate (named), times `gain`: a parallelogram's
     /// q3 = -q2 (paper 001 eq 22).
     #[serde(default)]
     pub follows: Option<Spanned<String>>,
+    /// Gain of a following joint (default 1).
     #[serde(default)]
     pub gain: Option<Num>,
     // universal
+    /// A universal joint's two axes.
     #[serde(default)]
     pub axes: Option<Spanned<Vec<Spanned<AxisSpec>>>>,
     // spring6
+    /// A 6-dof spring's stiffness matrix (N, mm, rad).
     #[serde(default)]
     pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+    /// A 6-dof spring's compliance matrix.
     #[serde(default)]
     pub compliance_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+    /// A 6-dof spring from a clamped-free beam.
     #[serde(default)]
     pub beam: Option<Spanned<BeamSpec>>,
+    /// A 6-dof spring from a parallelogram's two bars, at the current angle.
     #[serde(default)]
     pub parallelogram: Option<Spanned<ParallelogramSpec>>,
     /// Spring preload: the rest values theta0 of the spring's coordinates (mm, rad), one per coordinate.
     #[serde(default)]
     pub preload: Option<Spanned<Vec<Num>>>,
     // mass
+    /// A point mass, kg, carried by the chain at this element (weighed by the model's gravity).
     #[serde(default)]
     pub mass_kg: Option<Num>,
+    /// The mass's centre in the element's frame, mm (default: its origin).
     #[serde(default)]
     pub centre: Option<[Num; 3]>,
 }
@@ -256,14 +316,19 @@ pub struct BeamSpec {
     /// Round solid section of this diameter (mm), instead of A, Iy, Iz, J.
     #[serde(default)]
     pub diameter: Option<Num>,
+    /// Area, mm^2.
     #[serde(rename = "A", default)]
     pub area: Option<Num>,
+    /// Second moment of area about the section's y axis, mm^4.
     #[serde(rename = "Iy", default)]
     pub iy: Option<Num>,
+    /// Second moment of area about the section's z axis, mm^4.
     #[serde(rename = "Iz", default)]
     pub iz: Option<Num>,
+    /// Torsion constant, mm^4.
     #[serde(rename = "J", default)]
     pub j: Option<Num>,
+    /// Length, mm.
     pub length: Num,
     /// The beam's axis in the spring's frame (default x).
     #[serde(default)]
@@ -275,10 +340,13 @@ pub struct BeamSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParallelogramSpec {
+    /// Young's modulus of the bars, N/mm^2.
     #[serde(rename = "E")]
     pub e: Num,
+    /// Shear modulus of the bars, N/mm^2 (or give `nu`).
     #[serde(rename = "G", default)]
     pub g: Option<Num>,
+    /// Poisson's ratio of the bars.
     #[serde(default)]
     pub nu: Option<Num>,
     /// Diameter of each (round, solid) bar, mm.
@@ -294,7 +362,9 @@ pub struct ParallelogramSpec {
 /// An axis: "x", "-y", ... or a vector of three numbers or formulas.
 #[derive(Clone, Debug, PartialEq)]
 pub enum AxisSpec {
+    /// `x`, `y`, `z`, optionally with a sign (`-y`).
     Named(String),
+    /// Three numbers or formulas.
     Vector([ExprSrc; 3]),
 }
 

@@ -84,24 +84,52 @@ impl Connection {
 #[derive(Clone, Debug, PartialEq)]
 // A structure holds a few dozen elements, built once per pose; boxing the 12x12 block would add an
 // allocation per beam per pose for no saving that matters.
+/// An element of an MSA structure (paper 003 s. 2).
 #[allow(clippy::large_enum_variant)]
 pub enum Element {
     /// A flexible link: the 12x12 stiffness relating the wrenches at nodes i and j to their displacements
     /// (eq 1), base frame.
-    Flexible { i: usize, j: usize, k: [[Mat6; 2]; 2] },
+    Flexible {
+        /// First node.
+        i: usize,
+        /// Second node.
+        j: usize,
+        /// The blocks [[K_ii, K_ij], [K_ji, K_jj]].
+        k: [[Mat6; 2]; 2],
+    },
     /// A rigid link from node i to node j (eq 3-5): the twist of j is the rigid transport of i's.
-    Rigid { i: usize, j: usize },
+    Rigid {
+        /// The node carried from.
+        i: usize,
+        /// The node carried.
+        j: usize,
+    },
     /// A joint between nodes i and j, sitting at j's point (j's side rigidly carried by i elsewhere).
-    Joint { i: usize, j: usize, connection: Connection },
+    Joint {
+        /// First node.
+        i: usize,
+        /// Second node (where the joint sits).
+        j: usize,
+        /// Its free, elastic and rigid directions.
+        connection: Connection,
+    },
     /// A node's connection to the base.
-    Base { node: usize, connection: Connection },
+    Base {
+        /// The node.
+        node: usize,
+        /// Its free, elastic and rigid directions relative to the base.
+        connection: Connection,
+    },
 }
 
 /// An MSA structure: node positions (mm, base frame), elements, and the node where K_C is wanted.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Structure {
+    /// Node positions, mm, base frame.
     pub nodes: Vec<Vec3>,
+    /// Its elements.
     pub elements: Vec<Element>,
+    /// The end node, whose stiffness is wanted.
     pub end: usize,
 }
 
@@ -110,7 +138,12 @@ pub struct Structure {
 pub enum MsaFailure {
     /// With the end node held the structure still moves: `free` independent motions (a redundant passive
     /// joint, or nodes left free), moving the listed nodes.
-    Mechanism { free: usize, nodes: Vec<usize> },
+    Mechanism {
+        /// Number of independent free motions.
+        free: usize,
+        /// The nodes they move.
+        nodes: Vec<usize>,
+    },
     /// An element names a node that does not exist.
     BadNode(usize),
     /// The system has non-finite entries, or its decomposition did not converge (extreme values).
@@ -121,6 +154,7 @@ pub enum MsaFailure {
 /// the springs' preloads, both at the end node's point, base frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EndAnswer {
+    /// Cartesian stiffness at the end node (base frame, at its point).
     pub stiffness: Mat6,
     /// Wrench applied to the end node from outside to keep its displacement zero (N, N mm).
     pub holding_wrench: Vec6,

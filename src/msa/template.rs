@@ -17,39 +17,58 @@ pub const END_VARIABLES: [&str; 6] = ["end_x", "end_y", "end_z", "end_rx", "end_
 /// A direction that follows the pose: a unit twist (translation part, rotation part) of formulas.
 #[derive(Clone, Debug)]
 pub struct DirectionTemplate {
+    /// The direction's six components (dx, dy, dz, rx, ry, rz), formulas of the pose.
     pub twist: [Expr; 6],
 }
 
+/// An element of an MSA leg, its geometry as formulas evaluated at each pose.
 #[derive(Clone, Debug)]
 pub enum ElementTemplate {
     /// A beam between two nodes; its section's y axis across the beam, if given.
     Beam {
+        /// First node.
         i: usize,
+        /// Second node.
         j: usize,
+        /// The beam's section and material.
         section: BeamSection,
+        /// The section's y axis (for sections with Iy != Iz).
         y_axis: Option<[Expr; 3]>,
     },
     /// A link given by its stiffness at j with i clamped (leg frame, at j).
     Link {
+        /// First node (clamped).
         i: usize,
+        /// Second node.
         j: usize,
+        /// Stiffness at j with i clamped (leg frame).
         kjj: Mat6,
     },
+    /// A rigid link from node i to node j (paper 003 eq 3-5).
     Rigid {
+        /// The node carried from.
         i: usize,
+        /// The node carried.
         j: usize,
     },
     /// A connection (i = None: to the base) with free and elastic directions.
     Joint {
+        /// First node (None: the base).
         i: Option<usize>,
+        /// Second node (where the joint sits).
         j: usize,
+        /// Free directions (passive motions).
         free: Vec<DirectionTemplate>,
+        /// Elastic directions.
         elastic: Vec<DirectionTemplate>,
+        /// Stiffness on the elastic directions.
         stiffness: DMatrix<f64>,
+        /// Rest values of the elastic directions.
         preload: DVector<f64>,
     },
 }
 
+/// An MSA leg as written: formulas evaluated at each pose into a `Structure`.
 #[derive(Clone, Debug)]
 pub struct Template {
     /// Per-pose quantities in evaluation order (each may use the end variables and earlier ones); the
@@ -57,9 +76,13 @@ pub struct Template {
     pub pose: Vec<Expr>,
     /// Each must be >= 0 at a reachable pose (eq 20).
     pub reach: Vec<Expr>,
+    /// Node positions (formulas), leg frame.
     pub nodes: Vec<[Expr; 3]>,
+    /// Node names, for messages.
     pub node_names: Vec<String>,
+    /// The end node.
     pub end: usize,
+    /// The elements.
     pub elements: Vec<ElementTemplate>,
 }
 

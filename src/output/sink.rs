@@ -42,15 +42,22 @@ fn unregister(path: &Path) {
     }
 }
 
+/// Where a command's output goes.
 pub enum Sink {
+    /// Standard output.
     Stdout(BufWriter<io::Stdout>),
     /// An existing path that is not a regular file: written in place.
     Direct {
+        /// The file.
         file: BufWriter<File>,
+        /// Its path (for messages).
         path: PathBuf,
     },
+    /// A regular file: written to a temporary file beside it and renamed on success.
     File {
+        /// The temporary file.
         temp: BufWriter<tempfile::NamedTempFile>,
+        /// The final path.
         path: PathBuf,
     },
 }
@@ -92,6 +99,7 @@ impl Sink {
         Ok(Sink::File { temp: BufWriter::with_capacity(1 << 20, temp), path: p.to_path_buf() })
     }
 
+    /// The stream to write to.
     pub fn writer(&mut self) -> &mut (dyn Write + Send) {
         match self {
             Sink::Stdout(w) => w,

@@ -6,6 +6,7 @@ use super::compliance::analyse;
 use super::leg::{Leg, LegFailure, LegResponse, LegState, VjmLeg};
 use crate::kinematics::frame::{apply_twist, point_shift, Frame, Vec3, Vec6};
 
+/// The linear assembly of legs with end-point errors (eq 60-63).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LinearAssembly {
     /// Platform displacement at the reference point (mm, rad).
@@ -34,9 +35,11 @@ pub struct JointDeflections {
     pub passive_max: f64,
     /// Largest translational spring deflection (mm) and its force (N).
     pub spring_deflection_max: f64,
+    /// Largest spring force, N.
     pub spring_force_max: f64,
     /// Largest rotational spring deflection (rad) and its torque (N mm).
     pub spring_rotation_max: f64,
+    /// Largest spring torque, N mm.
     pub spring_torque_max: f64,
 }
 
@@ -60,12 +63,16 @@ impl JointDeflections {
 /// the base error, and from the parameter errors through the leg's own kinematics.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct EndErrors {
+    /// Given directly in the error file.
     pub direct: Vec6,
+    /// From the leg's base error.
     pub base: Vec6,
+    /// From its parameter errors, through its own kinematics (eq 69).
     pub parameters: Vec6,
 }
 
 impl EndErrors {
+    /// The leg's end-point error, all sources.
     pub fn total(&self) -> Vec6 {
         self.direct + self.base + self.parameters
     }

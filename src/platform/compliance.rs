@@ -34,20 +34,31 @@ pub const CONDITION_LIMIT: f64 = 1e6;
 
 #[derive(Clone, Debug)]
 // Returned by value once per point on the hot path of every map; boxing the 6x6 would allocate there.
+/// What the analysis of K decides.
 #[allow(clippy::large_enum_variant)]
 pub enum Outcome {
     /// Full rank, condition within `CONDITION_LIMIT`: C = K^-1 (LU with pivoting; symmetrised where K is).
-    Regular { compliance: Mat6 },
+    Regular {
+        /// C = K^-1.
+        compliance: Mat6,
+    },
     /// Full rank but beyond `CONDITION_LIMIT`: C would carry too few correct digits to be written.
     IllConditioned,
     /// Rank below 6; `free` holds unit twists (translation mm, rotation rad, scaled alike) K does not resist.
-    Singular { rank: usize, free: Vec<Vec6> },
+    Singular {
+        /// The rank of K.
+        rank: usize,
+        /// A basis of the free directions.
+        free: Vec<Vec6>,
+    },
     /// K has non-finite entries (an overflow upstream).
     NotFinite,
 }
 
+/// The analysis of a manipulator's stiffness at one pose.
 #[derive(Clone, Debug)]
 pub struct Analysis {
+    /// Regular, ill-conditioned, singular or not finite.
     pub outcome: Outcome,
     /// Condition number (1-norm, exact: ||A||_1 ||A^-1||_1) of the equilibrated stiffness; infinite where
     /// singular, NaN where K is not finite.
@@ -263,8 +274,11 @@ fn free_directions(v_t: &Mat6, sigma: &Vec6, sigma_max: f64, e: &Vec6, length_sc
 /// symmetric part of C, mm/N) and largest rotational compliance (of its rotational block, rad/(N mm)).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PrincipalCompliance {
+    /// Largest principal translational compliance, mm/N.
     pub translation_max: f64,
+    /// Smallest principal translational compliance, mm/N.
     pub translation_min: f64,
+    /// Largest principal rotational compliance, rad/(N mm).
     pub rotation_max: f64,
 }
 
@@ -294,6 +308,8 @@ pub struct Spectrum {
     pub critical_mode: Vec6,
 }
 
+/// Eigenvalues of the symmetric part of K that decide stability (translational and rotational blocks,
+/// and the whole with rotations weighed by `length_scale`), with the critical mode; None if not finite.
 pub fn spectrum(k: &Mat6, length_scale: f64) -> Option<Spectrum> {
     let s = (k + k.transpose()) * 0.5;
     let t: Mat3 = s.fixed_view::<3, 3>(0, 0).into();

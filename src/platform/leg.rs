@@ -38,11 +38,19 @@ pub enum LegFailure {
     Unreachable(ik::IkFailure),
     /// An MSA leg's geometry has no value at the pose: a reach condition (its index) is negative (eq 20),
     /// or a formula is not finite there.
-    OutOfReach { condition: Option<usize> },
+    OutOfReach {
+        /// The reach condition that failed (None: a formula was not finite).
+        condition: Option<usize>,
+    },
     /// The springs do not restrain the directions the passive joints leave (eq 9 bordered matrix singular).
     SingularChain,
     /// The loaded equilibrium was not found, even with continuation.
-    NotConverged { iterations: usize, residual: f64 },
+    NotConverged {
+        /// Newton iterations spent.
+        iterations: usize,
+        /// The largest remaining residual (mm or rad).
+        residual: f64,
+    },
     /// The leg's model has no finite stiffness at this pose (parameters at the edge of doubles).
     NotFinite,
 }
@@ -76,13 +84,17 @@ impl std::fmt::Display for LegFailure {
     }
 }
 
+/// A leg of a parallel manipulator, by the model that computes it.
 #[derive(Clone, Debug)]
 pub enum Leg {
+    /// A serial chain with virtual springs (VJM).
     Vjm(VjmLeg),
+    /// A structure of beams and joints (MSA).
     Msa(MsaLeg),
 }
 
 impl Leg {
+    /// The leg's name.
     pub fn name(&self) -> &str {
         match self {
             Leg::Vjm(l) => &l.name,
@@ -115,6 +127,7 @@ impl Leg {
         }
     }
 
+    /// The frame of the leg's copy (identity for a leg written once).
     pub fn copy_frame(&self) -> Frame {
         match self {
             Leg::Vjm(l) => l.place,
@@ -130,6 +143,7 @@ impl Leg {
         }
     }
 
+    /// A fresh state (no warm start).
     pub fn new_state(&self) -> LegState {
         let zeros = match self {
             Leg::Vjm(l) => Coordinates::zeros(&l.chain),
@@ -292,8 +306,11 @@ pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> AtReferenceP
 /// A leg's wrench and tangent stiffness moved to the reference point, with the size of the stiffness'
 /// terms (`frame::shift_magnitude`).
 pub struct AtReferencePoint {
+    /// The wrench at the reference point.
     pub wrench: Vec6,
+    /// The tangent stiffness at the reference point.
     pub stiffness: Mat6,
+    /// The size of the stiffness' diagonal terms (`frame::shift_magnitude`).
     pub magnitude: Vec6,
 }
 

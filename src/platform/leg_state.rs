@@ -12,6 +12,7 @@ use super::msa_leg::MsaState;
 /// equilibrium, and buffers.
 #[derive(Clone, Debug)]
 pub struct LegState {
+    /// The leg's coordinates at its last solution.
     pub coords: Coordinates,
     /// True when `coords` holds a solved configuration usable as a warm start.
     pub warm: bool,

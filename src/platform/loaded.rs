@@ -45,6 +45,7 @@ pub struct Deflection {
     pub pose: Frame,
     /// Its displacement from the commanded pose (mm, base-frame rotation vector).
     pub displacement: Vec6,
+    /// The external wrench and tangent stiffness holding the platform there.
     pub held: Held,
     /// Stable under force control: tangent stiffness positive definite and every leg stable.
     pub stable: bool,
@@ -52,14 +53,21 @@ pub struct Deflection {
     pub iterations: usize,
 }
 
+/// Why the platform's loaded equilibrium was not found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DeflectionFailure {
     /// A leg could not be linearised (its equilibrium matrix is singular).
     Leg(PoseFailure),
     /// The manipulator's tangent stiffness became singular on the way.
-    SingularStiffness { load_fraction: f64 },
+    SingularStiffness {
+        /// The share of the load reached (0..1).
+        load_fraction: f64,
+    },
     /// Newton's method found no equilibrium even with load continuation (e.g. past a limit point).
-    NotConverged { load_fraction: f64 },
+    NotConverged {
+        /// The share of the load reached (0..1).
+        load_fraction: f64,
+    },
 }
 
 impl std::fmt::Display for DeflectionFailure {

@@ -3,9 +3,12 @@
 use super::leg::{Leg, LegFailure, LegResponse, LegState};
 use crate::kinematics::frame::{Frame, Mat6, Vec6};
 
+/// A parallel manipulator: its legs, summed at the platform's reference point.
 #[derive(Clone, Debug)]
 pub struct Manipulator {
+    /// Its name.
     pub name: String,
+    /// Its legs.
     pub legs: Vec<Leg>,
     /// mm per rad: weighs rotations against translations in rank decisions.
     pub length_scale: f64,
@@ -16,13 +19,16 @@ pub struct Manipulator {
 /// Warm starts of every leg, carried from one point to the next by one worker.
 #[derive(Clone, Debug)]
 pub struct ManipulatorState {
+    /// One per leg.
     pub legs: Vec<LegState>,
 }
 
 /// The sum over legs at one pose.
 #[derive(Clone, Copy, Debug)]
 pub struct Aggregate {
+    /// Sum of the legs' wrenches at the reference point.
     pub wrench: Vec6,
+    /// Sum of their stiffnesses.
     pub stiffness: Mat6,
     /// The size of the legs' terms on each diagonal entry (the sum of their `LegResponse::magnitude`), so
     /// that a diagonal entry that cancelled to round-off can be told from a genuinely small one
@@ -33,7 +39,9 @@ pub struct Aggregate {
 /// Which leg failed, and how.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PoseFailure {
+    /// The leg, 0-based.
     pub leg: usize,
+    /// How it failed.
     pub failure: LegFailure,
 }
 
@@ -83,6 +91,7 @@ impl Manipulator {
         out
     }
 
+    /// A fresh state (no warm starts).
     pub fn new_state(&self) -> ManipulatorState {
         ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect() }
     }

@@ -9,9 +9,12 @@ use crate::kinematics::frame::Frame;
 use crate::msa::template::{PoseOutOfReach, Template};
 use crate::msa::{MsaFailure, Structure};
 
+/// An MSA leg: a structure evaluated at each pose (paper 003), answered through the leg seam.
 #[derive(Clone, Debug)]
 pub struct MsaLeg {
+    /// The leg's name.
     pub name: String,
+    /// Its structure as formulas of the pose.
     pub template: Template,
     /// The copy's frame: the template's leg frame in the base frame.
     pub place: Frame,
@@ -25,6 +28,7 @@ pub struct MsaLeg {
 /// formulas' value table.
 #[derive(Clone, Debug, Default)]
 pub struct MsaState {
+    /// The formulas' value table.
     pub slots: Vec<f64>,
     /// Platform pose at placement, and the leg's answer there.
     pub placed: Option<(Frame, LegResponse)>,

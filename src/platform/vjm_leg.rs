@@ -14,6 +14,7 @@ use super::leg::*;
 /// A VJM leg: a serial chain from the base to the leg's end frame, and where that frame sits on the platform.
 #[derive(Clone, Debug)]
 pub struct VjmLeg {
+    /// The leg's name.
     pub name: String,
     /// Base frame -> leg end frame.
     pub chain: Chain,
@@ -22,6 +23,7 @@ pub struct VjmLeg {
     pub place: Frame,
     /// The leg's end frame in the platform frame (the platform frame's origin is the reference point).
     pub attachment: Frame,
+    /// Its spring groups (blocks of K_theta).
     pub springs: Vec<SpringGroup>,
     /// Rest values theta0 of the virtual coordinates (spring preload), one per virtual coordinate.
     pub preload: Vec<f64>,

@@ -13,11 +13,14 @@ use svg::{axes, frame, label, tick_label, unit_of, viridis, Axis, Svg};
 
 /// A CSV held as text cells.
 pub struct Table {
+    /// Column names.
     pub header: Vec<String>,
+    /// Cells, row by row.
     pub rows: Vec<Vec<String>>,
 }
 
 impl Table {
+    /// Parses a CSV a study wrote.
     pub fn parse(text: &str) -> Result<Table> {
         let mut reader = csv::ReaderBuilder::new().from_reader(text.as_bytes());
         let header = reader.headers()?.iter().map(String::from).collect();
@@ -26,6 +29,7 @@ impl Table {
         Ok(Table { header, rows })
     }
 
+    /// Whether a column of this name exists.
     pub fn has(&self, c: &str) -> bool {
         self.header.iter().any(|h| h == c)
     }

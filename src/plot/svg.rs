@@ -5,7 +5,9 @@ use std::fmt::Write;
 
 /// An SVG document being written.
 pub struct Svg {
+    /// Width, px.
     pub width: f64,
+    /// Height, px.
     pub height: f64,
     body: String,
 }
@@ -25,10 +27,12 @@ fn n(v: f64) -> String {
 }
 
 impl Svg {
+    /// An empty picture of this size.
     pub fn new(width: f64, height: f64) -> Svg {
         Svg { width, height, body: String::new() }
     }
 
+    /// A filled rectangle.
     pub fn rect(&mut self, x: f64, y: f64, w: f64, h: f64, fill: &str, class: &str) {
         let _ = writeln!(
             self.body,
@@ -40,6 +44,7 @@ impl Svg {
         );
     }
 
+    /// A line segment from one point to another.
     pub fn line(&mut self, (x1, y1): (f64, f64), (x2, y2): (f64, f64), stroke: &str, width: f64, class: &str) {
         let _ = writeln!(
             self.body,
@@ -67,6 +72,7 @@ impl Svg {
         );
     }
 
+    /// A filled circle.
     pub fn circle(&mut self, x: f64, y: f64, r: f64, fill: &str, class: &str) {
         let _ =
             writeln!(self.body, r#"<circle class="{class}" cx="{}" cy="{}" r="{}" fill="{fill}"/>"#, n(x), n(y), n(r));
@@ -105,6 +111,7 @@ impl Svg {
         }
     }
 
+    /// The SVG document.
     pub fn finish(self) -> String {
         format!(
             "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" font-family=\"sans-serif\">\n<rect class=\"background\" x=\"0\" y=\"0\" width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n{}</svg>\n",
@@ -118,9 +125,13 @@ impl Svg {
 /// A linear axis: data range to pixels, with round tick values.
 #[derive(Clone, Debug)]
 pub struct Axis {
+    /// Smallest value shown.
     pub lo: f64,
+    /// Largest value shown.
     pub hi: f64,
+    /// Pixel of `lo`.
     pub from: f64,
+    /// Pixel of `hi`.
     pub to: f64,
 }
 
@@ -142,6 +153,7 @@ impl Axis {
         Axis { lo: lo - pad, hi: hi + pad, from, to }
     }
 
+    /// The pixel of a value.
     pub fn px(&self, v: f64) -> f64 {
         self.from + (v - self.lo) / (self.hi - self.lo) * (self.to - self.from)
     }

@@ -24,6 +24,7 @@ use crate::platform::leg::{Leg, LegResponse};
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 
+/// What `stiff assemble` computes.
 #[derive(Clone, Debug, Default)]
 pub struct AssembleOptions {
     /// External wrench at the reference point (N, N mm): adds the load, total and superposition columns.
@@ -33,6 +34,7 @@ pub struct AssembleOptions {
     /// Random draws of the errors within +-(scale x the given values), each source of each leg with its own
     /// uniform factor; 0: the errors as given.
     pub samples: usize,
+    /// Seed of the random draws.
     pub seed: u64,
 }
 
@@ -144,9 +146,12 @@ pub fn assemble_header(legs: usize, o: &AssembleOptions) -> String {
     header(&blank, &AssembleLayout::new(legs, o))
 }
 
+/// Counts of an assembly run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AssembleSummary {
+    /// Points in the input.
     pub points: u64,
+    /// Points assembled without failure.
     pub ok: u64,
 }
 
@@ -164,6 +169,7 @@ pub struct Assembled {
     pub displacement: Vec6,
     /// Load each leg's end takes (eq 63: F_i = K_i (dt - eps_i)), at the reference point.
     pub loads: Vec<Vec6>,
+    /// Joint and spring deflections and loads (eq 64-65), where computed.
     pub joints: Option<JointDeflections>,
     /// Non-linear assembly (eq 71), None where it did not converge.
     pub nonlinear: Option<Vec6>,
@@ -173,7 +179,9 @@ pub struct Assembled {
 
 /// The nominal legs' answers at a pose and their end errors by source.
 pub struct Placed {
+    /// Each leg's answer at the pose.
     pub responses: Vec<LegResponse>,
+    /// Each leg's end-point errors by source.
     pub errors: Vec<EndErrors>,
 }
 
@@ -295,6 +303,7 @@ pub struct Stats {
 }
 
 impl Stats {
+    /// Adds a sample.
     pub fn add(&mut self, v: f64) {
         self.n += 1.0;
         let delta = v - self.mean;
@@ -302,6 +311,7 @@ impl Stats {
         self.m2 += delta * (v - self.mean);
         self.worst = if self.n == 1.0 { v } else { self.worst.max(v) };
     }
+    /// Mean of the samples.
     pub fn mean(&self) -> f64 {
         self.mean
     }

@@ -35,6 +35,7 @@ pub const MAX_INTERVALS: usize = 1_000_000;
 /// rows (or after 60 halvings).
 pub const BISECTION_TOLERANCE: f64 = 1e-9;
 
+/// What the load factor scales.
 #[derive(Clone, Copy, Debug)]
 pub enum Control {
     /// The wrench is `load_factor * W`.
@@ -46,21 +47,26 @@ pub enum Control {
 /// A row's outcome.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RowStatus {
+    /// Converged.
     Ok,
     /// No equilibrium found at this row's target; `residual` is the largest remaining leg residual (mm or
     /// rad), NaN where the solver did not report one.
     NotConverged {
+        /// The largest remaining residual.
         residual: f64,
     },
     /// The equilibrium's numbers overflowed (a load beyond what doubles hold); the curve stops there.
     Overflow,
 }
 
+/// One row of a force-deflection curve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CurveRow {
+    /// Row number, from 0.
     pub step: usize,
     /// "force" or "displacement".
     pub control: &'static str,
+    /// The load factor of the row.
     pub load_factor: f64,
     /// External wrench holding the platform (N, N mm); under force control exactly `load_factor * W`.
     pub wrench: Option<Vec6>,
@@ -68,10 +74,13 @@ pub struct CurveRow {
     pub displacement: Option<Vec6>,
     /// Spectrum of the tangent stiffness' symmetric part (None where not converged).
     pub spectrum: Option<Spectrum>,
+    /// Symmetric part of the tangent stiffness positive definite.
     pub positive_definite: bool,
     /// Legs (0-based) unstable with their end held.
     pub unstable_legs: Vec<usize>,
+    /// Newton iterations.
     pub iterations: usize,
+    /// Converged, not converged or overflowed.
     pub status: RowStatus,
     /// Events at this row, `;`-separated: "buckling", "restabilised", "limit_point".
     pub event: String,
@@ -81,6 +90,7 @@ pub struct CurveRow {
 }
 
 impl CurveRow {
+    /// The row's equilibrium was found.
     pub fn converged(&self) -> bool {
         self.status == RowStatus::Ok
     }

@@ -13,6 +13,7 @@ use crate::model::grid::PosePoint;
 use crate::output::table::{header, names, write_row, Matrix, Record, Row};
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
+/// What `stiff map` computes.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MapOptions {
     /// Also write the 21 entries of the stiffness matrix.
@@ -20,19 +21,28 @@ pub struct MapOptions {
     /// Loaded mode: the equilibrium under this wrench at every point (or, with `use_point_wrench`, under
     /// each point's reference wrench).
     pub wrench: Option<Vec6>,
+    /// Loaded mode under each point's own wrench.
     pub use_point_wrench: bool,
 }
 
 /// How many points ended with each status.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MapSummary {
+    /// Points in the map.
     pub points: u64,
+    /// Points with status ok.
     pub ok: u64,
+    /// Unreachable points.
     pub unreachable: u64,
+    /// Singular points (platform or leg).
     pub singular: u64,
+    /// Points whose loaded equilibrium was not found.
     pub not_converged: u64,
+    /// Points whose loaded equilibrium is unstable.
     pub unstable: u64,
+    /// Ill-conditioned points.
     pub ill_conditioned: u64,
+    /// Points whose numbers overflowed.
     pub overflow: u64,
 }
 

@@ -15,6 +15,7 @@ use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 /// The outcome of one point, as the map reports it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Status {
+    /// Computed and written.
     Ok,
     /// Inverse kinematics found no configuration of some leg.
     Unreachable,
@@ -36,6 +37,7 @@ pub enum Status {
 }
 
 impl Status {
+    /// The status's name in CSV and reports.
     pub fn as_str(self) -> &'static str {
         match self {
             Status::Ok => "ok",
@@ -49,6 +51,7 @@ impl Status {
         }
     }
 
+    /// The status of a pose where a leg failed.
     pub fn of(e: &PoseFailure) -> Self {
         match e.failure {
             LegFailure::Unreachable(f) if f.at_reach_boundary() => Status::IllConditioned,
@@ -60,15 +63,20 @@ impl Status {
     }
 }
 
+/// What a study reports at one point.
 #[derive(Clone, Debug)]
 pub struct PointResult {
+    /// Its status.
     pub status: Status,
     /// Rank of the stiffness matrix (None where it was not computed).
     pub rank: Option<usize>,
     /// Condition number of the equilibrated stiffness (None where it was not computed).
     pub condition: Option<f64>,
+    /// Stiffness at the reference point (tangent, in loaded mode).
     pub stiffness: Option<Mat6>,
+    /// Compliance C = K^-1.
     pub compliance: Option<Mat6>,
+    /// Principal compliances of C's symmetric part.
     pub principal: Option<PrincipalCompliance>,
     /// Deflection under the point's wrench: linear (C w) unloaded, the loaded equilibrium's displacement
     /// in loaded mode.
@@ -138,6 +146,7 @@ impl PointResult {
     }
 }
 
+/// The unloaded stiffness and compliance at the point's pose.
 pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorState) -> PointResult {
     let agg = match m.unloaded(&p.frame(), state) {
         Ok(a) => a,

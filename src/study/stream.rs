@@ -23,6 +23,7 @@ pub const WINDOW_PER_THREAD: usize = 4;
 
 /// Counts a study adds up over its rows.
 pub trait Tally: Default + Send {
+    /// Adds another run's counts.
     fn merge(&mut self, other: &Self);
 }
 

@@ -20,7 +20,9 @@ use crate::linalg::DenseLu;
 
 /// What a loaded chain needs besides its kinematics.
 pub struct LoadedChain<'a> {
+    /// The leg's chain.
     pub chain: &'a Chain,
+    /// Its spring groups.
     pub springs: &'a [SpringGroup],
     /// Gravity, m/s^2 (masses in kg give weights in N).
     pub gravity: Vec3,
@@ -40,17 +42,27 @@ pub struct LoadedAnswer {
     /// The chain is stable with its end held: the energy's Hessian is positive definite on the motions
     /// that keep the end fixed (paper 000 eq 14, reduced form).
     pub stable: bool,
+    /// Newton iterations spent.
     pub iterations: usize,
     /// End point, base frame.
     pub end: Vec3,
 }
 
+/// Why a chain's loaded equilibrium was not found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum EquilibriumFailure {
-    NotConverged { iterations: usize, residual: f64 },
+    /// Newton's method did not converge.
+    NotConverged {
+        /// Iterations spent.
+        iterations: usize,
+        /// The largest remaining residual (mm, rad or N).
+        residual: f64,
+    },
+    /// The Newton matrix (paper 000 eq 45) is singular.
     Singular,
 }
 
+/// Most Newton iterations per equilibrium.
 pub const MAX_ITERATIONS: usize = 40;
 
 /// Buffers reused between solves.
@@ -77,12 +89,14 @@ pub struct Linearization {
     pub sensitivity: DMatrix<f64>,
     /// End point (base frame) and wrench at the configuration linearised.
     pub end: Vec3,
+    /// The wrench at the end.
     pub wrench: Vec6,
     /// Where the end is minus where it was asked (translation, rotation vector).
     pub end_error: Vec6,
 }
 
 impl Linearization {
+    /// The tangent stiffness at the end (the last six rows of the sensitivities).
     pub fn stiffness(&self) -> Mat6 {
         let o = self.sensitivity.nrows() - 6;
         Mat6::from_fn(|r, c| self.sensitivity[(o + r, c)])
@@ -105,6 +119,7 @@ impl Linearization {
 
 /// Tolerance on the end's pose error (times the length scale) and on the Newton step (rad or mm).
 const POSE_TOLERANCE: f64 = 1e-10;
+/// Newton converges when the step is below this too (rad or mm).
 pub const STEP_TOLERANCE: f64 = 1e-11;
 /// Largest change of a coordinate in one Newton step (rad or mm): a damped step, not a line search.
 pub const MAX_STEP: f64 = 0.2;

@@ -7,10 +7,13 @@ use crate::kinematics::frame::{Mat6, Vec3};
 /// A block of K_theta: `dim` consecutive virtual coordinates starting at `first`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpringGroup {
+    /// The group's name (the element's), shared by copies of a leg.
     pub name: String,
     /// The control-loop spring of an actuator (V_a(q + theta), paper 001 eq 1).
     pub actuator: bool,
+    /// Index of its first virtual coordinate.
     pub first: usize,
+    /// Number of its coordinates (1 to 6).
     pub dim: usize,
     /// Stiffness (top-left dim x dim block used; the rest zero).
     pub stiffness: Mat6,

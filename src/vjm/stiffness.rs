@@ -74,6 +74,7 @@ pub struct PassiveRange {
     pub basis: [Vec6; 6],
     /// `transmitted[..6 - rank]` spans the wrenches F with J_q^T F = 0.
     pub transmitted: [Vec6; 6],
+    /// Rank of J_q (number of independent passive motions).
     pub rank: usize,
 }
 
