@@ -1,5 +1,6 @@
 //! stiff: stiffness of parallel robots by the Virtual Joint Method (see ARCHITECTURE.md).
 #![warn(missing_docs)]
+pub mod batch;
 pub mod beam;
 pub mod cli;
 pub mod diagnose;

@@ -2,19 +2,20 @@
 //! layers below its own (never sideways, never up), so there is no import cycle, and above the platform
 //! only `model` (which builds the engines) reaches the engines' internals.
 //!
-//!   cli -> {study, diagnose, plot} -> {output, model} -> platform -> {vjm, msa} -> beam
+//!   cli -> {study, diagnose, plot} -> batch -> {output, model} -> platform -> {vjm, msa} -> beam
 //!       -> {kinematics, linalg, expr}
 
 use std::collections::BTreeSet;
 use std::path::Path;
 
 /// The layer of each top-level module, lowest first.
-const LAYERS: [&[&str]; 7] = [
+const LAYERS: [&[&str]; 8] = [
     &["kinematics", "linalg", "expr"],
     &["beam"],
     &["vjm", "msa"],
     &["platform"],
     &["output", "model"],
+    &["batch"],
     &["study", "diagnose", "plot"],
     &["cli"],
 ];

@@ -71,6 +71,31 @@ fn small_grid_matches_golden_file() {
     assert!(column("condition").is_some());
 }
 
+/// Synthetic measurements draw each pose's noise from a generator seeded by the seed and the pose's index,
+/// so the file is the same for one and two threads (300 poses: two runs of 256, some unreachable).
+#[test]
+fn synthetic_measurements_are_the_same_for_one_and_two_threads() {
+    let dir = temp_dir();
+    let grid = dir.path().join("g.toml");
+    std::fs::write(&grid, "[box]\nfrom = [-80, -80, 0]\nto = [400, 130, 0]\nsteps = [20, 15, 1]\n").unwrap();
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("t{threads}.csv"));
+        stiff()
+            .args(["synth", MODEL, "--grid"])
+            .arg(&grid)
+            .args(["--effect", "tool-offset=0.05,0,0", "--noise", "0.002", "--seed", "7"])
+            .args(["--wrenches", "100,0,0,0,0,0;0,0,-200,0,0,0", "--threads", threads, "-q", "-o"])
+            .arg(&out)
+            .assert()
+            .success();
+        outputs.push(std::fs::read_to_string(&out).unwrap());
+    }
+    assert_eq!(outputs[0], outputs[1]);
+    let rows = outputs[0].lines().count() - 1;
+    assert!(rows > 100 && rows < 2 * 300, "some poses measured, some left out: {rows} rows");
+}
+
 #[test]
 fn the_map_is_the_same_for_one_and_two_threads() {
     let dir = temp_dir();

@@ -130,7 +130,15 @@ fn diagnose_plot_has_arrows_and_bars() {
     let o = stiff::diagnose::synth::SynthOptions { effects: vec![effect], wrenches, noise: 0.002, seed: 1, repeats: 1 };
     let mut text = Vec::new();
     let mut points = stiff::model::grid::PointSet::from_points(points);
-    stiff::diagnose::synth::synthesize(&stiff::model::Model::nominal(m.clone()), &mut points, &o, &mut text).unwrap();
+    stiff::diagnose::synth::synthesize(
+        &pool(),
+        &stiff::model::Model::nominal(m.clone()),
+        &mut points,
+        &o,
+        &mut text,
+        &indicatif::ProgressBar::hidden(),
+    )
+    .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("d.csv");
     std::fs::write(&path, text).unwrap();
@@ -147,4 +155,9 @@ fn diagnose_plot_has_arrows_and_bars() {
     let identifiable = d.table.iter().filter(|r| r.identifiable).count();
     assert_eq!(count(&doc, "rect", "bic-bar"), identifiable);
     assert!(texts(&doc).iter().any(|s| s == "verdict: effect (tool-offset)"));
+}
+
+/// A two-thread pool for the streamed studies (their output does not depend on the thread count).
+fn pool() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap()
 }

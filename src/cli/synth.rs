@@ -3,7 +3,7 @@
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{ModelArgs, OutputArgs, PointsArgs};
+use super::args::{progress_bar, thread_pool, ModelArgs, OutputArgs, PointsArgs, RunArgs};
 use super::parse::parse_vec6;
 
 #[derive(Args, Debug)]
@@ -28,6 +28,8 @@ pub(crate) struct SynthArgs {
     pub(crate) repeats: usize,
     #[command(flatten)]
     pub(crate) output: OutputArgs,
+    #[command(flatten)]
+    pub(crate) run: RunArgs,
 }
 
 pub(crate) fn run(a: SynthArgs) -> Result<()> {
@@ -51,11 +53,14 @@ pub(crate) fn run(a: SynthArgs) -> Result<()> {
     }
     let mut points = a.points.load()?;
     let options = synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats };
+    let pool = thread_pool(a.run.threads)?;
     let mut sink = a.output.open()?;
-    let skipped = synth::synthesize(&model, &mut points, &options, sink.writer())?;
+    let bar = progress_bar(points.len, a.run.quiet);
+    let summary = synth::synthesize(&pool, &model, &mut points, &options, sink.writer(), &bar)?;
     sink.finish()?;
-    if skipped > 0 {
-        eprintln!("{skipped} poses left out (unreachable or singular)");
+    bar.finish_and_clear();
+    if summary.skipped > 0 {
+        eprintln!("{} poses left out (unreachable or singular)", summary.skipped);
     }
     Ok(())
 }

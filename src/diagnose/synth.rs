@@ -1,17 +1,20 @@
 //! `stiff synth`: measurements with hidden effects, in exactly the format `stiff diagnose` reads, to test
 //! the workflow and to plan experiments (which poses and loads separate which effects).
 
+use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 
 use super::data::{Dataset, Measurement, Pose, REQUIRED};
 use super::error::DiagnoseError;
 use super::fit::Problem;
 use super::measurement::PoseModel;
+use crate::batch::{point_seed, stream, Study, Tally};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::effect::{Effect, Kind};
-use crate::model::grid::PointSet;
+use crate::model::grid::{PointSet, PosePoint};
 use crate::model::Model;
 use crate::output::table::{header, names, write_row, Record, Row};
+use crate::platform::manipulator::ManipulatorState;
 
 /// What `stiff synth` measures.
 pub struct SynthOptions {
@@ -34,65 +37,89 @@ fn normal(rng: &mut impl Rng) -> f64 {
     (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
 }
 
-/// Poses measured per block: the data set a block builds (its predictions need every row's model) is
-/// bounded by this, so memory does not grow with the grid.
-const BLOCK: usize = 256;
-
-/// Writes the measurements of every pose of `points` to `out`, block by block (a pose's id is its name or
-/// `p` and its index in the input), and returns the number of poses left out as unreachable or singular.
-/// The noise generator is drawn in row order, so the bytes do not depend on the block size.
+/// Writes the measurements of every pose of `points` to `out` in input order (a pose's id is its name or
+/// `p` and its index in the input), solved on `pool`. Each pose's noise is drawn from a generator seeded by
+/// the seed and the pose's index, so the bytes depend on neither the thread count nor the other poses.
+/// Poses that are unreachable or singular are left out and counted.
 pub fn synthesize(
+    pool: &rayon::ThreadPool,
     model: &Model,
     points: &mut PointSet,
     o: &SynthOptions,
-    out: &mut dyn std::io::Write,
-) -> Result<usize, SynthError> {
-    let m = &model.manipulator;
-    let mut state = m.new_state();
-    let mut rng = rand::rngs::StdRng::seed_from_u64(o.seed);
-    out.write_all(header(&blank_row(), &()).as_bytes())?;
-    let (mut skipped, mut written, mut index) = (0, 0, 0usize);
-    let mut block = Vec::with_capacity(BLOCK);
-    loop {
-        block.clear();
-        if points.next_block(BLOCK, &mut block)? == 0 {
-            break;
+    out: &mut (dyn std::io::Write + Send),
+    progress: &ProgressBar,
+) -> anyhow::Result<SynthSummary> {
+    let loaded = o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
+    let mut summary = stream(pool, &SynthStudy { model, o, loaded }, points, out, progress)?;
+    if let Some(e) = summary.error.take() {
+        return Err(e.into());
+    }
+    if summary.rows == 0 {
+        return Err(SynthError::NoReachablePose.into());
+    }
+    Ok(summary)
+}
+
+/// What a synthesis wrote.
+#[derive(Clone, Debug, Default)]
+pub struct SynthSummary {
+    /// Poses measured.
+    pub poses: u64,
+    /// Rows written.
+    pub rows: u64,
+    /// Poses left out (unreachable or singular).
+    pub skipped: u64,
+    /// The first pose that could not be measured, in input order.
+    error: Option<SynthError>,
+}
+
+impl Tally for SynthSummary {
+    fn merge(&mut self, other: &Self) {
+        self.poses += other.poses;
+        self.rows += other.rows;
+        self.skipped += other.skipped;
+        if self.error.is_none() {
+            self.error.clone_from(&other.error);
         }
+    }
+}
+
+/// Synthesis as a streamed study: one pose's measurements per point.
+struct SynthStudy<'a> {
+    model: &'a Model,
+    o: &'a SynthOptions,
+    /// Some effect needs the loaded equilibrium of every row.
+    loaded: bool,
+}
+
+impl SynthStudy<'_> {
+    /// The pose's rows (each wrench, repeated), predicted with the hidden effects and the description's
+    /// own terms, with noise; None where the pose cannot be modelled.
+    fn measure(&self, index: u64, p: &PosePoint, out: &mut String) -> Result<usize, SynthError> {
+        let (m, o) = (&self.model.manipulator, self.o);
+        let id = p.name.clone().unwrap_or_else(|| format!("p{index}"));
+        let mut pose = Pose { id: id.clone(), position: p.position, rows: Vec::new() };
         let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
-        for p in &block {
-            let i = index;
-            index += 1;
-            if PoseModel::at(m, &Frame::translation(p.position), &mut state).is_err() {
-                skipped += 1;
-                continue;
+        for w in &o.wrenches {
+            for _ in 0..o.repeats.max(1) {
+                pose.rows.push(data.rows.len());
+                data.rows.push(Measurement {
+                    pose_id: id.clone(),
+                    position: p.position,
+                    wrench: *w,
+                    displacement: Vec3::zeros(),
+                    sigma: Some(o.noise),
+                    line: 0,
+                });
             }
-            let id = p.name.clone().unwrap_or_else(|| format!("p{i}"));
-            let mut pose = Pose { id: id.clone(), position: p.position, rows: Vec::new() };
-            for w in &o.wrenches {
-                for _ in 0..o.repeats.max(1) {
-                    pose.rows.push(data.rows.len());
-                    data.rows.push(Measurement {
-                        pose_id: id.clone(),
-                        position: p.position,
-                        wrench: *w,
-                        displacement: Vec3::zeros(),
-                        sigma: Some(o.noise),
-                        line: 0,
-                    });
-                }
-            }
-            data.poses.push(pose);
         }
-        if data.rows.is_empty() {
-            continue;
-        }
-        let loaded = o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
+        data.poses.push(pose);
         let weights = vec![1.0; data.rows.len()];
-        let problem =
-            Problem::new(m, &model.measurement_terms, &data, weights, false, loaded).map_err(SynthError::Model)?;
+        let terms = &self.model.measurement_terms;
+        let problem = Problem::new(m, terms, &data, weights, false, self.loaded).map_err(SynthError::Model)?;
         let rows: Vec<usize> = (0..data.rows.len()).collect();
         let predicted = problem.predict(&o.effects, &rows).map_err(|e| SynthError::Model(e.into()))?;
-        let mut text = String::new();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(point_seed(o.seed, index));
         for (row, d) in data.rows.iter().zip(predicted) {
             // What synth writes, diagnose must be able to read: the same bound on every number.
             let readable = |v: &f64| v.is_finite() && v.abs() <= super::data::MAX_MAGNITUDE;
@@ -102,22 +129,52 @@ pub fn synthesize(
             let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
             // Noise-free data has no sigma (a zero sigma is not a measurement's).
             let sigma = Some(o.noise).filter(|s| *s > 0.0);
-            write_row(&MeasurementRow { measurement: row, displacement: noisy, sigma }, &(), &mut text);
+            write_row(&MeasurementRow { measurement: row, displacement: noisy, sigma }, &(), out);
         }
-        out.write_all(text.as_bytes())?;
-        written += data.rows.len();
+        Ok(data.rows.len())
     }
-    if written == 0 {
-        return Err(SynthError::NoReachablePose);
+}
+
+impl Study for SynthStudy<'_> {
+    type State = ManipulatorState;
+    type Tally = SynthSummary;
+
+    fn header(&self) -> String {
+        header(&blank_row(), &())
     }
-    Ok(skipped)
+
+    fn new_state(&self) -> ManipulatorState {
+        self.model.manipulator.new_state()
+    }
+
+    fn solve(
+        &self,
+        index: u64,
+        p: &PosePoint,
+        state: &mut ManipulatorState,
+        tally: &mut SynthSummary,
+        out: &mut String,
+    ) {
+        if tally.error.is_some() {
+            return; // the run stops at its first failure; the command reports it
+        }
+        if PoseModel::at(&self.model.manipulator, &Frame::translation(p.position), state).is_err() {
+            tally.skipped += 1;
+            return;
+        }
+        match self.measure(index, p, out) {
+            Ok(rows) => {
+                tally.poses += 1;
+                tally.rows += rows as u64;
+            }
+            Err(e) => tally.error = Some(e),
+        }
+    }
 }
 
 /// Why synthetic data could not be written.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub enum SynthError {
-    /// The points file could not be read.
-    Input(crate::model::error::InputError),
     /// The model could not predict a measurement.
     Model(DiagnoseError),
     /// The load or the effects give a displacement `diagnose` could not read (beyond `MAX_MAGNITUDE`).
@@ -127,14 +184,11 @@ pub enum SynthError {
     },
     /// No pose of the input is reachable and regular.
     NoReachablePose,
-    /// Writing the output failed (a closed pipe, a full disk).
-    Write(std::io::Error),
 }
 
 impl std::fmt::Display for SynthError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            SynthError::Input(e) => write!(f, "{e}"),
             SynthError::Model(e) => write!(f, "{e}"),
             SynthError::Unreadable { pose_id } => write!(
                 f,
@@ -143,31 +197,11 @@ impl std::fmt::Display for SynthError {
                 super::data::MAX_MAGNITUDE
             ),
             SynthError::NoReachablePose => f.write_str("no reachable pose to measure"),
-            SynthError::Write(e) => write!(f, "cannot write the measurements: {e}"),
         }
     }
 }
 
-impl std::error::Error for SynthError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            SynthError::Write(e) => Some(e),
-            _ => None,
-        }
-    }
-}
-
-impl From<std::io::Error> for SynthError {
-    fn from(e: std::io::Error) -> Self {
-        SynthError::Write(e)
-    }
-}
-
-impl From<crate::model::error::InputError> for SynthError {
-    fn from(e: crate::model::error::InputError) -> Self {
-        SynthError::Input(e)
-    }
-}
+impl std::error::Error for SynthError {}
 
 /// One written measurement: the row's pose and wrench, the displacement with its noise, and sigma.
 struct MeasurementRow<'a> {

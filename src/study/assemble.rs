@@ -13,7 +13,7 @@ use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 
 use super::point::Status;
-use super::stream::{stream, Study, Tally};
+use crate::batch::{point_seed, stream, Study, Tally};
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::model::assembly_errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
@@ -338,7 +338,7 @@ fn sample_point(
 ) -> Result<(Vec6, [Stats; 3]), Status> {
     let pose = p.frame();
     let placed = place_with_errors(m, set, perturbed, &pose, o.scale, state)?;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(o.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let mut rng = rand::rngs::StdRng::seed_from_u64(point_seed(o.seed, index));
     let mut stats = [Stats::default(); 3];
     let mut mean = Vec6::zeros();
     for _ in 0..o.samples {

@@ -6,7 +6,7 @@ use anyhow::Result;
 use indicatif::ProgressBar;
 
 use super::point::{loaded_point, unloaded_point, LoadedHistory, PointResult, Status};
-use super::stream::{stream, Study, Tally};
+use crate::batch::{stream, Study, Tally};
 use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
 use crate::model::grid::PosePoint;

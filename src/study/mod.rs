@@ -3,4 +3,3 @@ pub mod assemble;
 pub mod curve;
 pub mod map;
 pub mod point;
-pub mod stream;

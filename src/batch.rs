@@ -1,4 +1,5 @@
-//! The streaming skeleton shared by batch studies.
+//! The streaming routine every batch command shares (map, assemble, synth): a `Study` solves one point into
+//! a row; `stream` runs it over a point set on the worker pool and writes the rows in input order.
 //!
 //! A reader thread cuts the input into runs of `RUN` consecutive points; the worker pool solves runs in
 //! parallel (each run in order, so warm starts carry from point to point); a writer thread puts the rows
@@ -59,6 +60,12 @@ pub fn stream<S: Study>(
         }
         (text, tally)
     })
+}
+
+/// The seed of point `index`'s random draws: the run's seed mixed with the index (a Weyl sequence step), so
+/// a point's draws depend on neither the thread count nor the other points.
+pub fn point_seed(seed: u64, index: u64) -> u64 {
+    seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
 /// Room reserved per row (a map row with K and C is ~700 bytes; the buffer grows if needed).
