@@ -153,7 +153,7 @@ pub(crate) fn point_set(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Res
 
 /// Draws `text` (a study's output) into the SVG file `path`.
 pub(crate) fn write_plot(text: &str, path: &Path, style: &PlotStyle) -> Result<()> {
-    let svg = crate::plot::plot_text(text, &style.options())?;
+    let svg = crate::plot::plot_text(text, &style.options()).map_err(name_plot_flag)?;
     let mut sink = Sink::create(Some(path))?;
     sink.writer().write_all(svg.as_bytes())?;
     sink.finish()?;
@@ -181,4 +181,15 @@ pub(crate) fn write_stdout(text: &str) -> Result<()> {
     use std::io::Write as _;
     let mut out = std::io::stdout().lock();
     out.write_all(text.as_bytes()).and_then(|_| out.flush()).context("cannot write to stdout")
+}
+
+/// A picture option's error, said with its flag.
+pub(crate) fn name_plot_flag(e: anyhow::Error) -> anyhow::Error {
+    use crate::plot::OptionError;
+    match e.downcast_ref::<OptionError>() {
+        Some(o @ OptionError::Section(_)) => anyhow::anyhow!("--section: {o}"),
+        Some(o @ OptionError::Column { .. }) => anyhow::anyhow!("--plot-column: {o}"),
+        Some(o @ OptionError::Direction(_)) => anyhow::anyhow!("--direction: {o}"),
+        None => e,
+    }
 }

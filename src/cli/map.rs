@@ -6,8 +6,8 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    plot_needs_output, progress_bar, thread_pool, write_plot, written, ModelArgs, OutputArgs, PlotStyle, PointsArgs,
-    RunArgs,
+    name_plot_flag, plot_needs_output, progress_bar, thread_pool, write_plot, written, ModelArgs, OutputArgs,
+    PlotStyle, PointsArgs, RunArgs,
 };
 use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
@@ -53,7 +53,7 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
     plot_needs_output(&a.plot, &a.output.output, "map")?;
     if a.plot.is_some() {
         let header = crate::study::map::map_header(&crate::study::map::map_columns(&points, &options));
-        crate::plot::check_map_options(&header, &a.style.options())?;
+        crate::plot::check_map_options(&header, &a.style.options()).map_err(name_plot_flag)?;
     }
     let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
     sink.finish()?;

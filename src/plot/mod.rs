@@ -107,13 +107,44 @@ fn spacing(values: &[f64]) -> f64 {
     d.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min)
 }
 
-/// A `--section AXIS=VALUE`: the axis (0, 1, 2 for x, y, z) and the value (mm).
-pub fn parse_section(s: &str) -> Result<(usize, f64)> {
-    let (a, v) = s.split_once('=').ok_or_else(|| anyhow!("--section wants AXIS=VALUE, e.g. z=0"))?;
-    let axis = AXES.iter().position(|x| *x == a.trim()).ok_or_else(|| anyhow!("--section axis must be x, y or z"))?;
-    let v: f64 = v.trim().parse().map_err(|_| anyhow!("--section value `{v}` is not a number"))?;
+/// A picture option that cannot be used: the command line names its flag (`PlotOptions` field).
+#[derive(Clone, Debug, PartialEq)]
+pub enum OptionError {
+    /// The section is not AXIS=VALUE with a finite value.
+    Section(String),
+    /// The map has no such column.
+    Column {
+        /// The column asked for.
+        column: String,
+        /// The columns the map has.
+        columns: String,
+    },
+    /// The curve direction is not one of x, y, z, rx, ry, rz.
+    Direction(String),
+}
+
+impl std::fmt::Display for OptionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            OptionError::Section(why) => f.write_str(why),
+            OptionError::Column { column, columns } => {
+                write!(f, "the map has no column `{column}` (columns: {columns})")
+            }
+            OptionError::Direction(d) => write!(f, "`{d}` is not one of x, y, z, rx, ry, rz"),
+        }
+    }
+}
+
+impl std::error::Error for OptionError {}
+
+/// A section AXIS=VALUE: the axis (0, 1, 2 for x, y, z) and the value (mm).
+pub fn parse_section(s: &str) -> Result<(usize, f64), OptionError> {
+    let bad = |why: String| OptionError::Section(why);
+    let (a, v) = s.split_once('=').ok_or_else(|| bad("wants AXIS=VALUE, e.g. z=0".into()))?;
+    let axis = AXES.iter().position(|x| *x == a.trim()).ok_or_else(|| bad("the axis must be x, y or z".into()))?;
+    let v: f64 = v.trim().parse().map_err(|_| bad(format!("value `{v}` is not a number")))?;
     if !v.is_finite() {
-        bail!("--section value `{v}` is not a finite number");
+        return Err(bad(format!("value `{v}` is not a finite number")));
     }
     Ok((axis, v))
 }
@@ -126,7 +157,7 @@ pub fn check_map_options(header: &str, o: &PlotOptions) -> Result<()> {
     }
     let column = o.column.as_deref().unwrap_or(DEFAULT_MAP_COLUMN);
     if !header.trim_end().split(',').any(|h| h == column) {
-        bail!("--plot-column: the map has no column `{column}` (columns: {})", header.trim_end());
+        return Err(OptionError::Column { column: column.into(), columns: header.trim_end().into() }.into());
     }
     Ok(())
 }
@@ -234,10 +265,7 @@ fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
     let names = ["x", "y", "z", "rx", "ry", "rz"];
     let (disp, force) = (names::DISPLACEMENT, names::WRENCH);
     let k = match &o.direction {
-        Some(d) => names
-            .iter()
-            .position(|n| n == d)
-            .ok_or_else(|| anyhow!("--direction must be one of x, y, z, rx, ry, rz"))?,
+        Some(d) => names.iter().position(|n| n == d).ok_or_else(|| OptionError::Direction(d.clone()))?,
         None => {
             let range = |c: &str| extent(t.numbers(c).unwrap_or_default().into_iter().flatten());
             (0..3).max_by(|a, b| range(disp[*a]).total_cmp(&range(disp[*b]))).unwrap_or(0)
