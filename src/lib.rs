@@ -3,6 +3,7 @@
 pub mod batch;
 pub mod beam;
 pub mod cli;
+pub mod columns;
 pub mod diagnose;
 pub mod expr;
 pub mod kinematics;

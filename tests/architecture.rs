@@ -3,14 +3,14 @@
 //! only `model` (which builds the engines) reaches the engines' internals.
 //!
 //!   cli -> {study, diagnose, plot} -> batch -> {output, model} -> platform -> {vjm, msa} -> beam
-//!       -> {kinematics, linalg, expr}
+//!       -> {kinematics, linalg, expr, columns}
 
 use std::collections::BTreeSet;
 use std::path::Path;
 
 /// The layer of each top-level module, lowest first.
 const LAYERS: [&[&str]; 8] = [
-    &["kinematics", "linalg", "expr"],
+    &["kinematics", "linalg", "expr", "columns"],
     &["beam"],
     &["vjm", "msa"],
     &["platform"],

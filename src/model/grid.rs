@@ -1,6 +1,7 @@
 //! Where to evaluate: a box grid or named points in TOML (`manipulators/grids/`), or a CSV of points from
 //! any other tool. Points are read in blocks, so a map never holds all of them in memory.
 
+use crate::columns as names;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
@@ -132,8 +133,10 @@ fn grid_decimals(from: f64, to: f64, n: usize) -> Option<u32> {
 }
 
 /// Columns of a points CSV.
-const WRENCH_COLUMNS: [&str; 6] = ["Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm"];
-const ORIENTATION_COLUMNS: [&str; 3] = ["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"];
+// A points file uses the column names the studies write (`output::table::names`), so a map's output is a
+// valid points file.
+const WRENCH_COLUMNS: [&str; 6] = names::WRENCH;
+const ORIENTATION_COLUMNS: [&str; 3] = names::ORIENTATION;
 
 struct CsvColumns {
     name: Option<usize>,
@@ -254,7 +257,7 @@ impl PointSet {
                 whole(format!("no column `{n}` (columns: {})", headers.iter().collect::<Vec<_>>().join(",")))
             })
         };
-        let xyz = [need("x_mm")?, need("y_mm")?, need("z_mm")?];
+        let xyz = [need(names::POSITION[0])?, need(names::POSITION[1])?, need(names::POSITION[2])?];
         let group = |names: &[&str]| -> Result<Option<Vec<usize>>, InputError> {
             let found: Vec<Option<usize>> = names.iter().map(|n| find(n)).collect();
             match found.iter().filter(|f| f.is_some()).count() {
@@ -265,7 +268,7 @@ impl PointSet {
         };
         let orientation = group(&ORIENTATION_COLUMNS)?.map(|v| [v[0], v[1], v[2]]);
         let wrench = group(&WRENCH_COLUMNS)?.map(|v| [v[0], v[1], v[2], v[3], v[4], v[5]]);
-        let columns = CsvColumns { name: find("name"), xyz, orientation, wrench };
+        let columns = CsvColumns { name: find(names::NAME), xyz, orientation, wrench };
         Ok(Self {
             has_orientation: columns.orientation.is_some(),
             has_wrench: columns.wrench.is_some(),
