@@ -77,7 +77,7 @@ fn small_grid_matches_golden_file() {
 fn synthetic_measurements_are_the_same_for_one_and_two_threads() {
     let dir = temp_dir();
     let grid = dir.path().join("g.toml");
-    std::fs::write(&grid, "[box]\nfrom = [-80, -80, 0]\nto = [400, 130, 0]\nsteps = [20, 15, 1]\n").unwrap();
+    std::fs::write(&grid, "[box]\nfrom = [-80, -80, 0]\nto = [400, 130, 0]\npoints = [20, 15, 1]\n").unwrap();
     let mut outputs = Vec::new();
     for threads in ["1", "2"] {
         let out = dir.path().join(format!("t{threads}.csv"));
@@ -101,7 +101,7 @@ fn the_map_is_the_same_for_one_and_two_threads() {
     let dir = temp_dir();
     let grid = dir.path().join("g.toml");
     // 2,601 points: several runs of warm starts, some of them unreachable (beyond the legs' reach).
-    std::fs::write(&grid, "[box]\nfrom = [-80, -80, 0]\nto = [400, 130, 0]\nsteps = [51, 51, 1]\n").unwrap();
+    std::fs::write(&grid, "[box]\nfrom = [-80, -80, 0]\nto = [400, 130, 0]\npoints = [51, 51, 1]\n").unwrap();
     let mut outputs = Vec::new();
     for threads in ["1", "2"] {
         let out = dir.path().join(format!("t{threads}.csv"));
@@ -214,12 +214,12 @@ fn spring_matrices_must_be_symmetric_positive_definite() {
 }
 
 #[test]
-fn a_grid_with_zero_steps_is_refused() {
+fn a_grid_with_zero_points_along_an_axis_is_refused() {
     let dir = temp_dir();
     let grid = dir.path().join("zero.toml");
-    std::fs::write(&grid, "[box]\nfrom = [0, 0, 0]\nto = [1, 1, 1]\nsteps = [2, 0, 2]\n").unwrap();
+    std::fs::write(&grid, "[box]\nfrom = [0, 0, 0]\nto = [1, 1, 1]\npoints = [2, 0, 2]\n").unwrap();
     let e = refused(Path::new(MODEL), &["--grid", grid.to_str().unwrap()], dir.path());
-    assert!(e.contains("zero.toml, line 4") && e.contains("steps must be at least 1"), "{e}");
+    assert!(e.contains("zero.toml, line 4") && e.contains("`points` must be at least 1"), "{e}");
 }
 
 #[test]
@@ -260,7 +260,7 @@ fn curve_starts_at_the_unloaded_stiffness() {
     let out = dir.path().join("c.csv");
     stiff()
         .args(["curve", MODEL, "--at", "0,0,0", "--displacement-direction", "1,0,0,0,0,0", "--max", "0.5"])
-        .args(["--steps", "10", "-q", "-o"])
+        .args(["--intervals", "10", "-q", "-o"])
         .arg(&out)
         .assert()
         .success();
@@ -475,7 +475,7 @@ fn diagnose_reads_synth_output_and_refuses_bad_data() {
 fn grid_coordinates_are_the_decimals_the_user_meant() {
     let dir = temp_dir();
     let grid = dir.path().join("g.toml");
-    std::fs::write(&grid, "[box]\nfrom = [-73.65, -73.65, 0.1]\nto = [126.35, 126.35, 0.1]\nsteps = [21, 21, 1]\n")
+    std::fs::write(&grid, "[box]\nfrom = [-73.65, -73.65, 0.1]\nto = [126.35, 126.35, 0.1]\npoints = [21, 21, 1]\n")
         .unwrap();
     let out = stiff().args(["map", MODEL, "--grid"]).arg(&grid).arg("-q").output().unwrap();
     let text = String::from_utf8(out.stdout).unwrap();

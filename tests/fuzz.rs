@@ -174,7 +174,7 @@ const MODELS: [&str; 7] = [
 ];
 
 const SMALL_GRID: &str =
-    "[box]\nfrom = [-40, -40, -40]\nto = [40, 40, 40]\nsteps = [2, 2, 2]\nwrench = [215, -10, -25, 1000, 21500, 0]\n";
+    "[box]\nfrom = [-40, -40, -40]\nto = [40, 40, 40]\npoints = [2, 2, 2]\nwrench = [215, -10, -25, 1000, 21500, 0]\n";
 const POINTS: &str = "name,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm\nQ0,0,0,0,100,0,0,0,0,0\nQ1,-73.65,-73.65,-73.65,0,50,0,0,1000,0\nfar,126.35,126.35,126.35,0,0,-80,0,0,0\n";
 const DATA: &str = "pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,sigma_mm\n\
 p0,0,0,0,200,0,0,0,0,0,0.056,0.0001,0.0002,0.002\np0,0,0,0,-200,0,0,0,0,0,-0.056,0,0.0001,0.002\n\
@@ -212,7 +212,7 @@ fn case(r: &mut StdRng) -> Case {
             "1,0,0,0,0,0",
             "--max",
             "2000",
-            "--steps",
+            "--intervals",
             "4",
         ]),
         6 => m(&[
@@ -224,7 +224,7 @@ fn case(r: &mut StdRng) -> Case {
             "0,0,1,0,0,0",
             "--max",
             "0.5",
-            "--steps",
+            "--intervals",
             "4",
         ]),
         7 => {
@@ -357,10 +357,10 @@ fn run(bin: &Path, c: &Case, dir: &Path) -> Option<Failure> {
     texts.iter().find_map(|t| non_finite_ok_row(t)).map(Failure::NonFiniteOk)
 }
 
-/// The number of points a grid file's `steps` asks for (0 where it cannot be read).
+/// The number of points a grid file's `points` asks for (0 where it cannot be read).
 fn requested_points(grid: &str) -> f64 {
     grid.lines()
-        .find_map(|l| l.trim().strip_prefix("steps = [")?.strip_suffix(']').map(str::to_string))
+        .find_map(|l| l.trim().strip_prefix("points = [")?.strip_suffix(']').map(str::to_string))
         .map(|s| s.split(',').map(|v| v.trim().parse::<f64>().unwrap_or(0.0)).product())
         .unwrap_or(0.0)
 }

@@ -194,7 +194,7 @@ fn orthoglide_curve_flags_agree_with_their_columns() {
     let run = assert_cmd::Command::cargo_bin("stiff")
         .unwrap()
         .args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--wrench-direction", "1,0,0,0,0,0"])
-        .args(["--max", "1e6", "--steps", "50", "-o"])
+        .args(["--max", "1e6", "--intervals", "50", "-o"])
         .arg(&out)
         .output()
         .unwrap();
@@ -247,7 +247,7 @@ fn a_curve_that_stops_converging_keeps_its_rows() {
     let run = assert_cmd::Command::cargo_bin("stiff")
         .unwrap()
         .args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--displacement-direction"])
-        .args(["0,0,0,0,0,1", "--max", "6", "--steps", "30", "-o"])
+        .args(["0,0,0,0,0,1", "--max", "6", "--intervals", "30", "-o"])
         .arg(&out)
         .output()
         .unwrap();

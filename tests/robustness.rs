@@ -138,7 +138,7 @@ fn a_closed_pipe_stops_a_huge_map_quietly() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("g.toml"),
-        "[box]\nfrom = [-60, -60, -60]\nto = [60, 60, 60]\nsteps = [1000, 1000, 1000]\n",
+        "[box]\nfrom = [-60, -60, -60]\nto = [60, 60, 60]\npoints = [1000, 1000, 1000]\n",
     )
     .unwrap();
     let mut child = Command::new(bin())
@@ -171,7 +171,7 @@ fn an_interrupted_run_leaves_no_partial_file() {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(
             dir.path().join("g.toml"),
-            "[box]\nfrom = [-60, -60, -60]\nto = [60, 60, 60]\nsteps = [400, 400, 400]\n",
+            "[box]\nfrom = [-60, -60, -60]\nto = [60, 60, 60]\npoints = [400, 400, 400]\n",
         )
         .unwrap();
         let mut child = Command::new(bin())
@@ -198,8 +198,8 @@ fn an_interrupted_run_leaves_no_partial_file() {
     }
 }
 
-/// Regression: size requests beyond what the machine can do hung or aborted (`curve --steps 4294967297`
-/// allocated 721 GB, `--threads 1000000` hung the pool setup, `assemble --samples 4294967297` never wrote a row, `steps = [2^32, 2^32, 1]` wrapped to zero
+/// Regression: size requests beyond what the machine can do hung or aborted (`curve --intervals 4294967297`
+/// allocated 721 GB, `--threads 1000000` hung the pool setup, `assemble --samples 4294967297` never wrote a row, `points = [2^32, 2^32, 1]` wrapped to zero
 /// points). They are refused up front, saying the limit.
 #[test]
 fn impossible_sizes_are_refused_with_their_limit() {
@@ -212,7 +212,7 @@ fn impossible_sizes_are_refused_with_their_limit() {
         "1,0,0,0,0,0",
         "--max",
         "1",
-        "--steps",
+        "--intervals",
         "4294967297",
     ]));
     assert!(e.contains("1000000"), "{e}");
@@ -232,7 +232,7 @@ fn impossible_sizes_are_refused_with_their_limit() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("g.toml"),
-        "[box]\nfrom = [0, 0, 0]\nto = [10, 10, 0]\nsteps = [4294967296, 4294967296, 1]\n",
+        "[box]\nfrom = [0, 0, 0]\nto = [10, 10, 0]\npoints = [4294967296, 4294967296, 1]\n",
     )
     .unwrap();
     let m = root().join(PUU).display().to_string();
@@ -247,13 +247,13 @@ fn grid_arrays_must_have_their_length_and_be_finite() {
     let dir = tempfile::tempdir().unwrap();
     let m = root().join(PUU).display().to_string();
     for (grid, what) in [
-        ("[box]\nfrom = [0, 0, 0, 9]\nto = [10, 10, 10]\nsteps = [2, 2, 2]\n", "`from` needs 3 numbers, got 4"),
+        ("[box]\nfrom = [0, 0, 0, 9]\nto = [10, 10, 10]\npoints = [2, 2, 2]\n", "`from` needs 3 numbers, got 4"),
         (
-            "[box]\nfrom = [0, 0, 0]\nto = [10, 10, 10]\nsteps = [2, 2, 2]\nwrench = [1, 2, 3, 4, 5, 6, 7]\n",
+            "[box]\nfrom = [0, 0, 0]\nto = [10, 10, 10]\npoints = [2, 2, 2]\nwrench = [1, 2, 3, 4, 5, 6, 7]\n",
             "`wrench` needs 6",
         ),
         (
-            "[box]\nfrom = [0, 0, 0]\nto = [10, 10, 10]\nsteps = [2, 2, 2]\nwrench = [1, nan, 3, 4, 5, 6]\n",
+            "[box]\nfrom = [0, 0, 0]\nto = [10, 10, 10]\npoints = [2, 2, 2]\nwrench = [1, nan, 3, 4, 5, 6]\n",
             "not a finite number",
         ),
         ("[[point]]\nname = \"p\"\nat = [0, inf, 0]\n", "not a finite number"),
@@ -274,8 +274,18 @@ fn astronomical_loads_give_statuses_not_nan_rows() {
     assert!(o.status.success(), "{}", stderr(&o));
     let seen = statuses_with_finite_ok_rows(&String::from_utf8(o.stdout).unwrap());
     assert!(seen.iter().all(|s| s != "ok"), "{seen:?}");
-    let o =
-        run(&["curve", PUU, "--at", "0,0,0", "--wrench-direction", "1,0,0,0,0,0", "--max", "1e308", "--steps", "3"]);
+    let o = run(&[
+        "curve",
+        PUU,
+        "--at",
+        "0,0,0",
+        "--wrench-direction",
+        "1,0,0,0,0,0",
+        "--max",
+        "1e308",
+        "--intervals",
+        "3",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8(o.stdout).unwrap();
     statuses_with_finite_ok_rows(&text);

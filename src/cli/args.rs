@@ -47,17 +47,30 @@ pub(crate) struct RunArgs {
     pub(crate) quiet: bool,
 }
 
-/// How to draw (maps and curves).
+/// How to draw a map.
 #[derive(Args, Debug, Default)]
-pub(crate) struct PlotStyle {
-    /// Map: the column to colour (default c_tran_max_mm_per_N).
+pub(crate) struct MapStyle {
+    /// Map picture: the column to colour [default: c_tran_max_mm_per_N].
     #[arg(long = "plot-column")]
     pub(crate) column: Option<String>,
-    /// Map: a planar section AXIS=VALUE (mm), e.g. z=0; default: every section (up to six) of a 3-D grid.
+    /// Map picture: a planar section AXIS=VALUE (mm), e.g. z=0 [default: every section (up to six) of a 3-D
+    /// grid].
     #[arg(long)]
     pub(crate) section: Option<String>,
-    /// Curve: the direction to draw (x, y, z, rx, ry, rz; default: the one that moves most).
-    #[arg(long)]
+}
+
+impl MapStyle {
+    /// The picture options these give.
+    pub(crate) fn style(&self) -> PlotStyle {
+        PlotStyle { column: self.column.clone(), section: self.section.clone(), direction: None }
+    }
+}
+
+/// How to draw a picture: a map's column and section, a curve's direction.
+#[derive(Debug, Default)]
+pub(crate) struct PlotStyle {
+    pub(crate) column: Option<String>,
+    pub(crate) section: Option<String>,
     pub(crate) direction: Option<String>,
 }
 
@@ -135,11 +148,24 @@ pub(crate) fn progress_bar(len: Option<u64>, quiet: bool) -> ProgressBar {
     };
     bar.set_style(
         ProgressStyle::with_template(
-            "{elapsed_precise} [{wide_bar}] {human_pos}/{human_len} points, {per_sec}, eta {eta}",
+            "{elapsed_precise} [{wide_bar}] {human_pos}/{human_len} points, {rate}, eta {eta}",
         )
+        .map(|style| style.with_key("rate", write_rate))
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar
+}
+
+/// The rate as a whole number of points per second with thousands separators (`14,643/s`): indicatif's
+/// `{per_sec}` prints four decimals.
+fn write_rate(state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write) {
+    let _ = w.write_str(&rate_text(state.per_sec()));
+}
+
+/// `14643.3446` points per second -> `14,643/s`.
+fn rate_text(per_second: f64) -> String {
+    let whole = if per_second.is_finite() { per_second.max(0.0).round() as u64 } else { 0 };
+    format!("{}/s", indicatif::HumanCount(whole))
 }
 
 /// The poses of `--grid` or `--points` (clap keeps the two exclusive).
@@ -191,5 +217,16 @@ pub(crate) fn name_plot_flag(e: anyhow::Error) -> anyhow::Error {
         Some(o @ OptionError::Column { .. }) => anyhow::anyhow!("--plot-column: {o}"),
         Some(o @ OptionError::Direction(_)) => anyhow::anyhow!("--direction: {o}"),
         None => e,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The progress rate is a whole number with thousands separators, as ripgrep and hyperfine print rates.
+    #[test]
+    fn progress_rates_are_whole_numbers() {
+        assert_eq!(super::rate_text(14643.3446), "14,643/s");
+        assert_eq!(super::rate_text(0.4), "0/s");
+        assert_eq!(super::rate_text(f64::INFINITY), "0/s");
     }
 }

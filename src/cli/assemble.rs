@@ -18,6 +18,14 @@ use crate::study::assemble::{path_points, run_assemble, AssembleOptions, LegErro
 /// Most tolerance samples per point (`assemble --samples`): each row waits for all of its samples.
 const MAX_SAMPLES: usize = 10_000_000;
 
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff assemble manipulators/orthoglide-3puu.toml --errors manipulators/errors/orthoglide-case-a.toml --grid manipulators/grids/orthoglide-q.toml -o a.csv
+  stiff assemble manipulators/orthoglide-3puu.toml --errors manipulators/errors/orthoglide-case-b.toml --path -200,0,0 300,0,0 26 --wrench 215,-10,-25,1000,21500,0 -o path.csv --plot path.svg
+  stiff assemble manipulators/orthoglide-3puu.toml --errors manipulators/errors/orthoglide-case-a.toml --grid manipulators/grids/orthoglide-small.toml --samples 1000 -o tol.csv
+
+Exit status: 0 success, 1 the run failed, 2 usage error.";
+
 #[derive(Args, Debug)]
 pub(crate) struct AssembleArgs {
     #[command(flatten)]
@@ -33,12 +41,12 @@ pub(crate) struct AssembleArgs {
     #[arg(long, conflicts_with = "path")]
     pub(crate) points: Option<PathBuf>,
     /// A straight path: FROM x,y,z (mm), TO x,y,z (mm), number of points.
-    #[arg(long, num_args = 3, value_names = ["FROM", "TO", "STEPS"], allow_hyphen_values = true)]
+    #[arg(long, num_args = 3, value_names = ["FROM", "TO", "POINTS"], allow_hyphen_values = true)]
     pub(crate) path: Option<Vec<String>>,
     /// External wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): adds the load, total and superposition columns.
     #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
     pub(crate) wrench: Option<Vec6>,
-    /// Factor on every error (default 1).
+    /// Factor on every error.
     #[arg(long, default_value_t = 1.0)]
     pub(crate) scale: f64,
     /// Tolerance study: this many random draws of the errors within +-(scale x the given values).
@@ -68,12 +76,12 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
         Some(path) => {
             let from = parse_vec3(&path[0]).map_err(|e| anyhow::anyhow!("--path FROM: {e}"))?;
             let to = parse_vec3(&path[1]).map_err(|e| anyhow::anyhow!("--path TO: {e}"))?;
-            let steps: usize =
-                path[2].parse().map_err(|_| anyhow::anyhow!("--path STEPS: `{}` is not a count", path[2]))?;
-            if steps == 0 {
-                bail!("--path needs at least one step");
+            let count: usize =
+                path[2].parse().map_err(|_| anyhow::anyhow!("--path POINTS: `{}` is not a count", path[2]))?;
+            if count == 0 {
+                bail!("--path needs at least one point");
             }
-            PointSet::from_points(path_points(&from, &to, steps))
+            PointSet::from_points(path_points(&from, &to, count))
         }
     };
     let pool = thread_pool(a.run.threads)?;

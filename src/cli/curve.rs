@@ -10,6 +10,13 @@ use super::parse::{parse_vec3, parse_vec6};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::study::curve::{curve_header, push_curve_row, run_curve, Control, MAX_INTERVALS};
 
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff curve manipulators/orthoglide-3puu.toml --at 0,0,0 --wrench-direction 0,0,-1000,0,0,0 --max 5 -o c.csv
+  stiff curve manipulators/orthoglide-3prpar.toml --at 0,0,0 --displacement-direction 1,0,0,0,0,0 --max 0.5 -o d.csv --plot d.svg
+
+Exit status: 0 success (a curve that stops early still writes its rows), 1 the run failed, 2 usage error.";
+
 #[derive(Args, Debug)]
 pub(crate) struct CurveArgs {
     #[command(flatten)]
@@ -29,9 +36,9 @@ pub(crate) struct CurveArgs {
     /// Largest load factor.
     #[arg(long)]
     pub(crate) max: f64,
-    /// Number of steps from 0 to --max.
-    #[arg(long, default_value_t = 50)]
-    pub(crate) steps: usize,
+    /// Number of equal intervals from 0 to --max (intervals + 1 rows). `--steps`, its former name, is still read.
+    #[arg(long, alias = "steps", default_value_t = 50)]
+    pub(crate) intervals: usize,
     #[command(flatten)]
     pub(crate) output: OutputArgs,
     /// No summary on stderr.
@@ -53,8 +60,8 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
         (None, Some(d)) => Control::Displacement(d),
         _ => bail!("give exactly one of --wrench-direction and --displacement-direction"),
     };
-    if !(1..=MAX_INTERVALS).contains(&a.steps) {
-        bail!("--steps must lie between 1 and {MAX_INTERVALS} (each step is a loaded equilibrium kept in memory)");
+    if !(1..=MAX_INTERVALS).contains(&a.intervals) {
+        bail!("--intervals must lie between 1 and {MAX_INTERVALS} (each row is a loaded equilibrium)");
     }
     if !(a.max.is_finite() && a.max > 0.0) {
         bail!("--max must be a positive finite number, got {}", a.max);
@@ -65,7 +72,7 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
     let writer = sink.writer();
     writer.write_all(curve_header().as_bytes())?;
     let mut line = String::new();
-    let summary = run_curve(&model, &at, control, a.max, a.steps, &mut |r| {
+    let summary = run_curve(&model, &at, control, a.max, a.intervals, &mut |r| {
         line.clear();
         push_curve_row(&mut line, r);
         if let Some(p) = picture.as_mut() {

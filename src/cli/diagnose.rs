@@ -9,6 +9,13 @@ use super::args::{write_stdout, ModelArgs};
 use crate::model::error::read_text;
 use crate::output::sink::Sink;
 
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --effect actuator-compliance:2=1.5 --wrenches \"200,0,0,0,0,0;0,0,-200,0,0,0\" --noise 0.002 --seed 1 -o data.csv
+  stiff diagnose manipulators/orthoglide-3puu.toml --data data.csv --json verdict.json --model-out corrected.toml --plot verdict.svg
+
+Exit status: 0 success whatever the verdict (unless --fail-on), 1 the run failed or --fail-on matched the\nverdict, 2 usage error.";
+
 #[derive(Args, Debug)]
 pub(crate) struct DiagnoseArgs {
     #[command(flatten)]
@@ -22,7 +29,7 @@ pub(crate) struct DiagnoseArgs {
     /// Predict by the loaded equilibrium instead of the linear C w.
     #[arg(long)]
     pub(crate) loaded: bool,
-    /// Significance level (default 0.01; candidates are tested at alpha / their number).
+    /// Significance level (candidates are tested at alpha / their number).
     #[arg(long, default_value_t = 0.01)]
     pub(crate) alpha: f64,
     /// Write the verdict, accepted effects and candidate table as JSON.
@@ -34,6 +41,19 @@ pub(crate) struct DiagnoseArgs {
     /// Also draw the diagnosis (SVG): residual arrows before and after, per-axis RMS, candidates' delta BIC.
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
+    /// Exit with status 1 (after writing every output) when the verdict is `effect` or worse (any verdict but
+    /// none), or `unexplained` (unexplained or ambiguous): a CI gate on measured data.
+    #[arg(long, value_enum)]
+    pub(crate) fail_on: Option<FailOn>,
+}
+
+/// Which verdicts `--fail-on` turns into a failing exit status.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum FailOn {
+    /// Any discrepancy: effect, ambiguous or unexplained.
+    Effect,
+    /// A discrepancy not attributed to one effect: ambiguous or unexplained.
+    Unexplained,
 }
 
 pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
@@ -77,6 +97,18 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
         sink.writer().write_all(report::corrected_model(&source, &dir, &d).as_bytes())?;
         sink.finish()?;
+    }
+    let fails = match (a.fail_on, d.verdict) {
+        (None, _) | (_, select::Verdict::None) => false,
+        (Some(FailOn::Effect), _) => true,
+        (Some(FailOn::Unexplained), v) => v != select::Verdict::Effect,
+    };
+    if fails {
+        bail!(
+            "verdict `{}` (--fail-on {})",
+            d.verdict.as_str(),
+            if a.fail_on == Some(FailOn::Effect) { "effect" } else { "unexplained" }
+        );
     }
     Ok(())
 }

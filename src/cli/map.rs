@@ -6,12 +6,20 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    name_plot_flag, plot_needs_output, progress_bar, thread_pool, write_plot, written, ModelArgs, OutputArgs,
-    PlotStyle, PointsArgs, RunArgs,
+    name_plot_flag, plot_needs_output, progress_bar, thread_pool, write_plot, written, MapStyle, ModelArgs, OutputArgs,
+    PointsArgs, RunArgs,
 };
 use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
 use crate::study::map::{run_map, MapOptions};
+
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-cube.toml -o cube.csv
+  stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-q.toml --loaded --stiffness -o q.csv
+  stiff map manipulators/navaro2.toml --grid manipulators/grids/navaro2-workspace.toml -o navaro.csv --plot navaro.svg
+
+Exit status: 0 success (points that fail are rows with their status), 1 the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
 pub(crate) struct MapArgs {
@@ -35,7 +43,7 @@ pub(crate) struct MapArgs {
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
     #[command(flatten)]
-    pub(crate) style: PlotStyle,
+    pub(crate) style: MapStyle,
     #[command(flatten)]
     pub(crate) run: RunArgs,
 }
@@ -53,13 +61,13 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
     plot_needs_output(&a.plot, &a.output.output, "map")?;
     if a.plot.is_some() {
         let header = crate::study::map::map_header(&crate::study::map::map_columns(&points, &options));
-        crate::plot::check_map_options(&header, &a.style.options()).map_err(name_plot_flag)?;
+        crate::plot::check_map_options(&header, &a.style.style().options()).map_err(name_plot_flag)?;
     }
     let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
     sink.finish()?;
     bar.finish_and_clear();
     if let Some(plot) = &a.plot {
-        write_plot(&written(&a.output.output)?, plot, &a.style)?;
+        write_plot(&written(&a.output.output)?, plot, &a.style.style())?;
     }
     if !a.run.quiet {
         eprintln!("{}", summary.line());

@@ -17,7 +17,17 @@ use clap::{Parser, Subcommand};
 
 /// `stiff`'s arguments.
 #[derive(Parser, Debug)]
-#[command(name = "stiff", version, about = "Stiffness of parallel robots: maps, points (units: mm, N, N mm, rad)")]
+#[command(
+    name = "stiff",
+    version = VERSION,
+    about = "Stiffness of parallel robots (units: mm, N, N mm, rad): compliance maps, one pose, force-deflection \
+             curves, assembly with geometric errors, diagnosis against measurements, synthetic measurements, \
+             pictures",
+    after_help = "Exit status: 0 success, 1 the run failed (the message says why), 2 the command line is wrong \
+                  (unknown option, missing value); `diagnose --fail-on` turns a verdict into 1.\n\n\
+                  Example: stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-cube.toml \
+                  -o cube.csv"
+)]
 pub struct Cli {
     /// What to run.
     #[command(subcommand)]
@@ -29,22 +39,32 @@ pub struct Cli {
 #[allow(private_interfaces)]
 pub enum Command {
     /// Compliance map over a grid or a list of points, as CSV (one row per point, in input order).
+    #[command(after_help = map::EXAMPLES)]
     Map(map::MapArgs),
     /// Stiffness and compliance matrices at one pose, printed with units.
+    #[command(after_help = point::EXAMPLES)]
     Point(point::PointArgs),
     /// Force-deflection curve at one pose (loaded mode), as CSV.
+    #[command(after_help = curve::EXAMPLES)]
     Curve(curve::CurveArgs),
     /// Assembly of legs with geometric errors (paper 000 s. 4.2): platform displacement, internal loads,
     /// joint deflections, linear and non-linear, with an optional external wrench; tolerance studies.
+    #[command(after_help = assemble::EXAMPLES)]
     Assemble(assemble::AssembleArgs),
     /// Where measured deflections and the model disagree: names the missing effect (or none), fits it,
     /// and writes the corrected model.
+    #[command(after_help = diagnose::EXAMPLES)]
     Diagnose(diagnose::DiagnoseArgs),
     /// Synthetic measurements with hidden effects, in the format `diagnose` reads.
+    #[command(after_help = synth::EXAMPLES)]
     Synth(synth::SynthArgs),
     /// An SVG picture of a study's output (map, curve or assemble CSV, or diagnose JSON).
+    #[command(after_help = plot::EXAMPLES)]
     Plot(plot::PlotArgs),
 }
+
+/// The version and the git commit the binary was built from (`build.rs`; "unknown" outside a checkout).
+const VERSION: &str = concat!(env!("CARGO_PKG_VERSION"), " (", env!("STIFF_GIT_COMMIT"), ")");
 
 /// Parses the command line and runs the command.
 pub fn run() -> Result<()> {

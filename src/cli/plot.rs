@@ -5,8 +5,15 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use super::args::{write_plot, PlotStyle};
+use super::args::{write_plot, MapStyle, PlotStyle};
 use crate::model::error::read_text;
+
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-cube.toml -o cube.csv
+  stiff plot cube.csv -o cube.svg --section z=26.35 --plot-column c_rot_max_rad_per_Nmm
+
+Exit status: 0 success, 1 the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
 pub(crate) struct PlotArgs {
@@ -16,10 +23,14 @@ pub(crate) struct PlotArgs {
     #[arg(short, long)]
     pub(crate) output: PathBuf,
     #[command(flatten)]
-    pub(crate) style: PlotStyle,
+    pub(crate) style: MapStyle,
+    /// Curve picture: the direction to draw (x, y, z, rx, ry, rz) [default: the one that moves most].
+    #[arg(long)]
+    pub(crate) direction: Option<String>,
 }
 
 pub(crate) fn run(a: PlotArgs) -> Result<()> {
     let text = read_text(&a.input)?;
-    write_plot(&text, &a.output, &a.style)
+    let style = PlotStyle { direction: a.direction.clone(), ..a.style.style() };
+    write_plot(&text, &a.output, &style)
 }

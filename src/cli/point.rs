@@ -1,13 +1,21 @@
 //! `stiff point`: stiffness and compliance at one pose, as a report.
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{write_stdout, ModelArgs};
 use super::parse::{parse_vec3, parse_vec6};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::grid::PosePoint;
-use crate::study::point::{loaded_point, point_report, unloaded_point, LoadedHistory};
+use crate::study::point::{loaded_point, point_report, unloaded_point, LoadedHistory, Status};
+
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff point manipulators/orthoglide-3puu.toml --at 0,0,0
+  stiff point manipulators/orthoglide-3prpar.toml --at 0,0,0 --wrench 215,-10,-25,1000,21500,0
+  stiff point manipulators/stewart-gough-b.toml --at 0,0,300 --orientation 0,0,0.1
+
+Exit status: 0 the pose has a compliance (status ok), 1 it has not (unreachable, singular, unstable, ...:\nthe report says why) or the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
 pub(crate) struct PointArgs {
@@ -31,11 +39,19 @@ pub(crate) fn run(a: PointArgs) -> Result<()> {
         PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
-    let mut text = point_report(&model.name, &p, &r, false);
+    let mut text = point_report(&model.name, &p, &r, false, model.length_scale);
+    let mut statuses = vec![r.status];
     if let Some(w) = &a.wrench {
         let loaded = loaded_point(&model, &p, w, &mut state, &mut LoadedHistory::default());
         text.push_str("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)\n");
-        text.push_str(&point_report(&model.name, &p, &loaded, true));
+        text.push_str(&point_report(&model.name, &p, &loaded, true, model.length_scale));
+        statuses.push(loaded.status);
     }
-    write_stdout(&text)
+    write_stdout(&text)?;
+    // The report is written first (a singular pose's free directions are the answer a user wants); the
+    // exit status then says the pose has no compliance.
+    if let Some(s) = statuses.iter().find(|s| **s != Status::Ok) {
+        bail!("the pose is {} (see the report above)", s.as_str());
+    }
+    Ok(())
 }

@@ -6,6 +6,13 @@ use clap::Args;
 use super::args::{progress_bar, thread_pool, ModelArgs, OutputArgs, PointsArgs, RunArgs};
 use super::parse::parse_vec6;
 
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --effect tool-offset=0.05,0,0 --wrenches \"200,0,0,0,0,0;0,200,0,0,0,0\" --noise 0.002 --seed 7 -o data.csv
+  stiff synth manipulators/orthoglide-3prpar.toml --grid manipulators/grids/orthoglide-small.toml --effect link-compliance:parallelogram=2 --wrenches \"0,0,-300,0,0,0\" --noise 0.001 --seed 1 --repeats 3 -o repeats.csv
+
+Exit status: 0 success, 1 the run failed, 2 usage error.";
+
 #[derive(Args, Debug)]
 pub(crate) struct SynthArgs {
     #[command(flatten)]

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use crate::kinematics::frame::{Vec3, Vec6};
-use crate::model::error::InputError;
+use crate::model::error::{open_input, InputError};
 use crate::output::table::names;
 
 /// The columns a measurement file must have, in the order `stiff synth` writes them.
@@ -67,10 +67,7 @@ impl Dataset {
             column,
             message,
         };
-        let mut reader = csv::ReaderBuilder::new()
-            .trim(csv::Trim::All)
-            .from_path(path)
-            .map_err(|e| InputError::Whole { path: path.to_path_buf(), message: e.to_string() })?;
+        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(open_input(path)?);
         let header = reader.headers().map_err(|e| at(1, 1, e.to_string()))?.clone();
         let find = |name: &str| header.iter().position(|h| h == name);
         let mut columns = Vec::with_capacity(REQUIRED.len());

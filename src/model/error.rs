@@ -105,6 +105,27 @@ impl Locator<'_> {
 }
 
 /// Reads a text file, with an error that names it.
+/// `-` means standard input (as `-o -` means standard output).
 pub fn read_text(path: &Path) -> Result<String, InputError> {
-    std::fs::read_to_string(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })
+    let read = if is_stdin(path) {
+        let mut text = String::new();
+        std::io::Read::read_to_string(&mut std::io::stdin().lock(), &mut text).map(|_| text)
+    } else {
+        std::fs::read_to_string(path)
+    };
+    read.map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })
+}
+
+/// An input opened for streaming: the file, or standard input for `-`.
+pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read + Send>, InputError> {
+    if is_stdin(path) {
+        return Ok(Box::new(std::io::stdin()));
+    }
+    let file = std::fs::File::open(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
+    Ok(Box::new(file))
+}
+
+/// Whether a path names standard input.
+pub fn is_stdin(path: &Path) -> bool {
+    path.as_os_str() == "-"
 }

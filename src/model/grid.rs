@@ -2,13 +2,12 @@
 //! any other tool. Points are read in blocks, so a map never holds all of them in memory.
 
 use crate::columns as names;
-use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::error::{not_finite, read_text, InputError, Locator};
+use super::error::{not_finite, open_input, read_text, InputError, Locator};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 
 /// One pose to evaluate.
@@ -47,8 +46,9 @@ struct BoxSpec {
     from: Spanned<Vec<f64>>,
     /// Last corner, mm.
     to: Spanned<Vec<f64>>,
-    /// Number of points along x, y, z (each at least 1).
-    steps: Spanned<Vec<i64>>,
+    /// Number of points along x, y, z (each at least 1). `steps`, its former name, is still read.
+    #[serde(alias = "steps")]
+    points: Spanned<Vec<i64>>,
     /// Fixed platform orientation, rotation vector in rad.
     #[serde(default)]
     orientation: Option<Spanned<Vec<f64>>>,
@@ -146,8 +146,17 @@ struct CsvColumns {
 }
 
 enum Source {
-    Grid { grid: Option<BoxGrid>, named: Vec<PosePoint>, next: u64 },
-    Csv { path: PathBuf, reader: csv::Reader<File>, columns: CsvColumns, record: csv::StringRecord },
+    Grid {
+        grid: Option<BoxGrid>,
+        named: Vec<PosePoint>,
+        next: u64,
+    },
+    Csv {
+        path: PathBuf,
+        reader: csv::Reader<Box<dyn std::io::Read + Send>>,
+        columns: CsvColumns,
+        record: csv::StringRecord,
+    },
 }
 
 /// A stream of poses, read in blocks.
@@ -183,27 +192,27 @@ impl PointSet {
                 let s = b.get_ref();
                 let from: [f64; 3] = loc.finite_array(&s.from, "from")?;
                 let to: [f64; 3] = loc.finite_array(&s.to, "to")?;
-                let counts = s.steps.get_ref();
+                let counts = s.points.get_ref();
                 if counts.len() != 3 {
-                    return Err(loc.at(s.steps.span(), format!("`steps` needs 3 numbers, got {}", counts.len())));
+                    return Err(loc.at(s.points.span(), format!("`points` needs 3 numbers, got {}", counts.len())));
                 }
                 let mut steps = [0usize; 3];
                 for k in 0..3 {
                     let n = counts[k];
                     if n < 1 {
                         return Err(
-                            loc.at(s.steps.span(), format!("steps must be at least 1 along each axis, got {n}"))
+                            loc.at(s.points.span(), format!("`points` must be at least 1 along each axis, got {n}"))
                         );
                     }
                     if n == 1 && from[k] != to[k] {
-                        return Err(loc.at(s.steps.span(), "one step along an axis needs `from` equal to `to` on it"));
+                        return Err(loc.at(s.points.span(), "one point along an axis needs `from` equal to `to` on it"));
                     }
                     steps[k] = n as usize;
                 }
                 let total = steps.iter().try_fold(1u64, |a, &n| a.checked_mul(n as u64));
                 if total.is_none_or(|t| t > MAX_GRID_POINTS) {
                     return Err(loc.at(
-                        s.steps.span(),
+                        s.points.span(),
                         format!(
                             "{} x {} x {} points is more than a grid may hold ({MAX_GRID_POINTS}: 14 hours of \
                              computing at 200,000 points/s); split it into several grids",
@@ -247,7 +256,7 @@ impl PointSet {
     /// A CSV with columns `x_mm,y_mm,z_mm`, optionally `name`, `pose_rx_rad,pose_ry_rad,pose_rz_rad` and
     /// `Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm`.
     pub fn from_points_csv(path: &Path) -> Result<Self, InputError> {
-        let file = File::open(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
+        let file = open_input(path)?;
         let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(file);
         let whole = |m: String| InputError::Whole { path: path.to_path_buf(), message: m };
         let headers = reader.headers().map_err(|e| whole(format!("cannot read the header: {e}")))?.clone();

@@ -429,15 +429,15 @@ impl Study for AssembleStudy<'_> {
     }
 }
 
-/// Points along the straight line from `from` to `to` (mm), `steps` of them, named `path0`, `path1`, ...
+/// Points along the straight line from `from` to `to` (mm), `count` of them, named `path0`, `path1`, ...
 pub fn path_points(
     from: &crate::kinematics::frame::Vec3,
     to: &crate::kinematics::frame::Vec3,
-    steps: usize,
+    count: usize,
 ) -> Vec<PosePoint> {
-    (0..steps)
+    (0..count)
         .map(|k| {
-            let a = if steps > 1 { k as f64 / (steps - 1) as f64 } else { 0.0 };
+            let a = if count > 1 { k as f64 / (count - 1) as f64 } else { 0.0 };
             PosePoint {
                 name: Some(format!("path{k}")),
                 position: from + (to - from) * a,

@@ -85,6 +85,26 @@ pub struct PointResult {
     pub free: Vec<Vec6>,
     /// Manipulator-level Newton iterations (loaded mode).
     pub iterations: usize,
+    /// Why nothing was computed, where a leg or the loaded equilibrium failed.
+    pub failure: Option<PointFailure>,
+}
+
+/// Why a point has no stiffness: a leg failed there, or the loaded equilibrium was not found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PointFailure {
+    /// A leg failed (unreachable, singular, ...).
+    Pose(PoseFailure),
+    /// The loaded equilibrium was not found.
+    Equilibrium(DeflectionFailure),
+}
+
+impl std::fmt::Display for PointFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PointFailure::Pose(e) => write!(f, "{e}"),
+            PointFailure::Equilibrium(e) => write!(f, "{e}"),
+        }
+    }
 }
 
 impl PointResult {
@@ -104,7 +124,12 @@ impl PointResult {
             deflection: None,
             free: Vec::new(),
             iterations: 0,
+            failure: None,
         }
+    }
+
+    fn failed_at(e: PoseFailure) -> Self {
+        Self { failure: Some(PointFailure::Pose(e)), ..Self::failed(Status::of(&e)) }
     }
 
     /// A result from a stiffness matrix: compliance, rank, condition and principal compliances. `loaded`:
@@ -150,7 +175,7 @@ impl PointResult {
 pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorState) -> PointResult {
     let agg = match m.unloaded(&p.frame(), state) {
         Ok(a) => a,
-        Err(e) => return PointResult::failed(Status::of(&e)),
+        Err(e) => return PointResult::failed_at(e),
     };
     let mut r = PointResult::from_stiffness(agg.stiffness, &agg.magnitude, m.length_scale, false);
     r.deflection = match (&r.compliance, &p.wrench) {
@@ -211,7 +236,7 @@ pub fn loaded_point(
     let commanded = p.frame();
     if let Err(e) = m.place(&commanded, state) {
         history.clear();
-        return PointResult::failed(Status::of(&e));
+        return PointResult::failed_at(e);
     }
     let start = history.predict(&p.position).map(|(d, offsets)| {
         for (s, o) in state.legs.iter_mut().zip(&offsets) {
@@ -237,18 +262,126 @@ pub fn loaded_point(
         }
         Err(DeflectionFailure::Leg(e)) => {
             history.clear();
-            PointResult::failed(Status::of(&e))
+            PointResult::failed_at(e)
         }
-        Err(DeflectionFailure::NotConverged { .. } | DeflectionFailure::SingularStiffness { .. }) => {
+        Err(e @ (DeflectionFailure::NotConverged { .. } | DeflectionFailure::SingularStiffness { .. })) => {
             history.clear();
-            PointResult::failed(Status::NotConverged)
+            PointResult { failure: Some(PointFailure::Equilibrium(e)), ..PointResult::failed(Status::NotConverged) }
         }
     }
 }
 
+/// What one free direction of a singular manipulator is, read from its twist (v, w) at the reference point
+/// r: a translation (w = 0), or a screw about the axis w through the point p = r + (w x v) / |w|^2 with
+/// pitch h = w . v / |w|^2, a rotation where h = 0 (v = w x (r - p): the reference point turning about p).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FreeMotion {
+    /// A translation along a unit direction.
+    Translation {
+        /// Unit direction.
+        direction: Vec3,
+    },
+    /// A rotation about an axis.
+    Rotation {
+        /// Unit axis.
+        axis: Vec3,
+        /// The point of the axis nearest the reference point, mm.
+        through: Vec3,
+    },
+    /// A screw: rotation about an axis with translation along it.
+    Screw {
+        /// Unit axis.
+        axis: Vec3,
+        /// The point of the axis nearest the reference point, mm.
+        through: Vec3,
+        /// Translation per rotation, mm/rad.
+        pitch: f64,
+    },
+}
+
+/// A rotation part below this (in mm-equivalent units of the unit twist, rotations weighed by the length
+/// scale) is no rotation; a pitch below this times the length scale is none: round-off of the SVD basis.
+const FREE_MOTION_TOLERANCE: f64 = 1e-9;
+
+/// The kind of each free direction (`twist` at the reference point `reference`, rotations weighed by
+/// `length_scale` as in `PointResult::free`).
+pub fn free_motion(twist: &Vec6, reference: &Vec3, length_scale: f64) -> FreeMotion {
+    let v = Vec3::new(twist[0], twist[1], twist[2]);
+    let w = Vec3::new(twist[3], twist[4], twist[5]);
+    if w.norm() * length_scale <= FREE_MOTION_TOLERANCE * (v.norm() + w.norm() * length_scale) {
+        return FreeMotion::Translation { direction: v.normalize() };
+    }
+    let w2 = w.norm_squared();
+    let through = reference + w.cross(&v) / w2;
+    let pitch = w.dot(&v) / w2;
+    let axis = w.normalize();
+    if pitch.abs() <= FREE_MOTION_TOLERANCE * length_scale {
+        FreeMotion::Rotation { axis, through }
+    } else {
+        FreeMotion::Screw { axis, through, pitch }
+    }
+}
+
+/// The point every free rotation's axis passes through, when the free directions are all rotations about
+/// axes through one point (a Stewart-Gough platform whose leg lines meet): least squares of
+/// w_i x p = w_i x r - v_i over the free twists, accepted where it holds to round-off.
+pub fn common_centre(free: &[Vec6], reference: &Vec3, length_scale: f64) -> Option<Vec3> {
+    if free.len() < 2 {
+        return None;
+    }
+    let mut a = nalgebra::DMatrix::zeros(3 * free.len(), 3);
+    let mut b = nalgebra::DVector::zeros(3 * free.len());
+    for (i, t) in free.iter().enumerate() {
+        let v = Vec3::new(t[0], t[1], t[2]);
+        let w = Vec3::new(t[3], t[4], t[5]);
+        let rhs = w.cross(reference) - v;
+        let skew = crate::kinematics::frame::skew(&w);
+        for r in 0..3 {
+            for c in 0..3 {
+                a[(3 * i + r, c)] = skew[(r, c)];
+            }
+            b[3 * i + r] = rhs[r];
+        }
+    }
+    let svd = crate::linalg::capped_svd(a.clone(), true, true)?;
+    let p = svd.solve(&b, 1e-12).ok()?;
+    let residual = (&a * &p - &b).amax();
+    let centre = Vec3::new(p[0], p[1], p[2]);
+    let scale = 1.0 + centre.norm() / length_scale;
+    (residual <= 1e-9 * scale).then_some(centre)
+}
+
+/// The free directions in words, one line each (or one line for rotations about a common point).
+pub fn describe_free(free: &[Vec6], reference: &Vec3, length_scale: f64) -> Vec<String> {
+    let fmt3 = |v: &Vec3| format!("({:.4}, {:.4}, {:.4})", v.x, v.y, v.z);
+    let motions: Vec<FreeMotion> = free.iter().map(|t| free_motion(t, reference, length_scale)).collect();
+    let all_rotations = motions.iter().all(|m| matches!(m, FreeMotion::Rotation { .. }));
+    if all_rotations {
+        if let Some(c) = common_centre(free, reference, length_scale) {
+            let span = match free.len() {
+                3 => "about any axis".to_string(),
+                n => format!("about axes in a {n}-dimensional family"),
+            };
+            return vec![format!("free rotations {span} through {} mm", fmt3(&c))];
+        }
+    }
+    motions
+        .iter()
+        .map(|m| match m {
+            FreeMotion::Translation { direction } => format!("translation along {}", fmt3(direction)),
+            FreeMotion::Rotation { axis, through } => {
+                format!("rotation about the axis {} through {} mm", fmt3(axis), fmt3(through))
+            }
+            FreeMotion::Screw { axis, through, pitch } => {
+                format!("screw about the axis {} through {} mm, pitch {pitch:.4e} mm/rad", fmt3(axis), fmt3(through))
+            }
+        })
+        .collect()
+}
+
 /// The report of `stiff point`. `loaded`: `r` is the loaded equilibrium under the point's wrench (its
 /// displacement and tangent matrices, not symmetric, every entry shown).
-pub fn point_report(model: &str, p: &PosePoint, r: &PointResult, loaded: bool) -> String {
+pub fn point_report(model: &str, p: &PosePoint, r: &PointResult, loaded: bool, length_scale: f64) -> String {
     let mut out = String::new();
     let (x, o) = (p.position, p.rotation);
     let _ = writeln!(out, "{model}");
@@ -288,6 +421,14 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult, loaded: bool) -
         for f in &r.free {
             let _ = writeln!(out, "  {}", fmt6(f));
         }
+        let reference = p.position + r.deflection.map_or(Vec3::zeros(), |d| Vec3::new(d[0], d[1], d[2]));
+        let _ = writeln!(out, "that is:");
+        for line in describe_free(&r.free, &reference, length_scale) {
+            let _ = writeln!(out, "  {line}");
+        }
+    }
+    if let Some(f) = &r.failure {
+        let _ = writeln!(out, "why: {f}");
     }
     out
 }

@@ -1,0 +1,262 @@
+//! The command line as a newcomer meets it: help with worked examples that run, options that apply,
+//! `--version` with its commit, `-` for standard input, exit statuses that say what happened.
+
+use std::path::Path;
+
+use assert_cmd::Command;
+
+fn stiff() -> Command {
+    Command::cargo_bin("stiff").unwrap()
+}
+
+const COMMANDS: [&str; 7] = ["map", "point", "curve", "assemble", "diagnose", "synth", "plot"];
+
+/// Splits an example line into arguments (double quotes group, as a shell would).
+fn shell_words(line: &str) -> Vec<String> {
+    let mut words = Vec::new();
+    let (mut current, mut quoted) = (String::new(), false);
+    for c in line.chars() {
+        match c {
+            '"' => quoted = !quoted,
+            ' ' if !quoted => {
+                if !current.is_empty() {
+                    words.push(std::mem::take(&mut current));
+                }
+            }
+            _ => current.push(c),
+        }
+    }
+    if !current.is_empty() {
+        words.push(current);
+    }
+    words
+}
+
+/// Every example printed by a command's `--help` runs as printed, on the shipped files, in order (an
+/// example may read what the one before it wrote). Files the examples write go to a temporary folder.
+#[test]
+fn every_help_example_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut ran = 0;
+    for command in COMMANDS {
+        let help = stiff().args([command, "--help"]).output().unwrap();
+        let help = String::from_utf8(help.stdout).unwrap();
+        let examples: Vec<&str> = help.lines().map(str::trim).filter(|l| l.starts_with("stiff ")).collect();
+        assert!(!examples.is_empty(), "`stiff {command} --help` shows examples");
+        for example in examples {
+            let words = shell_words(example);
+            let args: Vec<String> = words[1..]
+                .iter()
+                .map(|w| {
+                    let written = [".csv", ".svg", ".json", ".toml"].iter().any(|e| w.ends_with(e));
+                    if written && !Path::new(w).exists() {
+                        dir.path().join(w).display().to_string()
+                    } else {
+                        w.clone()
+                    }
+                })
+                .collect();
+            let out = stiff().args(&args).output().unwrap();
+            let expected_failure = example.contains("--fail-on");
+            assert!(
+                out.status.success() || expected_failure,
+                "`{example}` failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            ran += 1;
+        }
+    }
+    assert!(ran >= 14, "{ran} examples");
+}
+
+/// A default is printed once, by clap (`[default: ...]`), not also in the option's text.
+#[test]
+fn defaults_are_printed_once() {
+    for command in COMMANDS {
+        let help = String::from_utf8(stiff().args([command, "--help"]).output().unwrap().stdout).unwrap();
+        for line in help.lines().filter(|l| l.contains("[default:")) {
+            assert!(!line.contains("(default"), "`stiff {command} --help`: default printed twice: {line}");
+        }
+    }
+}
+
+/// The top-level description names every command.
+#[test]
+fn the_description_names_every_command() {
+    let help = String::from_utf8(stiff().arg("--help").output().unwrap().stdout).unwrap();
+    let about = help.lines().next().unwrap();
+    for word in ["maps", "pose", "curves", "assembly", "diagnosis", "synthetic", "pictures"] {
+        assert!(about.contains(word), "`{about}` names {word}");
+    }
+}
+
+/// An option that does not apply to a command is refused (the curve's `--direction` on a map).
+#[test]
+fn options_that_do_not_apply_are_refused() {
+    let out = stiff()
+        .args(["map", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+        .args(["--direction", "x"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "a usage error");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--direction"));
+}
+
+/// `--version` prints the version and the commit the binary was built from ("unknown" outside a checkout).
+#[test]
+fn version_names_the_commit() {
+    let out = String::from_utf8(stiff().arg("--version").output().unwrap().stdout).unwrap();
+    let (name, rest) = out.trim().split_once(' ').unwrap();
+    assert_eq!(name, "stiff");
+    assert!(rest.starts_with(env!("CARGO_PKG_VERSION")), "{out}");
+    let commit = rest.split_once('(').and_then(|(_, c)| c.strip_suffix(')')).expect("(commit)");
+    let hex = commit.trim_end_matches("-modified");
+    assert!(hex == "unknown" || (hex.len() == 12 && hex.chars().all(|c| c.is_ascii_hexdigit())), "{commit}");
+}
+
+/// `-` reads standard input: a points file, a grid, measurements, a study's output to draw.
+#[test]
+fn a_dash_reads_standard_input() {
+    let points = std::fs::read("manipulators/grids/stewart-gough-home.csv").unwrap();
+    let from_stdin = stiff()
+        .args(["map", "manipulators/stewart-gough-b.toml", "--points", "-", "-q"])
+        .write_stdin(points)
+        .output()
+        .unwrap();
+    let from_file = stiff()
+        .args([
+            "map",
+            "manipulators/stewart-gough-b.toml",
+            "--points",
+            "manipulators/grids/stewart-gough-home.csv",
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    assert!(from_stdin.status.success());
+    assert_eq!(from_stdin.stdout, from_file.stdout);
+
+    let grid = std::fs::read("manipulators/grids/orthoglide-small.toml").unwrap();
+    let map = stiff()
+        .args(["map", "manipulators/orthoglide-3puu.toml", "--grid", "-", "-q"])
+        .write_stdin(grid)
+        .output()
+        .unwrap();
+    assert!(map.status.success());
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("m.svg");
+    stiff().args(["plot", "-", "-o"]).arg(&svg).write_stdin(map.stdout.clone()).assert().success();
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+
+    let data = stiff()
+        .args(["synth", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+        .args(["--wrenches", "200,0,0,0,0,0;0,0,-200,0,0,0", "--noise", "0.002", "--seed", "1", "-q"])
+        .output()
+        .unwrap();
+    let verdict = stiff()
+        .args(["diagnose", "manipulators/orthoglide-3puu.toml", "--data", "-"])
+        .write_stdin(data.stdout)
+        .output()
+        .unwrap();
+    assert!(verdict.status.success(), "{}", String::from_utf8_lossy(&verdict.stderr));
+    assert!(String::from_utf8_lossy(&verdict.stdout).contains("verdict"));
+}
+
+/// Null data diagnoses as none (exit 0 with `--fail-on effect`); data with a hidden effect fails the gate
+/// (exit 1, after the report), and passes `--fail-on unexplained` once the effect is named.
+#[test]
+fn fail_on_turns_the_verdict_into_the_exit_status() {
+    let dir = tempfile::tempdir().unwrap();
+    let synth = |effect: Option<&str>, name: &str| {
+        let path = dir.path().join(name);
+        let mut cmd = stiff();
+        cmd.args(["synth", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+            .args(["--wrenches", "200,0,0,0,0,0;0,200,0,0,0,0;0,0,-200,0,0,0", "--noise", "0.002", "--seed", "3"])
+            .args(["-q", "-o"])
+            .arg(&path);
+        if let Some(e) = effect {
+            cmd.args(["--effect", e]);
+        }
+        cmd.assert().success();
+        path
+    };
+    let null = synth(None, "null.csv");
+    let hidden = synth(Some("actuator-compliance:2=1.5"), "hidden.csv");
+    let diagnose = |data: &Path, gate: &str| {
+        stiff()
+            .args(["diagnose", "manipulators/orthoglide-3puu.toml", "--data"])
+            .arg(data)
+            .args(["--fail-on", gate])
+            .output()
+            .unwrap()
+    };
+    assert_eq!(diagnose(&null, "effect").status.code(), Some(0));
+    let gated = diagnose(&hidden, "effect");
+    assert_eq!(gated.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&gated.stdout).contains("actuator-compliance:2"), "the report is written first");
+    assert!(String::from_utf8_lossy(&gated.stderr).contains("verdict `effect`"));
+    assert_eq!(diagnose(&hidden, "unexplained").status.code(), Some(0), "the effect is named, nothing unexplained");
+}
+
+/// `stiff point` exits 1 where the pose has no compliance and says why; a singular pose's free directions
+/// are described: Stewart-Gough A at home turns freely about any axis through the point where its six leg
+/// lines meet, (0, 0, h R / (R - r)) = (0, 0, 500) mm for R = 200, r = 80, h = 300 (paper 002 eq 10).
+#[test]
+fn point_exits_nonzero_where_the_pose_has_no_compliance() {
+    let ok = stiff().args(["point", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0"]).output().unwrap();
+    assert_eq!(ok.status.code(), Some(0));
+
+    let far = stiff().args(["point", "manipulators/orthoglide-3puu.toml", "--at", "900,0,0"]).output().unwrap();
+    assert_eq!(far.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&far.stdout).contains("why: leg"), "the reason is in the report");
+    assert!(String::from_utf8_lossy(&far.stderr).contains("unreachable"));
+
+    let singular = stiff().args(["point", "manipulators/stewart-gough-a.toml", "--at", "0,0,300"]).output().unwrap();
+    assert_eq!(singular.status.code(), Some(1));
+    let report = String::from_utf8_lossy(&singular.stdout);
+    assert!(report.contains("free rotations about any axis through (0.0000, 0.0000, 500.0000) mm"), "{report}");
+}
+
+/// One word, one meaning: a grid's `points` and `--path FROM TO POINTS` count points, `curve --intervals`
+/// counts intervals (intervals + 1 rows). The former names (`steps` in a grid, `curve --steps`) are still
+/// read and give the same bytes.
+#[test]
+fn points_and_intervals_are_named_for_what_they_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut maps = Vec::new();
+    for key in ["points", "steps"] {
+        let grid = dir.path().join(format!("{key}.toml"));
+        std::fs::write(&grid, format!("[box]\nfrom = [-20, -20, 0]\nto = [20, 20, 0]\n{key} = [3, 2, 1]\n")).unwrap();
+        let out =
+            stiff().args(["map", "manipulators/orthoglide-3puu.toml", "--grid"]).arg(&grid).arg("-q").output().unwrap();
+        assert!(out.status.success());
+        maps.push(out.stdout);
+    }
+    assert_eq!(maps[0], maps[1]);
+    assert_eq!(String::from_utf8_lossy(&maps[0]).lines().count(), 1 + 3 * 2, "3 x 2 x 1 points");
+    let mut curves = Vec::new();
+    for flag in ["--intervals", "--steps"] {
+        let out = stiff()
+            .args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--wrench-direction", "0,0,-1,0,0,0"])
+            .args(["--max", "100", flag, "4", "-q"])
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        curves.push(out.stdout);
+    }
+    assert_eq!(curves[0], curves[1]);
+    assert_eq!(String::from_utf8_lossy(&curves[0]).lines().count(), 1 + 5, "4 intervals, 5 rows");
+    let path = stiff()
+        .args([
+            "assemble",
+            "manipulators/orthoglide-3puu.toml",
+            "--errors",
+            "manipulators/errors/orthoglide-case-a.toml",
+        ])
+        .args(["--path", "0,0,0", "10,0,0", "4", "-q"])
+        .output()
+        .unwrap();
+    assert_eq!(String::from_utf8_lossy(&path.stdout).lines().count(), 1 + 4, "a path of 4 points");
+    let help = String::from_utf8(stiff().args(["assemble", "--help"]).output().unwrap().stdout).unwrap();
+    assert!(help.contains("--path <FROM> <TO> <POINTS>"), "{help}");
+}
