@@ -260,3 +260,27 @@ fn points_and_intervals_are_named_for_what_they_count() {
     let help = String::from_utf8(stiff().args(["assemble", "--help"]).output().unwrap().stdout).unwrap();
     assert!(help.contains("--path <FROM> <TO> <POINTS>"), "{help}");
 }
+
+/// A loaded map keeps the unloaded map's columns in their places and appends what loading adds: the lower
+/// triangles of the (non-symmetric) tangent compliance and stiffness, then the Newton iterations.
+#[test]
+fn loaded_maps_append_their_extra_columns() {
+    let header = |extra: &[&str]| {
+        let out = stiff()
+            .args(["map", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+            .args(["--stiffness", "-q"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8(out.stdout).unwrap().lines().next().unwrap().split(',').map(String::from).collect::<Vec<_>>()
+    };
+    let unloaded = header(&[]);
+    let loaded = header(&["--loaded"]);
+    assert_eq!(loaded[..unloaded.len()], unloaded[..], "the unloaded columns first, in order");
+    let extra = &loaded[unloaded.len()..];
+    assert_eq!(extra.len(), 15 + 15 + 1);
+    assert_eq!(extra[0], "C21_mm_per_N");
+    assert_eq!(extra[15], "K21_N_per_mm");
+    assert_eq!(extra[30], "iterations");
+}

@@ -29,8 +29,8 @@ pub trait Record {
     fn count(&mut self, name: impl Display, v: Option<u64>);
     /// A text, quoted where CSV needs it.
     fn text(&mut self, name: impl Display, v: &str);
-    /// A 6x6 matrix: all 36 entries row by row where `full`, else the 21 of the upper triangle.
-    fn matrix(&mut self, which: Matrix, m: Option<&Mat6>, full: bool);
+    /// A triangle of a 6x6 matrix.
+    fn matrix(&mut self, which: Matrix, m: Option<&Mat6>, part: Triangle);
     /// Free directions in one field (`push_free_directions`).
     fn free_directions(&mut self, name: impl Display, free: &[Vec6]);
 
@@ -89,8 +89,8 @@ impl Record for Header {
     fn text(&mut self, name: impl Display, _: &str) {
         self.0.push(name.to_string());
     }
-    fn matrix(&mut self, which: Matrix, _: Option<&Mat6>, full: bool) {
-        for (i, j) in matrix_entries(full) {
+    fn matrix(&mut self, which: Matrix, _: Option<&Mat6>, part: Triangle) {
+        for (i, j) in matrix_entries(part) {
             self.0.push(match which {
                 Matrix::Compliance => format!("C{i}{j}_{}", compliance_unit(i, j)),
                 Matrix::Stiffness => format!("K{i}{j}_{}", stiffness_unit(i, j)),
@@ -137,8 +137,8 @@ impl Record for Cells<'_> {
     fn text(&mut self, _: impl Display, v: &str) {
         push_text(self.next(), v);
     }
-    fn matrix(&mut self, _: Matrix, m: Option<&Mat6>, full: bool) {
-        for (i, j) in matrix_entries(full) {
+    fn matrix(&mut self, _: Matrix, m: Option<&Mat6>, part: Triangle) {
+        for (i, j) in matrix_entries(part) {
             let out = self.next();
             if let Some(m) = m {
                 push_number(out, m[(i - 1, j - 1)]);
@@ -176,13 +176,21 @@ pub fn upper_triangle() -> impl Iterator<Item = (usize, usize)> {
     (1..=6).flat_map(|i| (i..=6).map(move |j| (i, j)))
 }
 
-/// The entries a map writes of a 6x6 matrix (1-based): all 36 row by row where it is not symmetric
-/// (loaded tangent stiffness and its inverse), else the 21 of the upper triangle.
-pub fn matrix_entries(full: bool) -> Vec<(usize, usize)> {
-    if full {
-        (1..=6).flat_map(|i| (1..=6).map(move |j| (i, j))).collect()
-    } else {
-        upper_triangle().collect()
+/// Which entries of a 6x6 matrix a block of columns holds (1-based).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Triangle {
+    /// The 21 entries on and above the diagonal, row by row: all a symmetric matrix has.
+    Upper,
+    /// The 15 entries below it, row by row: what a non-symmetric matrix (a loaded tangent stiffness and its
+    /// inverse) adds, appended after the upper ones so that loaded tables keep the unloaded columns in order.
+    Lower,
+}
+
+/// The entries of a triangle, row by row.
+pub fn matrix_entries(part: Triangle) -> Vec<(usize, usize)> {
+    match part {
+        Triangle::Upper => upper_triangle().collect(),
+        Triangle::Lower => (2..=6).flat_map(|i| (1..i).map(move |j| (i, j))).collect(),
     }
 }
 

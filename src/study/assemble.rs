@@ -100,8 +100,9 @@ impl Row for AssemblyRow<'_> {
         r.text(names::STATUS, status.as_str());
         if l.samples > 0 {
             r.count("samples", sampled.map(|_| l.samples as u64));
-            // dx_mm ... rz_rad: the mean platform displacement over the samples.
-            r.six(names::DISPLACEMENT, sampled.map(|(mean, _)| mean));
+            // mean_dx_mm ... mean_rz_rad: the mean platform displacement over the samples (`dx_mm` keeps one
+            // meaning: one assembly's displacement).
+            r.prefixed_six("mean", names::DISPLACEMENT, sampled.map(|(mean, _)| mean));
             for (k, (q, u)) in [("displacement", "mm"), ("force_max", "N"), ("moment_max", "Nmm")].iter().enumerate() {
                 let st = sampled.map(|(_, stats)| &stats[k]);
                 r.optional(format_args!("{q}_mean_{u}"), st.map(Stats::mean));

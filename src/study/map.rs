@@ -10,7 +10,7 @@ use crate::batch::{stream, Study, Tally};
 use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
 use crate::model::grid::PosePoint;
-use crate::output::table::{header, names, write_row, Matrix, Record, Row};
+use crate::output::table::{header, names, write_row, Matrix, Record, Row, Triangle};
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 /// What `stiff map` computes.
@@ -100,9 +100,9 @@ pub struct MapColumns {
     pub stiffness: bool,
     /// The deflection under the point's (or the map's) wrench.
     pub deflection: bool,
-    /// Loaded mode: the compliance is the tangent compliance at the loaded equilibrium (all 36 entries of
-    /// it and of K, which are not symmetric), the deflection that equilibrium's displacement; appends the
-    /// Newton iteration count.
+    /// Loaded mode: the compliance is the tangent compliance at the loaded equilibrium, the deflection that
+    /// equilibrium's displacement; the lower triangles of C and K (not symmetric under load) and the
+    /// Newton iteration count are appended after the unloaded columns.
     pub loaded: bool,
 }
 
@@ -143,11 +143,17 @@ impl Row for MapRow<'_> {
             r.six(names::DISPLACEMENT, res.deflection.as_ref());
             r.optional("deflection_mm", res.deflection.map(|d| d.fixed_rows::<3>(0).norm()));
         }
-        r.matrix(Matrix::Compliance, res.compliance.as_ref(), c.loaded);
+        r.matrix(Matrix::Compliance, res.compliance.as_ref(), Triangle::Upper);
         if c.stiffness {
-            r.matrix(Matrix::Stiffness, res.stiffness.as_ref(), c.loaded);
+            r.matrix(Matrix::Stiffness, res.stiffness.as_ref(), Triangle::Upper);
         }
+        // Loaded mode appends what it adds, so the unloaded columns keep their places: the lower triangles
+        // of the non-symmetric tangent matrices, then the Newton iterations.
         if c.loaded {
+            r.matrix(Matrix::Compliance, res.compliance.as_ref(), Triangle::Lower);
+            if c.stiffness {
+                r.matrix(Matrix::Stiffness, res.stiffness.as_ref(), Triangle::Lower);
+            }
             r.count(names::ITERATIONS, Some(res.iterations as u64));
         }
     }
