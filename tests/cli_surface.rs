@@ -284,3 +284,18 @@ fn loaded_maps_append_their_extra_columns() {
     assert_eq!(extra[15], "K21_N_per_mm");
     assert_eq!(extra[30], "iterations");
 }
+
+/// Shell completions and the manual page come from the same definitions as `--help`: every command is in
+/// them.
+#[test]
+fn completions_and_man_page_list_every_command() {
+    let bash = String::from_utf8(stiff().args(["completions", "bash"]).output().unwrap().stdout).unwrap();
+    let zsh = String::from_utf8(stiff().args(["completions", "zsh"]).output().unwrap().stdout).unwrap();
+    let man = String::from_utf8(stiff().arg("man").output().unwrap().stdout).unwrap();
+    assert!(man.contains(".TH stiff 1"), "{}", &man[..200.min(man.len())]);
+    for command in COMMANDS {
+        assert!(bash.contains(command) && zsh.contains(command) && man.contains(command), "{command}");
+    }
+    assert!(bash.contains("--intervals") && bash.contains("--fail-on"));
+    assert_eq!(stiff().args(["completions", "cmd.exe"]).output().unwrap().status.code(), Some(2));
+}

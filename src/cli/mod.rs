@@ -13,7 +13,7 @@ mod point;
 mod synth;
 
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 /// `stiff`'s arguments.
 #[derive(Parser, Debug)]
@@ -61,6 +61,15 @@ pub enum Command {
     /// An SVG picture of a study's output (map, curve or assemble CSV, or diagnose JSON).
     #[command(after_help = plot::EXAMPLES)]
     Plot(plot::PlotArgs),
+    /// Shell completions for stiff, generated from its own options (bash, zsh, fish, elvish, powershell).
+    #[command(after_help = "Example:\n  stiff completions bash > ~/.local/share/bash-completion/completions/stiff")]
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
+    /// The manual page (roff), generated from the same definitions as --help.
+    #[command(after_help = "Example:\n  stiff man > stiff.1 && man ./stiff.1")]
+    Man,
 }
 
 /// The version and the git commit the binary was built from (`build.rs`; "unknown" outside a checkout).
@@ -77,5 +86,15 @@ pub fn run() -> Result<()> {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Plot(a) => plot::run(a),
+        Command::Completions { shell } => {
+            let mut text = Vec::new();
+            clap_complete::generate(shell, &mut Cli::command(), "stiff", &mut text);
+            args::write_stdout(&String::from_utf8_lossy(&text))
+        }
+        Command::Man => {
+            let mut text = Vec::new();
+            clap_mangen::Man::new(Cli::command()).render(&mut text)?;
+            args::write_stdout(&String::from_utf8_lossy(&text))
+        }
     }
 }
