@@ -299,3 +299,24 @@ fn completions_and_man_page_list_every_command() {
     assert!(bash.contains("--intervals") && bash.contains("--fail-on"));
     assert_eq!(stiff().args(["completions", "cmd.exe"]).output().unwrap().status.code(), Some(2));
 }
+
+/// Under force control a row's wrench is load_factor * W exactly: components that are zero in W are written
+/// as 0.0 in every row (no round-off, no -0.0), and the others are the load factor times W's.
+#[test]
+fn curve_wrenches_are_exact_multiples_of_the_direction() {
+    let out = stiff()
+        .args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--wrench-direction", "0,0,-1000,0,0,0"])
+        .args(["--max", "5", "--intervals", "4", "-q"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    for line in text.lines().skip(1) {
+        let cells: Vec<&str> = line.split(',').collect();
+        let factor: f64 = cells[2].parse().unwrap();
+        for (k, cell) in cells[3..9].iter().enumerate() {
+            let expected = if k == 2 { -1000.0 * factor } else { 0.0 };
+            assert_eq!(cell.parse::<f64>().unwrap(), expected, "{line}");
+        }
+        assert!(!cells.contains(&"-0.0"), "{line}");
+    }
+}

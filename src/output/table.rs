@@ -197,7 +197,10 @@ pub fn matrix_entries(part: Triangle) -> Vec<(usize, usize)> {
 /// Appends one number in shortest round-trip form; nothing for a non-finite one (one rule for missing
 /// values everywhere: an empty cell).
 pub fn push_number(out: &mut String, v: f64) {
-    if v.is_finite() {
+    if v == 0.0 {
+        // Also -0.0 (a zero load times a negative direction): a zero has no sign worth printing.
+        out.push_str("0.0");
+    } else if v.is_finite() {
         let mut b = ryu::Buffer::new();
         out.push_str(b.format_finite(v));
     }
