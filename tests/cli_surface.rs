@@ -320,3 +320,35 @@ fn curve_wrenches_are_exact_multiples_of_the_direction() {
         assert!(!cells.contains(&"-0.0"), "{line}");
     }
 }
+
+/// `stiff point --json` holds the report's content for programs: C K = I on an ok pose (unloaded, and
+/// loaded where the tangent matrices are not symmetric), the loaded displacement, and for a singular pose
+/// its status, rank and free motions; written to `-o FILE` as well as stdout.
+#[test]
+fn point_json_holds_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("q0.json");
+    stiff()
+        .args(["point", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--wrench", "215,-10,-25,1000,21500,0"])
+        .args(["--json", "-o"])
+        .arg(&file)
+        .assert()
+        .success();
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    for part in ["unloaded", "loaded"] {
+        let r = &v[part];
+        assert_eq!(r["status"], "ok");
+        let m = |key: &str| nalgebra::Matrix6::<f64>::from_fn(|i, j| r[key][i][j].as_f64().unwrap());
+        let product = m("compliance") * m("stiffness");
+        assert!((product - nalgebra::Matrix6::identity()).abs().max() < 1e-9, "{part}: C K = {product}");
+    }
+    assert!(v["loaded"]["deflection"][0].as_f64().unwrap().abs() > 0.0);
+    let singular =
+        stiff().args(["point", "manipulators/stewart-gough-a.toml", "--at", "0,0,300", "--json"]).output().unwrap();
+    assert_eq!(singular.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_slice(&singular.stdout).unwrap();
+    assert_eq!(v["unloaded"]["status"], "singular");
+    assert_eq!(v["unloaded"]["rank"], 3);
+    assert_eq!(v["unloaded"]["free_directions"].as_array().unwrap().len(), 3);
+    assert!(v["unloaded"]["free_motions"][0].as_str().unwrap().contains("(0.0000, 0.0000, 500.0000) mm"));
+}

@@ -7,13 +7,16 @@ use super::args::{write_stdout, ModelArgs};
 use super::parse::{parse_vec3, parse_vec6};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::grid::PosePoint;
-use crate::study::point::{loaded_point, point_report, unloaded_point, LoadedHistory, Status};
+use crate::study::point::{
+    loaded_point, point_report, unloaded_point, LoadedHistory, PointJson, PoseJson, ResultJson, Status,
+};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
   stiff point manipulators/orthoglide-3puu.toml --at 0,0,0
   stiff point manipulators/orthoglide-3prpar.toml --at 0,0,0 --wrench 215,-10,-25,1000,21500,0
   stiff point manipulators/stewart-gough-b.toml --at 0,0,300 --orientation 0,0,0.1
+  stiff point manipulators/orthoglide-3puu.toml --at 0,0,0 --wrench 215,-10,-25,1000,21500,0 --json -o q0.json
 
 Exit status: 0 the pose has a compliance (status ok), 1 it has not (unreachable, singular, unstable, ...:\nthe report says why) or the run failed, 2 usage error.";
 
@@ -31,6 +34,12 @@ pub(crate) struct PointArgs {
     /// under it (displacement, tangent stiffness and its full inverse).
     #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
     pub(crate) wrench: Option<Vec6>,
+    /// Write the report as JSON (the same content, for programs) instead of text.
+    #[arg(long)]
+    pub(crate) json: bool,
+    /// Where the report goes; `-` or absent: stdout.
+    #[arg(short, long)]
+    pub(crate) output: Option<std::path::PathBuf>,
 }
 
 pub(crate) fn run(a: PointArgs) -> Result<()> {
@@ -39,19 +48,40 @@ pub(crate) fn run(a: PointArgs) -> Result<()> {
         PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
-    let mut text = point_report(&model.name, &p, &r, false, model.length_scale);
-    let mut statuses = vec![r.status];
-    if let Some(w) = &a.wrench {
-        let loaded = loaded_point(&model, &p, w, &mut state, &mut LoadedHistory::default());
-        text.push_str("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)\n");
-        text.push_str(&point_report(&model.name, &p, &loaded, true, model.length_scale));
-        statuses.push(loaded.status);
+    let loaded = a.wrench.map(|w| loaded_point(&model, &p, &w, &mut state, &mut LoadedHistory::default()));
+    let text = if a.json {
+        let json = PointJson {
+            model: model.name.clone(),
+            pose: PoseJson {
+                position_mm: [p.position.x, p.position.y, p.position.z],
+                rotation_rad: [p.rotation.x, p.rotation.y, p.rotation.z],
+                wrench: p.wrench.map(|w| std::array::from_fn(|k| w[k])),
+            },
+            unloaded: ResultJson::new(&p, &r, model.length_scale),
+            loaded: loaded.as_ref().map(|l| ResultJson::new(&p, l, model.length_scale)),
+        };
+        serde_json::to_string_pretty(&json)? + "\n"
+    } else {
+        let mut text = point_report(&model.name, &p, &r, false, model.length_scale);
+        if let Some(l) = &loaded {
+            text.push_str("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)\n");
+            text.push_str(&point_report(&model.name, &p, l, true, model.length_scale));
+        }
+        text
+    };
+    match a.output.as_deref() {
+        Some(path) if path != std::path::Path::new("-") => {
+            let mut sink = crate::output::sink::Sink::create(Some(path))?;
+            sink.writer().write_all(text.as_bytes())?;
+            sink.finish()?;
+        }
+        _ => write_stdout(&text)?,
     }
-    write_stdout(&text)?;
+    let statuses: Vec<Status> = std::iter::once(r.status).chain(loaded.as_ref().map(|l| l.status)).collect();
     // The report is written first (a singular pose's free directions are the answer a user wants); the
     // exit status then says the pose has no compliance.
     if let Some(s) = statuses.iter().find(|s| **s != Status::Ok) {
-        bail!("the pose is {} (see the report above)", s.as_str());
+        bail!("the pose is {} (the report says why)", s.as_str());
     }
     Ok(())
 }

@@ -432,3 +432,78 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult, loaded: bool, l
     }
     out
 }
+
+/// `stiff point --json`: the report's content for programs (units in the key names; matrices row by row).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PointJson {
+    /// The model's name.
+    pub model: String,
+    /// The commanded pose.
+    pub pose: PoseJson,
+    /// At the commanded pose, unloaded.
+    pub unloaded: ResultJson,
+    /// Under the wrench: the loaded equilibrium (when a wrench is given).
+    pub loaded: Option<ResultJson>,
+}
+
+/// A commanded pose.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PoseJson {
+    /// Reference point, mm.
+    pub position_mm: [f64; 3],
+    /// Orientation, rotation vector, rad.
+    pub rotation_rad: [f64; 3],
+    /// The wrench given (N, N mm), if any.
+    pub wrench: Option<[f64; 6]>,
+}
+
+/// One result: status and why, matrices, principal compliances, deflection, free directions.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ResultJson {
+    /// The status (README: statuses).
+    pub status: &'static str,
+    /// Why there is no compliance, where a leg or the loaded equilibrium failed.
+    pub reason: Option<String>,
+    /// Rank of K.
+    pub rank: Option<usize>,
+    /// Condition number of the equilibrated K.
+    pub condition: Option<f64>,
+    /// K: wrench (N, N mm) per displacement (mm, rad), rows Fx..Mz, columns dx..rz.
+    pub stiffness: Option<[[f64; 6]; 6]>,
+    /// C = K^-1: displacement per wrench.
+    pub compliance: Option<[[f64; 6]; 6]>,
+    /// Principal compliances of C's symmetric part: translation max / min (mm/N), rotation max (rad/(N mm)).
+    pub principal: Option<[f64; 3]>,
+    /// Deflection under the wrench (linear C w unloaded, the equilibrium's displacement loaded), mm and rad.
+    pub deflection: Option<[f64; 6]>,
+    /// Free directions of a singular pose: unit twists (dx, dy, dz mm; rx, ry, rz rad).
+    pub free_directions: Vec<[f64; 6]>,
+    /// The same in words (translations, rotations about an axis through a point, screws).
+    pub free_motions: Vec<String>,
+    /// Newton iterations of the loaded equilibrium.
+    pub iterations: usize,
+}
+
+fn rows(m: &Mat6) -> [[f64; 6]; 6] {
+    std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
+}
+
+impl ResultJson {
+    /// The JSON form of `r` at the pose `p` (free motions described about the displaced reference point).
+    pub fn new(p: &PosePoint, r: &PointResult, length_scale: f64) -> Self {
+        let reference = p.position + r.deflection.map_or(Vec3::zeros(), |d| Vec3::new(d[0], d[1], d[2]));
+        ResultJson {
+            status: r.status.as_str(),
+            reason: r.failure.map(|f| f.to_string()),
+            rank: r.rank,
+            condition: r.condition.filter(|c| c.is_finite()),
+            stiffness: r.stiffness.as_ref().map(rows),
+            compliance: r.compliance.as_ref().map(rows),
+            principal: r.principal.map(|p| [p.translation_max, p.translation_min, p.rotation_max]),
+            deflection: r.deflection.map(|d| std::array::from_fn(|k| d[k])),
+            free_directions: r.free.iter().map(|t| std::array::from_fn(|k| t[k])).collect(),
+            free_motions: if r.free.is_empty() { Vec::new() } else { describe_free(&r.free, &reference, length_scale) },
+            iterations: r.iterations,
+        }
+    }
+}
