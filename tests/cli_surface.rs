@@ -352,3 +352,49 @@ fn point_json_holds_the_report() {
     assert_eq!(v["unloaded"]["free_directions"].as_array().unwrap().len(), 3);
     assert!(v["unloaded"]["free_motions"][0].as_str().unwrap().contains("(0.0000, 0.0000, 500.0000) mm"));
 }
+
+/// The output's name chooses its encoding: a shipped map written as `.csv`, `.csv.gz` and `.csv.zst` holds
+/// the same bytes once decompressed (by the reference decoders, not ours), and stiff reads the compressed
+/// files back (a points file, a picture).
+#[test]
+fn compressed_outputs_hold_the_same_table() {
+    use std::io::Read;
+    let dir = tempfile::tempdir().unwrap();
+    let mut tables = Vec::new();
+    for name in ["m.csv", "m.csv.gz", "m.csv.zst"] {
+        let path = dir.path().join(name);
+        stiff()
+            .args(["map", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+            .args(["--stiffness", "-q", "-o"])
+            .arg(&path)
+            .assert()
+            .success();
+        let bytes = std::fs::read(&path).unwrap();
+        let mut text = String::new();
+        match name {
+            "m.csv.gz" => {
+                flate2::read::GzDecoder::new(&bytes[..]).read_to_string(&mut text).unwrap();
+            }
+            "m.csv.zst" => {
+                zstd::Decoder::new(&bytes[..]).unwrap().read_to_string(&mut text).unwrap();
+            }
+            _ => text = String::from_utf8(bytes.clone()).unwrap(),
+        }
+        if name != "m.csv" {
+            assert!(bytes.len() * 2 < text.len(), "{name} is compressed ({} of {} bytes)", bytes.len(), text.len());
+        }
+        tables.push(text);
+    }
+    assert_eq!(tables[0], tables[1]);
+    assert_eq!(tables[0], tables[2]);
+    let again = stiff()
+        .args(["map", "manipulators/orthoglide-3puu.toml", "--points"])
+        .arg(dir.path().join("m.csv.zst"))
+        .arg("-q")
+        .output()
+        .unwrap();
+    assert!(again.status.success());
+    assert_eq!(String::from_utf8_lossy(&again.stdout).lines().count(), tables[0].lines().count());
+    let svg = dir.path().join("m.svg");
+    stiff().args(["plot"]).arg(dir.path().join("m.csv.gz")).arg("-o").arg(&svg).assert().success();
+}

@@ -105,24 +105,28 @@ impl Locator<'_> {
 }
 
 /// Reads a text file, with an error that names it.
-/// `-` means standard input (as `-o -` means standard output).
+/// `-` means standard input (as `-o -` means standard output); a name ending in `.gz` or `.zst` is
+/// decompressed (what `-o FILE.csv.gz` wrote reads back).
 pub fn read_text(path: &Path) -> Result<String, InputError> {
-    let read = if is_stdin(path) {
-        let mut text = String::new();
-        std::io::Read::read_to_string(&mut std::io::stdin().lock(), &mut text).map(|_| text)
-    } else {
-        std::fs::read_to_string(path)
-    };
-    read.map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut open_input(path)?, &mut text)
+        .map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
+    Ok(text)
 }
 
-/// An input opened for streaming: the file, or standard input for `-`.
+/// An input opened for streaming: the file, or standard input for `-`, decompressed by its name.
 pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read + Send>, InputError> {
-    if is_stdin(path) {
-        return Ok(Box::new(std::io::stdin()));
-    }
-    let file = std::fs::File::open(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
-    Ok(Box::new(file))
+    let failed = |cause| InputError::Read { path: path.to_path_buf(), cause };
+    let raw: Box<dyn std::io::Read + Send> =
+        if is_stdin(path) { Box::new(std::io::stdin()) } else { Box::new(std::fs::File::open(path).map_err(failed)?) };
+    let name = path.to_string_lossy();
+    Ok(if name.ends_with(".gz") {
+        Box::new(flate2::read::MultiGzDecoder::new(std::io::BufReader::new(raw)))
+    } else if name.ends_with(".zst") {
+        Box::new(zstd::Decoder::new(raw).map_err(failed)?)
+    } else {
+        raw
+    })
 }
 
 /// Whether a path names standard input.

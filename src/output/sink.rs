@@ -53,13 +53,55 @@ pub enum Sink {
         /// Its path (for messages).
         path: PathBuf,
     },
-    /// A regular file: written to a temporary file beside it and renamed on success.
+    /// A regular file: written to a temporary file beside it and renamed on success; compressed when
+    /// the name ends in `.gz` or `.zst`.
     File {
-        /// The temporary file.
-        temp: BufWriter<tempfile::NamedTempFile>,
+        /// The temporary file, through its encoder.
+        temp: Encoded,
         /// The final path.
         path: PathBuf,
     },
+}
+
+/// A file's encoding, chosen by its name: `.gz` (gzip, flate2), `.zst` (zstandard), else plain.
+pub enum Encoded {
+    /// Plain text.
+    Plain(BufWriter<tempfile::NamedTempFile>),
+    /// gzip at the default level.
+    Gzip(flate2::write::GzEncoder<BufWriter<tempfile::NamedTempFile>>),
+    /// zstandard at its default level (3).
+    Zstd(zstd::Encoder<'static, BufWriter<tempfile::NamedTempFile>>),
+}
+
+impl Encoded {
+    fn new(temp: tempfile::NamedTempFile, path: &Path) -> io::Result<Encoded> {
+        let file = BufWriter::with_capacity(1 << 20, temp);
+        let name = path.to_string_lossy();
+        Ok(if name.ends_with(".gz") {
+            Encoded::Gzip(flate2::write::GzEncoder::new(file, flate2::Compression::default()))
+        } else if name.ends_with(".zst") {
+            Encoded::Zstd(zstd::Encoder::new(file, 0)?)
+        } else {
+            Encoded::Plain(file)
+        })
+    }
+
+    fn writer(&mut self) -> &mut (dyn Write + Send) {
+        match self {
+            Encoded::Plain(w) => w,
+            Encoded::Gzip(w) => w,
+            Encoded::Zstd(w) => w,
+        }
+    }
+
+    /// Ends the encoding (trailer written) and hands back the file.
+    fn finish(self) -> io::Result<BufWriter<tempfile::NamedTempFile>> {
+        match self {
+            Encoded::Plain(w) => Ok(w),
+            Encoded::Gzip(w) => w.finish(),
+            Encoded::Zstd(w) => w.finish(),
+        }
+    }
 }
 
 impl Sink {
@@ -96,7 +138,8 @@ impl Sink {
             .tempfile_in(&dir)
             .map_err(|e| anyhow!("cannot write {}: {}", p.display(), e.kind()))?;
         register(temp.path());
-        Ok(Sink::File { temp: BufWriter::with_capacity(1 << 20, temp), path: p.to_path_buf() })
+        let temp = Encoded::new(temp, p).map_err(|e| anyhow!("cannot write {}: {e}", p.display()))?;
+        Ok(Sink::File { temp, path: p.to_path_buf() })
     }
 
     /// The stream to write to.
@@ -104,7 +147,7 @@ impl Sink {
         match self {
             Sink::Stdout(w) => w,
             Sink::Direct { file, .. } => file,
-            Sink::File { temp, .. } => temp,
+            Sink::File { temp, .. } => temp.writer(),
         }
     }
 
@@ -115,6 +158,8 @@ impl Sink {
             Sink::Direct { mut file, path } => file.flush().with_context(|| format!("cannot write {}", path.display())),
             Sink::File { temp, path } => {
                 let temp = temp
+                    .finish()
+                    .with_context(|| format!("cannot write {}", path.display()))?
                     .into_inner()
                     .map_err(|e| e.into_error())
                     .with_context(|| format!("cannot write {}", path.display()))?;
