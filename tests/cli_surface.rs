@@ -398,3 +398,58 @@ fn compressed_outputs_hold_the_same_table() {
     let svg = dir.path().join("m.svg");
     stiff().args(["plot"]).arg(dir.path().join("m.csv.gz")).arg("-o").arg(&svg).assert().success();
 }
+
+/// `--columns` keeps the listed columns and groups, in the table's order, with the same values as the full
+/// table; an unknown name is refused with the groups and columns listed, and a picture of a column not
+/// written is refused before the run.
+#[test]
+fn columns_select_what_a_map_writes() {
+    let map = |extra: &[&str]| {
+        let out = stiff()
+            .args([
+                "map",
+                "manipulators/orthoglide-3puu.toml",
+                "--grid",
+                "manipulators/grids/orthoglide-small.toml",
+                "-q",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        (out.status.code(), String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap())
+    };
+    let (_, full, _) = map(&["--stiffness"]);
+    let (code, compact, _) = map(&["--stiffness", "--columns", "K11_N_per_mm,pose,principal"]);
+    assert_eq!(code, Some(0));
+    let table =
+        |text: &str| -> Vec<Vec<String>> { text.lines().map(|l| l.split(',').map(String::from).collect()).collect() };
+    let (full, compact) = (table(&full), table(&compact));
+    assert_eq!(
+        compact[0],
+        [
+            "index",
+            "name",
+            "x_mm",
+            "y_mm",
+            "z_mm",
+            "c_tran_max_mm_per_N",
+            "c_tran_min_mm_per_N",
+            "c_rot_max_rad_per_Nmm",
+            "K11_N_per_mm"
+        ]
+    );
+    for (row_full, row_compact) in full.iter().zip(&compact).skip(1) {
+        for (k, name) in compact[0].iter().enumerate() {
+            let j = full[0].iter().position(|h| h == name).unwrap();
+            assert_eq!(row_compact[k], row_full[j], "{name}");
+        }
+    }
+    let (code, _, err) = map(&["--columns", "pose,nope"]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("`nope`") && err.contains("groups: pose, status"), "{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.csv");
+    let (code, _, err) = map(&["--columns", "pose", "-o", out.to_str().unwrap(), "--plot", "m.svg"]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("--plot-column") && err.contains("c_tran_max_mm_per_N"), "{err}");
+}

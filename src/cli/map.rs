@@ -11,7 +11,7 @@ use super::args::{
 };
 use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
-use crate::study::map::{run_map, MapOptions};
+use crate::study::map::{map_columns, map_header, map_selection, run_map, MapOptions};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -39,6 +39,11 @@ pub(crate) struct MapArgs {
     /// Loaded mode under each point's reference wrench (from the grid or the points file).
     #[arg(long)]
     pub(crate) loaded: bool,
+    /// The columns to write: names or groups (pose, status, principal, deflection, C, K), comma-separated,
+    /// written in the table's order [default: all]. For very large maps `--columns pose,status,principal`
+    /// writes 12 columns instead of 33 or more.
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) columns: Option<Vec<String>>,
     /// Also draw the map (SVG): a colour map over grid sections.
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
@@ -57,10 +62,16 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
     if a.loaded && !points.has_wrench {
         bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
     }
-    let options = MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded };
+    let mut options =
+        MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded, selection: None };
+    let columns = map_columns(&points, &options);
+    if let Some(wanted) = &a.columns {
+        let wanted: Vec<&str> = wanted.iter().map(String::as_str).collect();
+        options.selection = Some(map_selection(&columns, &wanted).map_err(|e| anyhow::anyhow!("--columns: {e}"))?);
+    }
     plot_needs_output(&a.plot, &a.output.output, "map")?;
     if a.plot.is_some() {
-        let header = crate::study::map::map_header(&crate::study::map::map_columns(&points, &options));
+        let header = map_header(&columns, options.selection.as_ref());
         crate::plot::check_map_options(&header, &a.style.style().options()).map_err(name_plot_flag)?;
     }
     let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;

@@ -59,18 +59,78 @@ pub trait Row {
 
 /// The header line of `row`'s table (any row of it, typically a blank one).
 pub fn header<T: Row>(row: &T, layout: &T::Layout) -> String {
+    selected_header(row, layout, None)
+}
+
+/// Every column name of `row`'s table, in order.
+pub fn column_names<T: Row>(row: &T, layout: &T::Layout) -> Vec<String> {
     let mut h = Header(Vec::new());
     row.record(layout, &mut h);
-    let mut s = h.0.join(",");
+    h.0
+}
+
+/// The header line of the columns `selection` keeps (all where None).
+pub fn selected_header<T: Row>(row: &T, layout: &T::Layout, selection: Option<&Selection>) -> String {
+    let names = column_names(row, layout);
+    let kept: Vec<&str> = names
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| selection.is_none_or(|s| s.keep[*k]))
+        .map(|(_, n)| n.as_str())
+        .collect();
+    let mut s = kept.join(",");
     s.push('\n');
     s
 }
 
 /// Appends `row` as one CSV line.
 pub fn write_row<T: Row>(row: &T, layout: &T::Layout, out: &mut String) {
-    let mut cells = Cells { out, first: true };
+    write_selected_row(row, layout, None, out);
+}
+
+/// Appends the cells of `row` that `selection` keeps (all where None) as one CSV line.
+pub fn write_selected_row<T: Row>(row: &T, layout: &T::Layout, selection: Option<&Selection>, out: &mut String) {
+    let mut cells = Cells { out, first: true, keep: selection.map(|s| s.keep.as_slice()), index: 0 };
     row.record(layout, &mut cells);
     out.push('\n');
+}
+
+/// Which columns of a table are written (`--columns`): a mask over the table's columns, in table order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Selection {
+    keep: Vec<bool>,
+}
+
+impl Selection {
+    /// Keeps the columns of `names` that `wanted` lists, by name or by group (`group(item)` gives a group's
+    /// test on a column name, None for an item that is not a group). An item that is neither a column nor a
+    /// group is an error that lists both.
+    pub fn new(
+        names: &[String],
+        wanted: &[&str],
+        group: impl Fn(&str) -> Option<Box<dyn Fn(&str) -> bool>>,
+        groups: &[&str],
+    ) -> Result<Selection, String> {
+        let mut keep = vec![false; names.len()];
+        for item in wanted {
+            let item = item.trim();
+            let hits: Vec<usize> = match group(item) {
+                Some(test) => (0..names.len()).filter(|&k| test(&names[k])).collect(),
+                None => names.iter().position(|n| n == item).into_iter().collect(),
+            };
+            if hits.is_empty() {
+                return Err(format!(
+                    "`{item}` is neither a column of this table nor a group (groups: {}; columns: {})",
+                    groups.join(", "),
+                    names.join(",")
+                ));
+            }
+            for k in hits {
+                keep[k] = true;
+            }
+        }
+        Ok(Selection { keep })
+    }
 }
 
 /// Collects column names.
@@ -106,47 +166,59 @@ impl Record for Header {
 struct Cells<'a> {
     out: &'a mut String,
     first: bool,
+    /// The columns written (all where None), and the index of the next cell.
+    keep: Option<&'a [bool]>,
+    index: usize,
 }
 
 impl Cells<'_> {
-    fn next(&mut self) -> &mut String {
+    /// The buffer for the next cell, or None where the selection drops it.
+    fn next(&mut self) -> Option<&mut String> {
+        let k = self.index;
+        self.index += 1;
+        if self.keep.is_some_and(|keep| !keep.get(k).copied().unwrap_or(false)) {
+            return None;
+        }
         if !self.first {
             self.out.push(',');
         }
         self.first = false;
-        self.out
+        Some(self.out)
     }
 }
 
 impl Record for Cells<'_> {
     fn number(&mut self, _: impl Display, v: f64) {
-        push_number(self.next(), v);
+        if let Some(out) = self.next() {
+            push_number(out, v);
+        }
     }
     fn optional(&mut self, _: impl Display, v: Option<f64>) {
-        let out = self.next();
-        if let Some(v) = v {
+        if let (Some(out), Some(v)) = (self.next(), v) {
             push_number(out, v);
         }
     }
     fn count(&mut self, _: impl Display, v: Option<u64>) {
-        let out = self.next();
-        if let Some(v) = v {
+        if let (Some(out), Some(v)) = (self.next(), v) {
             out.push_str(itoa::Buffer::new().format(v));
         }
     }
     fn text(&mut self, _: impl Display, v: &str) {
-        push_text(self.next(), v);
+        if let Some(out) = self.next() {
+            push_text(out, v);
+        }
     }
     fn matrix(&mut self, _: Matrix, m: Option<&Mat6>, part: Triangle) {
         for (i, j) in matrix_entries(part) {
-            let out = self.next();
-            if let Some(m) = m {
+            if let (Some(out), Some(m)) = (self.next(), m) {
                 push_number(out, m[(i - 1, j - 1)]);
             }
         }
     }
     fn free_directions(&mut self, _: impl Display, free: &[Vec6]) {
-        push_free_directions(self.next(), free);
+        if let Some(out) = self.next() {
+            push_free_directions(out, free);
+        }
     }
 }
 

@@ -10,11 +10,13 @@ use crate::batch::{stream, Study, Tally};
 use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
 use crate::model::grid::PosePoint;
-use crate::output::table::{header, names, write_row, Matrix, Record, Row, Triangle};
+use crate::output::table::{
+    column_names, names, selected_header, write_selected_row, Matrix, Record, Row, Selection, Triangle,
+};
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 /// What `stiff map` computes.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct MapOptions {
     /// Also write the 21 entries of the stiffness matrix.
     pub stiffness: bool,
@@ -23,6 +25,36 @@ pub struct MapOptions {
     pub wrench: Option<Vec6>,
     /// Loaded mode under each point's own wrench.
     pub use_point_wrench: bool,
+    /// The columns written (`--columns`), all where None.
+    pub selection: Option<Selection>,
+}
+
+/// The groups `--columns` knows, in table order.
+pub const COLUMN_GROUPS: [&str; 6] = ["pose", "status", "principal", "deflection", "C", "K"];
+
+/// A group's test on a column name (None: not a group).
+fn column_group(name: &str) -> Option<Box<dyn Fn(&str) -> bool>> {
+    let matrix = |letter: char| -> Box<dyn Fn(&str) -> bool> {
+        Box::new(move |c: &str| c.starts_with(letter) && c[1..].starts_with(|d: char| d.is_ascii_digit()))
+    };
+    Some(match name {
+        "pose" => Box::new(|c: &str| {
+            [names::INDEX, names::NAME].contains(&c) || names::POSITION.contains(&c) || names::ORIENTATION.contains(&c)
+        }),
+        "status" => Box::new(|c: &str| ["status", "rank", "free_directions", "condition"].contains(&c)),
+        "principal" => Box::new(|c: &str| c.starts_with("c_tran_") || c.starts_with("c_rot_")),
+        "deflection" => Box::new(|c: &str| names::DISPLACEMENT.contains(&c) || c == "deflection_mm"),
+        "C" => matrix('C'),
+        "K" => matrix('K'),
+        _ => return None,
+    })
+}
+
+/// The selection `--columns` asks of a map with these columns: names or groups (`COLUMN_GROUPS`).
+pub fn map_selection(c: &MapColumns, wanted: &[&str]) -> Result<Selection, String> {
+    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    let names = column_names(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c);
+    Selection::new(&names, wanted, column_group, &COLUMN_GROUPS)
 }
 
 /// How many points ended with each status.
@@ -160,9 +192,9 @@ impl Row for MapRow<'_> {
 }
 
 /// The header line of a map with these columns.
-pub fn map_header(c: &MapColumns) -> String {
+pub fn map_header(c: &MapColumns, selection: Option<&Selection>) -> String {
     let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
-    header(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c)
+    selected_header(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c, selection)
 }
 
 /// The columns a map of these points with these options writes (known before the first row).
@@ -189,7 +221,7 @@ impl Study for MapStudy<'_> {
     type Tally = MapSummary;
 
     fn header(&self) -> String {
-        map_header(&self.columns)
+        map_header(&self.columns, self.options.selection.as_ref())
     }
 
     fn new_state(&self) -> Self::State {
@@ -205,7 +237,8 @@ impl Study for MapStudy<'_> {
             (true, None) => loaded_point(self.m, p, &Vec6::zeros(), state, history),
         };
         tally.add(r.status);
-        write_row(&MapRow { index, point: p, result: &r }, &self.columns, out);
+        let row = MapRow { index, point: p, result: &r };
+        write_selected_row(&row, &self.columns, self.options.selection.as_ref(), out);
     }
 }
 
