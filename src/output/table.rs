@@ -95,6 +95,9 @@ pub fn write_selected_row<T: Row>(row: &T, layout: &T::Layout, selection: Option
     out.push('\n');
 }
 
+/// A group's test on a column name.
+pub type ColumnTest = Box<dyn Fn(&str) -> bool>;
+
 /// Which columns of a table are written (`--columns`): a mask over the table's columns, in table order.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Selection {
@@ -108,7 +111,7 @@ impl Selection {
     pub fn new(
         names: &[String],
         wanted: &[&str],
-        group: impl Fn(&str) -> Option<Box<dyn Fn(&str) -> bool>>,
+        group: impl Fn(&str) -> Option<ColumnTest>,
         groups: &[&str],
     ) -> Result<Selection, String> {
         let mut keep = vec![false; names.len()];

@@ -11,7 +11,7 @@ use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
 use crate::model::grid::PosePoint;
 use crate::output::table::{
-    column_names, names, selected_header, write_selected_row, Matrix, Record, Row, Selection, Triangle,
+    column_names, names, selected_header, write_selected_row, ColumnTest, Matrix, Record, Row, Selection, Triangle,
 };
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
@@ -33,8 +33,8 @@ pub struct MapOptions {
 pub const COLUMN_GROUPS: [&str; 6] = ["pose", "status", "principal", "deflection", "C", "K"];
 
 /// A group's test on a column name (None: not a group).
-fn column_group(name: &str) -> Option<Box<dyn Fn(&str) -> bool>> {
-    let matrix = |letter: char| -> Box<dyn Fn(&str) -> bool> {
+fn column_group(name: &str) -> Option<ColumnTest> {
+    let matrix = |letter: char| -> ColumnTest {
         Box::new(move |c: &str| c.starts_with(letter) && c[1..].starts_with(|d: char| d.is_ascii_digit()))
     };
     Some(match name {
