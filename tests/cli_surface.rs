@@ -453,3 +453,24 @@ fn columns_select_what_a_map_writes() {
     assert_eq!(code, Some(1));
     assert!(err.contains("--plot-column") && err.contains("c_tran_max_mm_per_N"), "{err}");
 }
+
+/// Either/or options show as a choice in the usage line, and giving both (or neither) is a usage error.
+#[test]
+fn either_or_options_are_visible_in_the_usage_line() {
+    let usage = |command: &str| {
+        let help = String::from_utf8(stiff().args([command, "--help"]).output().unwrap().stdout).unwrap();
+        help.lines().find(|l| l.starts_with("Usage:")).unwrap().to_string()
+    };
+    assert!(usage("map").contains("<--grid <GRID>|--points <POINTS>>"));
+    assert!(usage("assemble").contains("<--grid <GRID>|--points <POINTS>|--path <FROM> <TO> <POINTS>>"));
+    assert!(usage("curve").contains("<--wrench-direction <WRENCH_DIRECTION>|--displacement-direction"));
+    let both = stiff()
+        .args(["map", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+        .args(["--points", "manipulators/grids/stewart-gough-home.csv"])
+        .output()
+        .unwrap();
+    assert_eq!(both.status.code(), Some(2));
+    let neither =
+        stiff().args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--max", "1"]).output().unwrap();
+    assert_eq!(neither.status.code(), Some(2));
+}

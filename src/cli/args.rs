@@ -84,11 +84,12 @@ impl PlotStyle {
     }
 }
 
-/// Where the poses come from: a grid file or a points file.
+/// Where the poses come from: a grid file or a points file (exactly one: the usage line shows the choice).
 #[derive(Args, Debug)]
+#[group(required = true, multiple = false)]
 pub(crate) struct PointsArgs {
     /// Grid file (TOML): a [box] and/or named [[point]]s.
-    #[arg(long, conflicts_with = "points", required_unless_present = "points")]
+    #[arg(long)]
     pub(crate) grid: Option<PathBuf>,
     /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name; a map also reads pose_r*_rad and
     /// Fx_N..Mz_Nmm).

@@ -27,6 +27,7 @@ pub(crate) const EXAMPLES: &str = "Examples:
 Exit status: 0 success, 1 the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
+#[command(group = clap::ArgGroup::new("poses").required(true).multiple(false))]
 pub(crate) struct AssembleArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
@@ -35,13 +36,13 @@ pub(crate) struct AssembleArgs {
     #[arg(long)]
     pub(crate) errors: PathBuf,
     /// Grid file (TOML).
-    #[arg(long, conflicts_with_all = ["points", "path"], required_unless_present_any = ["points", "path"])]
+    #[arg(long, group = "poses")]
     pub(crate) grid: Option<PathBuf>,
     /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name).
-    #[arg(long, conflicts_with = "path")]
+    #[arg(long, group = "poses")]
     pub(crate) points: Option<PathBuf>,
     /// A straight path: FROM x,y,z (mm), TO x,y,z (mm), number of points.
-    #[arg(long, num_args = 3, value_names = ["FROM", "TO", "POINTS"], allow_hyphen_values = true)]
+    #[arg(long, group = "poses", num_args = 3, value_names = ["FROM", "TO", "POINTS"], allow_hyphen_values = true)]
     pub(crate) path: Option<Vec<String>>,
     /// External wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): adds the load, total and superposition columns.
     #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]

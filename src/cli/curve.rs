@@ -18,6 +18,7 @@ pub(crate) const EXAMPLES: &str = "Examples:
 Exit status: 0 success (a curve that stops early still writes its rows), 1 the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
+#[command(group = clap::ArgGroup::new("control").required(true).multiple(false))]
 pub(crate) struct CurveArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
@@ -28,10 +29,10 @@ pub(crate) struct CurveArgs {
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub(crate) orientation: Option<Vec3>,
     /// Force control: the wrench is load_factor * W (Fx,Fy,Fz in N, Mx,My,Mz in N mm).
-    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true, conflicts_with = "displacement_direction", required_unless_present = "displacement_direction")]
+    #[arg(long, group = "control", value_parser = parse_vec6, allow_hyphen_values = true)]
     pub(crate) wrench_direction: Option<Vec6>,
     /// Displacement control: the displacement is load_factor * D (dx,dy,dz in mm, rx,ry,rz in rad).
-    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
+    #[arg(long, group = "control", value_parser = parse_vec6, allow_hyphen_values = true)]
     pub(crate) displacement_direction: Option<Vec6>,
     /// Largest load factor.
     #[arg(long)]
