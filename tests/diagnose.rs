@@ -51,12 +51,24 @@ fn wrenches() -> Vec<Vec6> {
 }
 
 fn synth(m: &Manipulator, effects: &[Effect], wrenches: &[Vec6], noise_mm: f64, seed: u64) -> Dataset {
+    synth_at(m, poses(), effects, wrenches, noise_mm, seed)
+}
+
+/// Synthetic measurements at `points`, read back as `diagnose` reads them.
+fn synth_at(
+    m: &Manipulator,
+    points: Vec<PosePoint>,
+    effects: &[Effect],
+    wrenches: &[Vec6],
+    noise_mm: f64,
+    seed: u64,
+) -> Dataset {
     let o = SynthOptions { effects: effects.to_vec(), wrenches: wrenches.to_vec(), noise: noise_mm, seed, repeats: 1 };
     let mut text = Vec::new();
     synthesize(
         &pool(),
         &Model::nominal(m.clone()),
-        &mut PointSet::from_points(poses()),
+        &mut PointSet::from_points(points),
         &o,
         &mut text,
         &indicatif::ProgressBar::hidden(),
@@ -307,21 +319,7 @@ fn an_effect_is_offered_exactly_when_it_changes_a_prediction() {
             points.push(PosePoint { name: None, position, rotation: Vec3::zeros(), wrench: None });
         }
         for loads in [wrenches(), vec![Vec6::zeros()]] {
-            let o = SynthOptions { effects: vec![], wrenches: loads.clone(), noise: 0.0, seed: 1, repeats: 1 };
-            let mut text = Vec::new();
-            synthesize(
-                &pool(),
-                &Model::nominal(m.clone()),
-                &mut PointSet::from_points(points.clone()),
-                &o,
-                &mut text,
-                &indicatif::ProgressBar::hidden(),
-            )
-            .unwrap();
-            let dir = tempfile::tempdir().unwrap();
-            let path = dir.path().join("data.csv");
-            std::fs::write(&path, text).unwrap();
-            let data = Dataset::read(&path).unwrap();
+            let data = synth_at(&m, points.clone(), &[], &loads, 0.0, 1);
             assert!(data.poses.len() >= 3, "{name}: the poses are reachable");
             let weights = vec![1.0 / SIGMA; data.rows.len()];
             let problem = Problem::new(&m, &[], &data, weights, false, true).unwrap();

@@ -8,7 +8,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use super::parse::parse_assignment;
+use super::parse::{parse_assignment, parse_vec3};
+use crate::kinematics::frame::Vec3;
 use crate::model::error::read_text;
 use crate::model::grid::PointSet;
 use crate::model::{parse_with, Model};
@@ -81,6 +82,24 @@ impl PlotStyle {
             section: self.section.clone(),
             direction: self.direction.clone(),
         }
+    }
+}
+
+/// One commanded pose of the platform (`point`, `curve`).
+#[derive(Args, Debug)]
+pub(crate) struct PoseArgs {
+    /// Commanded platform reference point x,y,z in mm.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub(crate) at: Vec3,
+    /// Commanded orientation as a rotation vector rx,ry,rz in rad [default: 0,0,0].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub(crate) orientation: Option<Vec3>,
+}
+
+impl PoseArgs {
+    /// The orientation given, or none.
+    pub(crate) fn rotation(&self) -> Vec3 {
+        self.orientation.unwrap_or_else(Vec3::zeros)
     }
 }
 

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{write_plot, ModelArgs, OutputArgs, PlotStyle};
-use super::parse::{parse_vec3, parse_vec6};
-use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use super::args::{write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs};
+use super::parse::parse_vec6;
+use crate::kinematics::frame::{Frame, Vec6};
 use crate::study::curve::{curve_header, push_curve_row, run_curve, Control, MAX_INTERVALS};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
@@ -22,12 +22,8 @@ Exit status: 0 success (a curve that stops early still writes its rows), 1 the r
 pub(crate) struct CurveArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
-    /// Commanded platform reference point x,y,z in mm.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub(crate) at: Vec3,
-    /// Commanded orientation as a rotation vector rx,ry,rz in rad (default 0,0,0).
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub(crate) orientation: Option<Vec3>,
+    #[command(flatten)]
+    pub(crate) pose: PoseArgs,
     /// Force control: the wrench is load_factor * W (Fx,Fy,Fz in N, Mx,My,Mz in N mm).
     #[arg(long, group = "control", value_parser = parse_vec6, allow_hyphen_values = true)]
     pub(crate) wrench_direction: Option<Vec6>,
@@ -55,7 +51,7 @@ pub(crate) struct CurveArgs {
 
 pub(crate) fn run(a: CurveArgs) -> Result<()> {
     let model = a.model.load()?;
-    let at = Frame::from_position_rotvec(a.at, a.orientation.unwrap_or_else(Vec3::zeros));
+    let at = Frame::from_position_rotvec(a.pose.at, a.pose.rotation());
     let control = match (a.wrench_direction, a.displacement_direction) {
         (Some(w), None) => Control::Force(w),
         (None, Some(d)) => Control::Displacement(d),

@@ -3,9 +3,9 @@
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{write_stdout, ModelArgs};
-use super::parse::{parse_vec3, parse_vec6};
-use crate::kinematics::frame::{Vec3, Vec6};
+use super::args::{write_stdout, ModelArgs, PoseArgs};
+use super::parse::parse_vec6;
+use crate::kinematics::frame::Vec6;
 use crate::model::grid::PosePoint;
 use crate::study::point::{
     loaded_point, point_report, unloaded_point, LoadedHistory, PointJson, PoseJson, ResultJson, Status,
@@ -24,12 +24,8 @@ Exit status: 0 the pose has a compliance (status ok), 1 it has not (unreachable,
 pub(crate) struct PointArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
-    /// Platform reference point x,y,z in mm.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub(crate) at: Vec3,
-    /// Platform orientation as a rotation vector rx,ry,rz in rad (default 0,0,0).
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub(crate) orientation: Option<Vec3>,
+    #[command(flatten)]
+    pub(crate) pose: PoseArgs,
     /// A wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): reports its linear deflection C w and the loaded equilibrium
     /// under it (displacement, tangent stiffness and its full inverse).
     #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
@@ -44,8 +40,7 @@ pub(crate) struct PointArgs {
 
 pub(crate) fn run(a: PointArgs) -> Result<()> {
     let model = a.model.load()?;
-    let p =
-        PosePoint { name: None, position: a.at, rotation: a.orientation.unwrap_or_else(Vec3::zeros), wrench: a.wrench };
+    let p = PosePoint { name: None, position: a.pose.at, rotation: a.pose.rotation(), wrench: a.wrench };
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
     let loaded = a.wrench.map(|w| loaded_point(&model, &p, &w, &mut state, &mut LoadedHistory::default()));
