@@ -33,7 +33,7 @@ fn assemble(model: &str, errors: &str, at: [f64; 3], scale: f64, wrench: Option<
     let m = load(model);
     let set = ErrorSet::load(Path::new(errors), Path::new(model), &m).unwrap();
     let perturbed = set.perturbed_legs(scale).unwrap();
-    let o = AssembleOptions { wrench, scale, samples: 0, seed: 0 };
+    let o = AssembleOptions { wrench, scale, samples: 0, seed: 0, selection: None };
     assemble_point(&m, &set, &perturbed, &point(at), &o, &mut m.new_state()).unwrap()
 }
 

@@ -474,3 +474,35 @@ fn either_or_options_are_visible_in_the_usage_line() {
         stiff().args(["curve", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--max", "1"]).output().unwrap();
     assert_eq!(neither.status.code(), Some(2));
 }
+
+/// `assemble --columns` selects by name and group as `map --columns` does, with the same values.
+#[test]
+fn columns_select_what_an_assembly_writes() {
+    let run = |extra: &[&str]| {
+        let out = stiff()
+            .args([
+                "assemble",
+                "manipulators/orthoglide-3puu.toml",
+                "--errors",
+                "manipulators/errors/orthoglide-case-a.toml",
+            ])
+            .args(["--grid", "manipulators/grids/orthoglide-small.toml", "--wrench", "215,-10,-25,1000,21500,0", "-q"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let text = String::from_utf8(out.stdout).unwrap();
+        text.lines().map(|l| l.split(',').map(String::from).collect::<Vec<_>>()).collect::<Vec<_>>()
+    };
+    let full = run(&[]);
+    let some = run(&["--columns", "super,pose,leg2_force_N"]);
+    assert_eq!(some[0][..5], ["index", "name", "x_mm", "y_mm", "z_mm"]);
+    assert!(some[0].contains(&"superposition_gap_mm".to_string()) && some[0].contains(&"leg2_force_N".to_string()));
+    assert_eq!(some[0].len(), 5 + 1 + 6 + 1);
+    for (row_full, row_some) in full.iter().zip(&some).skip(1) {
+        for (k, name) in some[0].iter().enumerate() {
+            let j = full[0].iter().position(|h| h == name).unwrap();
+            assert_eq!(row_some[k], row_full[j], "{name}");
+        }
+    }
+}

@@ -13,7 +13,7 @@ use super::parse::{parse_vec3, parse_vec6};
 use crate::kinematics::frame::Vec6;
 use crate::model::assembly_errors::ErrorSet;
 use crate::model::grid::PointSet;
-use crate::study::assemble::{path_points, run_assemble, AssembleOptions, LegErrors};
+use crate::study::assemble::{assemble_selection, path_points, run_assemble, AssembleOptions, LegErrors};
 
 /// Most tolerance samples per point (`assemble --samples`): each row waits for all of its samples.
 const MAX_SAMPLES: usize = 10_000_000;
@@ -58,6 +58,10 @@ pub(crate) struct AssembleArgs {
     pub(crate) seed: u64,
     #[command(flatten)]
     pub(crate) output: OutputArgs,
+    /// The columns to write: names or groups (pose, status, linear, nonlinear, loads, joints, load, total,
+    /// super, samples), comma-separated, written in the table's order [default: all].
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) columns: Option<Vec<String>>,
     /// Also draw the displacements along the path (SVG, paper 000 Figures 10-11).
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
@@ -88,7 +92,13 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
     let pool = thread_pool(a.run.threads)?;
     let mut sink = a.output.open()?;
     let bar = progress_bar(points.len, a.run.quiet);
-    let options = AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed };
+    let mut options =
+        AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed, selection: None };
+    if let Some(wanted) = &a.columns {
+        let wanted: Vec<&str> = wanted.iter().map(String::as_str).collect();
+        let selection = assemble_selection(model.legs.len(), &options, &wanted);
+        options.selection = Some(selection.map_err(|e| anyhow::anyhow!("--columns: {e}"))?);
+    }
     if a.samples > MAX_SAMPLES {
         bail!(
             "--samples {} is more than a point may take ({MAX_SAMPLES}: about 5 s per point at 2 million \

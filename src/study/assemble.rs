@@ -17,7 +17,9 @@ use crate::batch::{point_seed, stream, Study, Tally};
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::model::assembly_errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
-use crate::output::table::{header, names, write_row, Record, Row};
+use crate::output::table::{
+    column_names, names, selected_header, write_selected_row, ColumnTest, Record, Row, Selection,
+};
 use crate::platform::assembly::EndErrors;
 use crate::platform::assembly::{linear_assembly, JointDeflections};
 use crate::platform::leg::{Leg, LegResponse};
@@ -36,6 +38,47 @@ pub struct AssembleOptions {
     pub samples: usize,
     /// Seed of the random draws.
     pub seed: u64,
+    /// The columns written (`--columns`), all where None.
+    pub selection: Option<Selection>,
+}
+
+/// The groups `--columns` knows for an assembly table.
+pub const COLUMN_GROUPS: [&str; 10] =
+    ["pose", "status", "linear", "nonlinear", "loads", "joints", "load", "total", "super", "samples"];
+
+/// A group's test on a column name (None: not a group).
+fn column_group(name: &str) -> Option<ColumnTest> {
+    let prefixed = |prefix: &'static str| -> ColumnTest { Box::new(move |c: &str| c.starts_with(prefix)) };
+    Some(match name {
+        "pose" => Box::new(|c: &str| [names::INDEX, names::NAME].contains(&c) || names::POSITION.contains(&c)),
+        "status" => Box::new(|c: &str| c == names::STATUS),
+        "linear" => Box::new(|c: &str| names::DISPLACEMENT.contains(&c)),
+        "nonlinear" => prefixed("nl_"),
+        "loads" => Box::new(|c: &str| {
+            ["force_max_N", "moment_max_Nmm", "force_sum_N"].contains(&c)
+                || (c.starts_with("leg") && (c.ends_with("_force_N") || c.ends_with("_moment_Nmm")))
+        }),
+        "joints" => Box::new(|c: &str| c == "passive_max_rad" || c.starts_with("spring_")),
+        "load" => prefixed("load_"),
+        "total" => prefixed("total_"),
+        "super" => Box::new(|c: &str| c.starts_with("super")),
+        "samples" => Box::new(|c: &str| {
+            c == "samples"
+                || c.starts_with("mean_")
+                || c.contains("_mean_")
+                || c.contains("_std_")
+                || c.contains("_worst_")
+        }),
+        _ => return None,
+    })
+}
+
+/// The selection `--columns` asks of an assembly table for `legs` legs with these options.
+pub fn assemble_selection(legs: usize, o: &AssembleOptions, wanted: &[&str]) -> Result<Selection, String> {
+    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    let blank = AssemblyRow { index: 0, point: &point, outcome: AssemblyOutcome::Failed(Status::Ok) };
+    let names = column_names(&blank, &AssembleLayout::new(legs, o));
+    Selection::new(&names, wanted, column_group, &COLUMN_GROUPS)
 }
 
 /// What fixes an assembly table's columns.
@@ -144,7 +187,7 @@ impl Row for AssemblyRow<'_> {
 pub fn assemble_header(legs: usize, o: &AssembleOptions) -> String {
     let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
     let blank = AssemblyRow { index: 0, point: &point, outcome: AssemblyOutcome::Failed(Status::Ok) };
-    header(&blank, &AssembleLayout::new(legs, o))
+    selected_header(&blank, &AssembleLayout::new(legs, o), o.selection.as_ref())
 }
 
 /// Counts of an assembly run.
@@ -426,7 +469,8 @@ impl Study for AssembleStudy<'_> {
         };
         tally.points += 1;
         tally.ok += u64::from(!matches!(outcome, AssemblyOutcome::Failed(_)));
-        write_row(&AssemblyRow { index, point: p, outcome }, &self.layout, out);
+        let row = AssemblyRow { index, point: p, outcome };
+        write_selected_row(&row, &self.layout, self.o.selection.as_ref(), out);
     }
 }
 
