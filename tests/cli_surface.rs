@@ -505,4 +505,22 @@ fn columns_select_what_an_assembly_writes() {
             assert_eq!(row_some[k], row_full[j], "{name}");
         }
     }
+    // A picture needs the columns it draws: refused before the run when they are not written.
+    let dir = tempfile::tempdir().unwrap();
+    let refused = stiff()
+        .args([
+            "assemble",
+            "manipulators/orthoglide-3puu.toml",
+            "--errors",
+            "manipulators/errors/orthoglide-case-a.toml",
+        ])
+        .args(["--path", "0,0,0", "10,0,0", "3", "--columns", "pose", "-o"])
+        .arg(dir.path().join("a.csv"))
+        .arg("--plot")
+        .arg(dir.path().join("a.svg"))
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("nl_dx_mm"));
+    assert!(!dir.path().join("a.csv").exists(), "nothing written");
 }

@@ -110,6 +110,17 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
         bail!("--plot draws an assembly path, not a tolerance study (--samples)");
     }
     plot_needs_output(&a.plot, &a.output.output, "assemble")?;
+    if a.plot.is_some() && options.selection.is_some() {
+        // The picture is drawn from the written table: it needs the path's coordinates and the non-linear
+        // assembly's displacement (what marks an assembly table); checked before the run.
+        let header = crate::study::assemble::assemble_header(model.legs.len(), &options);
+        let columns: Vec<&str> = header.trim_end().split(',').collect();
+        for needed in ["x_mm", "y_mm", "z_mm", "nl_dx_mm", "nl_dy_mm", "nl_dz_mm"] {
+            if !columns.contains(&needed) {
+                bail!("--plot draws the path from the written columns: --columns must keep `{needed}` (groups pose and nonlinear)");
+            }
+        }
+    }
     let summary = run_assemble(
         &pool,
         &model,
