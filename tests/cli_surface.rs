@@ -11,6 +11,18 @@ fn stiff() -> Command {
 
 const COMMANDS: [&str; 7] = ["map", "point", "curve", "assemble", "diagnose", "synth", "plot"];
 
+/// Every cell of the selected table (`some`, a header row then data rows) equals the full table's cell of
+/// the same column and row.
+fn assert_same_cells(full: &[Vec<String>], some: &[Vec<String>]) {
+    assert_eq!(full.len(), some.len(), "same rows");
+    for (row_full, row_some) in full.iter().zip(some).skip(1) {
+        for (k, name) in some[0].iter().enumerate() {
+            let j = full[0].iter().position(|h| h == name).unwrap();
+            assert_eq!(row_some[k], row_full[j], "{name}");
+        }
+    }
+}
+
 /// Splits an example line into arguments (double quotes group, as a shell would).
 fn shell_words(line: &str) -> Vec<String> {
     let mut words = Vec::new();
@@ -438,12 +450,7 @@ fn columns_select_what_a_map_writes() {
             "K11_N_per_mm"
         ]
     );
-    for (row_full, row_compact) in full.iter().zip(&compact).skip(1) {
-        for (k, name) in compact[0].iter().enumerate() {
-            let j = full[0].iter().position(|h| h == name).unwrap();
-            assert_eq!(row_compact[k], row_full[j], "{name}");
-        }
-    }
+    assert_same_cells(&full, &compact);
     let (code, _, err) = map(&["--columns", "pose,nope"]);
     assert_eq!(code, Some(1));
     assert!(err.contains("`nope`") && err.contains("groups: pose, status"), "{err}");
@@ -499,12 +506,7 @@ fn columns_select_what_an_assembly_writes() {
     assert_eq!(some[0][..5], ["index", "name", "x_mm", "y_mm", "z_mm"]);
     assert!(some[0].contains(&"superposition_gap_mm".to_string()) && some[0].contains(&"leg2_force_N".to_string()));
     assert_eq!(some[0].len(), 5 + 1 + 6 + 1);
-    for (row_full, row_some) in full.iter().zip(&some).skip(1) {
-        for (k, name) in some[0].iter().enumerate() {
-            let j = full[0].iter().position(|h| h == name).unwrap();
-            assert_eq!(row_some[k], row_full[j], "{name}");
-        }
-    }
+    assert_same_cells(&full, &some);
     // A picture needs the columns it draws: refused before the run when they are not written.
     let dir = tempfile::tempdir().unwrap();
     let refused = stiff()

@@ -14,6 +14,7 @@ use crate::model::error::read_text;
 use crate::model::grid::PointSet;
 use crate::model::{parse_with, Model};
 use crate::output::sink::Sink;
+use crate::output::table::Selection;
 use crate::platform::manipulator::Manipulator;
 
 #[derive(Args, Debug)]
@@ -136,6 +137,16 @@ impl OutputArgs {
     pub(crate) fn open(&self) -> Result<Sink> {
         Sink::create(self.output.as_deref())
     }
+}
+
+/// The selection `--columns` asks for (None without it), resolved against a table's columns by `resolve`.
+pub(crate) fn select_columns(
+    wanted: &Option<Vec<String>>,
+    resolve: impl FnOnce(&[&str]) -> Result<Selection, String>,
+) -> Result<Option<Selection>> {
+    let Some(wanted) = wanted else { return Ok(None) };
+    let wanted: Vec<&str> = wanted.iter().map(String::as_str).collect();
+    resolve(&wanted).map(Some).map_err(|e| anyhow::anyhow!("--columns: {e}"))
 }
 
 /// Most worker threads a run starts: each holds its own buffers and a run in flight, and starting a

@@ -6,8 +6,8 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    plot_needs_output, point_set, progress_bar, thread_pool, write_plot, written, ModelArgs, OutputArgs, PlotStyle,
-    RunArgs,
+    plot_needs_output, point_set, progress_bar, select_columns, thread_pool, write_plot, written, ModelArgs,
+    OutputArgs, PlotStyle, RunArgs,
 };
 use super::parse::{parse_vec3, parse_vec6};
 use crate::kinematics::frame::Vec6;
@@ -94,11 +94,7 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
     let bar = progress_bar(points.len, a.run.quiet);
     let mut options =
         AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed, selection: None };
-    if let Some(wanted) = &a.columns {
-        let wanted: Vec<&str> = wanted.iter().map(String::as_str).collect();
-        let selection = assemble_selection(model.legs.len(), &options, &wanted);
-        options.selection = Some(selection.map_err(|e| anyhow::anyhow!("--columns: {e}"))?);
-    }
+    options.selection = select_columns(&a.columns, |w| assemble_selection(model.legs.len(), &options, w))?;
     if a.samples > MAX_SAMPLES {
         bail!(
             "--samples {} is more than a point may take ({MAX_SAMPLES}: about 5 s per point at 2 million \

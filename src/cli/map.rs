@@ -6,8 +6,8 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    name_plot_flag, plot_needs_output, progress_bar, thread_pool, write_plot, written, MapStyle, ModelArgs, OutputArgs,
-    PointsArgs, RunArgs,
+    name_plot_flag, plot_needs_output, progress_bar, select_columns, thread_pool, write_plot, written, MapStyle,
+    ModelArgs, OutputArgs, PointsArgs, RunArgs,
 };
 use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
@@ -65,10 +65,7 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
     let mut options =
         MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded, selection: None };
     let columns = map_columns(&points, &options);
-    if let Some(wanted) = &a.columns {
-        let wanted: Vec<&str> = wanted.iter().map(String::as_str).collect();
-        options.selection = Some(map_selection(&columns, &wanted).map_err(|e| anyhow::anyhow!("--columns: {e}"))?);
-    }
+    options.selection = select_columns(&a.columns, |w| map_selection(&columns, w))?;
     plot_needs_output(&a.plot, &a.output.output, "map")?;
     if a.plot.is_some() {
         let header = map_header(&columns, options.selection.as_ref());

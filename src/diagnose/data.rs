@@ -22,7 +22,7 @@ pub const MAX_MAGNITUDE: f64 = 1e100;
 pub const MIN_SIGMA_MM: f64 = 1e-9;
 
 /// One measured row: a commanded pose, the wrench applied there and the measured displacement.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Measurement {
     /// The id grouping rows of one pose.
     pub pose_id: String,

@@ -140,7 +140,8 @@ impl Study for SynthStudy<'_> {
     type Tally = SynthSummary;
 
     fn header(&self) -> String {
-        header(&blank_row(), &())
+        let blank = Measurement::default();
+        header(&MeasurementRow { measurement: &blank, displacement: Vec3::zeros(), sigma: None }, &())
     }
 
     fn new_state(&self) -> ManipulatorState {
@@ -208,19 +209,6 @@ struct MeasurementRow<'a> {
     measurement: &'a Measurement,
     displacement: Vec3,
     sigma: Option<f64>,
-}
-
-fn blank_row() -> MeasurementRow<'static> {
-    static BLANK: std::sync::OnceLock<Measurement> = std::sync::OnceLock::new();
-    let measurement = BLANK.get_or_init(|| Measurement {
-        pose_id: String::new(),
-        position: Vec3::zeros(),
-        wrench: Vec6::zeros(),
-        displacement: Vec3::zeros(),
-        sigma: None,
-        line: 0,
-    });
-    MeasurementRow { measurement, displacement: Vec3::zeros(), sigma: None }
 }
 
 impl Row for MeasurementRow<'_> {

@@ -11,7 +11,7 @@ use super::error::{not_finite, open_input, read_text, InputError, Locator};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 
 /// One pose to evaluate.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct PosePoint {
     /// The point's name, where the input gives one.
     pub name: Option<String>,

@@ -75,7 +75,7 @@ fn column_group(name: &str) -> Option<ColumnTest> {
 
 /// The selection `--columns` asks of an assembly table for `legs` legs with these options.
 pub fn assemble_selection(legs: usize, o: &AssembleOptions, wanted: &[&str]) -> Result<Selection, String> {
-    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    let point = PosePoint::default();
     let blank = AssemblyRow { index: 0, point: &point, outcome: AssemblyOutcome::Failed(Status::Ok) };
     let names = column_names(&blank, &AssembleLayout::new(legs, o));
     Selection::new(&names, wanted, column_group, &COLUMN_GROUPS)
@@ -185,7 +185,7 @@ impl Row for AssemblyRow<'_> {
 
 /// The CSV header for `legs` legs.
 pub fn assemble_header(legs: usize, o: &AssembleOptions) -> String {
-    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    let point = PosePoint::default();
     let blank = AssemblyRow { index: 0, point: &point, outcome: AssemblyOutcome::Failed(Status::Ok) };
     selected_header(&blank, &AssembleLayout::new(legs, o), o.selection.as_ref())
 }

@@ -52,7 +52,7 @@ fn column_group(name: &str) -> Option<ColumnTest> {
 
 /// The selection `--columns` asks of a map with these columns: names or groups (`COLUMN_GROUPS`).
 pub fn map_selection(c: &MapColumns, wanted: &[&str]) -> Result<Selection, String> {
-    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    let point = PosePoint::default();
     let names = column_names(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c);
     Selection::new(&names, wanted, column_group, &COLUMN_GROUPS)
 }
@@ -193,7 +193,7 @@ impl Row for MapRow<'_> {
 
 /// The header line of a map with these columns.
 pub fn map_header(c: &MapColumns, selection: Option<&Selection>) -> String {
-    let point = PosePoint { name: None, position: Default::default(), rotation: Default::default(), wrench: None };
+    let point = PosePoint::default();
     selected_header(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c, selection)
 }
 
