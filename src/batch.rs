@@ -16,6 +16,7 @@ use anyhow::{anyhow, Result};
 use indicatif::ProgressBar;
 
 use crate::model::grid::{PointSet, PosePoint};
+use crate::output::table::{header_line, Column};
 
 /// Consecutive points solved by one worker with warm starts.
 pub const RUN: usize = 256;
@@ -35,8 +36,8 @@ pub trait Study: Sync {
     type State;
     /// Counts over the rows (the summary on stderr).
     type Tally: Tally;
-    /// The table's header line.
-    fn header(&self) -> String;
+    /// The table's columns (the header line, and the types of a columnar output).
+    fn columns(&self) -> Vec<Column>;
     /// A worker's state at the start of a run.
     fn new_state(&self) -> Self::State;
     /// Solves the point with input index `index`, appends its row to `out` and counts it in `tally`.
@@ -51,7 +52,7 @@ pub fn stream<S: Study>(
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<S::Tally> {
-    stream_rows(pool, points, &study.header(), out, progress, |first_index, run| {
+    stream_rows(pool, points, &header_line(&study.columns()), out, progress, |first_index, run| {
         let mut state = study.new_state();
         let mut tally = S::Tally::default();
         let mut text = String::with_capacity(run.len() * TYPICAL_ROW_BYTES);

@@ -411,6 +411,127 @@ fn compressed_outputs_hold_the_same_table() {
     stiff().args(["plot"]).arg(dir.path().join("m.csv.gz")).arg("-o").arg(&svg).assert().success();
 }
 
+/// A Parquet output holds the CSV table's values: the same columns in the same order, every number bit for
+/// bit (read by the parquet crate's own reader, not by stiff), counts as integers, texts (a name holding a
+/// comma and quotes) as texts, empty cells as nulls, and each column's unit, the suffix of its name, in the
+/// field metadata. A picture drawn from the Parquet file is the picture drawn from the CSV.
+#[test]
+fn a_parquet_map_holds_the_csv_values_with_their_units() {
+    use arrow_array::{Array, Float64Array, StringArray, UInt64Array};
+    let dir = tempfile::tempdir().unwrap();
+    let points = dir.path().join("p.csv");
+    let rows = "name,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm\n\"a,\"\"b\"\"\",0,0,0,100,0,0,0,0,0\n\
+                far,900,0,0,100,0,0,0,0,0\nc,10,-20,5,-50,20,0,0,0,1000\n";
+    std::fs::write(&points, rows).unwrap();
+    let write = |name: &str| {
+        let path = dir.path().join(name);
+        stiff()
+            .args(["map", "manipulators/orthoglide-3puu.toml", "--stiffness", "--loaded", "-q", "--points"])
+            .arg(&points)
+            .arg("-o")
+            .arg(&path)
+            .assert()
+            .success();
+        path
+    };
+    let csv_path = write("m.csv");
+    let gz_path = write("m.csv.gz");
+    let parquet_path = write("m.parquet");
+    let mut reader = csv::Reader::from_path(&csv_path).unwrap();
+    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    let rows: Vec<Vec<String>> = reader.records().map(|r| r.unwrap().iter().map(String::from).collect()).collect();
+    let gz = csv::Reader::from_reader(flate2::read::GzDecoder::new(std::fs::File::open(&gz_path).unwrap()))
+        .into_records()
+        .map(|r| r.unwrap().iter().map(String::from).collect::<Vec<_>>())
+        .collect::<Vec<_>>();
+    assert_eq!(gz, rows, "the .csv.gz table is the CSV table");
+    assert_eq!(rows[0][1], "a,\"b\"", "the quoted name read back by the csv crate");
+    assert!(rows[1].iter().any(String::is_empty), "the unreachable point has empty cells");
+
+    let file = std::fs::File::open(&parquet_path).unwrap();
+    let batches: Vec<_> = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap()
+        .map(Result::unwrap)
+        .collect();
+    let schema = batches[0].schema();
+    let names: Vec<&str> = schema.fields().iter().map(|f| f.name().as_str()).collect();
+    assert_eq!(names, header);
+    let units = ["mm_per_Nmm", "mm_per_N", "rad_per_Nmm", "rad_per_N", "N_per_mm", "N_per_rad", "Nmm_per_mm"];
+    for field in schema.fields() {
+        let name = field.name();
+        let expected = units
+            .iter()
+            .chain(&["Nmm_per_rad", "mm", "rad", "Nmm", "N"])
+            .find(|u| name.ends_with(&format!("_{u}")))
+            .copied();
+        assert_eq!(field.metadata().get("unit").map(String::as_str), expected, "{name}");
+    }
+    let mut row = 0;
+    for batch in &batches {
+        for r in 0..batch.num_rows() {
+            for (k, column) in batch.columns().iter().enumerate() {
+                let cell = &rows[row][k];
+                let any = column.as_any();
+                if column.is_null(r) {
+                    assert_eq!(cell, "", "{} row {row}: null is an empty cell", names[k]);
+                } else if let Some(a) = any.downcast_ref::<Float64Array>() {
+                    assert_eq!(a.value(r).to_bits(), cell.parse::<f64>().unwrap().to_bits(), "{} row {row}", names[k]);
+                } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
+                    assert_eq!(a.value(r), cell.parse::<u64>().unwrap(), "{} row {row}", names[k]);
+                } else {
+                    let a = any.downcast_ref::<StringArray>().expect("f64, u64 or text");
+                    assert_eq!(a.value(r), cell, "{} row {row}", names[k]);
+                }
+            }
+            row += 1;
+        }
+    }
+    assert_eq!(row, rows.len());
+    assert!(names.contains(&"iterations") && names.contains(&"C21_mm_per_N"), "a loaded map's columns");
+    let kind = |name: &str| schema.field_with_name(name).unwrap().data_type().clone();
+    assert_eq!(kind("iterations"), arrow_schema::DataType::UInt64);
+    assert_eq!(kind("status"), arrow_schema::DataType::Utf8);
+    assert_eq!(kind("C21_mm_per_N"), arrow_schema::DataType::Float64);
+
+    let picture = |table: &Path, svg: &str| {
+        let svg = dir.path().join(svg);
+        stiff().arg("plot").arg(table).arg("-o").arg(&svg).assert().success();
+        std::fs::read_to_string(svg).unwrap()
+    };
+    assert_eq!(picture(&parquet_path, "p.svg"), picture(&csv_path, "c.svg"));
+}
+
+/// Parquet holds tables only: a picture or a report given a `.parquet` name, or a Parquet file given as
+/// points, is refused with what to do.
+#[test]
+fn parquet_is_refused_where_it_is_not_a_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.parquet");
+    let o = stiff()
+        .args(["point", "manipulators/orthoglide-3puu.toml", "--at", "0,0,0", "--json", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("only tables"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!out.exists());
+    stiff()
+        .args(["map", "manipulators/orthoglide-3puu.toml", "--grid", "manipulators/grids/orthoglide-small.toml"])
+        .args(["-q", "-o"])
+        .arg(&out)
+        .assert()
+        .success();
+    let o = stiff().args(["map", "manipulators/orthoglide-3puu.toml", "--points"]).arg(&out).output().unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("read by `stiff plot`"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 /// `--columns` keeps the listed columns and groups, in the table's order, with the same values as the full
 /// table; an unknown name is refused with the groups and columns listed, and a picture of a column not
 /// written is refused before the run.

@@ -14,7 +14,7 @@ use crate::model::error::read_text;
 use crate::model::grid::PointSet;
 use crate::model::{parse_with, Model};
 use crate::output::sink::Sink;
-use crate::output::table::Selection;
+use crate::output::table::{Column, Selection};
 use crate::platform::manipulator::Manipulator;
 
 #[derive(Args, Debug)]
@@ -127,16 +127,28 @@ impl PointsArgs {
 /// Where a table goes.
 #[derive(Args, Debug)]
 pub(crate) struct OutputArgs {
-    /// Output CSV; `-` or absent: stdout. A file is written to a temporary name and renamed on success.
+    /// Output table; `-` or absent: stdout (CSV). By the file's extension: `.csv`, `.csv.gz`, `.csv.zst`
+    /// or `.parquet` (zstd-compressed, typed columns, units in the field metadata). A file is written to a
+    /// temporary name and renamed on success.
     #[arg(short, long)]
     pub(crate) output: Option<PathBuf>,
 }
 
 impl OutputArgs {
-    /// The output, opened before the work so that an unwritable path fails at once.
-    pub(crate) fn open(&self) -> Result<Sink> {
-        Sink::create(self.output.as_deref())
+    /// The output of a table with these columns, opened before the work so that an unwritable path fails
+    /// at once.
+    pub(crate) fn open(&self, columns: &[Column]) -> Result<Sink> {
+        Sink::table(self.output.as_deref(), columns)
     }
+}
+
+/// A table written by a study (CSV, compressed CSV or Parquet) as CSV text, for its picture.
+pub(crate) fn read_table(path: &Path) -> Result<String> {
+    if crate::output::parquet::is_parquet(path) {
+        let input = std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+        return crate::output::parquet::csv_text(input).with_context(|| format!("cannot read {}", path.display()));
+    }
+    Ok(read_text(path)?)
 }
 
 /// The selection `--columns` asks for (None without it), resolved against a table's columns by `resolve`.
@@ -229,7 +241,7 @@ pub(crate) fn plot_needs_output(plot: &Option<PathBuf>, output: &Option<PathBuf>
 /// The output file just written, for its picture.
 pub(crate) fn written(output: &Option<PathBuf>) -> Result<String> {
     let path = output.as_deref().expect("checked by plot_needs_output");
-    Ok(read_text(path)?)
+    read_table(path)
 }
 
 /// Writes a report to stdout, reporting a failed write (a full disk, a closed pipe) instead of panicking

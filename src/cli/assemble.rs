@@ -13,7 +13,9 @@ use super::parse::{parse_vec3, parse_vec6};
 use crate::kinematics::frame::Vec6;
 use crate::model::assembly_errors::ErrorSet;
 use crate::model::grid::PointSet;
-use crate::study::assemble::{assemble_selection, path_points, run_assemble, AssembleOptions, LegErrors};
+use crate::study::assemble::{
+    assemble_selection, assemble_table, path_points, run_assemble, AssembleOptions, LegErrors,
+};
 
 /// Most tolerance samples per point (`assemble --samples`): each row waits for all of its samples.
 const MAX_SAMPLES: usize = 10_000_000;
@@ -90,8 +92,6 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
         }
     };
     let pool = thread_pool(a.run.threads)?;
-    let mut sink = a.output.open()?;
-    let bar = progress_bar(points.len, a.run.quiet);
     let mut options =
         AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed, selection: None };
     options.selection = select_columns(&a.columns, |w| assemble_selection(model.legs.len(), &options, w))?;
@@ -117,6 +117,8 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
             }
         }
     }
+    let mut sink = a.output.open(&assemble_table(model.legs.len(), &options))?;
+    let bar = progress_bar(points.len, a.run.quiet);
     let summary = run_assemble(
         &pool,
         &model,

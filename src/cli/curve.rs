@@ -8,7 +8,7 @@ use clap::Args;
 use super::args::{write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs};
 use super::parse::parse_vec6;
 use crate::kinematics::frame::{Frame, Vec6};
-use crate::study::curve::{curve_header, push_curve_row, run_curve, Control, MAX_INTERVALS};
+use crate::study::curve::{curve_header, curve_table, push_curve_row, run_curve, Control, MAX_INTERVALS};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -63,7 +63,7 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
     if !(a.max.is_finite() && a.max > 0.0) {
         bail!("--max must be a positive finite number, got {}", a.max);
     }
-    let mut sink = a.output.open()?;
+    let mut sink = a.output.open(&curve_table())?;
     // Rows are written as they become final; the picture, if asked, is drawn from the same text.
     let mut picture = a.plot.as_ref().map(|_| curve_header());
     let writer = sink.writer();

@@ -11,7 +11,7 @@ use super::args::{
 };
 use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
-use crate::study::map::{map_columns, map_header, map_selection, run_map, MapOptions};
+use crate::study::map::{map_columns, map_header, map_selection, map_table, run_map, MapOptions};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -57,8 +57,6 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
     let model = a.model.load()?;
     let mut points = a.points.load()?;
     let pool = thread_pool(a.run.threads)?;
-    let mut sink = a.output.open()?;
-    let bar = progress_bar(points.len, a.run.quiet);
     if a.loaded && !points.has_wrench {
         bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
     }
@@ -66,11 +64,13 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
         MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded, selection: None };
     let columns = map_columns(&points, &options);
     options.selection = select_columns(&a.columns, |w| map_selection(&columns, w))?;
+    let mut sink = a.output.open(&map_table(&columns, options.selection.as_ref()))?;
     plot_needs_output(&a.plot, &a.output.output, "map")?;
     if a.plot.is_some() {
         let header = map_header(&columns, options.selection.as_ref());
         crate::plot::check_map_options(&header, &a.style.style().options()).map_err(name_plot_flag)?;
     }
+    let bar = progress_bar(points.len, a.run.quiet);
     let summary = run_map(&pool, &model, &mut points, options, sink.writer(), &bar)?;
     sink.finish()?;
     bar.finish_and_clear();

@@ -5,8 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use super::args::{write_plot, MapStyle, PlotStyle};
-use crate::model::error::read_text;
+use super::args::{read_table, write_plot, MapStyle, PlotStyle};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -17,7 +16,8 @@ Exit status: 0 success, 1 the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
 pub(crate) struct PlotArgs {
-    /// A CSV written by map, curve or assemble, or a JSON written by diagnose --json.
+    /// A table written by map, curve or assemble (CSV, .csv.gz, .csv.zst or .parquet), or a JSON written
+    /// by diagnose --json; `-` reads standard input.
     pub(crate) input: PathBuf,
     /// The SVG to write.
     #[arg(short, long)]
@@ -30,7 +30,7 @@ pub(crate) struct PlotArgs {
 }
 
 pub(crate) fn run(a: PlotArgs) -> Result<()> {
-    let text = read_text(&a.input)?;
+    let text = read_table(&a.input)?;
     let style = PlotStyle { direction: a.direction.clone(), ..a.style.style() };
     write_plot(&text, &a.output, &style)
 }

@@ -61,7 +61,7 @@ pub(crate) fn run(a: SynthArgs) -> Result<()> {
     let mut points = a.points.load()?;
     let options = synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats };
     let pool = thread_pool(a.run.threads)?;
-    let mut sink = a.output.open()?;
+    let mut sink = a.output.open(&synth::synth_table())?;
     let bar = progress_bar(points.len, a.run.quiet);
     let summary = synth::synthesize(&pool, &model, &mut points, &options, sink.writer(), &bar)?;
     sink.finish()?;

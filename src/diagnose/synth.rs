@@ -13,7 +13,7 @@ use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::effect::{Effect, Kind};
 use crate::model::grid::{PointSet, PosePoint};
 use crate::model::Model;
-use crate::output::table::{header, names, write_row, Record, Row};
+use crate::output::table::{names, selected_columns, write_row, Column, Record, Row};
 use crate::platform::manipulator::ManipulatorState;
 
 /// What `stiff synth` measures.
@@ -135,13 +135,18 @@ impl SynthStudy<'_> {
     }
 }
 
+/// The columns of a synthesized measurement file, in order.
+pub fn synth_table() -> Vec<Column> {
+    let blank = Measurement::default();
+    selected_columns(&MeasurementRow { measurement: &blank, displacement: Vec3::zeros(), sigma: None }, &(), None)
+}
+
 impl Study for SynthStudy<'_> {
     type State = ManipulatorState;
     type Tally = SynthSummary;
 
-    fn header(&self) -> String {
-        let blank = Measurement::default();
-        header(&MeasurementRow { measurement: &blank, displacement: Vec3::zeros(), sigma: None }, &())
+    fn columns(&self) -> Vec<Column> {
+        synth_table()
     }
 
     fn new_state(&self) -> ManipulatorState {

@@ -120,6 +120,14 @@ pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read + Send>, InputErr
     let raw: Box<dyn std::io::Read + Send> =
         if is_stdin(path) { Box::new(std::io::stdin()) } else { Box::new(std::fs::File::open(path).map_err(failed)?) };
     let name = path.to_string_lossy();
+    if name.to_ascii_lowercase().ends_with(".parquet") {
+        return Err(InputError::Whole {
+            path: path.to_path_buf(),
+            message: "Parquet tables are read by `stiff plot`; points, grids, models and measurements are CSV \
+                      or TOML (plain, .gz or .zst)"
+                .into(),
+        });
+    }
     Ok(if name.ends_with(".gz") {
         Box::new(flate2::read::MultiGzDecoder::new(std::io::BufReader::new(raw)))
     } else if name.ends_with(".zst") {

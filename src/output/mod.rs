@@ -1,5 +1,6 @@
-//! CSV rows, text reports, and files written atomically.
+//! CSV rows and Parquet tables, text reports, and files written atomically.
 pub mod diagnosis;
+pub mod parquet;
 pub mod report;
 pub mod sink;
 pub mod table;

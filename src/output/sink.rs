@@ -14,6 +14,9 @@ use std::sync::Mutex;
 
 use anyhow::{anyhow, bail, Context, Result};
 
+use super::parquet::{is_parquet, ParquetTable};
+use super::table::Column;
+
 /// Temporary files being written, removed if the process is interrupted.
 static PARTIAL: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
@@ -63,7 +66,8 @@ pub enum Sink {
     },
 }
 
-/// A file's encoding, chosen by its name: `.gz` (gzip, flate2), `.zst` (zstandard), else plain.
+/// A file's encoding, chosen by its name: `.parquet` for a table, `.gz` (gzip, flate2), `.zst` (zstandard),
+/// else plain.
 pub enum Encoded {
     /// Plain text.
     Plain(BufWriter<tempfile::NamedTempFile>),
@@ -71,13 +75,17 @@ pub enum Encoded {
     Gzip(flate2::write::GzEncoder<BufWriter<tempfile::NamedTempFile>>),
     /// zstandard at its default level (3).
     Zstd(zstd::Encoder<'static, BufWriter<tempfile::NamedTempFile>>),
+    /// A Parquet table, filled from the CSV text written to it.
+    Parquet(Box<ParquetTable<BufWriter<tempfile::NamedTempFile>>>),
 }
 
 impl Encoded {
-    fn new(temp: tempfile::NamedTempFile, path: &Path) -> io::Result<Encoded> {
+    fn new(temp: tempfile::NamedTempFile, path: &Path, columns: Option<&[Column]>) -> io::Result<Encoded> {
         let file = BufWriter::with_capacity(1 << 20, temp);
         let name = path.to_string_lossy();
-        Ok(if name.ends_with(".gz") {
+        Ok(if let Some(columns) = columns.filter(|_| is_parquet(path)) {
+            Encoded::Parquet(Box::new(ParquetTable::new(file, columns)?))
+        } else if name.ends_with(".gz") {
             Encoded::Gzip(flate2::write::GzEncoder::new(file, flate2::Compression::default()))
         } else if name.ends_with(".zst") {
             Encoded::Zstd(zstd::Encoder::new(file, 0)?)
@@ -91,6 +99,7 @@ impl Encoded {
             Encoded::Plain(w) => w,
             Encoded::Gzip(w) => w,
             Encoded::Zstd(w) => w,
+            Encoded::Parquet(w) => w.as_mut(),
         }
     }
 
@@ -100,14 +109,31 @@ impl Encoded {
             Encoded::Plain(w) => Ok(w),
             Encoded::Gzip(w) => w.finish(),
             Encoded::Zstd(w) => w.finish(),
+            Encoded::Parquet(w) => w.finish(),
         }
     }
 }
 
 impl Sink {
     /// `None` or `-` is stdout. The temporary file is created at once, so an unwritable path fails before
-    /// any work is done.
+    /// any work is done. A `.parquet` name is refused: only tables are written as Parquet (`table`).
     pub fn create(path: Option<&Path>) -> Result<Self> {
+        if let Some(p) = path.filter(|p| is_parquet(p)) {
+            bail!(
+                "cannot write {}: only tables (map, assemble, synth and curve -o) are written as Parquet",
+                p.display()
+            );
+        }
+        Self::open(path, None)
+    }
+
+    /// Where a table with these columns goes: as `create`, and a Parquet table where the name ends in
+    /// `.parquet` (the CSV text written to it fills typed columns).
+    pub fn table(path: Option<&Path>, columns: &[Column]) -> Result<Self> {
+        Self::open(path, Some(columns))
+    }
+
+    fn open(path: Option<&Path>, columns: Option<&[Column]>) -> Result<Self> {
         let p = match path {
             None => return Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
             Some(p) if p.as_os_str() == "-" => return Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
@@ -138,7 +164,7 @@ impl Sink {
             .tempfile_in(&dir)
             .map_err(|e| anyhow!("cannot write {}: {}", p.display(), e.kind()))?;
         register(temp.path());
-        let temp = Encoded::new(temp, p).map_err(|e| anyhow!("cannot write {}: {e}", p.display()))?;
+        let temp = Encoded::new(temp, p, columns).map_err(|e| anyhow!("cannot write {}: {e}", p.display()))?;
         Ok(Sink::File { temp, path: p.to_path_buf() })
     }
 

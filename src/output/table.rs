@@ -57,30 +57,62 @@ pub trait Row {
     fn record(&self, layout: &Self::Layout, r: &mut impl Record);
 }
 
+/// What a column holds: the type a columnar file (Parquet) gives it. An empty CSV cell is a null in any kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CellKind {
+    /// A real number (f64).
+    Number,
+    /// A non-negative count (u64).
+    Count,
+    /// Text.
+    Text,
+}
+
+/// One column of a table: its name (with its unit as a suffix, `x_mm`) and what it holds.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Column {
+    /// The header name.
+    pub name: String,
+    /// What its cells hold.
+    pub kind: CellKind,
+}
+
 /// The header line of `row`'s table (any row of it, typically a blank one).
 pub fn header<T: Row>(row: &T, layout: &T::Layout) -> String {
-    selected_header(row, layout, None)
+    header_line(&selected_columns(row, layout, None))
 }
 
 /// Every column name of `row`'s table, in order.
 pub fn column_names<T: Row>(row: &T, layout: &T::Layout) -> Vec<String> {
-    let mut h = Header(Vec::new());
-    row.record(layout, &mut h);
-    h.0
+    selected_columns(row, layout, None).into_iter().map(|c| c.name).collect()
 }
 
-/// The header line of the columns `selection` keeps (all where None).
-pub fn selected_header<T: Row>(row: &T, layout: &T::Layout, selection: Option<&Selection>) -> String {
-    let names = column_names(row, layout);
-    let kept: Vec<&str> = names
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| selection.is_none_or(|s| s.keep[*k]))
-        .map(|(_, n)| n.as_str())
-        .collect();
-    let mut s = kept.join(",");
+/// The columns of `row`'s table that `selection` keeps (all where None), in order.
+pub fn selected_columns<T: Row>(row: &T, layout: &T::Layout, selection: Option<&Selection>) -> Vec<Column> {
+    let mut h = Header(Vec::new());
+    row.record(layout, &mut h);
+    h.0.into_iter().enumerate().filter(|(k, _)| selection.is_none_or(|s| s.keep[*k])).map(|(_, c)| c).collect()
+}
+
+/// The CSV header line of these columns.
+pub fn header_line(columns: &[Column]) -> String {
+    let mut s = columns.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(",");
     s.push('\n');
     s
+}
+
+/// The unit a column's name ends with (`x_mm` -> `mm`, `C14_mm_per_Nmm` -> `mm_per_Nmm`), None for a
+/// dimensionless column (`status`, `load_factor`, `iterations`). Names carry their unit as their last
+/// `_`-separated part, or as `A_per_B`.
+pub fn unit_of(name: &str) -> Option<&str> {
+    const UNITS: [&str; 5] = ["mm", "rad", "N", "Nmm", "kg"];
+    let parts: Vec<&str> = name.split('_').collect();
+    let n = parts.len();
+    if n >= 4 && parts[n - 2] == "per" && UNITS.contains(&parts[n - 3]) && UNITS.contains(&parts[n - 1]) {
+        let start = name.len() - parts[n - 3..].iter().map(|p| p.len() + 1).sum::<usize>() + 1;
+        return Some(&name[start..]);
+    }
+    (n >= 2 && UNITS.contains(&parts[n - 1])).then(|| parts[n - 1])
 }
 
 /// Appends `row` as one CSV line.
@@ -136,32 +168,38 @@ impl Selection {
     }
 }
 
-/// Collects column names.
-struct Header(Vec<String>);
+/// Collects the columns.
+struct Header(Vec<Column>);
+
+impl Header {
+    fn push(&mut self, name: impl Display, kind: CellKind) {
+        self.0.push(Column { name: name.to_string(), kind });
+    }
+}
 
 impl Record for Header {
     fn number(&mut self, name: impl Display, _: f64) {
-        self.0.push(name.to_string());
+        self.push(name, CellKind::Number);
     }
     fn optional(&mut self, name: impl Display, _: Option<f64>) {
-        self.0.push(name.to_string());
+        self.push(name, CellKind::Number);
     }
     fn count(&mut self, name: impl Display, _: Option<u64>) {
-        self.0.push(name.to_string());
+        self.push(name, CellKind::Count);
     }
     fn text(&mut self, name: impl Display, _: &str) {
-        self.0.push(name.to_string());
+        self.push(name, CellKind::Text);
     }
     fn matrix(&mut self, which: Matrix, _: Option<&Mat6>, part: Triangle) {
         for (i, j) in matrix_entries(part) {
-            self.0.push(match which {
-                Matrix::Compliance => format!("C{i}{j}_{}", compliance_unit(i, j)),
-                Matrix::Stiffness => format!("K{i}{j}_{}", stiffness_unit(i, j)),
-            });
+            match which {
+                Matrix::Compliance => self.push(format_args!("C{i}{j}_{}", compliance_unit(i, j)), CellKind::Number),
+                Matrix::Stiffness => self.push(format_args!("K{i}{j}_{}", stiffness_unit(i, j)), CellKind::Number),
+            }
         }
     }
     fn free_directions(&mut self, name: impl Display, _: &[Vec6]) {
-        self.0.push(name.to_string());
+        self.push(name, CellKind::Text);
     }
 }
 

@@ -18,7 +18,7 @@ use crate::kinematics::frame::{Frame, Vec6};
 use crate::model::assembly_errors::ErrorSet;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{
-    column_names, names, selected_header, write_selected_row, ColumnTest, Record, Row, Selection,
+    column_names, header_line, names, selected_columns, write_selected_row, Column, ColumnTest, Record, Row, Selection,
 };
 use crate::platform::assembly::EndErrors;
 use crate::platform::assembly::{linear_assembly, JointDeflections};
@@ -185,9 +185,14 @@ impl Row for AssemblyRow<'_> {
 
 /// The CSV header for `legs` legs.
 pub fn assemble_header(legs: usize, o: &AssembleOptions) -> String {
+    header_line(&assemble_table(legs, o))
+}
+
+/// The columns an assembly of `legs` legs with these options writes, in order.
+pub fn assemble_table(legs: usize, o: &AssembleOptions) -> Vec<Column> {
     let point = PosePoint::default();
     let blank = AssemblyRow { index: 0, point: &point, outcome: AssemblyOutcome::Failed(Status::Ok) };
-    selected_header(&blank, &AssembleLayout::new(legs, o), o.selection.as_ref())
+    selected_columns(&blank, &AssembleLayout::new(legs, o), o.selection.as_ref())
 }
 
 /// Counts of an assembly run.
@@ -439,8 +444,8 @@ impl Study for AssembleStudy<'_> {
     type State = ManipulatorState;
     type Tally = AssembleSummary;
 
-    fn header(&self) -> String {
-        assemble_header(self.m.legs.len(), self.o)
+    fn columns(&self) -> Vec<Column> {
+        assemble_table(self.m.legs.len(), self.o)
     }
 
     fn new_state(&self) -> ManipulatorState {

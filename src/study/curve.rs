@@ -21,7 +21,7 @@
 
 use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{Frame, Vec6};
-use crate::output::table::{header, names, write_row, Record, Row};
+use crate::output::table::{header_line, names, selected_columns, write_row, Column, Record, Row};
 use crate::platform::compliance::{positive_definite, spectrum, Spectrum};
 use crate::platform::leg::LegFailure;
 use crate::platform::loaded::Held;
@@ -158,6 +158,11 @@ impl Row for CurveRow {
 
 /// The header line of a curve.
 pub fn curve_header() -> String {
+    header_line(&curve_table())
+}
+
+/// The columns of a curve, in order.
+pub fn curve_table() -> Vec<Column> {
     let blank = CurveRow {
         step: 0,
         control: "",
@@ -172,7 +177,7 @@ pub fn curve_header() -> String {
         event: String::new(),
         event_load_factor: None,
     };
-    header(&blank, &())
+    selected_columns(&blank, &(), None)
 }
 
 /// Appends one curve row as a CSV line.

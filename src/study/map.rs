@@ -11,7 +11,8 @@ use crate::kinematics::frame::Vec6;
 use crate::model::grid::PointSet;
 use crate::model::grid::PosePoint;
 use crate::output::table::{
-    column_names, names, selected_header, write_selected_row, ColumnTest, Matrix, Record, Row, Selection, Triangle,
+    column_names, header_line, names, selected_columns, write_selected_row, Column, ColumnTest, Matrix, Record, Row,
+    Selection, Triangle,
 };
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
@@ -193,8 +194,13 @@ impl Row for MapRow<'_> {
 
 /// The header line of a map with these columns.
 pub fn map_header(c: &MapColumns, selection: Option<&Selection>) -> String {
+    header_line(&map_table(c, selection))
+}
+
+/// The columns a map with these options writes, in order.
+pub fn map_table(c: &MapColumns, selection: Option<&Selection>) -> Vec<Column> {
     let point = PosePoint::default();
-    selected_header(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c, selection)
+    selected_columns(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c, selection)
 }
 
 /// The columns a map of these points with these options writes (known before the first row).
@@ -220,8 +226,8 @@ impl Study for MapStudy<'_> {
     type State = (ManipulatorState, LoadedHistory);
     type Tally = MapSummary;
 
-    fn header(&self) -> String {
-        map_header(&self.columns, self.options.selection.as_ref())
+    fn columns(&self) -> Vec<Column> {
+        map_table(&self.columns, self.options.selection.as_ref())
     }
 
     fn new_state(&self) -> Self::State {
