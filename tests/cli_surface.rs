@@ -416,6 +416,7 @@ fn compressed_outputs_hold_the_same_table() {
 /// comma and quotes) as texts, empty cells as nulls, and each column's unit, the suffix of its name, in the
 /// field metadata. A picture drawn from the Parquet file is the picture drawn from the CSV.
 #[test]
+#[cfg(feature = "parquet")]
 fn a_parquet_map_holds_the_csv_values_with_their_units() {
     use arrow_array::{Array, Float64Array, StringArray, UInt64Array};
     let dir = tempfile::tempdir().unwrap();
@@ -506,6 +507,7 @@ fn a_parquet_map_holds_the_csv_values_with_their_units() {
 /// Parquet holds tables only: a picture or a report given a `.parquet` name, or a Parquet file given as
 /// points, is refused with what to do.
 #[test]
+#[cfg(feature = "parquet")]
 fn parquet_is_refused_where_it_is_not_a_table() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.parquet");

@@ -144,9 +144,14 @@ impl OutputArgs {
 
 /// A table written by a study (CSV, compressed CSV or Parquet) as CSV text, for its picture.
 pub(crate) fn read_table(path: &Path) -> Result<String> {
-    if crate::output::parquet::is_parquet(path) {
-        let input = std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-        return crate::output::parquet::csv_text(input).with_context(|| format!("cannot read {}", path.display()));
+    if crate::output::sink::is_parquet(path) {
+        #[cfg(feature = "parquet")]
+        {
+            let input = std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+            return crate::output::parquet::csv_text(input).with_context(|| format!("cannot read {}", path.display()));
+        }
+        #[cfg(not(feature = "parquet"))]
+        bail!("cannot read {}: this stiff was built without Parquet support (cargo feature `parquet`)", path.display());
     }
     Ok(read_text(path)?)
 }

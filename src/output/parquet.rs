@@ -30,11 +30,6 @@ const ROWS_PER_GROUP: usize = 65_536;
 /// The field metadata key holding a column's unit.
 pub const UNIT_KEY: &str = "unit";
 
-/// Whether `path` names a Parquet file (by its extension, as the compressed outputs are chosen).
-pub fn is_parquet(path: &std::path::Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("parquet"))
-}
-
 /// The Arrow schema of a table: each column's type and unit.
 pub fn schema(columns: &[Column]) -> Schema {
     Schema::new(

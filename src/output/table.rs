@@ -346,3 +346,31 @@ pub fn push_text(out: &mut String, t: &str) {
         out.push_str(t);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::unit_of;
+
+    /// A column's unit is the suffix of its name: a plain unit, or `A_per_B` for a ratio; a name without
+    /// one (`status`, `load_factor`, a quantity whose last word is not a unit) has none.
+    #[test]
+    fn units_are_read_from_column_names() {
+        for (name, unit) in [
+            ("x_mm", Some("mm")),
+            ("pose_rx_rad", Some("rad")),
+            ("Fx_N", Some("N")),
+            ("Mz_Nmm", Some("Nmm")),
+            ("C14_mm_per_Nmm", Some("mm_per_Nmm")),
+            ("K66_Nmm_per_rad", Some("Nmm_per_rad")),
+            ("c_tran_max_mm_per_N", Some("mm_per_N")),
+            ("superposition_gap_mm", Some("mm")),
+            ("status", None),
+            ("load_factor", None),
+            ("iterations", None),
+            ("per_mm", Some("mm")),
+            ("mm", None),
+        ] {
+            assert_eq!(unit_of(name), unit, "{name}");
+        }
+    }
+}
