@@ -401,7 +401,8 @@ fn assemble_samples_are_reproducible_and_bad_errors_are_refused() {
         .success();
     let (header, rows) = read_csv(&out);
     assert_eq!(rows.len(), 11);
-    assert_eq!(rows[10][1], "path10");
+    assert_eq!(rows[10][1], "", "a path's points are unnamed (names are the user's)");
+    assert_eq!(&rows[10][2..5], ["-73.65", "126.35", "-73.65"], "the last point is TO");
     assert!(header.iter().any(|h| h == "superposition_gap_mm"));
     let bad = dir.path().join("bad.toml");
     std::fs::write(&bad, "[[leg]]\nname = \"chain.7\"\neps = { translation_mm = [1, 0, 0] }\n").unwrap();

@@ -27,6 +27,20 @@ pub(crate) struct ModelArgs {
 }
 
 impl ModelArgs {
+    /// A picture's title for a run of `m` with these arguments: the model's name and file, the `--set`
+    /// values, and what the run adds (a wrench, a path).
+    pub(crate) fn title(&self, m: &Manipulator, run: &str) -> String {
+        let mut title = format!("{} ({})", m.name, self.model.display());
+        for (name, value) in &self.set {
+            title.push_str(&format!(", {name} = {value}"));
+        }
+        if !run.is_empty() {
+            title.push_str(", ");
+            title.push_str(run);
+        }
+        title
+    }
+
     pub(crate) fn load(&self) -> Result<Manipulator> {
         Ok(self.load_model()?.manipulator)
     }
@@ -49,31 +63,88 @@ pub(crate) struct RunArgs {
     pub(crate) quiet: bool,
 }
 
+/// What a picture of a table over poses shows (map, plot, and assemble, whose `--scale` scales its errors).
+#[derive(Args, Debug, Default)]
+pub(crate) struct PointsStyle {
+    /// Picture: the column drawn [default: c_tran_max_mm_per_N for a map, displacement_mean_mm for a
+    /// tolerance study, the length of (nl_dx, nl_dy, nl_dz) for an assembly].
+    #[arg(long = "plot-column")]
+    pub(crate) column: Option<String>,
+    /// Picture of a grid: a planar section AXIS=VALUE (mm), e.g. z=0 [default: every section (up to six) of a
+    /// 3-D grid].
+    #[arg(long)]
+    pub(crate) section: Option<String>,
+    /// Picture: the values of the first and the last colour, MIN,MAX [default: the data's range]; values
+    /// outside take the end colours (to compare pictures on one scale).
+    #[arg(long, value_parser = parse_range, allow_hyphen_values = true)]
+    pub(crate) range: Option<(f64, f64)>,
+}
+
+impl PointsStyle {
+    /// The picture options these give.
+    pub(crate) fn style(&self) -> PlotStyle {
+        PlotStyle {
+            column: self.column.clone(),
+            section: self.section.clone(),
+            range: self.range,
+            ..PlotStyle::default()
+        }
+    }
+}
+
 /// How to draw a map.
 #[derive(Args, Debug, Default)]
 pub(crate) struct MapStyle {
-    /// Map picture: the column to colour [default: c_tran_max_mm_per_N].
-    #[arg(long = "plot-column")]
-    pub(crate) column: Option<String>,
-    /// Map picture: a planar section AXIS=VALUE (mm), e.g. z=0 [default: every section (up to six) of a 3-D
-    /// grid].
-    #[arg(long)]
-    pub(crate) section: Option<String>,
+    #[command(flatten)]
+    pub(crate) points: PointsStyle,
+    /// Picture: colours evenly in the value or in its logarithm (positive values only).
+    #[arg(long, value_enum, default_value_t = ColourScaleArg::Linear)]
+    pub(crate) scale: ColourScaleArg,
+}
+
+/// `--scale`.
+#[derive(Clone, Copy, Debug, Default, clap::ValueEnum)]
+pub(crate) enum ColourScaleArg {
+    /// Evenly in the value.
+    #[default]
+    Linear,
+    /// Evenly in the value's logarithm.
+    Log,
+}
+
+/// `MIN,MAX` with MIN < MAX.
+fn parse_range(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s.split_once(',').ok_or_else(|| format!("`{s}` is not MIN,MAX"))?;
+    let parse = |v: &str| v.trim().parse::<f64>().map_err(|_| format!("`{v}` is not a number"));
+    let (lo, hi) = (parse(a)?, parse(b)?);
+    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        return Err(format!("`{s}`: MIN and MAX must be finite with MIN < MAX"));
+    }
+    Ok((lo, hi))
 }
 
 impl MapStyle {
     /// The picture options these give.
     pub(crate) fn style(&self) -> PlotStyle {
-        PlotStyle { column: self.column.clone(), section: self.section.clone(), direction: None }
+        PlotStyle {
+            scale: match self.scale {
+                ColourScaleArg::Linear => crate::plot::Scale::Linear,
+                ColourScaleArg::Log => crate::plot::Scale::Log,
+            },
+            ..self.points.style()
+        }
     }
 }
 
-/// How to draw a picture: a map's column and section, a curve's direction.
+/// How to draw a picture: a map's column, section and colours, a curve's direction, the title.
 #[derive(Debug, Default)]
 pub(crate) struct PlotStyle {
     pub(crate) column: Option<String>,
     pub(crate) section: Option<String>,
     pub(crate) direction: Option<String>,
+    pub(crate) scale: crate::plot::Scale,
+    pub(crate) range: Option<(f64, f64)>,
+    pub(crate) title: Option<String>,
 }
 
 impl PlotStyle {
@@ -82,6 +153,9 @@ impl PlotStyle {
             column: self.column.clone(),
             section: self.section.clone(),
             direction: self.direction.clone(),
+            scale: self.scale,
+            range: self.range,
+            title: self.title.clone(),
         }
     }
 }
@@ -154,6 +228,12 @@ pub(crate) fn read_table(path: &Path) -> Result<String> {
         bail!("cannot read {}: this stiff was built without Parquet support (cargo feature `parquet`)", path.display());
     }
     Ok(read_text(path)?)
+}
+
+/// A wrench as `(Fx, Fy, Fz, Mx, My, Mz)` for a title.
+pub(crate) fn wrench_text(w: &crate::kinematics::frame::Vec6) -> String {
+    let parts: Vec<String> = w.iter().map(|v| format!("{v}")).collect();
+    format!("({})", parts.join(", "))
 }
 
 /// The selection `--columns` asks for (None without it), resolved against a table's columns by `resolve`.

@@ -6,8 +6,8 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    plot_needs_output, point_set, progress_bar, select_columns, thread_pool, write_plot, written, ModelArgs,
-    OutputArgs, PlotStyle, RunArgs,
+    plot_needs_output, point_set, progress_bar, select_columns, thread_pool, wrench_text, write_plot, written,
+    ModelArgs, OutputArgs, PlotStyle, PointsStyle, RunArgs,
 };
 use super::parse::{parse_vec3, parse_vec6};
 use crate::kinematics::frame::Vec6;
@@ -64,9 +64,12 @@ pub(crate) struct AssembleArgs {
     /// super, samples), comma-separated, written in the table's order [default: all].
     #[arg(long, value_delimiter = ',')]
     pub(crate) columns: Option<Vec<String>>,
-    /// Also draw the displacements along the path (SVG, paper 000 Figures 10-11).
+    /// Also draw the table (SVG): along a --path, the displacements (paper 000 Figures 10-11); over a grid, a
+    /// colour map of the chosen column; named points, a dot chart; a tolerance study, its mean displacement.
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) style: PointsStyle,
     #[command(flatten)]
     pub(crate) run: RunArgs,
 }
@@ -102,19 +105,25 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
             a.samples
         );
     }
-    if a.plot.is_some() && a.samples > 0 {
-        bail!("--plot draws an assembly path, not a tolerance study (--samples)");
-    }
     plot_needs_output(&a.plot, &a.output.output, "assemble")?;
-    if a.plot.is_some() && options.selection.is_some() {
-        // The picture is drawn from the written table: it needs the path's coordinates and the non-linear
-        // assembly's displacement (what marks an assembly table); checked before the run.
+    if a.plot.is_some() {
+        // The picture is drawn from the written table: it needs the poses, what marks the table
+        // (the non-linear displacement, or the samples' mean) and the column drawn; checked before the run.
         let header = crate::study::assemble::assemble_header(model.legs.len(), &options);
         let columns: Vec<&str> = header.trim_end().split(',').collect();
-        for needed in ["x_mm", "y_mm", "z_mm", "nl_dx_mm", "nl_dy_mm", "nl_dz_mm"] {
+        let marks: &[&str] =
+            if a.samples > 0 { &["samples", "mean_dx_mm"] } else { &["nl_dx_mm", "nl_dy_mm", "nl_dz_mm"] };
+        let chosen = a.style.column.as_deref();
+        for needed in ["x_mm", "y_mm", "z_mm"].iter().chain(marks).copied().chain(chosen) {
             if !columns.contains(&needed) {
-                bail!("--plot draws the path from the written columns: --columns must keep `{needed}` (groups pose and nonlinear)");
+                bail!(
+                    "--plot draws the written columns: `{needed}` is not among them (see --columns, and the \
+                     groups pose, nonlinear, samples)"
+                );
             }
+        }
+        if let Some(s) = &a.style.section {
+            crate::plot::parse_section(s).map_err(|e| anyhow::anyhow!("--section: {e}"))?;
         }
     }
     let mut sink = a.output.open(&assemble_table(model.legs.len(), &options))?;
@@ -131,7 +140,15 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
     sink.finish()?;
     bar.finish_and_clear();
     if let Some(plot) = &a.plot {
-        write_plot(&written(&a.output.output)?, plot, &PlotStyle::default())?;
+        let mut run = format!("errors {} x {}", a.errors.display(), a.scale);
+        if let Some(w) = &a.wrench {
+            run.push_str(&format!(", wrench {} (N, N mm)", wrench_text(w)));
+        }
+        if a.samples > 0 {
+            run.push_str(&format!(", {} samples, seed {}", a.samples, a.seed));
+        }
+        let style = PlotStyle { title: Some(a.model.title(&model, &run)), ..a.style.style() };
+        write_plot(&written(&a.output.output)?, plot, &style)?;
     }
     if !a.run.quiet {
         eprintln!("{} points: {} assembled", summary.points, summary.ok);

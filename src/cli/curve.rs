@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs};
+use super::args::{wrench_text, write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs};
 use super::parse::parse_vec6;
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::study::curve::{curve_header, curve_table, push_curve_row, run_curve, Control, MAX_INTERVALS};
@@ -69,6 +69,13 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
     let writer = sink.writer();
     writer.write_all(curve_header().as_bytes())?;
     let mut line = String::new();
+    let what = match control {
+        Control::Force(w) => format!("load factor up to {} times the wrench {} (N, N mm)", a.max, wrench_text(&w)),
+        Control::Displacement(d) => {
+            format!("load factor up to {} times the displacement {} (mm, rad)", a.max, wrench_text(&d))
+        }
+    };
+    let title = a.model.title(&model, &format!("at ({}, {}, {}) mm, {what}", a.pose.at[0], a.pose.at[1], a.pose.at[2]));
     let summary = run_curve(&model, &at, control, a.max, a.intervals, &mut |r| {
         line.clear();
         push_curve_row(&mut line, r);
@@ -79,7 +86,7 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
     })?;
     sink.finish()?;
     if let (Some(plot), Some(text)) = (&a.plot, &picture) {
-        let style = PlotStyle { direction: a.direction.clone(), ..PlotStyle::default() };
+        let style = PlotStyle { direction: a.direction.clone(), title: Some(title), ..PlotStyle::default() };
         write_plot(text, plot, &style)?;
     }
     if !a.quiet {

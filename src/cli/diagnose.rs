@@ -87,7 +87,9 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         sink.finish()?;
     }
     if let Some(mut sink) = plot_sink {
-        let svg = crate::plot::diagnosis(&json)?;
+        let title = format!("{}, data {}", a.model.model.display(), a.data.display());
+        let options = crate::plot::PlotOptions { title: Some(title), ..Default::default() };
+        let svg = crate::plot::diagnosis(&json, &options)?;
         sink.writer().write_all(svg.as_bytes())?;
         sink.finish()?;
     }

@@ -6,8 +6,8 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    name_plot_flag, plot_needs_output, progress_bar, select_columns, thread_pool, write_plot, written, MapStyle,
-    ModelArgs, OutputArgs, PointsArgs, RunArgs,
+    name_plot_flag, plot_needs_output, progress_bar, select_columns, thread_pool, wrench_text, write_plot, written,
+    MapStyle, ModelArgs, OutputArgs, PlotStyle, PointsArgs, RunArgs,
 };
 use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
@@ -75,7 +75,14 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
     sink.finish()?;
     bar.finish_and_clear();
     if let Some(plot) = &a.plot {
-        write_plot(&written(&a.output.output)?, plot, &a.style.style())?;
+        let load = match (a.wrench, a.loaded) {
+            (Some(w), _) => format!("loaded by wrench {} (N, N mm)", wrench_text(&w)),
+            (None, true) => "loaded by each point's reference wrench".into(),
+            (None, false) if points.has_wrench => "deflections under each point's reference wrench".into(),
+            (None, false) => "unloaded".into(),
+        };
+        let style = PlotStyle { title: Some(a.model.title(&model, &load)), ..a.style.style() };
+        write_plot(&written(&a.output.output)?, plot, &style)?;
     }
     if !a.run.quiet {
         eprintln!("{}", summary.line());

@@ -27,10 +27,14 @@ pub(crate) struct PlotArgs {
     /// Curve picture: the direction to draw (x, y, z, rx, ry, rz) [default: the one that moves most].
     #[arg(long)]
     pub(crate) direction: Option<String>,
+    /// The picture's title, above what it shows (the table does not record its model or load): e.g.
+    /// "Orthoglide 3-PUU, unloaded".
+    #[arg(long)]
+    pub(crate) title: Option<String>,
 }
 
 pub(crate) fn run(a: PlotArgs) -> Result<()> {
     let text = read_table(&a.input)?;
-    let style = PlotStyle { direction: a.direction.clone(), ..a.style.style() };
+    let style = PlotStyle { direction: a.direction.clone(), title: a.title.clone(), ..a.style.style() };
     write_plot(&text, &a.output, &style)
 }

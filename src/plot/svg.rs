@@ -1,5 +1,5 @@
-//! A small SVG writer and linear axes: plots need rectangles, lines, polylines, circles and text, and text is
-//! left to the viewer's generic sans-serif font (headless machines have no fonts to embed or measure).
+//! A small SVG writer and linear axes: plots need rectangles, lines, polylines, circles, embedded images and
+//! text; text is left to the viewer's generic sans-serif font, measured with Helvetica's advance widths.
 
 use std::fmt::Write;
 
@@ -78,6 +78,29 @@ impl Svg {
             writeln!(self.body, r#"<circle class="{class}" cx="{}" cy="{}" r="{}" fill="{fill}"/>"#, n(x), n(y), n(r));
     }
 
+    /// A circle's outline.
+    pub fn circle_outline(&mut self, x: f64, y: f64, r: f64, stroke: &str, class: &str) {
+        let _ = writeln!(
+            self.body,
+            r#"<circle class="{class}" cx="{}" cy="{}" r="{}" fill="none" stroke="{stroke}" stroke-width="1.5"/>"#,
+            n(x),
+            n(y),
+            n(r)
+        );
+    }
+
+    /// An embedded image (a `data:` URI) stretched over the rectangle, its pixels drawn as squares.
+    pub fn image(&mut self, x: f64, y: f64, w: f64, h: f64, href: &str, class: &str) {
+        let _ = writeln!(
+            self.body,
+            r#"<image class="{class}" x="{}" y="{}" width="{}" height="{}" preserveAspectRatio="none" image-rendering="pixelated" style="image-rendering:pixelated" href="{href}"/>"#,
+            n(x),
+            n(y),
+            n(w),
+            n(h)
+        );
+    }
+
     /// Text; `anchor` is start, middle or end; `rotate` turns it (degrees) about its anchor.
     pub fn text(&mut self, x: f64, y: f64, t: &str, size: f64, anchor: &str, rotate: f64) {
         let transform = if rotate != 0.0 {
@@ -88,6 +111,18 @@ impl Svg {
         let _ = writeln!(
             self.body,
             r#"<text class="label" x="{}" y="{}" font-size="{}" text-anchor="{anchor}"{transform}>{}</text>"#,
+            n(x),
+            n(y),
+            n(size),
+            escape(t)
+        );
+    }
+
+    /// Text on a white halo, readable over any colour.
+    pub fn halo_text(&mut self, x: f64, y: f64, t: &str, size: f64, anchor: &str) {
+        let _ = writeln!(
+            self.body,
+            r#"<text class="label" x="{}" y="{}" font-size="{}" text-anchor="{anchor}" stroke="white" stroke-width="3" paint-order="stroke">{}</text>"#,
             n(x),
             n(y),
             n(size),
@@ -170,6 +205,15 @@ impl Axis {
     }
 }
 
+/// The largest round length (1, 2 or 5 times a power of ten) not above `v`; 0 for 0.
+pub fn nice_below(v: f64) -> f64 {
+    if !(v.is_finite() && v > 0.0) {
+        return 0.0;
+    }
+    let mag = 10f64.powf(v.log10().floor());
+    [5.0, 2.0, 1.0].iter().map(|m| m * mag).find(|x| *x <= v * (1.0 + 1e-12)).unwrap_or(mag)
+}
+
 /// A tick label: short and readable.
 pub fn tick_label(v: f64) -> String {
     if v == 0.0 {
@@ -214,8 +258,36 @@ pub fn frame(svg: &mut Svg, x: &Axis, y: &Axis, x_label: &str, y_label: &str, x_
     }
     svg.text((left + right) / 2.0, bottom + 34.0, x_label, 12.0, "middle", 0.0);
     if !y_label.is_empty() {
-        svg.text(left - 52.0, (top + bottom) / 2.0, y_label, 12.0, "middle", -90.0);
+        // Left of the widest tick label, so that the two never overlap.
+        let widest =
+            if y_ticks { y.ticks().iter().map(|t| text_width(&tick_label(*t), 11.0)).fold(0.0, f64::max) } else { 0.0 };
+        svg.text(left - 6.0 - widest - 10.0, (top + bottom) / 2.0, y_label, 12.0, "middle", -90.0);
     }
+}
+
+/// The width of a text in the viewer's sans-serif font: the advance widths of Helvetica (Arial has the
+/// same) in 1/1000 em, widened by 15% to cover DejaVu Sans, the sans-serif of most Linux viewers, whose
+/// digits are 14% wider; characters not listed count as a full em.
+pub fn text_width(t: &str, size: f64) -> f64 {
+    let advance = |c: char| -> f64 {
+        match c {
+            ' ' | '.' | ',' | ':' | ';' | '!' | '|' | 'i' | 'j' | 'l' | 'f' | 't' | 'I' | '/' | '[' | ']' => 278.0,
+            '(' | ')' | '-' | 'r' | '\'' => 333.0,
+            '0'..='9' | '_' | '$' | '?' | 'a' | 'b' | 'd' | 'e' | 'g' | 'h' | 'n' | 'o' | 'p' | 'q' | 'u' | 'L' => {
+                556.0
+            }
+            'c' | 'k' | 's' | 'v' | 'x' | 'y' | 'z' | 'J' => 500.0,
+            '=' | '+' | '<' | '>' | '~' | '^' => 584.0,
+            'w' | 'C' | 'D' | 'H' | 'N' | 'R' | 'U' => 722.0,
+            'm' | 'M' => 833.0,
+            'W' => 944.0,
+            'G' | 'O' | 'Q' => 778.0,
+            'A' | 'B' | 'E' | 'K' | 'P' | 'S' | 'V' | 'X' | 'Y' => 667.0,
+            'F' | 'T' | 'Z' => 611.0,
+            _ => 1000.0,
+        }
+    };
+    1.15 * t.chars().map(advance).sum::<f64>() / 1000.0 * size
 }
 
 /// A perceptually ordered colour map (viridis, by anchor interpolation) for t in [0, 1].

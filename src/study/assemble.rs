@@ -479,7 +479,8 @@ impl Study for AssembleStudy<'_> {
     }
 }
 
-/// Points along the straight line from `from` to `to` (mm), `count` of them, named `path0`, `path1`, ...
+/// Points along the straight line from `from` to `to` (mm), `count` of them, unnamed (a name is the
+/// user's: a path's rows are told apart by their index, and its picture is the path's).
 pub fn path_points(
     from: &crate::kinematics::frame::Vec3,
     to: &crate::kinematics::frame::Vec3,
@@ -489,7 +490,7 @@ pub fn path_points(
         .map(|k| {
             let a = if count > 1 { k as f64 / (count - 1) as f64 } else { 0.0 };
             PosePoint {
-                name: Some(format!("path{k}")),
+                name: None,
                 position: from + (to - from) * a,
                 rotation: crate::kinematics::frame::Vec3::zeros(),
                 wrench: None,

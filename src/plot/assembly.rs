@@ -1,0 +1,77 @@
+//! Displacements along an assembly path (paper 000 Figures 10-11): one panel per axis x, y, z, with the
+//! target path, the assembly errors' displacement, the cutting load's, the total and the superposition.
+
+use anyhow::Result;
+
+use super::svg::{axes, text_width, tick_label, Axis, Svg};
+use super::table::Table;
+use super::{extent, heading, PlotOptions, AXES};
+
+/// The path picture of an assembly table whose poses lie on a line.
+pub fn assembly_path(t: &Table, o: &PlotOptions) -> Result<String> {
+    let coords = t.positions()?;
+    // Along the path: the coordinate that varies most.
+    let range = |v: &Vec<f64>| extent(v.iter().copied());
+    let along = (0..3).max_by(|a, b| range(&coords[*a]).total_cmp(&range(&coords[*b]))).unwrap_or(0);
+    let s_values = &coords[along];
+    let series: Vec<(&str, &str, &str, bool)> = vec![
+        ("nl_d", "assembly errors (non-linear)", "#8e44ad", false),
+        ("load_d", "cutting load", "#27ae60", false),
+        ("total_d", "total", "#c0392b", false),
+        ("super_d", "superposition", "#2c3e50", true),
+    ];
+    let series: Vec<_> = series.into_iter().filter(|(p, ..)| t.has(&format!("{p}x_mm"))).collect();
+    let data: Vec<Vec<Vec<Option<f64>>>> = AXES
+        .iter()
+        .map(|a| series.iter().map(|(p, ..)| t.numbers(&format!("{p}{a}_mm"))).collect::<Result<_>>())
+        .collect::<Result<_>>()?;
+    // Rows in order along the path (a points file may list them in any order).
+    let mut order: Vec<usize> = (0..s_values.len()).collect();
+    order.sort_by(|a, b| s_values[*a].total_cmp(&s_values[*b]));
+    let widest_tick = data
+        .iter()
+        .map(|d| Axis::new(d.iter().flatten().flatten().copied().chain([0.0]), 0.0, 1.0))
+        .flat_map(|a| a.ticks())
+        .map(|t| text_width(&tick_label(t), 11.0))
+        .fold(0.0, f64::max);
+    let (panel_w, panel_h) = (600.0, 200.0);
+    let left = 40.0 + widest_tick;
+    let w = left + panel_w + 30.0;
+    let mut s = Svg::new(w, 0.0);
+    let mut top = heading(&mut s, w, o, "displacement along the path (target = 0)") + 14.0;
+    // The legend in rows above the panels: only the series drawn.
+    let mut entries: Vec<(&str, &str, bool)> = vec![("target path", "#999", false)];
+    entries.extend(series.iter().map(|(_, name, colour, dashed)| (*name, *colour, *dashed)));
+    let mut lx = left;
+    for (name, colour, dashed) in entries {
+        let need = 30.0 + text_width(name, 11.0) + 18.0;
+        if lx + need > w - 10.0 {
+            lx = left;
+            top += 18.0;
+        }
+        s.polyline(
+            &[(lx, top), (lx + 25.0, top)],
+            colour,
+            if name == "target path" { 1.0 } else { 2.0 },
+            dashed,
+            "legend",
+        );
+        s.text(lx + 30.0, top + 4.0, name, 11.0, "start", 0.0);
+        lx += need;
+    }
+    top += 22.0;
+    s.height = top + 3.0 * (panel_h + 60.0) + 10.0;
+    for (row, a) in AXES.iter().enumerate() {
+        let y0 = top + row as f64 * (panel_h + 60.0);
+        let ax = Axis::new(s_values.iter().copied(), left, left + panel_w);
+        let ay = Axis::new(data[row].iter().flatten().flatten().copied().chain(std::iter::once(0.0)), y0 + panel_h, y0);
+        s.line((ax.from, ay.px(0.0)), (ax.to, ay.px(0.0)), "#999", 1.0, "target");
+        for ((_, _, colour, dashed), d) in series.iter().zip(&data[row]) {
+            let pts: Vec<(f64, f64)> =
+                order.iter().filter_map(|&i| d[i].map(|y| (ax.px(s_values[i]), ay.px(y)))).collect();
+            s.polyline(&pts, colour, 2.0, *dashed, "series");
+        }
+        axes(&mut s, &ax, &ay, &format!("{} [mm] along the path", AXES[along]), &format!("d{a} [mm]"));
+    }
+    Ok(s.finish())
+}

@@ -1,0 +1,124 @@
+//! A force-deflection curve: force against displacement along one direction, stable branches solid and
+//! unstable ones dashed, events marked where the curve study places them.
+//!
+//! The style follows the `stable` column, and a change of stability lies where its event says
+//! (`study::curve`): buckling and restabilisation at their `event_load_factor`, bisected between two rows;
+//! a leg's change of stability at its row. The picture splits the curve there, interpolating linearly in
+//! the load factor between the two rows, and puts the event's mark on the same point, so a dashed branch
+//! never starts before its buckling mark.
+
+use anyhow::Result;
+
+use super::svg::{axes, label, text_width, Axis, Svg};
+use super::table::Table;
+use super::{extent, heading, OptionError, PlotOptions};
+use crate::output::table::names;
+
+/// Events placed between two rows at their `event_load_factor` (the others sit at their row).
+const BETWEEN_ROWS: [&str; 2] = ["buckling", "restabilised"];
+
+/// A point of the drawn curve, in data units.
+#[derive(Clone, Copy)]
+struct At {
+    x: f64,
+    y: f64,
+}
+
+/// Force against displacement along one direction.
+pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
+    let directions = ["x", "y", "z", "rx", "ry", "rz"];
+    let (disp, force) = (names::DISPLACEMENT, names::WRENCH);
+    let k = match &o.direction {
+        Some(d) => directions.iter().position(|n| n == d).ok_or_else(|| OptionError::Direction(d.clone()))?,
+        None => {
+            let range = |c: &str| extent(t.numbers(c).unwrap_or_default().into_iter().flatten());
+            (0..3).max_by(|a, b| range(disp[*a]).total_cmp(&range(disp[*b]))).unwrap_or(0)
+        }
+    };
+    let x = t.numbers_or_nan(disp[k])?;
+    let y = t.numbers_or_nan(force[k])?;
+    let load = t.numbers_or_nan(names::LOAD_FACTOR)?;
+    let stable: Vec<bool> = t.texts(names::STABLE)?.iter().map(|s| s == "true").collect();
+    let events = t.texts(names::EVENT)?;
+    let event_at = t.numbers(&format!("{}_load_factor", names::EVENT))?;
+    // Where each event of row i lies on the curve.
+    let place = |i: usize, event: &str| -> Option<At> {
+        let here = At { x: x[i], y: y[i] };
+        if i == 0 || !BETWEEN_ROWS.contains(&event) {
+            return Some(here);
+        }
+        let (a, b) = (load[i - 1], load[i]);
+        let f = match event_at[i] {
+            Some(e) if b != a => ((e - a) / (b - a)).clamp(0.0, 1.0),
+            _ => 1.0,
+        };
+        Some(At { x: x[i - 1] + f * (x[i] - x[i - 1]), y: y[i - 1] + f * (y[i] - y[i - 1]) })
+    };
+    // The curve as runs of equal stability, each ending where the next begins.
+    let mut runs: Vec<(bool, Vec<At>)> = Vec::new();
+    for i in 0..x.len() {
+        if !(x[i].is_finite() && y[i].is_finite()) {
+            continue;
+        }
+        let here = At { x: x[i], y: y[i] };
+        match runs.last_mut() {
+            Some((flag, points)) if *flag == stable[i] => points.push(here),
+            Some((_, points)) => {
+                let change = events[i].split(';').find(|e| BETWEEN_ROWS.contains(e)).unwrap_or("");
+                let split = place(i, change).unwrap_or(here);
+                points.push(split);
+                runs.push((stable[i], vec![split, here]));
+            }
+            None => runs.push((stable[i], vec![here])),
+        }
+    }
+    let (w, h) = (680.0, 460.0);
+    let mut s = Svg::new(w, h);
+    let top = heading(&mut s, w, o, &format!("force-deflection along {}", directions[k])) + 16.0;
+    let ay_probe = Axis::new(y.iter().copied(), 0.0, 1.0);
+    let left =
+        40.0 + ay_probe.ticks().iter().map(|t| text_width(&super::svg::tick_label(*t), 11.0)).fold(0.0, f64::max);
+    let legend_width = 110.0;
+    let ax = Axis::new(x.iter().copied(), left, w - 30.0 - legend_width);
+    let ay = Axis::new(y.iter().copied(), h - 60.0, top);
+    let mut drawn = [false, false];
+    for (flag, points) in &runs {
+        let pts: Vec<(f64, f64)> = points.iter().map(|p| (ax.px(p.x), ay.px(p.y))).collect();
+        if pts.len() >= 2 {
+            drawn[usize::from(*flag)] = true;
+        }
+        if *flag {
+            s.polyline(&pts, "#1f5fa8", 2.0, false, "stable");
+        } else {
+            s.polyline(&pts, "#c0392b", 2.0, true, "unstable");
+        }
+    }
+    for (i, row_events) in events.iter().enumerate() {
+        for e in row_events.split(';').filter(|e| !e.is_empty()) {
+            if let Some(p) = place(i, e).filter(|p| p.x.is_finite() && p.y.is_finite()) {
+                let (px, py) = (ax.px(p.x), ay.px(p.y));
+                s.circle(px, py, 5.0, "#e67e22", "event");
+                s.text(px + 8.0, py - 8.0, e, 11.0, "start", 0.0);
+            }
+        }
+    }
+    axes(&mut s, &ax, &ay, &label(disp[k]), &label(force[k]));
+    // A legend of what is drawn only.
+    let lx = w - 20.0 - legend_width;
+    let mut ly = top + 10.0;
+    if drawn[1] {
+        s.line((lx, ly), (lx + 30.0, ly), "#1f5fa8", 2.0, "legend");
+        s.text(lx + 35.0, ly + 4.0, "stable", 11.0, "start", 0.0);
+        ly += 18.0;
+    }
+    if drawn[0] {
+        s.polyline(&[(lx, ly), (lx + 30.0, ly)], "#c0392b", 2.0, true, "legend");
+        s.text(lx + 35.0, ly + 4.0, "unstable", 11.0, "start", 0.0);
+        ly += 18.0;
+    }
+    if events.iter().any(|e| !e.is_empty()) {
+        s.circle(lx + 15.0, ly, 5.0, "#e67e22", "legend");
+        s.text(lx + 35.0, ly + 4.0, "event", 11.0, "start", 0.0);
+    }
+    Ok(s.finish())
+}
