@@ -253,3 +253,259 @@ fn lines(doc: &roxmltree::Document, class: &str) -> Vec<(f64, f64, f64, f64)> {
 fn pool() -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap()
 }
+
+/// Runs stiff with these arguments in `dir` (shipped files by their path from the repository root).
+fn stiff_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    let root = std::env::current_dir().unwrap();
+    let args: Vec<String> =
+        args.iter()
+            .map(|a| {
+                if a.starts_with("manipulators/") {
+                    root.join(a).to_string_lossy().into_owned()
+                } else {
+                    a.to_string()
+                }
+            })
+            .collect();
+    std::process::Command::new(env!("CARGO_BIN_EXE_stiff")).args(&args).current_dir(dir).output().unwrap()
+}
+
+/// The text boxes of a picture (from the same Helvetica-based metrics the layout uses), with rotation.
+fn text_boxes(doc: &roxmltree::Document) -> Vec<(String, [f64; 4])> {
+    doc.descendants()
+        .filter(|n| n.has_tag_name("text"))
+        .map(|n| {
+            let at = |a: &str| n.attribute(a).unwrap().parse::<f64>().unwrap();
+            let (x, y, size) = (at("x"), at("y"), at("font-size"));
+            let t = n.text().unwrap_or("").to_string();
+            let w = stiff::plot::svg::text_width(&t, size);
+            let x0 = match n.attribute("text-anchor") {
+                Some("middle") => x - w / 2.0,
+                Some("end") => x - w,
+                _ => x,
+            };
+            let b = if n.attribute("transform").is_some_and(|r| r.starts_with("rotate(-90")) {
+                // Turned a quarter left about its anchor: the width runs up the page.
+                [x - 0.75 * size, y + (x - x0) - w, x + 0.2 * size, y + (x - x0)]
+            } else {
+                [x0, y - 0.75 * size, x0 + w, y + 0.2 * size]
+            };
+            (t, b)
+        })
+        .collect()
+}
+
+/// No two texts of a picture overlap.
+fn assert_no_text_overlaps(svg: &str, what: &str) {
+    let doc = parse(svg);
+    let boxes = text_boxes(&doc);
+    for (i, (a, p)) in boxes.iter().enumerate() {
+        for (b, q) in &boxes[i + 1..] {
+            let overlap = p[0] < q[2] - 0.5 && q[0] < p[2] - 0.5 && p[1] < q[3] - 0.5 && q[1] < p[3] - 0.5;
+            assert!(!overlap, "{what}: `{a}` {p:?} overlaps `{b}` {q:?}");
+        }
+    }
+}
+
+/// The overlap check finds overlaps: two labels on one spot, and a y-axis label on its tick labels.
+#[test]
+#[should_panic(expected = "overlaps")]
+fn the_overlap_check_sees_overlapping_text() {
+    assert_no_text_overlaps(
+        r#"<svg xmlns="http://www.w3.org/2000/svg"><text x="50" y="50" font-size="11" text-anchor="end">-0.005</text><text x="30" y="48" font-size="12" text-anchor="middle" transform="rotate(-90 30 48)">dx [mm]</text></svg>"#,
+        "test",
+    );
+}
+
+/// Each table gets the picture its poses call for: a grid the colour map of the chosen column
+/// (`--plot-column` honoured), named points a labelled dot chart, a line of points a line chart against
+/// its coordinate, scattered points coloured markers, a tolerance study the map of its mean displacement;
+/// a single unnamed point is refused. Every title says what it shows, and no two texts overlap.
+#[test]
+fn each_table_gets_the_picture_its_poses_call_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let errors = "manipulators/errors/orthoglide-case-a.toml";
+    let model = "manipulators/orthoglide-3puu.toml";
+    std::fs::write(d.join("scatter.csv"), "x_mm,y_mm,z_mm\n0,0,0\n30,-20,10\n-40,25,-5\n12,44,30\n-25,-35,20\n")
+        .unwrap();
+    std::fs::write(d.join("line.csv"), "x_mm,y_mm,z_mm\n-50,0,0\n0,0,0\n50,0,0\n25,0,0\n-25,0,0\n").unwrap();
+    std::fs::write(d.join("one.csv"), "x_mm,y_mm,z_mm\n0,0,0\n").unwrap();
+    let picture = |args: &[&str]| -> String {
+        let o = stiff_in(d, args);
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        let svg = std::fs::read_to_string(d.join(args[args.iter().position(|a| *a == "--plot").unwrap() + 1])).unwrap();
+        assert_no_text_overlaps(&svg, &args.join(" "));
+        svg
+    };
+    let grid = picture(&[
+        "assemble",
+        model,
+        "--errors",
+        errors,
+        "--grid",
+        "manipulators/grids/orthoglide-small.toml",
+        "-q",
+        "-o",
+        "g.csv",
+        "--plot",
+        "g.svg",
+        "--plot-column",
+        "nl_dz_mm",
+    ]);
+    let doc = parse(&grid);
+    assert_eq!(count(&doc, "rect", "cell"), 125);
+    assert!(texts(&doc).iter().any(|t| t == "nl_dz [mm] over sections z = const"), "{:?}", texts(&doc));
+    assert!(texts(&doc)[0].starts_with("Orthoglide 3-PUU (") && texts(&doc).iter().any(|t| t.contains("errors")));
+
+    let named = picture(&[
+        "assemble",
+        model,
+        "--errors",
+        errors,
+        "--grid",
+        "manipulators/grids/orthoglide-q.toml",
+        "-q",
+        "-o",
+        "q.csv",
+        "--plot",
+        "q.svg",
+    ]);
+    let doc = parse(&named);
+    assert_eq!(count(&doc, "circle", "point"), 3);
+    assert_eq!(count(&doc, "polyline", "series"), 0, "named points are not a path");
+    for q in ["Q0", "Q1", "Q2"] {
+        assert!(texts(&doc).iter().any(|t| t == q));
+    }
+
+    let samples = picture(&[
+        "assemble",
+        model,
+        "--errors",
+        errors,
+        "--grid",
+        "manipulators/grids/orthoglide-small.toml",
+        "--samples",
+        "5",
+        "-q",
+        "-o",
+        "s.csv",
+        "--plot",
+        "s.svg",
+    ]);
+    assert!(texts(&parse(&samples)).iter().any(|t| t == "displacement_mean [mm] over sections z = const"));
+
+    let scatter = picture(&["map", model, "--points", "scatter.csv", "-q", "-o", "sc.csv", "--plot", "sc.svg"]);
+    let doc = parse(&scatter);
+    assert_eq!(count(&doc, "circle", "point"), 5);
+    assert_eq!(count(&doc, "rect", "cell"), 0, "scattered points are not cells");
+
+    let line = picture(&["map", model, "--points", "line.csv", "-q", "-o", "l.csv", "--plot", "l.svg"]);
+    let doc = parse(&line);
+    assert_eq!(count(&doc, "polyline", "series"), 1);
+    assert!(texts(&doc).iter().any(|t| t == "x [mm]"));
+    let xs: Vec<f64> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("circle") && n.attribute("class") == Some("point"))
+        .map(|n| n.attribute("cx").unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(xs.len(), 5);
+
+    let o = stiff_in(d, &["map", model, "--points", "one.csv", "-q", "-o", "one.csv.out.csv", "--plot", "one.svg"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("a single point has no map picture"));
+    assert!(!d.join("one.svg").exists());
+}
+
+/// Shipped example pictures have no overlapping text: the map of the cube, a curve with buckling, the
+/// milling path, a diagnosis.
+#[test]
+fn shipped_pictures_have_no_overlapping_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = "manipulators/orthoglide-3puu.toml";
+    for args in [
+        vec!["map", model, "--grid", "manipulators/grids/orthoglide-cube.toml", "-q", "-o", "m.csv", "--plot", "m.svg"],
+        vec![
+            "curve",
+            model,
+            "--at",
+            "0,0,0",
+            "--wrench-direction",
+            "1,0,0,0,0,0",
+            "--max",
+            "20000",
+            "-q",
+            "-o",
+            "c.csv",
+            "--plot",
+            "c.svg",
+        ],
+        vec![
+            "assemble",
+            model,
+            "--errors",
+            "manipulators/errors/orthoglide-case-b.toml",
+            "--path",
+            "-200,0,0",
+            "300,0,0",
+            "26",
+            "--wrench",
+            "215,-10,-25,1000,21500,0",
+            "-q",
+            "-o",
+            "p.csv",
+            "--plot",
+            "p.svg",
+        ],
+    ] {
+        let o = stiff_in(d, &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let svg = std::fs::read_to_string(d.join(args.last().unwrap())).unwrap();
+        assert_no_text_overlaps(&svg, &args.join(" "));
+    }
+}
+
+/// Colours: a log scale labels decades and both ends; a fixed range maps values outside it to the end
+/// colours and is named on the bar; a log scale over values that are not positive is refused.
+#[test]
+fn colour_scales_are_log_or_linear_over_the_data_or_a_range() {
+    let csv = map_csv();
+    let log = plot_text(&csv, &PlotOptions { scale: stiff::plot::Scale::Log, ..Default::default() }).unwrap();
+    let t = texts(&parse(&log));
+    assert!(t.iter().any(|s| s == "[mm/N, log]"), "{t:?}");
+    let ranged = plot_text(&csv, &PlotOptions { range: Some((0.0, 0.1)), ..Default::default() }).unwrap();
+    let t = texts(&parse(&ranged));
+    assert!(t.iter().any(|s| s == "0") && t.iter().any(|s| s == "0.1"), "{t:?}");
+    let bad = PlotOptions { scale: stiff::plot::Scale::Log, column: Some("dx_mm".into()), ..Default::default() };
+    let csv_with_wrench = std::fs::read_to_string("tests/golden/orthoglide-3puu-small.csv").unwrap();
+    if column(&csv_with_wrench, "C12_mm_per_N").iter().any(|v| *v <= 0.0) {
+        let e = plot_text(&csv_with_wrench, &PlotOptions { column: Some("C12_mm_per_N".into()), ..bad }).unwrap_err();
+        assert!(e.to_string().contains("log colour scale needs positive values"), "{e}");
+    }
+}
+
+/// Above `RASTER_CELLS` cells a section is one embedded PNG, not a rectangle per cell: a 101 x 101 section
+/// (10,201 cells) gives one image and no cell rectangles, and a far smaller file.
+#[test]
+fn large_sections_are_drawn_as_one_image() {
+    let mut csv = String::from("x_mm,y_mm,z_mm,status,c_tran_max_mm_per_N\n");
+    for j in 0..101 {
+        for i in 0..101 {
+            csv.push_str(&format!(
+                "{},{},0,ok,{}\n",
+                i as f64 - 50.0,
+                j as f64 - 50.0,
+                1e-3 * (1.0 + (i * j) as f64 / 1e4)
+            ));
+        }
+    }
+    assert!(101 * 101 > stiff::plot::points::RASTER_CELLS);
+    let svg = plot_text(&csv, &PlotOptions::default()).unwrap();
+    let doc = parse(&svg);
+    assert_eq!(count(&doc, "image", "cells"), 1);
+    assert_eq!(count(&doc, "rect", "cell"), 0);
+    let href = doc.descendants().find(|n| n.has_tag_name("image")).unwrap().attribute("href").unwrap();
+    assert!(href.starts_with("data:image/png;base64,iVBORw0KGgo"), "a PNG (its signature in base64)");
+    assert!(svg.len() < 100_000, "{} bytes", svg.len());
+}
