@@ -216,18 +216,21 @@ impl OutputArgs {
     }
 }
 
-/// A table written by a study (CSV, compressed CSV or Parquet) as CSV text, for its picture.
-pub(crate) fn read_table(path: &Path) -> Result<String> {
+/// A table written by a study (CSV, compressed CSV or Parquet; `-` for stdin) as a stream of CSV text, for
+/// its picture.
+pub(crate) fn read_table(path: &Path) -> Result<Box<dyn std::io::Read + Send>> {
     if crate::output::sink::is_parquet(path) {
         #[cfg(feature = "parquet")]
         {
             let input = std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-            return crate::output::parquet::csv_text(input).with_context(|| format!("cannot read {}", path.display()));
+            let text =
+                crate::output::parquet::csv_text(input).with_context(|| format!("cannot read {}", path.display()))?;
+            return Ok(Box::new(std::io::Cursor::new(text.into_bytes())));
         }
         #[cfg(not(feature = "parquet"))]
         bail!("cannot read {}: this stiff was built without Parquet support (cargo feature `parquet`)", path.display());
     }
-    Ok(read_text(path)?)
+    Ok(crate::model::error::open_input(path)?)
 }
 
 /// A wrench as `(Fx, Fy, Fz, Mx, My, Mz)` for a title.
@@ -306,8 +309,8 @@ pub(crate) fn point_set(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Res
 }
 
 /// Draws `text` (a study's output) into the SVG file `path`.
-pub(crate) fn write_plot(text: &str, path: &Path, style: &PlotStyle) -> Result<()> {
-    let svg = crate::plot::plot_text(text, &style.options()).map_err(name_plot_flag)?;
+pub(crate) fn write_plot(input: impl std::io::Read, path: &Path, style: &PlotStyle) -> Result<()> {
+    let svg = crate::plot::plot_reader(input, &style.options()).map_err(name_plot_flag)?;
     let mut sink = Sink::create(Some(path))?;
     sink.writer().write_all(svg.as_bytes())?;
     sink.finish()?;
@@ -324,7 +327,7 @@ pub(crate) fn plot_needs_output(plot: &Option<PathBuf>, output: &Option<PathBuf>
 }
 
 /// The output file just written, for its picture.
-pub(crate) fn written(output: &Option<PathBuf>) -> Result<String> {
+pub(crate) fn written(output: &Option<PathBuf>) -> Result<Box<dyn std::io::Read + Send>> {
     let path = output.as_deref().expect("checked by plot_needs_output");
     read_table(path)
 }

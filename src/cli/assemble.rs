@@ -148,7 +148,7 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
             run.push_str(&format!(", {} samples, seed {}", a.samples, a.seed));
         }
         let style = PlotStyle { title: Some(a.model.title(&model, &run)), ..a.style.style() };
-        write_plot(&written(&a.output.output)?, plot, &style)?;
+        write_plot(written(&a.output.output)?, plot, &style)?;
     }
     if !a.run.quiet {
         eprintln!("{} points: {} assembled", summary.points, summary.ok);

@@ -87,7 +87,7 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
     sink.finish()?;
     if let (Some(plot), Some(text)) = (&a.plot, &picture) {
         let style = PlotStyle { direction: a.direction.clone(), title: Some(title), ..PlotStyle::default() };
-        write_plot(text, plot, &style)?;
+        write_plot(text.as_bytes(), plot, &style)?;
     }
     if !a.quiet {
         eprintln!("{}", summary.text(model.length_scale));

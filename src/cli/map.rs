@@ -82,7 +82,7 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
             (None, false) => "unloaded".into(),
         };
         let style = PlotStyle { title: Some(a.model.title(&model, &load)), ..a.style.style() };
-        write_plot(&written(&a.output.output)?, plot, &style)?;
+        write_plot(written(&a.output.output)?, plot, &style)?;
     }
     if !a.run.quiet {
         eprintln!("{}", summary.line());

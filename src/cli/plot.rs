@@ -36,5 +36,5 @@ pub(crate) struct PlotArgs {
 pub(crate) fn run(a: PlotArgs) -> Result<()> {
     let text = read_table(&a.input)?;
     let style = PlotStyle { direction: a.direction.clone(), title: a.title.clone(), ..a.style.style() };
-    write_plot(&text, &a.output, &style)
+    write_plot(text, &a.output, &style)
 }

@@ -3,9 +3,12 @@
 
 use anyhow::Result;
 
-use super::svg::{axes, text_width, tick_label, Axis, Svg};
+use super::svg::{axes, text_width, Axis, Svg};
 use super::table::Table;
 use super::{extent, heading, PlotOptions, AXES};
+
+/// The prefixes of the series drawn: assembly errors, cutting load, total, superposition.
+pub const SERIES: [&str; 4] = ["nl_d", "load_d", "total_d", "super_d"];
 
 /// The path picture of an assembly table whose poses lie on a line.
 pub fn assembly_path(t: &Table, o: &PlotOptions) -> Result<String> {
@@ -31,8 +34,7 @@ pub fn assembly_path(t: &Table, o: &PlotOptions) -> Result<String> {
     let widest_tick = data
         .iter()
         .map(|d| Axis::new(d.iter().flatten().flatten().copied().chain([0.0]), 0.0, 1.0))
-        .flat_map(|a| a.ticks())
-        .map(|t| text_width(&tick_label(t), 11.0))
+        .map(|a| a.widest_label(11.0))
         .fold(0.0, f64::max);
     let (panel_w, panel_h) = (600.0, 200.0);
     let left = 40.0 + widest_tick;

@@ -9,7 +9,7 @@
 
 use anyhow::Result;
 
-use super::svg::{axes, label, text_width, Axis, Svg};
+use super::svg::{axes, label, Axis, Svg};
 use super::table::Table;
 use super::{extent, heading, OptionError, PlotOptions};
 use crate::output::table::names;
@@ -76,8 +76,7 @@ pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
     let mut s = Svg::new(w, h);
     let top = heading(&mut s, w, o, &format!("force-deflection along {}", directions[k])) + 16.0;
     let ay_probe = Axis::new(y.iter().copied(), 0.0, 1.0);
-    let left =
-        40.0 + ay_probe.ticks().iter().map(|t| text_width(&super::svg::tick_label(*t), 11.0)).fold(0.0, f64::max);
+    let left = 40.0 + ay_probe.widest_label(11.0);
     let legend_width = 110.0;
     let ax = Axis::new(x.iter().copied(), left, w - 30.0 - legend_width);
     let ay = Axis::new(y.iter().copied(), h - 60.0, top);

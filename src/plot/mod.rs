@@ -42,19 +42,53 @@ const DEFAULT_MAP_COLUMN: &str = names::C_TRAN_MAX;
 
 /// Draws a study's output: a map, curve or assemble CSV, or a diagnose JSON.
 pub fn plot_text(text: &str, o: &PlotOptions) -> Result<String> {
-    if text.trim_start().starts_with('{') {
+    plot_reader(text.as_bytes(), o)
+}
+
+/// Draws a study's output read from a stream, keeping only the columns the picture needs.
+pub fn plot_reader(input: impl std::io::Read, o: &PlotOptions) -> Result<String> {
+    use std::io::BufRead;
+    let mut input = std::io::BufReader::with_capacity(1 << 20, input);
+    let starts_json = loop {
+        let buffer = input.fill_buf()?;
+        match buffer.iter().position(|b| !b.is_ascii_whitespace()) {
+            Some(k) => break buffer[k] == b'{',
+            None if buffer.is_empty() => bail!("the input is empty: nothing to draw"),
+            None => {
+                let n = buffer.len();
+                input.consume(n);
+            }
+        }
+    };
+    if starts_json {
         let report: DiagnosisReport =
-            serde_json::from_str(text).context("reading the diagnosis JSON (written by stiff diagnose --json?)")?;
+            serde_json::from_reader(input).context("reading the diagnosis JSON (written by stiff diagnose --json?)")?;
         return diagnosis(&report, o);
     }
-    let t = Table::parse(text)?;
-    let Some(kind) = t.kind() else {
+    let (header, reader) = Table::header_of(input)?;
+    let Some(kind) = TableKind::of(&header) else {
         bail!(
             "not a table stiff draws: a map, curve, assemble or assemble --samples CSV, or a diagnose JSON \
              (columns: {})",
-            t.header.join(", ")
+            header.join(", ")
         )
     };
+    let column = o.column.clone();
+    let numbers = move |c: &str| match kind {
+        TableKind::Curve => true,
+        _ => {
+            names::POSITION.contains(&c)
+                || column.as_deref() == Some(c)
+                || column.is_none() && points::default_column(kind).is_some_and(|d| d == c)
+                || kind == TableKind::Assembly && assembly::SERIES.iter().any(|p| c.starts_with(p))
+        }
+    };
+    // Texts: a curve's stability and events, the poses' names.
+    let texts = |c: &str| match kind {
+        TableKind::Curve => [names::STABLE, names::EVENT].contains(&c),
+        _ => c == names::NAME,
+    };
+    let t = Table::read_rows(header, reader, &table::Wanted { numbers: &numbers, texts: &texts })?;
     match kind {
         TableKind::Curve => curve::curve(&t, o),
         TableKind::Assembly if o.column.is_none() && points::is_path(&t)? => assembly::assembly_path(&t, o),
@@ -100,9 +134,10 @@ fn wrap(text: &str, size: f64, width: f64) -> Vec<String> {
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
+/// The distinct values, sorted (values within 1e-9 relative of each other are one).
 fn distinct(values: &[f64]) -> Vec<f64> {
     let mut v: Vec<f64> = values.to_vec();
-    v.sort_by(f64::total_cmp);
+    v.sort_unstable_by(f64::total_cmp);
     v.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * (1.0 + a.abs()));
     v
 }
@@ -113,9 +148,9 @@ fn extent(values: impl Iterator<Item = f64>) -> f64 {
     hi - lo
 }
 
-fn spacing(values: &[f64]) -> f64 {
-    let d = distinct(values);
-    d.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min)
+/// The smallest gap between sorted distinct values (infinity for fewer than two).
+fn spacing(sorted_distinct: &[f64]) -> f64 {
+    sorted_distinct.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min)
 }
 
 /// A picture option that cannot be used: the command line names its flag (`PlotOptions` field).

@@ -38,15 +38,15 @@ pub fn quantity(t: &Table, kind: TableKind, column: Option<&str>) -> Result<Quan
         }
         Ok(Quantity { label: label(c), unit: unit_of(c).1, values: t.numbers(c)? })
     };
-    match (column, kind) {
+    match (column, default_column(kind)) {
         (Some(c), _) => named(c),
-        (None, TableKind::Samples) => named("displacement_mean_mm"),
-        (None, TableKind::Assembly) => {
+        (None, Some(c)) => named(c),
+        (None, None) => {
             let parts: Vec<Vec<Option<f64>>> = ["dx_mm", "dy_mm", "dz_mm"]
                 .iter()
                 .map(|c| t.numbers(&format!("{}_{c}", names::NONLINEAR)))
                 .collect::<Result<_>>()?;
-            let values = (0..t.rows.len())
+            let values = (0..t.len())
                 .map(|i| Some((parts[0][i]?.powi(2) + parts[1][i]?.powi(2) + parts[2][i]?.powi(2)).sqrt()))
                 .collect();
             Ok(Quantity {
@@ -55,7 +55,16 @@ pub fn quantity(t: &Table, kind: TableKind, column: Option<&str>) -> Result<Quan
                 values,
             })
         }
-        (None, _) => named(names::C_TRAN_MAX),
+    }
+}
+
+/// The column a picture of this table draws by default; None for an assembly, whose default is the
+/// length of its non-linear displacement (`quantity`).
+pub fn default_column(kind: TableKind) -> Option<&'static str> {
+    match kind {
+        TableKind::Samples => Some("displacement_mean_mm"),
+        TableKind::Assembly => None,
+        TableKind::Map | TableKind::Curve => Some(names::C_TRAN_MAX),
     }
 }
 
@@ -69,10 +78,17 @@ enum Shape {
     Scatter(usize, usize),
 }
 
+/// The distinct coordinates of the poses along each axis, sorted.
+type Levels = [Vec<f64>; 3];
+
+fn levels_of(pos: &[Vec<f64>; 3]) -> Levels {
+    [distinct(&pos[0]), distinct(&pos[1]), distinct(&pos[2])]
+}
+
 /// The poses' shape (at least two poses with finite positions).
-fn shape(pos: &[Vec<f64>; 3]) -> Shape {
+fn shape(pos: &[Vec<f64>; 3], levels: &Levels) -> Shape {
     let n = pos[0].len();
-    let counts: Vec<usize> = pos.iter().map(|c| distinct(c).len()).collect();
+    let counts: Vec<usize> = levels.iter().map(Vec::len).collect();
     let varying: Vec<usize> = (0..3).filter(|&a| counts[a] > 1).collect();
     if varying.len() == 1 {
         let a = varying[0];
@@ -109,7 +125,7 @@ pub fn is_path(t: &Table) -> Result<bool> {
     Ok(pos[0].len() >= 2
         && !all_named(t)?
         && pos.iter().flatten().all(|v| v.is_finite())
-        && matches!(shape(&pos), Shape::Line(..)))
+        && matches!(shape(&pos, &levels_of(&pos)), Shape::Line(..)))
 }
 
 /// Whether every row has a name.
@@ -120,7 +136,7 @@ fn all_named(t: &Table) -> Result<bool> {
 /// The picture of `q` over the table's poses.
 pub fn picture(t: &Table, q: &Quantity, o: &PlotOptions) -> Result<String> {
     let pos = t.positions()?;
-    let n = t.rows.len();
+    let n = t.len();
     if n == 0 {
         bail!("the table has no rows: nothing to draw");
     }
@@ -136,11 +152,13 @@ pub fn picture(t: &Table, q: &Quantity, o: &PlotOptions) -> Result<String> {
              pose in full)"
         );
     }
-    if o.section.is_some() && !matches!(shape(&pos), Shape::Grid) {
+    let levels = levels_of(&pos);
+    let shape = shape(&pos, &levels);
+    if o.section.is_some() && !matches!(shape, Shape::Grid) {
         bail!("--section cuts a grid, and these points are not a full grid");
     }
-    match shape(&pos) {
-        Shape::Grid => grid_map(&pos, q, o),
+    match shape {
+        Shape::Grid => grid_map(&pos, &levels, q, o),
         Shape::Line(along, axis_label) => line_chart(&along, &axis_label, q, o),
         Shape::Scatter(u, v) => scatter(&pos, (u, v), q, o),
     }
@@ -160,40 +178,68 @@ fn colour_bar(s: &mut Svg, scale: &ColourScale, (x, y, h): (f64, f64, f64), q: &
         let step = h / STEPS as f64;
         s.rect(x, y + h - (k + 1) as f64 * step, 16.0, step + 0.5, &super::svg::viridis(f), "colorbar");
     }
-    for t in scale.ticks() {
-        let py = y + h * (1.0 - scale.fraction(t));
+    let (ticks, labels) = colour_bar_labels(scale);
+    for (t, label) in ticks.iter().zip(&labels.0) {
+        let py = y + h * (1.0 - scale.fraction(*t));
         s.line((x + 16.0, py), (x + 20.0, py), "#333", 1.0, "tick");
-        s.text(x + 23.0, py + 4.0, &tick_label(t), 10.0, "start", 0.0);
+        s.text(x + 23.0, py + 4.0, label, 10.0, "start", 0.0);
     }
-    let scale_name = match scale.scale {
-        super::scale::Scale::Linear => "",
-        super::scale::Scale::Log => ", log",
+    let unit = match (&labels.1, scale.scale) {
+        (Some(power), _) => format!("[{power} {}]", q.unit),
+        (None, super::scale::Scale::Log) => format!("[{}, log]", q.unit),
+        (None, super::scale::Scale::Linear) => format!("[{}]", q.unit),
     };
-    s.text(x, y - 10.0, &format!("[{}{scale_name}]", q.unit), 11.0, "start", 0.0);
+    s.text(x, y - 10.0, &unit, 11.0, "start", 0.0);
     if missing {
         s.rect(x, y + h + 14.0, 16.0, 10.0, NO_VALUE, "legend");
         s.text(x + 20.0, y + h + 23.0, "no value (status not ok)", 10.0, "start", 0.0);
     }
 }
 
+/// The colour bar's ticks and labels: on a linear scale, multiples of one power of ten where the values
+/// call for one (named in the unit, `[10⁻⁴ mm/N]`); on a log scale, decades as powers of ten and the ends
+/// as numbers.
+fn colour_bar_labels(scale: &ColourScale) -> (Vec<f64>, (Vec<String>, Option<String>)) {
+    let ticks = scale.ticks();
+    let labels = match scale.scale {
+        super::scale::Scale::Linear => {
+            let (labels, multiplier) = super::svg::tick_labels(&ticks);
+            (labels, multiplier.map(|m| m.trim_start_matches('×').to_string()))
+        }
+        super::scale::Scale::Log => {
+            let last = ticks.len() - 1;
+            let label = |(k, t): (usize, &f64)| {
+                let e = t.log10().round();
+                if k != 0 && k != last && (t / 10f64.powf(e) - 1.0).abs() < 1e-9 {
+                    super::svg::power_of_ten(e as i32)
+                } else {
+                    tick_label(*t)
+                }
+            };
+            (ticks.iter().enumerate().map(label).collect(), None)
+        }
+    };
+    (ticks, labels)
+}
+
 /// Width the colour bar and its labels take.
 fn colour_bar_width(scale: &ColourScale) -> f64 {
-    let widest = scale.ticks().iter().map(|t| text_width(&tick_label(*t), 10.0)).fold(0.0, f64::max);
+    let widest = colour_bar_labels(scale).1 .0.iter().map(|l| text_width(l, 10.0)).fold(0.0, f64::max);
     (23.0 + widest).max(text_width("no value (status not ok)", 10.0) + 20.0) + 20.0
 }
 
 /// Colour maps of a full grid over its sections (small multiples on shared axes, at most six sections).
-fn grid_map(pos: &[Vec<f64>; 3], q: &Quantity, o: &PlotOptions) -> Result<String> {
+fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOptions) -> Result<String> {
     let (axis, levels) = match &o.section {
         Some(s) => {
             let (axis, v) = parse_section(s)?;
-            let levels = distinct(&pos[axis]);
+            let levels = &all_levels[axis];
             let nearest = levels
                 .iter()
                 .copied()
                 .min_by(|a, b| (a - v).abs().total_cmp(&(b - v).abs()))
                 .ok_or_else(|| anyhow!("empty map"))?;
-            let tol = 0.01 * super::spacing(&pos[axis]).min(1e9);
+            let tol = 0.01 * super::spacing(levels).min(1e9);
             if (nearest - v).abs() > tol.max(1e-9 * (1.0 + v.abs())) {
                 let shown: Vec<String> = levels.iter().take(12).map(|l| tick_label(*l)).collect();
                 bail!("no grid section at {} = {v} mm (sections: {})", AXES[axis], shown.join(", "));
@@ -201,8 +247,8 @@ fn grid_map(pos: &[Vec<f64>; 3], q: &Quantity, o: &PlotOptions) -> Result<String
             (axis, vec![nearest])
         }
         None => {
-            let axis = (0..3).find(|&a| distinct(&pos[a]).len() == 1).unwrap_or(2);
-            let levels = distinct(&pos[axis]);
+            let axis = (0..3).find(|&a| all_levels[a].len() == 1).unwrap_or(2);
+            let levels = all_levels[axis].clone();
             let picked: Vec<f64> =
                 if levels.len() <= 6 { levels } else { (0..6).map(|k| levels[k * (levels.len() - 1) / 5]).collect() };
             (axis, picked)
@@ -218,7 +264,7 @@ fn grid_map(pos: &[Vec<f64>; 3], q: &Quantity, o: &PlotOptions) -> Result<String
     let finite: Vec<f64> = drawn.iter().filter_map(|&i| q.values[i]).collect();
     let scale = colour_scale(&finite, q, o)?;
     let missing = drawn.iter().any(|&i| q.values[i].is_none());
-    let (du, dv) = (super::spacing(&pos[u]), super::spacing(&pos[v]));
+    let (du, dv) = (super::spacing(&all_levels[u]), super::spacing(&all_levels[v]));
     // Shared axes: every section on the same ranges.
     let us: Vec<f64> = drawn.iter().map(|&i| pos[u][i]).collect();
     let vs: Vec<f64> = drawn.iter().map(|&i| pos[v][i]).collect();
@@ -226,7 +272,7 @@ fn grid_map(pos: &[Vec<f64>; 3], q: &Quantity, o: &PlotOptions) -> Result<String
     let rows = levels.len().div_ceil(3);
     let panel = 240.0;
     let ay_probe = Axis::new(vs.iter().map(|x| x - dv / 2.0).chain(vs.iter().map(|x| x + dv / 2.0)), 0.0, 1.0);
-    let left = 30.0 + ay_probe.ticks().iter().map(|t| text_width(&tick_label(*t), 11.0)).fold(0.0, f64::max) + 10.0;
+    let left = 40.0 + ay_probe.widest_label(11.0);
     let gap = left + 20.0;
     let bar_width = colour_bar_width(&scale);
     let width = left + cols as f64 * panel + (cols - 1) as f64 * gap + 30.0 + bar_width;
@@ -243,7 +289,7 @@ fn grid_map(pos: &[Vec<f64>; 3], q: &Quantity, o: &PlotOptions) -> Result<String
         let ax = Axis::new(us.iter().map(|x| x - du / 2.0).chain(us.iter().map(|x| x + du / 2.0)), x0, x0 + panel);
         let ay = Axis::new(vs.iter().map(|x| x - dv / 2.0).chain(vs.iter().map(|x| x + dv / 2.0)), y0 + panel, y0);
         let fill = |i: usize| q.values[i].map_or(NO_VALUE.to_string(), |x| scale.colour(x));
-        if members.len() > RASTER_CELLS && uniform(&pos[u]) && uniform(&pos[v]) {
+        if members.len() > RASTER_CELLS && uniform(&all_levels[u]) && uniform(&all_levels[v]) {
             raster_section(&mut s, &members, (&pos[u], &pos[v]), (&ax, &ay), (du, dv), &|i| fill(i));
         } else {
             for &i in &members {
@@ -267,10 +313,9 @@ fn grid_map(pos: &[Vec<f64>; 3], q: &Quantity, o: &PlotOptions) -> Result<String
 }
 
 /// Whether a coordinate's distinct values are evenly spaced (a raster pixel per grid step).
-fn uniform(values: &[f64]) -> bool {
-    let d = distinct(values);
-    let step = super::spacing(values);
-    d.windows(2).all(|w| ((w[1] - w[0]) - step).abs() <= 1e-6 * step.abs().max(1e-12))
+fn uniform(sorted_distinct: &[f64]) -> bool {
+    let step = super::spacing(sorted_distinct);
+    sorted_distinct.windows(2).all(|w| ((w[1] - w[0]) - step).abs() <= 1e-6 * step.abs().max(1e-12))
 }
 
 /// One section as an embedded image, a pixel per grid cell.
@@ -319,7 +364,7 @@ fn line_chart(along: &[f64], axis_label: &str, q: &Quantity, o: &PlotOptions) ->
     let ys: Vec<f64> = q.values.iter().flatten().copied().collect();
     let (w, h) = (680.0, 440.0);
     let ay_probe = Axis::new(ys.iter().copied(), 0.0, 1.0);
-    let left = 40.0 + ay_probe.ticks().iter().map(|t| text_width(&tick_label(*t), 11.0)).fold(0.0, f64::max);
+    let left = 40.0 + ay_probe.widest_label(11.0);
     let mut s = Svg::new(w, h);
     let top = heading(&mut s, w, o, &format!("{} along the line", q.label)) + 16.0;
     let ax = Axis::new(along.iter().copied(), left, w - 30.0);
@@ -356,7 +401,7 @@ fn scatter(pos: &[Vec<f64>; 3], (u, v): (usize, usize), q: &Quantity, o: &PlotOp
     let bar_width = colour_bar_width(&scale);
     let plot = 420.0;
     let ay_probe = Axis::new(pos[v].iter().copied(), 0.0, 1.0);
-    let left = 40.0 + ay_probe.ticks().iter().map(|t| text_width(&tick_label(*t), 11.0)).fold(0.0, f64::max);
+    let left = 40.0 + ay_probe.widest_label(11.0);
     let width = left + plot + 40.0 + bar_width;
     let mut s = Svg::new(width, 0.0);
     let third = 3 - u - v;

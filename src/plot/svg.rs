@@ -193,6 +193,19 @@ impl Axis {
         self.from + (v - self.lo) / (self.hi - self.lo) * (self.to - self.from)
     }
 
+    /// The ticks with their labels, and the power of ten they are multiples of where one is named
+    /// (`tick_labels`).
+    pub fn labels(&self) -> (Vec<(f64, String)>, Option<String>) {
+        let ticks = self.ticks();
+        let (labels, multiplier) = tick_labels(&ticks);
+        (ticks.into_iter().zip(labels).collect(), multiplier)
+    }
+
+    /// The width of the widest tick label at this font size.
+    pub fn widest_label(&self, size: f64) -> f64 {
+        self.labels().0.iter().map(|(_, l)| text_width(l, size)).fold(0.0, f64::max)
+    }
+
     /// Round tick values inside the range (about five).
     pub fn ticks(&self) -> Vec<f64> {
         let span = self.hi - self.lo;
@@ -214,7 +227,43 @@ pub fn nice_below(v: f64) -> f64 {
     [5.0, 2.0, 1.0].iter().map(|m| m * mag).find(|x| *x <= v * (1.0 + 1e-12)).unwrap_or(mag)
 }
 
-/// A tick label: short and readable.
+/// Tick labels as matplotlib prints them: where the largest tick is below 1e-2 or from 1e5 in size, every
+/// tick is shown as a multiple of one power of ten, named once (`×10⁻⁴`), instead of `3.00e6` on each.
+pub fn tick_labels(ticks: &[f64]) -> (Vec<String>, Option<String>) {
+    let largest = ticks.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+    if largest == 0.0 || (1e-2..1e5).contains(&largest) {
+        return (ticks.iter().map(|t| tick_label(*t)).collect(), None);
+    }
+    let e = largest.log10().floor() as i32;
+    let scale = 10f64.powi(e);
+    (ticks.iter().map(|t| tick_label(t / scale)).collect(), Some(format!("×10{}", superscript(e))))
+}
+
+/// `10^e` as a power of ten with superscript digits (`10⁻⁴`).
+pub fn power_of_ten(e: i32) -> String {
+    format!("10{}", superscript(e))
+}
+
+fn superscript(e: i32) -> String {
+    e.to_string()
+        .chars()
+        .map(|c| match c {
+            '-' => '⁻',
+            '0' => '⁰',
+            '1' => '¹',
+            '2' => '²',
+            '3' => '³',
+            '4' => '⁴',
+            '5' => '⁵',
+            '6' => '⁶',
+            '7' => '⁷',
+            '8' => '⁸',
+            _ => '⁹',
+        })
+        .collect()
+}
+
+/// A number on a picture: short and readable.
 pub fn tick_label(v: f64) -> String {
     if v == 0.0 {
         return "0".into();
@@ -223,8 +272,14 @@ pub fn tick_label(v: f64) -> String {
     if !(1e-3..1e5).contains(&a) {
         format!("{v:.2e}")
     } else {
-        let s = format!("{v:.4}");
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
+        // Five significant digits (126.35 mm, 0.0013245), trailing zeros dropped.
+        let decimals = (4 - a.log10().floor() as i32).clamp(0, 7) as usize;
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
     }
 }
 
@@ -243,24 +298,31 @@ pub fn frame(svg: &mut Svg, x: &Axis, y: &Axis, x_label: &str, y_label: &str, x_
         svg.line((x1, y1), (x2, y2), "#333", 1.0, "frame");
     }
     if x_ticks {
-        for t in x.ticks() {
+        let (labels, multiplier) = x.labels();
+        for (t, l) in labels {
             let p = x.px(t);
             svg.line((p, bottom), (p, bottom + 4.0), "#333", 1.0, "tick");
-            svg.text(p, bottom + 16.0, &tick_label(t), 11.0, "middle", 0.0);
+            svg.text(p, bottom + 16.0, &l, 11.0, "middle", 0.0);
+        }
+        if let Some(m) = multiplier {
+            svg.text(right, bottom + 30.0, &m, 10.0, "end", 0.0);
         }
     }
     if y_ticks {
-        for t in y.ticks() {
+        let (labels, multiplier) = y.labels();
+        for (t, l) in labels {
             let p = y.px(t);
             svg.line((left - 4.0, p), (left, p), "#333", 1.0, "tick");
-            svg.text(left - 6.0, p + 4.0, &tick_label(t), 11.0, "end", 0.0);
+            svg.text(left - 6.0, p + 4.0, &l, 11.0, "end", 0.0);
+        }
+        if let Some(m) = multiplier {
+            svg.text(left, top - 4.0, &m, 10.0, "start", 0.0);
         }
     }
     svg.text((left + right) / 2.0, bottom + 34.0, x_label, 12.0, "middle", 0.0);
     if !y_label.is_empty() {
         // Left of the widest tick label, so that the two never overlap.
-        let widest =
-            if y_ticks { y.ticks().iter().map(|t| text_width(&tick_label(*t), 11.0)).fold(0.0, f64::max) } else { 0.0 };
+        let widest = if y_ticks { y.widest_label(11.0) } else { 0.0 };
         svg.text(left - 6.0 - widest - 10.0, (top + bottom) / 2.0, y_label, 12.0, "middle", -90.0);
     }
 }

@@ -1,15 +1,22 @@
 //! A study's table read back for its picture, and which study wrote it.
+//!
+//! Only the columns a picture draws are kept, numbers as f64 and texts as text, read as the file streams
+//! by: a million-point map is drawn from a few columns of 8 bytes per row, not from its 600 MB of text.
 
-use anyhow::{anyhow, Result};
+use std::collections::HashMap;
+use std::io::Read;
+
+use anyhow::{anyhow, Context, Result};
 
 use crate::output::table::names;
 
-/// A CSV held as text cells.
+/// The columns of a study's table that a picture needs.
 pub struct Table {
-    /// Column names.
+    /// Every column name of the file, in order.
     pub header: Vec<String>,
-    /// Cells, row by row.
-    pub rows: Vec<Vec<String>>,
+    rows: usize,
+    numbers: HashMap<String, Vec<f64>>,
+    texts: HashMap<String, Vec<String>>,
 }
 
 /// Which study wrote a table, told by a column only that study writes (`output::table::names`).
@@ -25,30 +32,90 @@ pub enum TableKind {
     Map,
 }
 
-impl Table {
-    /// Parses a CSV a study wrote.
-    pub fn parse(text: &str) -> Result<Table> {
-        let mut reader = csv::ReaderBuilder::new().from_reader(text.as_bytes());
-        let header = reader.headers()?.iter().map(String::from).collect();
-        let rows =
-            reader.records().map(|r| r.map(|r| r.iter().map(String::from).collect())).collect::<Result<_, _>>()?;
-        Ok(Table { header, rows })
-    }
-
-    /// Which study wrote this table; None when it is none of them.
-    pub fn kind(&self) -> Option<TableKind> {
+impl TableKind {
+    /// Which study wrote a table with this header; None when it is none of them.
+    pub fn of(header: &[String]) -> Option<TableKind> {
+        let has = |c: &str| header.iter().any(|h| h == c);
         let nonlinear = format!("{}_{}", names::NONLINEAR, names::DISPLACEMENT[0]);
-        if self.has(names::LOAD_FACTOR) {
+        if has(names::LOAD_FACTOR) {
             Some(TableKind::Curve)
-        } else if self.has(&nonlinear) {
+        } else if has(&nonlinear) {
             Some(TableKind::Assembly)
-        } else if self.has("samples") && self.has("mean_dx_mm") {
+        } else if has("samples") && has("mean_dx_mm") {
             Some(TableKind::Samples)
-        } else if self.has(names::C_TRAN_MAX) || names::POSITION.iter().all(|c| self.has(c)) {
+        } else if has(names::C_TRAN_MAX) || names::POSITION.iter().all(|c| has(c)) {
             Some(TableKind::Map)
         } else {
             None
         }
+    }
+}
+
+/// Which columns to keep, and how.
+pub struct Wanted<'a> {
+    /// Columns kept as numbers (empty or non-numeric cells: missing).
+    pub numbers: &'a dyn Fn(&str) -> bool,
+    /// Columns kept as text.
+    pub texts: &'a dyn Fn(&str) -> bool,
+}
+
+impl Table {
+    /// Parses a CSV a study wrote, keeping every column as text and as numbers (small tables, tests).
+    pub fn parse(text: &str) -> Result<Table> {
+        Table::read(text.as_bytes(), &Wanted { numbers: &|_| true, texts: &|_| true })
+    }
+
+    /// The header of a CSV stream, and the rest of it.
+    pub fn header_of(input: impl Read) -> Result<(Vec<String>, csv::Reader<impl Read>)> {
+        let mut reader = csv::ReaderBuilder::new().from_reader(input);
+        let header = reader.headers().context("reading the table's header")?.iter().map(String::from).collect();
+        Ok((header, reader))
+    }
+
+    /// Reads a CSV a study wrote, keeping the columns `wanted` names.
+    pub fn read(input: impl Read, wanted: &Wanted) -> Result<Table> {
+        let (header, reader) = Table::header_of(input)?;
+        Table::read_rows(header, reader, wanted)
+    }
+
+    /// Reads the rows after `header`, keeping the columns `wanted` names.
+    pub fn read_rows(header: Vec<String>, mut reader: csv::Reader<impl Read>, wanted: &Wanted) -> Result<Table> {
+        let number_columns: Vec<(usize, Vec<f64>)> =
+            header.iter().enumerate().filter(|(_, h)| (wanted.numbers)(h)).map(|(k, _)| (k, Vec::new())).collect();
+        let text_columns: Vec<(usize, Vec<String>)> =
+            header.iter().enumerate().filter(|(_, h)| (wanted.texts)(h)).map(|(k, _)| (k, Vec::new())).collect();
+        let (mut number_columns, mut text_columns) = (number_columns, text_columns);
+        let mut record = csv::ByteRecord::new();
+        let mut rows = 0;
+        while reader.read_byte_record(&mut record).with_context(|| format!("reading row {}", rows + 1))? {
+            for (k, values) in &mut number_columns {
+                let cell = record.get(*k).unwrap_or(b"");
+                let v = std::str::from_utf8(cell).ok().and_then(|s| s.parse::<f64>().ok()).unwrap_or(f64::NAN);
+                values.push(v);
+            }
+            for (k, values) in &mut text_columns {
+                values.push(String::from_utf8_lossy(record.get(*k).unwrap_or(b"")).into_owned());
+            }
+            rows += 1;
+        }
+        let numbers = number_columns.into_iter().map(|(k, v)| (header[k].clone(), v)).collect();
+        let texts = text_columns.into_iter().map(|(k, v)| (header[k].clone(), v)).collect();
+        Ok(Table { header, rows, numbers, texts })
+    }
+
+    /// Which study wrote this table; None when it is none of them.
+    pub fn kind(&self) -> Option<TableKind> {
+        TableKind::of(&self.header)
+    }
+
+    /// The number of rows.
+    pub fn len(&self) -> usize {
+        self.rows
+    }
+
+    /// Whether the table has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
     }
 
     /// Whether a column of this name exists.
@@ -56,17 +123,14 @@ impl Table {
         self.header.iter().any(|h| h == c)
     }
 
-    fn index(&self, c: &str) -> Result<usize> {
-        self.header
-            .iter()
-            .position(|h| h == c)
-            .ok_or_else(|| anyhow!("no column `{c}` (columns: {})", self.header.join(", ")))
+    fn missing(&self, c: &str) -> anyhow::Error {
+        anyhow!("no column `{c}` (columns: {})", self.header.join(", "))
     }
 
-    /// A numeric column; empty or non-numeric cells are None.
+    /// A numeric column; empty, non-numeric and non-finite cells are None.
     pub fn numbers(&self, c: &str) -> Result<Vec<Option<f64>>> {
-        let i = self.index(c)?;
-        Ok(self.rows.iter().map(|r| r.get(i).and_then(|v| v.parse::<f64>().ok()).filter(|v| v.is_finite())).collect())
+        let values = self.numbers.get(c).ok_or_else(|| self.missing(c))?;
+        Ok(values.iter().map(|v| Some(*v).filter(|v| v.is_finite())).collect())
     }
 
     /// A numeric column with missing cells as NaN.
@@ -76,8 +140,7 @@ impl Table {
 
     /// A text column.
     pub fn texts(&self, c: &str) -> Result<Vec<String>> {
-        let i = self.index(c)?;
-        Ok(self.rows.iter().map(|r| r.get(i).cloned().unwrap_or_default()).collect())
+        self.texts.get(c).cloned().ok_or_else(|| self.missing(c))
     }
 
     /// The rows' positions, one vector per axis (x, y, z; NaN where missing).
