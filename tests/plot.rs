@@ -521,3 +521,46 @@ fn large_sections_are_drawn_as_one_image() {
     assert!(href.starts_with("data:image/png;base64,iVBORw0KGgo"), "a PNG (its signature in base64)");
     assert!(svg.len() < 100_000, "{} bytes", svg.len());
 }
+
+/// `--plot FILE.png` writes a PNG rendered without system fonts (DejaVu Sans is embedded): twice the SVG's
+/// size, and its title drawn (dark pixels where the heading is, white around).
+#[test]
+fn pictures_render_to_png_with_their_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = stiff_in(
+        d,
+        &[
+            "map",
+            "manipulators/orthoglide-3puu.toml",
+            "--grid",
+            "manipulators/grids/orthoglide-small.toml",
+            "-q",
+            "-o",
+            "m.csv",
+            "--plot",
+            "m.svg",
+        ],
+    );
+    assert!(o.status.success());
+    let o = stiff_in(d, &["plot", "m.csv", "-o", "m.png", "--title", "Orthoglide"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let png = std::fs::read(d.join("m.png")).unwrap();
+    let pixmap = resvg::tiny_skia::Pixmap::decode_png(&png).expect("a PNG");
+    let svg = std::fs::read_to_string(d.join("m.svg")).unwrap();
+    let doc = parse(&svg);
+    let root = doc.root_element();
+    let (w, h): (f64, f64) =
+        (root.attribute("width").unwrap().parse().unwrap(), root.attribute("height").unwrap().parse().unwrap());
+    assert_eq!((pixmap.width(), pixmap.height()), ((2.0 * w) as u32, (2.0 * h) as u32));
+    // The title "Orthoglide" is centred on the first line (baseline at y = 22 in SVG units).
+    let dark = |x0: u32, x1: u32, y0: u32, y1: u32| {
+        (y0..y1)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .filter(|&(x, y)| pixmap.pixel(x, y).unwrap().red() < 100)
+            .count()
+    };
+    let centre = pixmap.width() / 2;
+    assert!(dark(centre - 60, centre + 60, 20, 48) > 100, "the title is drawn");
+    assert_eq!(dark(0, 40, 0, 40), 0, "the corner is blank");
+}

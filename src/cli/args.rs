@@ -311,8 +311,23 @@ pub(crate) fn point_set(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Res
 /// Draws `text` (a study's output) into the SVG file `path`.
 pub(crate) fn write_plot(input: impl std::io::Read, path: &Path, style: &PlotStyle) -> Result<()> {
     let svg = crate::plot::plot_reader(input, &style.options()).map_err(name_plot_flag)?;
+    write_picture(&svg, path)
+}
+
+/// The bytes of a picture file named `path`: PNG where the name ends in `.png`, else the SVG.
+pub(crate) fn picture_bytes(svg: &str, path: &Path) -> Result<Vec<u8>> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        crate::plot::raster::svg_to_png(svg)
+    } else {
+        Ok(svg.as_bytes().to_vec())
+    }
+}
+
+/// Writes a picture: PNG where the name ends in `.png`, else SVG.
+pub(crate) fn write_picture(svg: &str, path: &Path) -> Result<()> {
+    let bytes = picture_bytes(svg, path)?;
     let mut sink = Sink::create(Some(path))?;
-    sink.writer().write_all(svg.as_bytes())?;
+    sink.writer().write_all(&bytes)?;
     sink.finish()?;
     Ok(())
 }

@@ -64,7 +64,7 @@ pub(crate) struct AssembleArgs {
     /// super, samples), comma-separated, written in the table's order [default: all].
     #[arg(long, value_delimiter = ',')]
     pub(crate) columns: Option<Vec<String>>,
-    /// Also draw the table (SVG): along a --path, the displacements (paper 000 Figures 10-11); over a grid, a
+    /// Also draw the table (SVG, or PNG for a .png name): along a --path, the displacements (paper 000 Figures 10-11); over a grid, a
     /// colour map of the chosen column; named points, a dot chart; a tolerance study, its mean displacement.
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,

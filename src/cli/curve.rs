@@ -41,7 +41,7 @@ pub(crate) struct CurveArgs {
     /// No summary on stderr.
     #[arg(long, short)]
     pub(crate) quiet: bool,
-    /// Also draw the curve (SVG).
+    /// Also draw the curve (SVG, or PNG for a .png name).
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
     /// The direction to draw (x, y, z, rx, ry, rz; default: the one that moves most).

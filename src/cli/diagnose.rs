@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{write_stdout, ModelArgs};
+use super::args::{picture_bytes, write_stdout, ModelArgs};
 use crate::model::error::read_text;
 use crate::output::sink::Sink;
 
@@ -38,7 +38,7 @@ pub(crate) struct DiagnoseArgs {
     /// Write the model description with the accepted effects added.
     #[arg(long)]
     pub(crate) model_out: Option<PathBuf>,
-    /// Also draw the diagnosis (SVG): residual arrows before and after, per-axis RMS, candidates' delta BIC.
+    /// Also draw the diagnosis (SVG, or PNG for a .png name): residual arrows before and after, per-axis RMS, candidates' delta BIC.
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
     /// Exit with status 1 (after writing every output) when the verdict is `effect` or worse (any verdict but
@@ -90,7 +90,8 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         let title = format!("{}, data {}", a.model.model.display(), a.data.display());
         let options = crate::plot::PlotOptions { title: Some(title), ..Default::default() };
         let svg = crate::plot::diagnosis(&json, &options)?;
-        sink.writer().write_all(svg.as_bytes())?;
+        let path = a.plot.as_deref().expect("a sink only with --plot");
+        sink.writer().write_all(&picture_bytes(&svg, path)?)?;
         sink.finish()?;
     }
     if let Some(mut sink) = model_sink {

@@ -44,7 +44,8 @@ pub(crate) struct MapArgs {
     /// writes 12 columns instead of 33 or more.
     #[arg(long, value_delimiter = ',')]
     pub(crate) columns: Option<Vec<String>>,
-    /// Also draw the map (SVG): a colour map over grid sections.
+    /// Also draw the map (SVG, or PNG for a .png name): colour maps over grid sections, or the picture its
+    /// points call for (line chart, markers, named dot chart).
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
     #[command(flatten)]

@@ -19,7 +19,7 @@ pub(crate) struct PlotArgs {
     /// A table written by map, curve or assemble (CSV, .csv.gz, .csv.zst or .parquet), or a JSON written
     /// by diagnose --json; `-` reads standard input.
     pub(crate) input: PathBuf,
-    /// The SVG to write.
+    /// The picture to write: SVG, or PNG for a .png name (rendered with an embedded font).
     #[arg(short, long)]
     pub(crate) output: PathBuf,
     #[command(flatten)]

@@ -7,6 +7,7 @@ pub mod curve;
 pub mod diagnosis;
 pub mod png;
 pub mod points;
+pub mod raster;
 pub mod scale;
 pub mod svg;
 pub mod table;
