@@ -564,3 +564,31 @@ fn pictures_render_to_png_with_their_text() {
     assert!(dark(centre - 60, centre + 60, 20, 48) > 100, "the title is drawn");
     assert_eq!(dark(0, 40, 0, 40), 0, "the corner is blank");
 }
+
+/// Tables a picture cannot be drawn from are refused with a message, never a panic: no rows, rows at one
+/// pose, positions missing; odd values (text in a number column, every value missing, huge coordinates)
+/// still give a well-formed picture.
+#[test]
+fn odd_tables_are_refused_or_drawn_never_a_panic() {
+    let header = "x_mm,y_mm,z_mm,status,c_tran_max_mm_per_N\n";
+    for (rows, refused) in [
+        ("", Some("no rows")),
+        ("1,2,3,ok,0.1\n1,2,3,ok,0.2\n", Some("same pose")),
+        ("1,,3,ok,0.1\n2,2,3,ok,0.2\n", Some("needs a position")),
+        ("0,0,0,ok,abc\n1,0,0,ok,0.2\n2,0,0,ok,\n", None),
+        ("0,0,0,bad,\n1,0,0,bad,\n0,1,0,bad,\n1,1,0,bad,\n", None),
+        ("0,0,0,ok,1\n1e300,0,0,ok,2\n0,1e300,5,ok,3\n", None),
+    ] {
+        let csv = format!("{header}{rows}");
+        match (plot_text(&csv, &PlotOptions::default()), refused) {
+            (Ok(svg), None) => {
+                parse(&svg);
+            }
+            (Err(e), Some(why)) => assert!(e.to_string().contains(why), "{rows:?}: {e}"),
+            (r, _) => panic!("{rows:?}: {:?}", r.map(|s| s.len())),
+        }
+    }
+    for text in ["", "   \n", "a,b\n1,2\n", "{\"not\": \"a diagnosis\"}"] {
+        assert!(plot_text(text, &PlotOptions::default()).is_err(), "{text:?}");
+    }
+}

@@ -216,21 +216,25 @@ impl OutputArgs {
     }
 }
 
-/// A table written by a study (CSV, compressed CSV or Parquet; `-` for stdin) as a stream of CSV text, for
-/// its picture.
-pub(crate) fn read_table(path: &Path) -> Result<Box<dyn std::io::Read + Send>> {
-    if crate::output::sink::is_parquet(path) {
+/// Draws the table or diagnosis in the file `input` (CSV, compressed CSV or Parquet; `-` for stdin) into
+/// the picture `output`.
+pub(crate) fn plot_file(input: &Path, output: &Path, style: &PlotStyle) -> Result<()> {
+    if crate::output::sink::is_parquet(input) {
         #[cfg(feature = "parquet")]
         {
-            let input = std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-            let text =
-                crate::output::parquet::csv_text(input).with_context(|| format!("cannot read {}", path.display()))?;
-            return Ok(Box::new(std::io::Cursor::new(text.into_bytes())));
+            let file = std::fs::File::open(input).with_context(|| format!("cannot read {}", input.display()))?;
+            let svg = crate::plot::plot_parquet(file, &style.options())
+                .map_err(name_plot_flag)
+                .with_context(|| format!("drawing {}", input.display()))?;
+            return write_picture(&svg, output);
         }
         #[cfg(not(feature = "parquet"))]
-        bail!("cannot read {}: this stiff was built without Parquet support (cargo feature `parquet`)", path.display());
+        bail!(
+            "cannot read {}: this stiff was built without Parquet support (cargo feature `parquet`)",
+            input.display()
+        );
     }
-    Ok(crate::model::error::open_input(path)?)
+    write_plot(crate::model::error::open_input(input)?, output, style)
 }
 
 /// A wrench as `(Fx, Fy, Fz, Mx, My, Mz)` for a title.
@@ -342,9 +346,8 @@ pub(crate) fn plot_needs_output(plot: &Option<PathBuf>, output: &Option<PathBuf>
 }
 
 /// The output file just written, for its picture.
-pub(crate) fn written(output: &Option<PathBuf>) -> Result<Box<dyn std::io::Read + Send>> {
-    let path = output.as_deref().expect("checked by plot_needs_output");
-    read_table(path)
+pub(crate) fn written(output: &Option<PathBuf>) -> &Path {
+    output.as_deref().expect("checked by plot_needs_output")
 }
 
 /// Writes a report to stdout, reporting a failed write (a full disk, a closed pipe) instead of panicking

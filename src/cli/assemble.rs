@@ -6,7 +6,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    plot_needs_output, point_set, progress_bar, select_columns, thread_pool, wrench_text, write_plot, written,
+    plot_file, plot_needs_output, point_set, progress_bar, select_columns, thread_pool, wrench_text, written,
     ModelArgs, OutputArgs, PlotStyle, PointsStyle, RunArgs,
 };
 use super::parse::{parse_vec3, parse_vec6};
@@ -148,7 +148,7 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
             run.push_str(&format!(", {} samples, seed {}", a.samples, a.seed));
         }
         let style = PlotStyle { title: Some(a.model.title(&model, &run)), ..a.style.style() };
-        write_plot(written(&a.output.output)?, plot, &style)?;
+        plot_file(written(&a.output.output), plot, &style)?;
     }
     if !a.run.quiet {
         eprintln!("{} points: {} assembled", summary.points, summary.ok);

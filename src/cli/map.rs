@@ -6,7 +6,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    name_plot_flag, plot_needs_output, progress_bar, select_columns, thread_pool, wrench_text, write_plot, written,
+    name_plot_flag, plot_file, plot_needs_output, progress_bar, select_columns, thread_pool, wrench_text, written,
     MapStyle, ModelArgs, OutputArgs, PlotStyle, PointsArgs, RunArgs,
 };
 use super::parse::parse_vec6;
@@ -83,7 +83,7 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
             (None, false) => "unloaded".into(),
         };
         let style = PlotStyle { title: Some(a.model.title(&model, &load)), ..a.style.style() };
-        write_plot(written(&a.output.output)?, plot, &style)?;
+        plot_file(written(&a.output.output), plot, &style)?;
     }
     if !a.run.quiet {
         eprintln!("{}", summary.line());

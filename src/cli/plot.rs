@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use super::args::{read_table, write_plot, MapStyle, PlotStyle};
+use super::args::{plot_file, MapStyle, PlotStyle};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -34,7 +34,6 @@ pub(crate) struct PlotArgs {
 }
 
 pub(crate) fn run(a: PlotArgs) -> Result<()> {
-    let text = read_table(&a.input)?;
     let style = PlotStyle { direction: a.direction.clone(), title: a.title.clone(), ..a.style.style() };
-    write_plot(text, &a.output, &style)
+    plot_file(&a.input, &a.output, &style)
 }

@@ -8,21 +8,20 @@
 //! them back gives the same f64 bit for bit. Row groups of `ROWS_PER_GROUP` rows keep memory bounded on
 //! maps of millions of points.
 //!
-//! `csv_text` turns a Parquet table back into the CSV a study would have written, for the readers of tables
-//! (`stiff plot`, `--plot`).
+//! `read_columns` reads back the columns a picture needs (`stiff plot`, `--plot`), and no others.
 
-use std::io::{self, Read, Write};
+use std::io::{self, Write};
 use std::sync::Arc;
 
 use arrow_array::builder::{Float64Builder, StringBuilder, UInt64Builder};
-use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch, RecordBatchReader, StringArray, UInt64Array};
+use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch, StringArray, UInt64Array};
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::ArrowWriter;
 use parquet::basic::{Compression, ZstdLevel};
 use parquet::file::properties::WriterProperties;
 
-use super::table::{header_line, push_number, push_text, unit_of, CellKind, Column};
+use super::table::{header_line, unit_of, CellKind, Column};
 
 /// Rows per row group (and per batch handed to the Parquet writer): about 30 MB of a 60-column map.
 const ROWS_PER_GROUP: usize = 65_536;
@@ -254,52 +253,71 @@ fn split_record(line: &str) -> Vec<String> {
     cells
 }
 
-/// A Parquet table read back as the CSV text a study writes (header line, then rows; nulls as empty
-/// cells), with the columns and units it holds.
-pub fn csv_text(input: impl Read) -> io::Result<String> {
-    let mut bytes = Vec::new();
-    let mut input = input;
-    input.read_to_end(&mut bytes)?;
-    let reader = ParquetRecordBatchReaderBuilder::try_new(bytes::Bytes::from(bytes))
-        .and_then(|b| b.build())
-        .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("not a Parquet table: {e}")))?;
-    let schema = reader.schema();
-    let mut out = schema.fields().iter().map(|f| f.name().as_str()).collect::<Vec<_>>().join(",");
-    out.push('\n');
-    for batch in reader {
-        let batch = batch.map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
-        for row in 0..batch.num_rows() {
-            for (k, column) in batch.columns().iter().enumerate() {
-                if k > 0 {
-                    out.push(',');
-                }
-                push_cell(&mut out, column.as_ref(), row)?;
-            }
-            out.push('\n');
-        }
-    }
-    Ok(out)
+/// Columns of a Parquet table read back: every column name, the row count, and the columns kept, numbers
+/// as f64 (counts converted, nulls as NaN) and texts as text (nulls empty).
+pub struct ColumnsRead {
+    /// Every column name of the file, in order.
+    pub header: Vec<String>,
+    /// Rows.
+    pub rows: usize,
+    /// The numeric columns kept.
+    pub numbers: Vec<(String, Vec<f64>)>,
+    /// The text columns kept.
+    pub texts: Vec<(String, Vec<String>)>,
 }
 
-/// One cell of a column read back, as the CSV writer prints it.
-fn push_cell(out: &mut String, column: &dyn Array, row: usize) -> io::Result<()> {
-    if column.is_null(row) {
-        return Ok(());
+/// The column names of a Parquet table, then the columns `numbers` and `texts` choose among them, read
+/// alone (a projection: a picture of a million-point map reads 4 columns, not 40).
+pub fn read_columns(
+    file: std::fs::File,
+    numbers: &dyn Fn(&[String], &str) -> bool,
+    texts: &dyn Fn(&[String], &str) -> bool,
+) -> io::Result<ColumnsRead> {
+    let invalid = |e: parquet::errors::ParquetError| {
+        io::Error::new(io::ErrorKind::InvalidData, format!("not a Parquet table: {e}"))
+    };
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(invalid)?;
+    let header: Vec<String> = builder.schema().fields().iter().map(|f| f.name().clone()).collect();
+    let keep: Vec<usize> =
+        (0..header.len()).filter(|&k| numbers(&header, &header[k]) || texts(&header, &header[k])).collect();
+    let mask = parquet::arrow::ProjectionMask::roots(builder.parquet_schema(), keep.iter().copied());
+    let reader = builder.with_projection(mask).build().map_err(invalid)?;
+    let kept: Vec<String> = keep.iter().map(|&k| header[k].clone()).collect();
+    let mut number_columns: Vec<(String, Vec<f64>)> =
+        kept.iter().filter(|c| numbers(&header, c)).map(|c| (c.clone(), Vec::new())).collect();
+    let mut text_columns: Vec<(String, Vec<String>)> =
+        kept.iter().filter(|c| texts(&header, c)).map(|c| (c.clone(), Vec::new())).collect();
+    let mut rows = 0;
+    for batch in reader {
+        let batch = batch.map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
+        for (name, values) in &mut number_columns {
+            let column = batch.column_by_name(name).ok_or_else(|| io::Error::other(format!("no column {name}")))?;
+            let any = column.as_any();
+            for r in 0..batch.num_rows() {
+                values.push(if column.is_null(r) {
+                    f64::NAN
+                } else if let Some(a) = any.downcast_ref::<Float64Array>() {
+                    a.value(r)
+                } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
+                    a.value(r) as f64
+                } else {
+                    f64::NAN
+                });
+            }
+        }
+        for (name, values) in &mut text_columns {
+            let column = batch.column_by_name(name).ok_or_else(|| io::Error::other(format!("no column {name}")))?;
+            let strings = column.as_any().downcast_ref::<StringArray>();
+            for r in 0..batch.num_rows() {
+                values.push(match strings {
+                    Some(a) if !a.is_null(r) => a.value(r).to_string(),
+                    _ => String::new(),
+                });
+            }
+        }
+        rows += batch.num_rows();
     }
-    let any = column.as_any();
-    if let Some(a) = any.downcast_ref::<Float64Array>() {
-        push_number(out, a.value(row));
-    } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
-        out.push_str(itoa::Buffer::new().format(a.value(row)));
-    } else if let Some(a) = any.downcast_ref::<StringArray>() {
-        push_text(out, a.value(row));
-    } else {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidData,
-            format!("a column of type {} is not one stiff writes", column.data_type()),
-        ));
-    }
-    Ok(())
+    Ok(ColumnsRead { header, rows, numbers: number_columns, texts: text_columns })
 }
 
 #[cfg(test)]

@@ -67,33 +67,62 @@ pub fn plot_reader(input: impl std::io::Read, o: &PlotOptions) -> Result<String>
         return diagnosis(&report, o);
     }
     let (header, reader) = Table::header_of(input)?;
-    let Some(kind) = TableKind::of(&header) else {
-        bail!(
+    let kind = kind_of(&header)?;
+    let (numbers, texts) = (wanted_numbers(kind, o), wanted_texts(kind));
+    let t = Table::read_rows(header, reader, &table::Wanted { numbers: &numbers, texts: &texts })?;
+    draw(&t, kind, o)
+}
+
+/// Draws a Parquet table written by a study, reading only the columns the picture needs.
+#[cfg(feature = "parquet")]
+pub fn plot_parquet(file: std::fs::File, o: &PlotOptions) -> Result<String> {
+    let numbers = |header: &[String], c: &str| TableKind::of(header).is_some_and(|k| wanted_numbers(k, o)(c));
+    let texts = |header: &[String], c: &str| TableKind::of(header).is_some_and(|k| wanted_texts(k)(c));
+    let read = crate::output::parquet::read_columns(file, &numbers, &texts)?;
+    let kind = kind_of(&read.header)?;
+    let t = Table::from_columns(read.header, read.rows, read.numbers, read.texts);
+    draw(&t, kind, o)
+}
+
+/// Which study wrote a table with this header, or why it is none of them.
+fn kind_of(header: &[String]) -> Result<TableKind> {
+    TableKind::of(header).ok_or_else(|| {
+        anyhow::anyhow!(
             "not a table stiff draws: a map, curve, assemble or assemble --samples CSV, or a diagnose JSON \
              (columns: {})",
             header.join(", ")
         )
-    };
-    let column = o.column.clone();
-    let numbers = move |c: &str| match kind {
+    })
+}
+
+/// The numeric columns a picture of a `kind` table draws: a curve's all; else the positions, the column
+/// drawn, and an assembly path's series.
+fn wanted_numbers(kind: TableKind, o: &PlotOptions) -> impl Fn(&str) -> bool + '_ {
+    move |c: &str| match kind {
         TableKind::Curve => true,
         _ => {
             names::POSITION.contains(&c)
-                || column.as_deref() == Some(c)
-                || column.is_none() && points::default_column(kind).is_some_and(|d| d == c)
+                || o.column.as_deref() == Some(c)
+                || o.column.is_none() && points::default_column(kind).is_some_and(|d| d == c)
                 || kind == TableKind::Assembly && assembly::SERIES.iter().any(|p| c.starts_with(p))
         }
-    };
-    // Texts: a curve's stability and events, the poses' names.
-    let texts = |c: &str| match kind {
+    }
+}
+
+/// The text columns: a curve's stability and events, the poses' names.
+fn wanted_texts(kind: TableKind) -> impl Fn(&str) -> bool {
+    move |c: &str| match kind {
         TableKind::Curve => [names::STABLE, names::EVENT].contains(&c),
         _ => c == names::NAME,
-    };
-    let t = Table::read_rows(header, reader, &table::Wanted { numbers: &numbers, texts: &texts })?;
+    }
+}
+
+/// The picture of a table of this kind.
+fn draw(t: &Table, kind: TableKind, o: &PlotOptions) -> Result<String> {
     match kind {
-        TableKind::Curve => curve::curve(&t, o),
-        TableKind::Assembly if o.column.is_none() && points::is_path(&t)? => assembly::assembly_path(&t, o),
-        _ => points::picture(&t, &points::quantity(&t, kind, o.column.as_deref())?, o),
+        TableKind::Curve => curve::curve(t, o),
+        TableKind::Assembly if o.column.is_none() && points::is_path(t)? => assembly::assembly_path(t, o),
+        _ => points::picture(t, &points::quantity(t, kind, o.column.as_deref())?, o),
     }
 }
 

@@ -76,6 +76,8 @@ enum Shape {
     Line(Vec<f64>, String),
     /// Anywhere else: drawn on the plane of the two axes they spread most over.
     Scatter(usize, usize),
+    /// Several rows at one pose.
+    OnePose,
 }
 
 /// The distinct coordinates of the poses along each axis, sorted.
@@ -103,6 +105,9 @@ fn shape(pos: &[Vec<f64>; 3], levels: &Levels) -> Shape {
     let first = p(0);
     let far = (0..n).max_by(|&i, &j| d(first, p(i)).total_cmp(&d(first, p(j)))).unwrap_or(0);
     let length = d(first, p(far));
+    if length == 0.0 {
+        return Shape::OnePose;
+    }
     let dir = [(p(far)[0] - first[0]) / length, (p(far)[1] - first[1]) / length, (p(far)[2] - first[2]) / length];
     let along: Vec<f64> = (0..n).map(|i| (0..3).map(|k| (p(i)[k] - first[k]) * dir[k]).sum()).collect();
     let off_line = (0..n).map(|i| {
@@ -161,6 +166,9 @@ pub fn picture(t: &Table, q: &Quantity, o: &PlotOptions) -> Result<String> {
         Shape::Grid => grid_map(&pos, &levels, q, o),
         Shape::Line(along, axis_label) => line_chart(&along, &axis_label, q, o),
         Shape::Scatter(u, v) => scatter(&pos, (u, v), q, o),
+        Shape::OnePose => {
+            bail!("every row is at the same pose: there is no map to draw (`stiff point` reports a pose)")
+        }
     }
 }
 

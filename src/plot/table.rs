@@ -103,6 +103,16 @@ impl Table {
         Ok(Table { header, rows, numbers, texts })
     }
 
+    /// A table of columns already read (a Parquet file's projection).
+    pub fn from_columns(
+        header: Vec<String>,
+        rows: usize,
+        numbers: Vec<(String, Vec<f64>)>,
+        texts: Vec<(String, Vec<String>)>,
+    ) -> Table {
+        Table { header, rows, numbers: numbers.into_iter().collect(), texts: texts.into_iter().collect() }
+    }
+
     /// Which study wrote this table; None when it is none of them.
     pub fn kind(&self) -> Option<TableKind> {
         TableKind::of(&self.header)
