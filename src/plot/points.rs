@@ -289,7 +289,7 @@ fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOpti
     let top = heading(&mut s, width, o, &what) + 24.0;
     let height = top + rows as f64 * (panel + 70.0);
     s.height = height;
-    let mut extremes: Vec<(f64, f64, f64)> = Vec::new();
+    let mut extremes: Vec<Extreme> = Vec::new();
     for (k, level) in levels.iter().enumerate() {
         let x0 = left + (k % 3) as f64 * (panel + gap);
         let y0 = top + (k / 3) as f64 * (panel + 70.0);
@@ -309,7 +309,11 @@ fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOpti
         }
         for &i in &members {
             if let Some(x) = q.values[i] {
-                extremes.push((x, ax.px(pos[u][i]), ay.px(pos[v][i])));
+                extremes.push(Extreme {
+                    value: x,
+                    at: (ax.px(pos[u][i]), ay.px(pos[v][i])),
+                    centre: (x0 + panel / 2.0, y0 + panel / 2.0),
+                });
             }
         }
         axes(&mut s, &ax, &ay, &format!("{} [mm]", AXES[u]), &format!("{} [mm]", AXES[v]));
@@ -352,15 +356,26 @@ fn raster_section(
     s.image(x, y, w, h, &image.data_uri(), "cells");
 }
 
-/// Marks the smallest and the largest value drawn, each with its value.
-fn mark_extremes(s: &mut Svg, points: &[(f64, f64, f64)]) {
-    let lowest = points.iter().min_by(|a, b| a.0.total_cmp(&b.0));
-    let highest = points.iter().max_by(|a, b| a.0.total_cmp(&b.0));
+/// A value drawn at a pixel, in a panel with this centre.
+struct Extreme {
+    value: f64,
+    at: (f64, f64),
+    centre: (f64, f64),
+}
+
+/// Marks the smallest and the largest value drawn, each with its value, the label turned toward the
+/// panel's centre so that it stays inside the panel.
+fn mark_extremes(s: &mut Svg, points: &[Extreme]) {
+    let lowest = points.iter().min_by(|a, b| a.value.total_cmp(&b.value));
+    let highest = points.iter().max_by(|a, b| a.value.total_cmp(&b.value));
     for (which, p) in [("min", lowest), ("max", highest)] {
-        if let Some(&(value, x, y)) = p {
+        if let Some(e) = p {
+            let (x, y) = e.at;
             s.circle_outline(x, y, 5.0, "#ffffff", "extreme");
             s.circle_outline(x, y, 6.5, "#000000", "extreme");
-            s.halo_text(x + 9.0, y - 6.0, &format!("{which} {}", tick_label(value)), 10.0, "start");
+            let (tx, anchor) = if x > e.centre.0 { (x - 9.0, "end") } else { (x + 9.0, "start") };
+            let ty = if y < e.centre.1 { y + 18.0 } else { y - 8.0 };
+            s.halo_text(tx, ty, &format!("{which} {}", tick_label(e.value)), 10.0, anchor);
         }
     }
 }
@@ -424,7 +439,11 @@ fn scatter(pos: &[Vec<f64>; 3], (u, v): (usize, usize), q: &Quantity, o: &PlotOp
         let fill = value.map_or(NO_VALUE.to_string(), |val| scale.colour(val));
         s.circle(x, y, 5.0, &fill, "point");
         if let Some(val) = value {
-            extremes.push((*val, x, y));
+            extremes.push(Extreme {
+                value: *val,
+                at: (x, y),
+                centre: ((ax.from + ax.to) / 2.0, (ay.from + ay.to) / 2.0),
+            });
         }
     }
     axes(&mut s, &ax, &ay, &format!("{} [mm]", AXES[u]), &format!("{} [mm]", AXES[v]));
