@@ -597,3 +597,32 @@ fn odd_tables_are_refused_or_drawn_never_a_panic() {
         assert!(plot_text(text, &PlotOptions::default()).is_err(), "{text:?}");
     }
 }
+
+/// A map picture places each point by its position: `--plot` with `--columns` that drop the poses is
+/// refused before the map is computed, and nothing is written.
+#[test]
+fn a_map_picture_needs_the_positions_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = stiff_in(
+        dir.path(),
+        &[
+            "map",
+            "manipulators/orthoglide-3puu.toml",
+            "--grid",
+            "manipulators/grids/orthoglide-small.toml",
+            "--columns",
+            "status,principal",
+            "-o",
+            "m.csv",
+            "--plot",
+            "m.svg",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("keep the group pose"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!dir.path().join("m.csv").exists() && !dir.path().join("m.svg").exists());
+}

@@ -232,8 +232,13 @@ pub fn check_map_options(header: &str, o: &PlotOptions) -> Result<()> {
         parse_section(s)?;
     }
     let column = o.column.as_deref().unwrap_or(DEFAULT_MAP_COLUMN);
-    if !header.trim_end().split(',').any(|h| h == column) {
+    let columns: Vec<&str> = header.trim_end().split(',').collect();
+    if !columns.contains(&column) {
         return Err(OptionError::Column { column: column.into(), columns: header.trim_end().into() }.into());
+    }
+    // The picture places each row by its position.
+    if let Some(missing) = names::POSITION.iter().find(|c| !columns.contains(c)) {
+        bail!("the picture places each point by x_mm, y_mm, z_mm, and `{missing}` is not written (keep the group pose in --columns)");
     }
     Ok(())
 }
