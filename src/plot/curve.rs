@@ -24,6 +24,55 @@ struct At {
     y: f64,
 }
 
+/// The rows of a curve seen along one direction.
+struct Rows {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    load: Vec<f64>,
+    stable: Vec<bool>,
+    events: Vec<String>,
+    event_at: Vec<Option<f64>>,
+}
+
+impl Rows {
+    /// Where an event of row `i` lies on the curve: between rows `i - 1` and `i` at its load factor for a
+    /// buckling or a restabilisation, at the row for the others.
+    fn place(&self, i: usize, event: &str) -> At {
+        let here = At { x: self.x[i], y: self.y[i] };
+        if i == 0 || !BETWEEN_ROWS.contains(&event) {
+            return here;
+        }
+        let (a, b) = (self.load[i - 1], self.load[i]);
+        let f = match self.event_at[i] {
+            Some(e) if b != a => ((e - a) / (b - a)).clamp(0.0, 1.0),
+            _ => 1.0,
+        };
+        At { x: self.x[i - 1] + f * (self.x[i] - self.x[i - 1]), y: self.y[i - 1] + f * (self.y[i] - self.y[i - 1]) }
+    }
+
+    /// The curve as runs of equal stability, each ending where the next begins (at the event's place).
+    fn runs(&self) -> Vec<(bool, Vec<At>)> {
+        let mut runs: Vec<(bool, Vec<At>)> = Vec::new();
+        for i in 0..self.x.len() {
+            if !(self.x[i].is_finite() && self.y[i].is_finite()) {
+                continue;
+            }
+            let here = At { x: self.x[i], y: self.y[i] };
+            match runs.last_mut() {
+                Some((flag, points)) if *flag == self.stable[i] => points.push(here),
+                Some((_, points)) => {
+                    let change = self.events[i].split(';').find(|e| BETWEEN_ROWS.contains(e)).unwrap_or("");
+                    let split = self.place(i, change);
+                    points.push(split);
+                    runs.push((self.stable[i], vec![split, here]));
+                }
+                None => runs.push((self.stable[i], vec![here])),
+            }
+        }
+        runs
+    }
+}
+
 /// Force against displacement along one direction.
 pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
     let directions = ["x", "y", "z", "rx", "ry", "rz"];
@@ -35,43 +84,16 @@ pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
             (0..3).max_by(|a, b| range(disp[*a]).total_cmp(&range(disp[*b]))).unwrap_or(0)
         }
     };
-    let x = t.numbers_or_nan(disp[k])?;
-    let y = t.numbers_or_nan(force[k])?;
-    let load = t.numbers_or_nan(names::LOAD_FACTOR)?;
-    let stable: Vec<bool> = t.texts(names::STABLE)?.iter().map(|s| s == "true").collect();
-    let events = t.texts(names::EVENT)?;
-    let event_at = t.numbers(&format!("{}_load_factor", names::EVENT))?;
-    // Where each event of row i lies on the curve.
-    let place = |i: usize, event: &str| -> Option<At> {
-        let here = At { x: x[i], y: y[i] };
-        if i == 0 || !BETWEEN_ROWS.contains(&event) {
-            return Some(here);
-        }
-        let (a, b) = (load[i - 1], load[i]);
-        let f = match event_at[i] {
-            Some(e) if b != a => ((e - a) / (b - a)).clamp(0.0, 1.0),
-            _ => 1.0,
-        };
-        Some(At { x: x[i - 1] + f * (x[i] - x[i - 1]), y: y[i - 1] + f * (y[i] - y[i - 1]) })
+    let rows = Rows {
+        x: t.numbers_or_nan(disp[k])?,
+        y: t.numbers_or_nan(force[k])?,
+        load: t.numbers_or_nan(names::LOAD_FACTOR)?,
+        stable: t.texts(names::STABLE)?.iter().map(|s| s == "true").collect(),
+        events: t.texts(names::EVENT)?,
+        event_at: t.numbers(&format!("{}_load_factor", names::EVENT))?,
     };
-    // The curve as runs of equal stability, each ending where the next begins.
-    let mut runs: Vec<(bool, Vec<At>)> = Vec::new();
-    for i in 0..x.len() {
-        if !(x[i].is_finite() && y[i].is_finite()) {
-            continue;
-        }
-        let here = At { x: x[i], y: y[i] };
-        match runs.last_mut() {
-            Some((flag, points)) if *flag == stable[i] => points.push(here),
-            Some((_, points)) => {
-                let change = events[i].split(';').find(|e| BETWEEN_ROWS.contains(e)).unwrap_or("");
-                let split = place(i, change).unwrap_or(here);
-                points.push(split);
-                runs.push((stable[i], vec![split, here]));
-            }
-            None => runs.push((stable[i], vec![here])),
-        }
-    }
+    let (x, y, events) = (&rows.x, &rows.y, &rows.events);
+    let runs = rows.runs();
     let (w, h) = (680.0, 460.0);
     let mut s = Svg::new(w, h);
     let top = heading(&mut s, w, o, &format!("force-deflection along {}", directions[k])) + 16.0;
@@ -94,7 +116,8 @@ pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
     }
     for (i, row_events) in events.iter().enumerate() {
         for e in row_events.split(';').filter(|e| !e.is_empty()) {
-            if let Some(p) = place(i, e).filter(|p| p.x.is_finite() && p.y.is_finite()) {
+            let p = rows.place(i, e);
+            if p.x.is_finite() && p.y.is_finite() {
                 let (px, py) = (ax.px(p.x), ay.px(p.y));
                 s.circle(px, py, 5.0, "#e67e22", "event");
                 s.text(px + 8.0, py - 8.0, e, 11.0, "start", 0.0);
@@ -102,9 +125,13 @@ pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
         }
     }
     axes(&mut s, &ax, &ay, &label(disp[k]), &label(force[k]));
-    // A legend of what is drawn only.
-    let lx = w - 20.0 - legend_width;
-    let mut ly = top + 10.0;
+    legend(&mut s, (w - 20.0 - legend_width, top + 10.0), drawn, events.iter().any(|e| !e.is_empty()));
+    Ok(s.finish())
+}
+
+/// The legend of what is drawn only: `drawn` says whether an unstable and a stable branch are drawn.
+fn legend(s: &mut Svg, (lx, top): (f64, f64), drawn: [bool; 2], any_event: bool) {
+    let mut ly = top;
     if drawn[1] {
         s.line((lx, ly), (lx + 30.0, ly), "#1f5fa8", 2.0, "legend");
         s.text(lx + 35.0, ly + 4.0, "stable", 11.0, "start", 0.0);
@@ -115,9 +142,8 @@ pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
         s.text(lx + 35.0, ly + 4.0, "unstable", 11.0, "start", 0.0);
         ly += 18.0;
     }
-    if events.iter().any(|e| !e.is_empty()) {
+    if any_event {
         s.circle(lx + 15.0, ly, 5.0, "#e67e22", "legend");
         s.text(lx + 35.0, ly + 4.0, "event", 11.0, "start", 0.0);
     }
-    Ok(s.finish())
 }

@@ -236,9 +236,10 @@ fn colour_bar_width(scale: &ColourScale) -> f64 {
     (23.0 + widest).max(text_width("no value (status not ok)", 10.0) + 20.0) + 20.0
 }
 
-/// Colour maps of a full grid over its sections (small multiples on shared axes, at most six sections).
-fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOptions) -> Result<String> {
-    let (axis, levels) = match &o.section {
+/// The sections a grid picture shows: the one `--section` names (an error listing the sections where the
+/// grid has none there), else every level of the one axis with a single value, or up to six levels of z.
+fn sections(all_levels: &Levels, o: &PlotOptions) -> Result<(usize, Vec<f64>)> {
+    Ok(match &o.section {
         Some(s) => {
             let (axis, v) = parse_section(s)?;
             let levels = &all_levels[axis];
@@ -261,7 +262,12 @@ fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOpti
                 if levels.len() <= 6 { levels } else { (0..6).map(|k| levels[k * (levels.len() - 1) / 5]).collect() };
             (axis, picked)
         }
-    };
+    })
+}
+
+/// Colour maps of a full grid over its sections (small multiples on shared axes, at most six sections).
+fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOptions) -> Result<String> {
+    let (axis, levels) = sections(all_levels, o)?;
     let (u, v) = match axis {
         0 => (1, 2),
         1 => (0, 2),
@@ -285,7 +291,12 @@ fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOpti
     let bar_width = colour_bar_width(&scale);
     let width = left + cols as f64 * panel + (cols - 1) as f64 * gap + 30.0 + bar_width;
     let mut s = Svg::new(width, 0.0);
-    let what = format!("{} over sections {} = const", q.label, AXES[axis]);
+    let total = all_levels[axis].len();
+    let what = if levels.len() < total {
+        format!("{} over {} of {total} sections {} = const", q.label, levels.len(), AXES[axis])
+    } else {
+        format!("{} over sections {} = const", q.label, AXES[axis])
+    };
     let top = heading(&mut s, width, o, &what) + 24.0;
     let height = top + rows as f64 * (panel + 70.0);
     s.height = height;
