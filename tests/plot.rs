@@ -626,3 +626,33 @@ fn a_map_picture_needs_the_positions_written() {
     );
     assert!(!dir.path().join("m.csv").exists() && !dir.path().join("m.svg").exists());
 }
+
+/// A picture that cannot be written is refused before the work: an unwritable `--plot` path stops a map
+/// before it is computed (no table written either), and `stiff plot` says so before drawing.
+#[test]
+fn an_unwritable_picture_is_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = stiff_in(
+        dir.path(),
+        &[
+            "map",
+            "manipulators/orthoglide-3puu.toml",
+            "--grid",
+            "manipulators/grids/orthoglide-small.toml",
+            "-q",
+            "-o",
+            "m.csv",
+            "--plot",
+            "missing/m.svg",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("the folder missing does not exist"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!dir.path().join("m.csv").exists(), "the map was not computed");
+    let o = stiff_in(dir.path(), &["plot", "nothing.csv", "-o", "missing/p.png"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("the folder missing does not exist"));
+}

@@ -336,8 +336,18 @@ pub(crate) fn write_picture(svg: &str, path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Checks before the work that a picture can be written at `path` (its folder exists and takes a file; not a
+/// `.parquet` name): a long run must not end on an unwritable picture.
+pub(crate) fn check_picture_path(path: &Path) -> Result<()> {
+    // Opening the sink creates its temporary file beside the target; dropping it removes it again.
+    Sink::create(Some(path)).map(drop)
+}
+
 /// A picture is drawn from the CSV a study writes, so `--plot` needs `-o FILE`: checked before the run.
 pub(crate) fn plot_needs_output(plot: &Option<PathBuf>, output: &Option<PathBuf>, what: &str) -> Result<()> {
+    if let Some(p) = plot {
+        check_picture_path(p)?;
+    }
     match (plot, output.as_deref()) {
         (Some(_), None) => bail!("{what} --plot needs -o FILE (the picture is drawn from the CSV written)"),
         (Some(_), Some(p)) if p == Path::new("-") => bail!("{what} --plot needs -o FILE, not stdout"),

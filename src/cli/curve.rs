@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{wrench_text, write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs};
+use super::args::{check_picture_path, wrench_text, write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs};
 use super::parse::parse_vec6;
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::study::curve::{curve_header, curve_table, push_curve_row, run_curve, Control, MAX_INTERVALS};
@@ -64,6 +64,9 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
         bail!("--max must be a positive finite number, got {}", a.max);
     }
     let mut sink = a.output.open(&curve_table())?;
+    if let Some(p) = &a.plot {
+        check_picture_path(p)?;
+    }
     // Rows are written as they become final; the picture, if asked, is drawn from the same text.
     let mut picture = a.plot.as_ref().map(|_| curve_header());
     let writer = sink.writer();

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use super::args::{plot_file, MapStyle, PlotStyle};
+use super::args::{check_picture_path, plot_file, MapStyle, PlotStyle};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -35,5 +35,6 @@ pub(crate) struct PlotArgs {
 
 pub(crate) fn run(a: PlotArgs) -> Result<()> {
     let style = PlotStyle { direction: a.direction.clone(), title: a.title.clone(), ..a.style.style() };
+    check_picture_path(&a.output)?;
     plot_file(&a.input, &a.output, &style)
 }
