@@ -266,6 +266,13 @@ fn pool() -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap()
 }
 
+/// Asserts a run failed (exit 1) saying `why`.
+fn assert_refused(o: &std::process::Output, why: &str) {
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains(why), "`{why}` not in: {stderr}");
+}
+
 /// Runs stiff with these arguments in `dir` (shipped files by their path from the repository root).
 fn stiff_in(dir: &Path, args: &[&str]) -> std::process::Output {
     let root = std::env::current_dir().unwrap();
@@ -429,8 +436,7 @@ fn each_table_gets_the_picture_its_poses_call_for() {
     assert_eq!(xs.len(), 5);
 
     let o = stiff_in(d, &["map", model, "--points", "one.csv", "-q", "-o", "one.csv.out.csv", "--plot", "one.svg"]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("a single point has no map picture"));
+    assert_refused(&o, "a single point has no map picture");
     assert!(!d.join("one.svg").exists());
 }
 
@@ -618,12 +624,7 @@ fn a_map_picture_needs_the_positions_written() {
             "m.svg",
         ],
     );
-    assert_eq!(o.status.code(), Some(1));
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains("keep the group pose"),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert_refused(&o, "keep the group pose");
     assert!(!dir.path().join("m.csv").exists() && !dir.path().join("m.svg").exists());
 }
 
@@ -646,13 +647,10 @@ fn an_unwritable_picture_is_refused_before_the_work() {
             "missing/m.svg",
         ],
     );
-    assert_eq!(o.status.code(), Some(1));
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains("the folder missing does not exist"),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert_refused(&o, "the folder missing does not exist");
     assert!(!dir.path().join("m.csv").exists(), "the map was not computed");
-    let o = stiff_in(dir.path(), &["plot", "nothing.csv", "-o", "missing/p.png"]);
-    assert!(String::from_utf8_lossy(&o.stderr).contains("the folder missing does not exist"));
+    assert_refused(
+        &stiff_in(dir.path(), &["plot", "nothing.csv", "-o", "missing/p.png"]),
+        "the folder missing does not exist",
+    );
 }

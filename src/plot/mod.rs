@@ -38,9 +38,6 @@ pub struct PlotOptions {
     pub title: Option<String>,
 }
 
-/// The map column drawn when `--plot-column` is not given.
-const DEFAULT_MAP_COLUMN: &str = names::C_TRAN_MAX;
-
 /// Draws a study's output: a map, curve or assemble CSV, or a diagnose JSON.
 pub fn plot_text(text: &str, o: &PlotOptions) -> Result<String> {
     plot_reader(text.as_bytes(), o)
@@ -231,7 +228,7 @@ pub fn check_map_options(header: &str, o: &PlotOptions) -> Result<()> {
     if let Some(s) = &o.section {
         parse_section(s)?;
     }
-    let column = o.column.as_deref().unwrap_or(DEFAULT_MAP_COLUMN);
+    let column = o.column.as_deref().or(points::default_column(TableKind::Map)).unwrap_or(names::C_TRAN_MAX);
     let columns: Vec<&str> = header.trim_end().split(',').collect();
     if !columns.contains(&column) {
         return Err(OptionError::Column { column: column.into(), columns: header.trim_end().into() }.into());

@@ -369,28 +369,15 @@ pub fn viridis(t: f64) -> String {
     format!("#{:02x}{:02x}{:02x}", c(A[k].0, A[k + 1].0), c(A[k].1, A[k + 1].1), c(A[k].2, A[k + 1].2))
 }
 
-/// "c_tran_max_mm_per_N" -> ("c_tran_max", "mm/N"): a column's quantity and its unit for labels.
+/// "c_tran_max_mm_per_N" -> ("c_tran_max", "mm/N"): a column's quantity and its unit for labels (the unit
+/// read as the tables write it, `output::table::unit_of`).
 pub fn unit_of(column: &str) -> (String, String) {
-    const UNITS: [&str; 12] = [
-        "_mm_per_Nmm",
-        "_rad_per_Nmm",
-        "_mm_per_N",
-        "_rad_per_N",
-        "_N_per_mm",
-        "_N_per_rad",
-        "_Nmm_per_rad",
-        "_Nmm_per_mm",
-        "_mm",
-        "_rad",
-        "_Nmm",
-        "_N",
-    ];
-    for u in UNITS {
-        if let Some(q) = column.strip_suffix(u) {
-            return (q.to_string(), u[1..].replace("_per_", "/").replace("Nmm", "N mm"));
+    match crate::output::table::unit_of(column) {
+        Some(unit) => {
+            (column[..column.len() - unit.len() - 1].to_string(), unit.replace("_per_", "/").replace("Nmm", "N mm"))
         }
+        None => (column.to_string(), String::new()),
     }
-    (column.to_string(), String::new())
 }
 
 /// `quantity [unit]`.
