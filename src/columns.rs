@@ -32,3 +32,6 @@ pub const NONLINEAR: &str = "nl";
 pub const POSE_ID: &str = "pose_id";
 /// Measurements: the standard deviation of a measured coordinate.
 pub const SIGMA: &str = "sigma_mm";
+/// A measurement's place in the order it was taken (a count or a time in any unit), for the drift effect;
+/// `time` is read as its other name.
+pub const ORDER: &str = "order";

@@ -456,7 +456,16 @@ fn diagnose_reads_synth_output_and_refuses_bad_data() {
     assert_eq!(v["effects"][0]["target"], "3");
     // Without the sigma column, the repeats give the noise.
     let text = std::fs::read_to_string(&data).unwrap();
-    let strip = |t: &str| t.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n").collect::<String>();
+    let sigma_column = text.lines().next().unwrap().split(',').position(|c| c == "sigma_mm").unwrap();
+    let strip = |t: &str| {
+        let mut out = String::new();
+        for l in t.lines() {
+            let cells: Vec<&str> =
+                l.split(',').enumerate().filter(|(i, _)| *i != sigma_column).map(|(_, c)| c).collect();
+            out += &(cells.join(",") + "\n");
+        }
+        out
+    };
     let no_sigma = dir.path().join("n.csv");
     std::fs::write(&no_sigma, strip(&text)).unwrap();
     let o = stiff().args(["diagnose", MODEL, "--data"]).arg(&no_sigma).output().unwrap();
@@ -474,9 +483,9 @@ fn diagnose_reads_synth_output_and_refuses_bad_data() {
     lines[3] = lines[3].replacen(",0.0,", ",NaN,", 1);
     refuse(lines.join("\n"), "line 4");
     let header = text.lines().next().unwrap();
-    refuse(format!("{header}\nfar,900,0,0,0,0,0,0,0,0,0.1,0,0,0.002\n"), "pose `far`");
-    refuse(strip(&format!("{header}\np,0,0,0,0,0,0,0,0,0,0.1,0,0,0.002\n")), "noise level is unknown");
-    refuse(format!("{header}\np,0,0,0,100,0,0,0,0,0,0.1,0,0,0.002\n"), "too few");
+    refuse(format!("{header}\nfar,900,0,0,0,0,0,0,0,0,0.1,0,0,0.002,0\n"), "pose `far`");
+    refuse(strip(&format!("{header}\np,0,0,0,0,0,0,0,0,0,0.1,0,0,0.002,0\n")), "noise level is unknown");
+    refuse(format!("{header}\np,0,0,0,100,0,0,0,0,0,0.1,0,0,0.002,0\n"), "too few");
 }
 
 /// Regression: grid coordinates were computed in floating point (-63.650000000000006), so a filter

@@ -194,7 +194,14 @@ fn diagnose_plot_has_arrows_and_bars() {
         }
     }
     let effect = stiff::model::effect::Effect::parse("tool-offset=0.05,0,0", &m).unwrap();
-    let o = stiff::diagnose::synth::SynthOptions { effects: vec![effect], wrenches, noise: 0.002, seed: 1, repeats: 1 };
+    let o = stiff::diagnose::synth::SynthOptions {
+        effects: vec![effect],
+        wrenches,
+        noise: 0.002,
+        seed: 1,
+        repeats: 1,
+        linear: false,
+    };
     let mut text = Vec::new();
     let mut points = stiff::model::grid::PointSet::from_points(points);
     stiff::diagnose::synth::synthesize(
@@ -211,7 +218,7 @@ fn diagnose_plot_has_arrows_and_bars() {
     std::fs::write(&path, text).unwrap();
     let data = stiff::diagnose::data::Dataset::read(&path).unwrap();
     let (weights, sigma, source) = stiff::diagnose::select::noise(&data, None).unwrap();
-    let problem = stiff::diagnose::fit::Problem::new(&m, &[], &data, weights, false, true).unwrap();
+    let problem = stiff::diagnose::fit::Problem::new(&m, &[], &data, weights, true, true).unwrap();
     let d = stiff::diagnose::select::diagnose(&problem, sigma, source, &Default::default()).unwrap();
     let json = stiff::diagnose::report::json(&d, "model");
     let svg = plot_text(&serde_json::to_string(&json).unwrap(), &PlotOptions::default()).unwrap();

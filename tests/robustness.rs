@@ -304,8 +304,25 @@ fn astronomical_loads_give_statuses_not_nan_rows() {
         "--effect",
         "gravity=1e308",
     ]);
-    // Synthetic measurements must stay readable by diagnose: an overflowing prediction is refused (it used
-    // to write rows with empty displacement cells).
+    // A payload of 1e308 kg has no loaded equilibrium anywhere: refused, saying so.
+    assert!(refused(&o).contains("no pose has a loaded equilibrium"), "{}", refused(&o));
+    // Synthetic measurements must stay readable by diagnose: an overflowing linear prediction is refused (it
+    // used to write rows with empty displacement cells).
+    let o = run(&[
+        "synth",
+        PUU,
+        "--grid",
+        SMALL,
+        "--wrenches",
+        "100,0,0,0,0,0",
+        "--noise",
+        "0",
+        "--seed",
+        "1",
+        "--effect",
+        "gravity=1e308",
+        "--linear",
+    ]);
     assert!(refused(&o).contains("not a measurement"));
 }
 

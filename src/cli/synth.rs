@@ -33,6 +33,11 @@ pub(crate) struct SynthArgs {
     /// Measurements per pose and wrench.
     #[arg(long, default_value_t = 1)]
     pub(crate) repeats: usize,
+    /// Measure the linear response C w with every effect as a first-order term, instead of the loaded
+    /// equilibrium of the model with the hidden robot changes (payload, actuator offset, spring scalings)
+    /// built in (the default: what a real robot shows, deflecting non-linearly under ordinary loads).
+    #[arg(long)]
+    pub(crate) linear: bool,
     #[command(flatten)]
     pub(crate) output: OutputArgs,
     #[command(flatten)]
@@ -59,7 +64,8 @@ pub(crate) fn run(a: SynthArgs) -> Result<()> {
         bail!("--noise must be >= 0 (mm)");
     }
     let mut points = a.points.load()?;
-    let options = synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats };
+    let options =
+        synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats, linear: a.linear };
     let pool = thread_pool(a.run.threads)?;
     let mut sink = a.output.open(&synth::synth_table())?;
     let bar = progress_bar(points.len, a.run.quiet);
@@ -67,7 +73,7 @@ pub(crate) fn run(a: SynthArgs) -> Result<()> {
     sink.finish()?;
     bar.finish_and_clear();
     if summary.skipped > 0 {
-        eprintln!("{} poses left out (unreachable or singular)", summary.skipped);
+        eprintln!("{} poses left out (unreachable, singular, or without a loaded equilibrium)", summary.skipped);
     }
     Ok(())
 }

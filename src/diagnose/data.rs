@@ -1,5 +1,5 @@
 //! Measured deflections (CSV): `pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm`,
-//! optionally `sigma_mm`, any order, extra columns (measured rotations among them) ignored: the measurement
+//! optionally `sigma_mm` and `order` (or `time`, for the drift effect), any order, extra columns (measured rotations among them) ignored: the measurement
 //! model predicts the measured point's translation only. Every error is located.
 
 use std::path::Path;
@@ -34,6 +34,8 @@ pub struct Measurement {
     pub displacement: Vec3,
     /// The row's standard deviation, mm (the `sigma_mm` column), when given.
     pub sigma: Option<f64>,
+    /// Where the row comes in the order of measurement (the `order` or `time` column), when given.
+    pub order: Option<f64>,
     /// Line in the file (for messages).
     pub line: usize,
 }
@@ -78,6 +80,7 @@ impl Dataset {
             );
         }
         let sigma_column = find(names::SIGMA);
+        let order_column = find(names::ORDER).or_else(|| find("time"));
         let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
         for record in reader.records() {
             let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
@@ -120,6 +123,10 @@ impl Dataset {
                 }
                 _ => None,
             };
+            let order = match order_column {
+                Some(c) if !record.get(c).unwrap_or("").is_empty() => Some(number(c)?),
+                _ => None,
+            };
             let id = record.get(columns[0]).unwrap_or("").to_string();
             if id.is_empty() {
                 return Err(at(line, columns[0] + 1, "empty pose_id".into()));
@@ -145,6 +152,7 @@ impl Dataset {
                 wrench: Vec6::from_column_slice(&v[3..9]),
                 displacement: Vec3::new(v[9], v[10], v[11]),
                 sigma,
+                order,
                 line,
             });
         }

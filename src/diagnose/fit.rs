@@ -2,14 +2,16 @@
 //! Levenberg-Marquardt fit of effect parameters (numerical Jacobian, so every signature is the real
 //! model's derivative), with the covariance of the parameters.
 
+use std::sync::Mutex;
+
 use nalgebra::{DMatrix, DVector};
 
 use super::data::Dataset;
 use super::error::{DiagnoseError, PoseError};
 use super::measurement::{gravity_of, PoseModel};
-use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use crate::model::effect::{scaled, Effect, Kind, Target};
-use crate::platform::manipulator::Manipulator;
+use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 /// The model, the data and what does not change between fits.
 pub struct Problem<'a> {
@@ -25,11 +27,24 @@ pub struct Problem<'a> {
     pub loaded_mode: bool,
     gravity: Vec3,
     poses: Vec<PoseModel>,
+    /// Per pose: where the platform settles with no wrench (a payload, preloads, weighed chain masses), the
+    /// zero of the linear prediction; zero for a model unloaded at rest.
+    rest: Vec<Vec6>,
     /// Per row: the displacement of the loaded equilibrium (when computed).
     loaded: Option<Vec<Vec6>>,
+    /// Per row: the tangent compliance at that equilibrium (when computed): what a small added load or end
+    /// error moves the loaded platform by.
+    tangent: Option<Vec<Mat6>>,
     /// Per row: index of its pose.
     pose_of: Vec<usize>,
+    /// Per spring scaling (kind and target), per row: the derivative of the loaded response's non-linear
+    /// part (loaded - C w) by the logarithm of the factor, computed when first needed (loaded mode).
+    slopes: Mutex<Vec<(Kind, Target, Vec<Vec6>)>>,
 }
+
+/// Step in the logarithm of a compliance factor by which the non-linear part's derivative is differenced
+/// (central): it is smooth in the factor, and 10% keeps the difference far above the equilibria's 1e-8.
+const LOG_FACTOR_STEP: f64 = 0.1;
 
 impl<'a> Problem<'a> {
     /// Evaluates the model at every pose of `data` once (and the loaded equilibrium of every row when asked or
@@ -49,31 +64,87 @@ impl<'a> Problem<'a> {
             }
         }
         let mut state = model.new_state();
-        let poses =
+        let fails = |id: &str, line: usize, why: PoseError| DiagnoseError::Pose { pose_id: id.into(), line, why };
+        let poses = data
+            .poses
+            .iter()
+            .map(|p| {
+                PoseModel::at(model, &Frame::translation(p.position), &mut state)
+                    .map_err(|why| fails(&p.id, data.rows[p.rows[0]].line, why))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let equilibrium = |position: Vec3, wrench: &Vec6, state: &mut ManipulatorState| {
+            model.deflect(&Frame::translation(position), wrench, None, state)
+        };
+        let settle = |position: Vec3, wrench: &Vec6, state: &mut ManipulatorState| {
+            equilibrium(position, wrench, state).map(|d| d.displacement)
+        };
+        let rest = if model.loaded_at_rest() {
             data.poses
                 .iter()
                 .map(|p| {
-                    PoseModel::at(model, &Frame::translation(p.position), &mut state).map_err(|why| {
-                        DiagnoseError::Pose { pose_id: p.id.clone(), line: data.rows[p.rows[0]].line, why }
-                    })
+                    settle(p.position, &Vec6::zeros(), &mut state)
+                        .map_err(|e| fails(&p.id, data.rows[p.rows[0]].line, PoseError::NoLoadedEquilibrium(e)))
                 })
-                .collect::<Result<Vec<_>, _>>()?;
-        let loaded = if with_loaded || loaded_mode {
-            let mut out = Vec::with_capacity(data.rows.len());
-            for r in &data.rows {
-                let pose = Frame::translation(r.position);
-                let d = model.deflect(&pose, &r.wrench, None, &mut state).map_err(|e| DiagnoseError::Pose {
-                    pose_id: r.pose_id.clone(),
-                    line: r.line,
-                    why: PoseError::NoLoadedEquilibrium(e),
-                })?;
-                out.push(d.displacement);
-            }
-            Some(out)
+                .collect::<Result<Vec<_>, _>>()?
         } else {
-            None
+            vec![Vec6::zeros(); data.poses.len()]
         };
-        Ok(Problem { model, terms, data, weights, loaded_mode, gravity: gravity_of(model), poses, loaded, pose_of })
+        let (loaded, tangent) = if with_loaded || loaded_mode {
+            let rows = data.rows.iter().zip(&pose_of).map(|(r, &k)| {
+                let d = equilibrium(r.position, &r.wrench, &mut state)
+                    .map_err(|e| fails(&r.pose_id, r.line, PoseError::NoLoadedEquilibrium(e)))?;
+                let c = d.held.stiffness.try_inverse().unwrap_or(poses[k].compliance);
+                Ok((d.displacement, (c + c.transpose()) * 0.5))
+            });
+            let both: Vec<(Vec6, Mat6)> = rows.collect::<Result<_, DiagnoseError>>()?;
+            let (l, t): (Vec<Vec6>, Vec<Mat6>) = both.into_iter().unzip();
+            (Some(l), Some(t))
+        } else {
+            (None, None)
+        };
+        Ok(Problem {
+            model,
+            terms,
+            data,
+            weights,
+            loaded_mode,
+            gravity: gravity_of(model),
+            poses,
+            rest,
+            loaded,
+            tangent,
+            pose_of,
+            slopes: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// d(loaded - C w)/d ln(factor) for every row, for the spring scaling `e` (its value ignored).
+    fn nonlinear_slope(&self, e: &Effect) -> Result<Vec<Vec6>, PoseError> {
+        let mut cache = self.slopes.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((_, _, s)) = cache.iter().find(|(k, t, _)| *k == e.kind && *t == e.target) {
+            return Ok(s.clone());
+        }
+        let part = |log_factor: f64| -> Result<Vec<Vec6>, PoseError> {
+            let m = scaled(self.model, &[Effect { values: vec![log_factor.exp()], ..e.clone() }]);
+            let mut state = m.new_state();
+            let mut compliance = Vec::with_capacity(self.poses.len());
+            for p in &self.data.poses {
+                compliance.push(PoseModel::at(&m, &Frame::translation(p.position), &mut state)?.compliance);
+            }
+            let rows = self.data.rows.iter().zip(&self.pose_of);
+            rows.map(|(r, &k)| {
+                let d = m
+                    .deflect(&Frame::translation(r.position), &r.wrench, None, &mut state)
+                    .map_err(PoseError::NoLoadedEquilibrium)?;
+                Ok(d.displacement - compliance[k] * r.wrench)
+            })
+            .collect()
+        };
+        let (plus, minus) = (part(LOG_FACTOR_STEP)?, part(-LOG_FACTOR_STEP)?);
+        let slope: Vec<Vec6> = plus.iter().zip(&minus).map(|(a, b)| (a - b) / (2.0 * LOG_FACTOR_STEP)).collect();
+        cache.push((e.kind, e.target.clone(), slope.clone()));
+        Ok(slope)
     }
 
     /// Observations of `rows` (three translations per row).
@@ -88,6 +159,15 @@ impl<'a> Problem<'a> {
         let mut poses: Vec<Option<PoseModel>> = vec![None; self.poses.len()];
         let changed = if scalings.is_empty() { None } else { Some(scaled(self.model, &scalings)) };
         let mut state = changed.as_ref().map(|m| m.new_state());
+        // Loaded mode: the non-linear part moves with each factor too (first order in its logarithm).
+        let slopes: Vec<(f64, Vec<Vec6>)> = if self.loaded_mode && self.loaded.is_some() {
+            scalings
+                .iter()
+                .map(|e| Ok((e.values[0].ln(), self.nonlinear_slope(e)?)))
+                .collect::<Result<_, PoseError>>()?
+        } else {
+            Vec::new()
+        };
         let mut out = Vec::with_capacity(rows.len());
         for &r in rows {
             let k = self.pose_of[r];
@@ -101,9 +181,22 @@ impl<'a> Problem<'a> {
                 }
                 _ => &self.poses[k],
             };
-            // With scaled springs the loaded response moves with the linear one (first order).
-            let loaded = self.loaded.as_ref().map(|l| l[r] + (pm.compliance - self.poses[k].compliance) * row.wrench);
-            out.push(pm.displacement(&row.wrench, loaded.as_ref(), &terms, self.loaded_mode, &self.gravity));
+            let linear = self.rest[k] + self.poses[k].compliance * row.wrench;
+            // Scaled springs move the response by (C' - C) w, and the loaded one's non-linear part by its
+            // slope in each factor's logarithm.
+            let change = (pm.compliance - self.poses[k].compliance) * row.wrench
+                + slopes.iter().map(|(log_factor, s)| s[r] * *log_factor).sum::<Vec6>();
+            let (base, nonlinear) = match (&self.loaded, self.loaded_mode) {
+                (Some(l), true) => (l[r] + change, None),
+                (Some(l), false) => (linear + change, Some(l[r] - linear)),
+                (None, _) => (linear + change, None),
+            };
+            // Loaded mode: a term that loads the platform acts through the compliance where it stands.
+            let tangent = match (&self.tangent, self.loaded_mode) {
+                (Some(t), true) => Some(t[r] + (pm.compliance - self.poses[k].compliance)),
+                _ => None,
+            };
+            out.push(pm.displacement(row, &base, nonlinear.as_ref(), &terms, &self.gravity, tangent.as_ref()));
         }
         Ok(out)
     }
@@ -123,7 +216,10 @@ impl<'a> Problem<'a> {
 }
 
 /// An effect to fit: its kind, target and, for a leg's end-point error, the directions the data can see
-/// (an orthonormal basis of eps, 6 x r); its parameters are the coordinates in that basis.
+/// (an orthonormal basis of eps, 6 x r); its parameters are the coordinates in that basis (gravity-offset
+/// has a basis too: its mass and its first moment across gravity, `select::centre_basis`). A compliance
+/// factor is fitted as its logarithm, so it stays positive whatever the data (a factor that walked to -2.7
+/// made a fit fail); gravity-offset as (m, m c), which is linear in what is measured.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Candidate {
     /// The effect's kind.
@@ -135,23 +231,62 @@ pub struct Candidate {
 }
 
 impl Candidate {
+    /// A candidate without a basis.
+    pub fn new(kind: Kind, target: Target) -> Candidate {
+        Candidate { kind, target, basis: None }
+    }
+
     /// Number of parameters.
     pub fn dim(&self) -> usize {
         self.basis.as_ref().map_or(self.kind.values().0, |b| b.ncols())
     }
 
+    /// Whether the parameter is the logarithm of the effect's value.
+    fn logarithmic(&self) -> bool {
+        self.kind.scales_springs()
+    }
+
     /// The parameters of no effect.
     pub fn neutral(&self) -> Vec<f64> {
-        vec![if self.basis.is_some() { 0.0 } else { self.kind.neutral() }; self.dim()]
+        let v = if self.basis.is_some() || self.logarithmic() { 0.0 } else { self.kind.neutral() };
+        vec![v; self.dim()]
     }
 
     /// The effect with parameters `p`.
     pub fn effect(&self, p: &[f64]) -> Effect {
         let values = match &self.basis {
             Some(b) => (b * DVector::from_column_slice(p)).iter().copied().collect(),
+            None if self.logarithmic() => p.iter().map(|v| v.exp()).collect(),
             None => p.to_vec(),
         };
         Effect { kind: self.kind, target: self.target.clone(), values }
+    }
+
+    /// The values a user reads for parameters `p` with standard errors `se` (the delta method through the
+    /// exponential of a logarithmic factor; a gravity-offset's centre c = (m c) / m; leg-geometry's
+    /// coordinates as they are).
+    pub fn reported(&self, p: &[f64], se: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        if self.kind == Kind::LegGeometry {
+            return (p.to_vec(), se.to_vec());
+        }
+        let effect = self.effect(p);
+        let values = effect.user_values();
+        let se = match self.kind {
+            _ if self.logarithmic() => values.iter().zip(se).map(|(v, s)| v * s).collect(),
+            Kind::GravityOffset => {
+                // c = s / m with s = m c across gravity: dc = ds / m - s dm / m^2 (their covariance neglected);
+                // the moment's standard error in each base axis from the two fitted directions.
+                let (m, b) = (p[0], self.basis.as_ref().expect("gravity-offset has its basis"));
+                let mut out = vec![se[0]];
+                for r in 1..4 {
+                    let ds = ((b[(r, 1)] * se[1]).powi(2) + (b[(r, 2)] * se[2]).powi(2)).sqrt();
+                    out.push(((ds / m).powi(2) + (effect.values[r] * se[0] / (m * m)).powi(2)).sqrt());
+                }
+                out
+            }
+            _ => se.to_vec(),
+        };
+        (values, se)
     }
 
     /// `NAME[:TARGET]`, as on the command line.

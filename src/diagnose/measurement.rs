@@ -1,10 +1,12 @@
 //! The measurement model: the displacement of the measured point under a wrench, predicted from the real
 //! model's compliance C, the legs' stiffnesses K_i and their actuator twists a_i at each pose, with the
-//! measurement-model effects of `model::effect` added (paper 000 eq 60 for end-point errors): gravity C (m g);
-//! leg-geometry C K_i eps_i; preload C K_i a_i theta0; backlash C K_i a_i b sign(a_i . F_i) with F_i = K_i C w
-//! the leg's load; tool-offset r + dp + dphi x r; loaded-nonlinearity lambda (loaded - linear). Spring
-//! scalings are not terms here: they change the manipulator itself (`model::effect::scaled`).
+//! measurement-model effects of `model::effect` added (paper 000 eq 60 for end-point errors): gravity C (m g)
+//! (with an offset centre, C (m g, c x m g)); leg-geometry C K_i eps_i; actuator-offset C K_i a_i delta;
+//! backlash C K_i a_i b sign(a_i . F_i) with F_i = K_i C w the leg's load; tool-offset r + dp + dphi x r;
+//! loaded-nonlinearity lambda (loaded - linear); frame-rotation omega x p; tool-compliance c F; drift v t.
+//! Spring scalings are not terms here: they change the manipulator itself (`model::effect::scaled`).
 
+use super::data::Measurement;
 use super::error::PoseError;
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use crate::model::effect::{Effect, Kind, Target};
@@ -41,56 +43,73 @@ impl PoseModel {
     }
 
     /// The platform displacement (at the reference point) caused by leg k's end-point error `eps` (eq 60).
+    /// Unloaded: with the legs' unloaded K_i this is the rigid motion the error forces (J^-1 for a robot that
+    /// is not over-constrained), which a load changes only at second order.
     fn end_error(&self, k: usize, eps: &Vec6) -> Vec6 {
         self.compliance * (self.legs[k] * eps)
     }
 
-    /// The displacement of the measured point under wrench `w`, with the measurement-model effects
-    /// (`loaded`: the displacement of the loaded equilibrium, used instead of C w when given or in part by
-    /// loaded-nonlinearity).
+    /// The displacement of the measured point in row `row`: `base` is the model's own displacement of the
+    /// reference point (its loaded equilibrium, or its rest displacement plus C w), `nonlinear` the loaded
+    /// minus the linear response (for loaded-nonlinearity, when the base is linear), and `effects` add their
+    /// terms. Backlash picks its side by the actuator's load under the row's wrench. `tangent`: the tangent
+    /// compliance at the row's loaded equilibrium, through which an added load acts (loaded mode), else the
+    /// unloaded C.
     pub fn displacement(
         &self,
-        w: &Vec6,
-        loaded: Option<&Vec6>,
+        row: &Measurement,
+        base: &Vec6,
+        nonlinear: Option<&Vec6>,
         effects: &[Effect],
-        loaded_mode: bool,
         g: &Vec3,
+        tangent: Option<&Mat6>,
     ) -> Vec3 {
-        let linear = self.compliance * w;
-        let mut d = match (loaded_mode, loaded) {
-            (true, Some(l)) => *l,
-            _ => linear,
-        };
+        let w = &row.wrench;
+        // A load added to a loaded platform moves it by the compliance where it stands.
+        let c = tangent.unwrap_or(&self.compliance);
+        let mut d = *base;
         let mut tool = Vec3::zeros();
+        let mut measured = Vec3::zeros();
         for e in effects {
+            let v = &e.values;
             match (&e.kind, &e.target) {
                 (Kind::Gravity, _) => {
-                    let f = g * e.values[0];
-                    d += self.compliance * Vec6::new(f.x, f.y, f.z, 0.0, 0.0, 0.0);
+                    let f = g * v[0];
+                    d += c * Vec6::new(f.x, f.y, f.z, 0.0, 0.0, 0.0);
                 }
-                (Kind::LegGeometry, Target::Leg(k)) => d += self.end_error(*k, &Vec6::from_column_slice(&e.values)),
-                (Kind::Preload, Target::Leg(k)) => d += self.end_error(*k, &(self.actuators[*k] * e.values[0])),
+                // Stored as (m, m c): the moment (m c) x g.
+                (Kind::GravityOffset, _) => {
+                    let f = g * v[0];
+                    let m = Vec3::new(v[1], v[2], v[3]).cross(g);
+                    d += c * Vec6::new(f.x, f.y, f.z, m.x, m.y, m.z);
+                }
+                (Kind::LegGeometry, Target::Leg(k)) => d += self.end_error(*k, &Vec6::from_column_slice(v)),
+                (Kind::ActuatorOffset, Target::Leg(k)) => d += self.end_error(*k, &(self.actuators[*k] * v[0])),
                 (Kind::Backlash, Target::Leg(k)) => {
                     // The actuator's load, power-conjugate to its twist, picks the side of the clearance.
-                    let force = self.actuators[*k].dot(&(self.legs[*k] * linear));
+                    let force = self.actuators[*k].dot(&(self.legs[*k] * (self.compliance * w)));
                     let side = if force.abs() > 1e-9 { force.signum() } else { 0.0 };
-                    d += self.end_error(*k, &(self.actuators[*k] * (e.values[0] * side)));
+                    d += self.end_error(*k, &(self.actuators[*k] * (v[0] * side)));
                 }
                 (Kind::LoadedNonlinearity, _) => {
-                    if let (false, Some(l)) = (loaded_mode, loaded) {
-                        d += (l - linear) * e.values[0];
+                    if let Some(n) = nonlinear {
+                        d += n * v[0];
                     }
                 }
-                (Kind::ToolOffset, _) => tool = Vec3::new(e.values[0], e.values[1], e.values[2]),
+                (Kind::ToolOffset, _) => tool = Vec3::new(v[0], v[1], v[2]),
+                // The instrument reads positions p' = p + omega x p: a displacement picks up omega x p.
+                (Kind::FrameRotation, _) => measured += Vec3::new(v[0], v[1], v[2]).cross(&(row.position + tool)),
+                (Kind::ToolCompliance, _) => measured += Vec3::new(w[0], w[1], w[2]) * v[0],
+                (Kind::Drift, _) => measured += Vec3::new(v[0], v[1], v[2]) * row.order.unwrap_or(0.0),
                 _ => {}
             }
         }
         let rotation = Vec3::new(d[3], d[4], d[5]);
-        Vec3::new(d[0], d[1], d[2]) + tool + rotation.cross(&tool)
+        Vec3::new(d[0], d[1], d[2]) + tool + rotation.cross(&tool) + measured
     }
 }
 
-/// Gravity for the gravity effect: the model's, or standard gravity along -z when the model gives none.
+/// Gravity for the gravity effects: what a payload of the model weighs under.
 pub fn gravity_of(m: &Manipulator) -> Vec3 {
-    m.gravity.unwrap_or(Vec3::new(0.0, 0.0, -9.81))
+    m.weight_gravity()
 }

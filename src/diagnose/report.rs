@@ -3,10 +3,12 @@
 use std::fmt::Write;
 
 use crate::output::diagnosis::{
-    finite, Ambiguity, CandidateReport, DiagnosisReport, EffectReport, NominalTest, PoseResidual, ResidualRms,
+    finite, Ambiguity, CandidateReport, Correlations, DiagnosisReport, EffectReport, Indistinguishable, NominalTest,
+    PoseResidual, ResidualRms,
 };
 
 use super::select::{Diagnosis, SigmaSource, Verdict};
+use crate::model::effect::{Effect, Form, Kind, Target, TargetKind};
 
 fn source_text(s: &SigmaSource) -> String {
     match s {
@@ -16,30 +18,69 @@ fn source_text(s: &SigmaSource) -> String {
     }
 }
 
-/// The verdict in one sentence, with the numbers that back it.
+/// The verdict in one sentence, with the numbers that back it (and what is left ambiguous after named
+/// effects).
 pub fn sentence(d: &Diagnosis) -> String {
+    let main = verdict_sentence(d);
+    match (&d.ambiguous, d.verdict) {
+        (Some((names, advice)), Verdict::Effect | Verdict::Unexplained) => format!(
+            "{main} What is left cannot be told between {} (their fitted predictions differ by less than the noise \
+             can show); {advice}.",
+            names.join(", ")
+        ),
+        _ => main,
+    }
+}
+
+fn verdict_sentence(d: &Diagnosis) -> String {
+    let names = || d.accepted.iter().map(|a| a.effect.to_string()).collect::<Vec<_>>().join(" and ");
     match d.verdict {
         Verdict::None => format!(
             "none: the residuals of the nominal model are within the noise (p = {:.3}); no effect is named.",
             d.nominal_p
         ),
+        Verdict::Effect if d.final_p < d.alpha => format!(
+            "effect: {} explains most of the discrepancy; the residuals left are beyond the noise by a little \
+             (p = {:.2e}, below {} but above {:.0e}: a correct model fails so in {}% of data sets).",
+            names(),
+            d.final_p,
+            d.alpha,
+            d.alpha * d.alpha,
+            100.0 * d.alpha
+        ),
         Verdict::Effect => {
-            let names: Vec<String> = d.accepted.iter().map(|a| a.effect.to_string()).collect();
-            format!("effect: {} explains the discrepancy (residuals left: p = {:.3}).", names.join(" and "), d.final_p)
+            format!("effect: {} explains the discrepancy (residuals left: p = {:.3}).", names(), d.final_p)
         }
         Verdict::Ambiguous => {
-            let (a, b, advice) = d.ambiguous.clone().unwrap_or_default();
-            format!("ambiguous: {a} and {b} explain the data equally well (nearly parallel signatures); {advice}.")
-        }
-        Verdict::Unexplained => {
-            let partial: Vec<String> = d.accepted.iter().map(|a| a.effect.to_string()).collect();
+            let (names, advice) = d.ambiguous.clone().unwrap_or_default();
             format!(
-                "unexplained: the discrepancy is significant (p = {:.2e}) and no candidate of the library explains it{}.",
-                d.nominal_p,
-                if partial.is_empty() { String::new() } else { format!(" (partly: {})", partial.join(", ")) }
+                "ambiguous: {} explain the data equally well (their fitted predictions differ by less than the \
+                 noise can show); {advice}.",
+                names.join(", ")
             )
         }
+        Verdict::Unexplained => {
+            let partial = names();
+            format!(
+                "unexplained: the discrepancy is significant (nominal p = {:.2e}) and no candidate of the library \
+                 explains it{} (residuals left: p = {:.2e}).",
+                d.nominal_p,
+                if partial.is_empty() { String::new() } else { format!(" (partly: {partial})") },
+                d.final_p
+            )
+        }
+        Verdict::Noise => {
+            format!("noise: the misfit is not the model's: {}.", d.noise_note.clone().unwrap_or_default())
+        }
     }
+}
+
+/// One line per pair of candidates with the same signature on this data.
+fn indistinguishable_lines(d: &Diagnosis) -> Vec<String> {
+    d.indistinguishable
+        .iter()
+        .map(|(kept, same)| format!("on this data {kept} and {same} are indistinguishable: reported as {kept}"))
+        .collect()
 }
 
 /// The report printed on stdout: verdict, nominal test, accepted effects, candidate table, residual RMS.
@@ -60,12 +101,27 @@ pub fn text(d: &Diagnosis, model: &str) -> String {
     };
     let _ = writeln!(s, "nominal model: {test} = {:.4e}, p = {:.3e}", d.nominal_statistic, d.nominal_p);
     let _ = writeln!(s, "\nverdict: {}\n", sentence(d));
+    for line in indistinguishable_lines(d) {
+        let _ = writeln!(s, "{line}");
+    }
     for a in &d.accepted {
-        let _ = writeln!(s, "accepted {} (p = {:.2e}, delta BIC {:.1})", a.effect, a.p_value, a.delta_bic);
+        let _ = writeln!(
+            s,
+            "accepted {} (given the others: p = {:.2e}, delta BIC {:.1})",
+            a.effect, a.p_value, a.delta_bic
+        );
         for (k, (v, e)) in a.params.iter().zip(&a.se).enumerate() {
-            let _ = writeln!(s, "  parameter {}: {v:.6} +- {e:.6} (1 standard error)", k + 1);
+            let _ = writeln!(s, "  parameter {}: {v:.6} +- {e:.6} (1 standard error, joint fit)", k + 1);
         }
         let _ = writeln!(s, "  ({})", a.effect.kind.values().1);
+    }
+    let (labels, corr) = &d.correlations;
+    if labels.len() > 1 {
+        let _ = writeln!(s, "correlations of the fitted parameters (joint fit):");
+        for (label, row) in labels.iter().zip(corr) {
+            let cells: Vec<String> = row.iter().map(|v| format!("{v:>6.2}")).collect();
+            let _ = writeln!(s, "  {label:<28} {}", cells.join(" "));
+        }
     }
     let _ = writeln!(s, "candidates (each against the nominal model):");
     let _ = writeln!(
@@ -110,7 +166,7 @@ pub fn json(d: &Diagnosis, model: &str) -> DiagnosisReport {
         .map(|a| EffectReport {
             name: a.effect.kind.name().into(),
             target: a.effect.target.to_string(),
-            values: a.effect.values.clone(),
+            values: a.effect.user_values(),
             meaning: a.effect.kind.values().1.into(),
             parameters: a.params.clone(),
             standard_errors: a.se.iter().map(|v| finite(*v)).collect(),
@@ -118,6 +174,11 @@ pub fn json(d: &Diagnosis, model: &str) -> DiagnosisReport {
             delta_bic: a.delta_bic,
         })
         .collect();
+    let (labels, corr) = &d.correlations;
+    let correlations = (!labels.is_empty()).then(|| Correlations {
+        parameters: labels.clone(),
+        matrix: corr.iter().map(|row| row.iter().map(|v| finite(*v)).collect()).collect(),
+    });
     let candidates = d
         .table
         .iter()
@@ -151,7 +212,14 @@ pub fn json(d: &Diagnosis, model: &str) -> DiagnosisReport {
         ambiguous: d
             .ambiguous
             .as_ref()
-            .map(|(a, b, advice)| Ambiguity { candidates: [a.clone(), b.clone()], separate_by: advice.clone() }),
+            .map(|(names, advice)| Ambiguity { candidates: names.clone(), separate_by: advice.clone() }),
+        indistinguishable: d
+            .indistinguishable
+            .iter()
+            .map(|(kept, same)| Indistinguishable { reported_as: kept.clone(), same_as: same.clone() })
+            .collect(),
+        correlations,
+        noise: d.noise_note.clone(),
         candidates,
         residuals: d
             .per_pose
@@ -191,12 +259,54 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, d: &Diagnosis)
     }
     let _ = writeln!(out, "\n# Added by stiff diagnose: {}", sentence(d));
     for a in &d.accepted {
-        let _ = writeln!(out, "\n[[effect]]\nname = \"{}\"", a.effect.kind.name());
-        if a.effect.kind.target() != crate::model::effect::TargetKind::None {
-            let _ = writeln!(out, "target = \"{}\"", a.effect.target);
-        }
-        let values: Vec<String> = a.effect.values.iter().map(|v| format!("{v:e}")).collect();
-        let _ = writeln!(out, "values = [{}]   # {}", values.join(", "), a.effect.kind.values().1);
+        write_correction(&mut out, &a.effect);
     }
     out
+}
+
+/// One accepted effect as the model change it is (`[[payload]]`, `[[actuator_offset]]`, a spring scaling
+/// as `[[effect]]`, all built into the model every study uses), or as a measurement term `[[effect]]` that
+/// only diagnose and synth read, said so in the file.
+fn write_correction(out: &mut String, e: &Effect) {
+    let v = e.user_values();
+    let number = |x: f64| format!("{x:e}");
+    match (e.kind, &e.target) {
+        (Kind::Gravity | Kind::GravityOffset, _) => {
+            let _ = writeln!(out, "\n# {}: a mass carried by the platform, under the model's gravity", e.kind.name());
+            let _ = writeln!(out, "[[payload]]\nmass_kg = {}", number(v[0]));
+            if e.kind == Kind::GravityOffset {
+                let _ = writeln!(
+                    out,
+                    "centre = [{}, {}, {}]   # mm, platform frame",
+                    number(v[1]),
+                    number(v[2]),
+                    number(v[3])
+                );
+            }
+        }
+        (Kind::ActuatorOffset, Target::Leg(k)) => {
+            let _ = writeln!(
+                out,
+                "\n# actuator-offset: leg {}'s actuator sits this far from where it is commanded (mm or rad)",
+                k + 1
+            );
+            let _ = writeln!(out, "[[actuator_offset]]\nleg = {}\noffset = {}", k + 1, number(v[0]));
+        }
+        _ => {
+            let what = match e.kind.form() {
+                Form::Model => "a spring scaled: built into the model, every study sees it",
+                Form::Measurement => {
+                    "a measurement term, not a change of the robot: diagnose and synth add it to the predicted \
+                     measurements; map, curve and assemble have nothing to change"
+                }
+            };
+            let _ = writeln!(out, "\n# {}: {what}", e.kind.name());
+            let _ = writeln!(out, "[[effect]]\nname = \"{}\"", e.kind.name());
+            if e.kind.target() != TargetKind::None {
+                let _ = writeln!(out, "target = \"{}\"", e.target);
+            }
+            let values: Vec<String> = v.iter().map(|x| number(*x)).collect();
+            let _ = writeln!(out, "values = [{}]   # {}", values.join(", "), e.kind.values().1);
+        }
+    }
 }

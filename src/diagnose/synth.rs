@@ -10,11 +10,11 @@ use super::fit::Problem;
 use super::measurement::PoseModel;
 use crate::batch::{point_seed, stream, Study, Tally};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
-use crate::model::effect::{Effect, Kind};
+use crate::model::effect::{with_model_effects, Effect, Form, Kind};
 use crate::model::grid::{PointSet, PosePoint};
 use crate::model::Model;
 use crate::output::table::{names, selected_columns, write_row, Column, Record, Row};
-use crate::platform::manipulator::ManipulatorState;
+use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 /// What `stiff synth` measures.
 pub struct SynthOptions {
@@ -28,6 +28,9 @@ pub struct SynthOptions {
     pub seed: u64,
     /// Rows per pose and wrench (repeated measurements).
     pub repeats: usize,
+    /// Predict by the linear response C w (effects all as first-order terms) instead of the loaded
+    /// equilibrium of the model with the hidden model-form effects built in.
+    pub linear: bool,
 }
 
 /// A standard normal draw (Box-Muller).
@@ -40,7 +43,8 @@ fn normal(rng: &mut impl Rng) -> f64 {
 /// Writes the measurements of every pose of `points` to `out` in input order (a pose's id is its name or
 /// `p` and its index in the input), solved on `pool`. Each pose's noise is drawn from a generator seeded by
 /// the seed and the pose's index, so the bytes depend on neither the thread count nor the other poses.
-/// Poses that are unreachable or singular are left out and counted.
+/// Poses that are unreachable or singular, or have no loaded equilibrium under a wrench, are left out and
+/// counted.
 pub fn synthesize(
     pool: &rayon::ThreadPool,
     model: &Model,
@@ -49,13 +53,27 @@ pub fn synthesize(
     out: &mut (dyn std::io::Write + Send),
     progress: &ProgressBar,
 ) -> anyhow::Result<SynthSummary> {
-    let loaded = o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
-    let mut summary = stream(pool, &SynthStudy { model, o, loaded }, points, out, progress)?;
+    // Loaded: the model with the hidden effects that change the robot built in, its loaded equilibrium
+    // exact; the measurement terms added. Linear: every effect a first-order term of C w.
+    let (robot, terms): (Manipulator, Vec<Effect>) = if o.linear {
+        (model.manipulator.clone(), o.effects.clone())
+    } else {
+        let (changes, terms): (Vec<Effect>, Vec<Effect>) =
+            o.effects.iter().cloned().partition(|e| e.kind.form() == Form::Model);
+        (with_model_effects(&model.manipulator, &changes), terms)
+    };
+    let loaded = !o.linear || o.effects.iter().any(|e| e.kind == Kind::LoadedNonlinearity);
+    let study = SynthStudy { model, robot, terms, o, loaded };
+    let mut summary = stream(pool, &study, points, out, progress)?;
     if let Some(e) = summary.error.take() {
         return Err(e.into());
     }
     if summary.rows == 0 {
-        return Err(SynthError::NoReachablePose.into());
+        return Err(match summary.first_unsettled.take() {
+            Some(e) => SynthError::NoPoseSettles(Box::new(e)),
+            None => SynthError::NoReachablePose,
+        }
+        .into());
     }
     Ok(summary)
 }
@@ -67,8 +85,10 @@ pub struct SynthSummary {
     pub poses: u64,
     /// Rows written.
     pub rows: u64,
-    /// Poses left out (unreachable or singular).
+    /// Poses left out (unreachable, singular, or without a loaded equilibrium).
     pub skipped: u64,
+    /// The first pose left out because its loaded equilibrium was not found, in input order.
+    first_unsettled: Option<SynthError>,
     /// The first pose that could not be measured, in input order.
     error: Option<SynthError>,
 }
@@ -78,6 +98,9 @@ impl Tally for SynthSummary {
         self.poses += other.poses;
         self.rows += other.rows;
         self.skipped += other.skipped;
+        if self.first_unsettled.is_none() {
+            self.first_unsettled.clone_from(&other.first_unsettled);
+        }
         if self.error.is_none() {
             self.error.clone_from(&other.error);
         }
@@ -87,6 +110,10 @@ impl Tally for SynthSummary {
 /// Synthesis as a streamed study: one pose's measurements per point.
 struct SynthStudy<'a> {
     model: &'a Model,
+    /// The robot measured: the model with the hidden model-form effects (loaded synthesis).
+    robot: Manipulator,
+    /// The hidden effects added as terms of the measurement.
+    terms: Vec<Effect>,
     o: &'a SynthOptions,
     /// Some effect needs the loaded equilibrium of every row.
     loaded: bool,
@@ -96,12 +123,15 @@ impl SynthStudy<'_> {
     /// The pose's rows (each wrench, repeated), predicted with the hidden effects and the description's
     /// own terms, with noise; None where the pose cannot be modelled.
     fn measure(&self, index: u64, p: &PosePoint, out: &mut String) -> Result<usize, SynthError> {
-        let (m, o) = (&self.model.manipulator, self.o);
+        let (m, o) = (&self.robot, self.o);
         let id = p.name.clone().unwrap_or_else(|| format!("p{index}"));
         let mut pose = Pose { id: id.clone(), position: p.position, rows: Vec::new() };
         let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
+        let per_pose = (o.wrenches.len() * o.repeats.max(1)) as u64;
         for w in &o.wrenches {
             for _ in 0..o.repeats.max(1) {
+                // Measured in input order: the pose's index, then its rows.
+                let order = Some((index * per_pose + data.rows.len() as u64) as f64);
                 pose.rows.push(data.rows.len());
                 data.rows.push(Measurement {
                     pose_id: id.clone(),
@@ -109,6 +139,7 @@ impl SynthStudy<'_> {
                     wrench: *w,
                     displacement: Vec3::zeros(),
                     sigma: Some(o.noise),
+                    order,
                     line: 0,
                 });
             }
@@ -116,9 +147,10 @@ impl SynthStudy<'_> {
         data.poses.push(pose);
         let weights = vec![1.0; data.rows.len()];
         let terms = &self.model.measurement_terms;
-        let problem = Problem::new(m, terms, &data, weights, false, self.loaded).map_err(SynthError::Model)?;
+        let loaded_mode = !o.linear;
+        let problem = Problem::new(m, terms, &data, weights, loaded_mode, self.loaded).map_err(SynthError::Model)?;
         let rows: Vec<usize> = (0..data.rows.len()).collect();
-        let predicted = problem.predict(&o.effects, &rows).map_err(|e| SynthError::Model(e.into()))?;
+        let predicted = problem.predict(&self.terms, &rows).map_err(|e| SynthError::Model(e.into()))?;
         let mut rng = rand::rngs::StdRng::seed_from_u64(point_seed(o.seed, index));
         for (row, d) in data.rows.iter().zip(predicted) {
             // What synth writes, diagnose must be able to read: the same bound on every number.
@@ -129,7 +161,7 @@ impl SynthStudy<'_> {
             let noisy = d + Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * o.noise;
             // Noise-free data has no sigma (a zero sigma is not a measurement's).
             let sigma = Some(o.noise).filter(|s| *s > 0.0);
-            write_row(&MeasurementRow { measurement: row, displacement: noisy, sigma }, &(), out);
+            write_row(&MeasurementRow { measurement: row, displacement: noisy, sigma, order: row.order }, &(), out);
         }
         Ok(data.rows.len())
     }
@@ -138,7 +170,8 @@ impl SynthStudy<'_> {
 /// The columns of a synthesized measurement file, in order.
 pub fn synth_table() -> Vec<Column> {
     let blank = Measurement::default();
-    selected_columns(&MeasurementRow { measurement: &blank, displacement: Vec3::zeros(), sigma: None }, &(), None)
+    let row = MeasurementRow { measurement: &blank, displacement: Vec3::zeros(), sigma: None, order: None };
+    selected_columns(&row, &(), None)
 }
 
 impl Study for SynthStudy<'_> {
@@ -150,7 +183,7 @@ impl Study for SynthStudy<'_> {
     }
 
     fn new_state(&self) -> ManipulatorState {
-        self.model.manipulator.new_state()
+        self.robot.new_state()
     }
 
     fn solve(
@@ -164,7 +197,7 @@ impl Study for SynthStudy<'_> {
         if tally.error.is_some() {
             return; // the run stops at its first failure; the command reports it
         }
-        if PoseModel::at(&self.model.manipulator, &Frame::translation(p.position), state).is_err() {
+        if PoseModel::at(&self.robot, &Frame::translation(p.position), state).is_err() {
             tally.skipped += 1;
             return;
         }
@@ -172,6 +205,12 @@ impl Study for SynthStudy<'_> {
             Ok(rows) => {
                 tally.poses += 1;
                 tally.rows += rows as u64;
+            }
+            // A pose whose loaded equilibrium is not found (near a singularity, past a limit point) has no
+            // measurement to write: left out like an unreachable one.
+            Err(e @ SynthError::Model(DiagnoseError::Pose { .. })) => {
+                tally.skipped += 1;
+                tally.first_unsettled.get_or_insert(e);
             }
             Err(e) => tally.error = Some(e),
         }
@@ -190,6 +229,8 @@ pub enum SynthError {
     },
     /// No pose of the input is reachable and regular.
     NoReachablePose,
+    /// No pose has a loaded equilibrium under the wrenches (with the hidden effects): the first pose's reason.
+    NoPoseSettles(Box<SynthError>),
 }
 
 impl std::fmt::Display for SynthError {
@@ -203,6 +244,11 @@ impl std::fmt::Display for SynthError {
                 super::data::MAX_MAGNITUDE
             ),
             SynthError::NoReachablePose => f.write_str("no reachable pose to measure"),
+            SynthError::NoPoseSettles(first) => write!(
+                f,
+                "no pose has a loaded equilibrium under the wrenches with the hidden effects, so nothing can be \
+                 measured (first: {first}); smaller loads or effects, or --linear"
+            ),
         }
     }
 }
@@ -214,12 +260,13 @@ struct MeasurementRow<'a> {
     measurement: &'a Measurement,
     displacement: Vec3,
     sigma: Option<f64>,
+    order: Option<f64>,
 }
 
 impl Row for MeasurementRow<'_> {
     type Layout = ();
 
-    /// The columns `diagnose` reads (`REQUIRED`, then `sigma_mm`).
+    /// The columns `diagnose` reads (`REQUIRED`, then `sigma_mm` and `order`).
     fn record(&self, _: &(), r: &mut impl Record) {
         let m = self.measurement;
         r.text(REQUIRED[0], &m.pose_id);
@@ -233,5 +280,6 @@ impl Row for MeasurementRow<'_> {
             r.number(REQUIRED[10 + k], self.displacement[k]);
         }
         r.optional(names::SIGMA, self.sigma);
+        r.optional(names::ORDER, self.order);
     }
 }

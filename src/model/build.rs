@@ -6,7 +6,7 @@ use std::path::Path;
 
 use toml::Spanned;
 
-use super::effect::{scaled, Effect, EffectError, Kind};
+use super::effect::{with_model_effects, Effect, EffectError, Form, Kind};
 use super::error::{read_text, InputError, Locator};
 use super::schema::{AxisSpec, BeamSpec, ElementSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
 use crate::beam::{beam_compliance, BeamSection};
@@ -15,7 +15,7 @@ use crate::expr::Scope;
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::{Leg, VjmLeg};
-use crate::platform::manipulator::Manipulator;
+use crate::platform::manipulator::{Manipulator, Payload};
 use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
 use crate::vjm::spring::{SpringGroup, SIX_DOF};
@@ -620,12 +620,35 @@ impl Builder<'_> {
             }
         }
         let length_scale = legs.iter().map(Leg::length_scale).fold(1.0, f64::max);
-        let nominal = Manipulator {
+        let mut nominal = Manipulator {
             name: file.name.clone(),
             legs,
             length_scale,
             gravity: file.gravity.as_ref().map(|_| gravity),
+            payload: None,
         };
+        for spec in &file.payloads {
+            let p = spec.get_ref();
+            let centre = p.centre.as_ref().map(|c| self.vec3(c)).transpose()?.unwrap_or_else(Vec3::zeros);
+            nominal.add_payload(Payload { mass_kg: self.num(&p.mass_kg)?, centre });
+        }
+        for spec in &file.actuator_offsets {
+            let o = spec.get_ref();
+            let legs = nominal.legs.len();
+            let k = usize::try_from(*o.leg.get_ref()).ok().filter(|k| (1..=legs).contains(k)).ok_or_else(|| {
+                self.loc.at(o.leg.span(), format!("`leg` is a leg number, 1 to {legs} (legs and copies in order)"))
+            })?;
+            if !nominal.legs[k - 1].has_actuator_spring() {
+                return Err(self.loc.at(
+                    spec.span(),
+                    format!(
+                        "leg {k} has no actuator spring to offset (an MSA leg, or a chain without `actuator = true`)"
+                    ),
+                ));
+            }
+            let offset = self.num(&o.offset)?;
+            nominal.legs[k - 1].offset_actuator(offset);
+        }
         let mut effects = Vec::with_capacity(file.effects.len());
         for spec in &file.effects {
             let s = spec.get_ref();
@@ -635,8 +658,8 @@ impl Builder<'_> {
                 .map_err(|e| self.loc.at(spec.span(), e.to_string()))?;
             effects.push(e);
         }
-        let manipulator = scaled(&nominal, &effects);
-        let measurement_terms = effects.into_iter().filter(|e| !e.scales_springs()).collect();
+        let manipulator = with_model_effects(&nominal, &effects);
+        let measurement_terms = effects.into_iter().filter(|e| e.kind.form() == Form::Measurement).collect();
         Ok(Model { manipulator, measurement_terms })
     }
 

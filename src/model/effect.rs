@@ -1,12 +1,13 @@
 //! The `[[effect]]` entries of a description, and `--effect NAME[:TARGET]=V1,V2,...` on the command line:
 //! physical effects a measurement may show that the nominal model lacks (found by `stiff diagnose`, injected
-//! by `stiff synth`). Spring scalings (actuator-compliance, link-compliance) are applied to the legs when the
-//! model is built, so every study sees them (`Manipulator::scale_compliance`); the others are terms of the
-//! measurement model that `diagnose` evaluates (`diagnose::effects`).
+//! by `stiff synth`). Effects with a model form (`Form::Model`: spring scalings, a payload, an actuator
+//! offset) are built into the manipulator, so every study sees them (`with_model_effects`); the others are
+//! terms of the measurement model that `diagnose` and `synth` evaluate (`diagnose::measurement`).
 
 use std::fmt;
 
-use crate::platform::manipulator::{Manipulator, SpringSet};
+use crate::kinematics::frame::Vec3;
+use crate::platform::manipulator::{Manipulator, Payload, SpringSet};
 
 /// An effect of the library.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -17,29 +18,53 @@ pub enum Kind {
     LinkCompliance,
     /// A mass carried at the reference point under the model's gravity.
     Gravity,
+    /// A mass carried by the platform with its centre of mass away from the reference point.
+    GravityOffset,
     /// A leg's end-point error (six values).
     LegGeometry,
-    /// A preload of a leg's actuator spring.
-    Preload,
+    /// An actuator further along its axis than commanded (an encoder zero offset). In a VJM leg the
+    /// actuator spring sits in series on the actuator's axis (paper 001 eq 1, V_a(q + theta)), so a preload
+    /// theta0 of that spring is exactly this offset: `preload` is read as its other name.
+    ActuatorOffset,
     /// A share of the loaded (large-deflection) response.
     LoadedNonlinearity,
     /// A clearance of a leg's actuator, taken up by the sign of its load.
     Backlash,
     /// The measured point offset from the reference point.
     ToolOffset,
+    /// The measuring instrument's frame rotated against the robot's base frame (registration error).
+    FrameRotation,
+    /// A compliance in series at the tool (tool holder, platform): translation per unit force.
+    ToolCompliance,
+    /// A drift of the measurements over their order (thermal growth, instrument drift).
+    Drift,
 }
 
 /// Every kind, in the order candidates are listed.
-pub const KINDS: [Kind; 8] = [
+pub const KINDS: [Kind; 12] = [
     Kind::ActuatorCompliance,
     Kind::LinkCompliance,
     Kind::Gravity,
+    Kind::GravityOffset,
     Kind::LegGeometry,
-    Kind::Preload,
+    Kind::ActuatorOffset,
     Kind::LoadedNonlinearity,
     Kind::Backlash,
     Kind::ToolOffset,
+    Kind::FrameRotation,
+    Kind::ToolCompliance,
+    Kind::Drift,
 ];
+
+/// How an effect reaches the studies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Form {
+    /// A change of the robot's model that every study sees (a spring scaled, a payload, an actuator offset).
+    Model,
+    /// A term of the measurement only (how the instrument or the data differ from the robot): diagnose and
+    /// synth use it, map, curve and assemble have nothing to change.
+    Measurement,
+}
 
 impl Kind {
     /// The name on the command line and in `[[effect]]`.
@@ -48,16 +73,23 @@ impl Kind {
             Kind::ActuatorCompliance => "actuator-compliance",
             Kind::LinkCompliance => "link-compliance",
             Kind::Gravity => "gravity",
+            Kind::GravityOffset => "gravity-offset",
             Kind::LegGeometry => "leg-geometry",
-            Kind::Preload => "preload",
+            Kind::ActuatorOffset => "actuator-offset",
             Kind::LoadedNonlinearity => "loaded-nonlinearity",
             Kind::Backlash => "backlash",
             Kind::ToolOffset => "tool-offset",
+            Kind::FrameRotation => "frame-rotation",
+            Kind::ToolCompliance => "tool-compliance",
+            Kind::Drift => "drift",
         }
     }
 
-    /// The kind of this name.
+    /// The kind of this name (`preload` is the actuator offset's other name, see `Kind::ActuatorOffset`).
     pub fn parse(name: &str) -> Option<Kind> {
+        if name == "preload" {
+            return Some(Kind::ActuatorOffset);
+        }
         KINDS.iter().copied().find(|k| k.name() == name)
     }
 
@@ -67,31 +99,51 @@ impl Kind {
             Kind::ActuatorCompliance => (1, "compliance factor of the leg's actuator spring (1 = nominal)"),
             Kind::LinkCompliance => (1, "compliance factor of the spring group (1 = nominal)"),
             Kind::Gravity => (1, "mass carried at the reference point, kg, under the model's gravity"),
+            Kind::GravityOffset => {
+                (4, "mass carried by the platform, kg, and its centre of mass in the platform frame, mm (x, y, z)")
+            }
             Kind::LegGeometry => (6, "the leg's end-point error eps: dx, dy, dz (mm), rx, ry, rz (rad)"),
-            Kind::Preload => (1, "preload theta0 of the leg's actuator spring, mm"),
+            Kind::ActuatorOffset => {
+                (1, "where the leg's actuator sits minus where it is commanded, mm (prismatic) or rad (revolute)")
+            }
             Kind::LoadedNonlinearity => (1, "share of the loaded (large-deflection) response, 1 = all"),
             Kind::Backlash => (1, "half clearance of the leg's actuator, mm"),
             Kind::ToolOffset => (3, "offset of the measured point from the reference point, mm"),
+            Kind::FrameRotation => (3, "rotation vector of the instrument's frame against the base frame, rad"),
+            Kind::ToolCompliance => (1, "series compliance at the tool, mm/N (translation per unit force)"),
+            Kind::Drift => (3, "drift of the measured point per unit of the data's `order` column, mm (x, y, z)"),
         }
     }
 
     /// What a target names: a leg (1-based), a spring group, or nothing.
     pub fn target(self) -> TargetKind {
         match self {
-            Kind::ActuatorCompliance | Kind::LegGeometry | Kind::Preload | Kind::Backlash => TargetKind::Leg,
+            Kind::ActuatorCompliance | Kind::LegGeometry | Kind::ActuatorOffset | Kind::Backlash => TargetKind::Leg,
             Kind::LinkCompliance => TargetKind::Group,
             _ => TargetKind::None,
         }
     }
 
-    /// Spring scalings change the legs; the other kinds are terms of the measurement model.
+    /// Spring scalings change the legs' compliance; the other kinds add to the displacement.
     pub fn scales_springs(self) -> bool {
         matches!(self, Kind::ActuatorCompliance | Kind::LinkCompliance)
     }
 
+    /// Whether the effect is a change of the robot (written into the model) or of the measurement.
+    pub fn form(self) -> Form {
+        match self {
+            Kind::ActuatorCompliance
+            | Kind::LinkCompliance
+            | Kind::Gravity
+            | Kind::GravityOffset
+            | Kind::ActuatorOffset => Form::Model,
+            _ => Form::Measurement,
+        }
+    }
+
     /// Effects that act through a leg's actuator spring (its compliance, its rest length, its clearance).
     pub fn needs_actuator_spring(self) -> bool {
-        matches!(self, Kind::ActuatorCompliance | Kind::Preload | Kind::Backlash)
+        matches!(self, Kind::ActuatorCompliance | Kind::ActuatorOffset | Kind::Backlash)
     }
 
     /// The parameter values of the nominal model (no effect).
@@ -142,7 +194,8 @@ pub struct Effect {
     pub kind: Kind,
     /// What it acts on.
     pub target: Target,
-    /// Its values (`Kind::values` gives their meaning).
+    /// Its values (`Kind::values` gives their meaning; gravity-offset is stored as (m, m c), see
+    /// `Effect::user_values`).
     pub values: Vec<f64>,
 }
 
@@ -153,8 +206,28 @@ impl fmt::Display for Effect {
             write!(f, ":{}", self.target)?;
         }
         f.write_str("=")?;
-        let v: Vec<String> = self.values.iter().map(|v| format!("{v}")).collect();
+        let v: Vec<String> = self.user_values().iter().map(|v| format!("{v}")).collect();
         f.write_str(&v.join(","))
+    }
+}
+
+/// Below this mass (kg) a gravity-offset effect has no centre to speak of (its first moment is reported
+/// as a centre of zero).
+const NO_MASS_KG: f64 = 1e-12;
+
+impl Effect {
+    /// The values as a user writes them (`Kind::values`). Stored values are the same except for
+    /// gravity-offset, kept as (m, m c): the first moment m c is linear in what a measurement sees (c x m g),
+    /// and has a signature where m = 0, so a fit can start from no effect.
+    pub fn user_values(&self) -> Vec<f64> {
+        match self.kind {
+            Kind::GravityOffset => {
+                let m = self.values[0];
+                let c = |k: usize| if m.abs() > NO_MASS_KG { self.values[k] / m } else { 0.0 };
+                vec![m, c(1), c(2), c(3)]
+            }
+            _ => self.values.clone(),
+        }
     }
 }
 
@@ -286,6 +359,10 @@ impl Effect {
         if kind.scales_springs() && values[0] <= 0.0 {
             return Err(EffectError::NotPositive { kind });
         }
+        let values = match kind {
+            Kind::GravityOffset => vec![values[0], values[0] * values[1], values[0] * values[2], values[0] * values[3]],
+            _ => values,
+        };
         Ok(Effect { kind, target, values })
     }
 
@@ -312,15 +389,30 @@ impl Effect {
     }
 }
 
-/// The manipulator with the spring scalings of `effects` applied (compliance times the factor).
-pub fn scaled(m: &Manipulator, effects: &[Effect]) -> Manipulator {
+/// The manipulator with the model-form effects of `effects` built in (`Form::Model`): compliance times
+/// the factor, a payload (gravity, gravity-offset), an actuator offset (the actuator spring's rest value
+/// moved, `Leg::offset_actuator`). Measurement terms are left to diagnose and synth.
+pub fn with_model_effects(m: &Manipulator, effects: &[Effect]) -> Manipulator {
     let mut out = m.clone();
     for e in effects {
         match (&e.kind, &e.target) {
             (Kind::ActuatorCompliance, Target::Leg(k)) => out.scale_compliance(&SpringSet::ActuatorOf(*k), e.values[0]),
             (Kind::LinkCompliance, Target::Group(g)) => out.scale_compliance(&SpringSet::Group(g), e.values[0]),
+            (Kind::Gravity, _) => out.add_payload(Payload { mass_kg: e.values[0], centre: Vec3::zeros() }),
+            (Kind::GravityOffset, _) => {
+                let v = e.user_values();
+                out.add_payload(Payload { mass_kg: v[0], centre: Vec3::new(v[1], v[2], v[3]) })
+            }
+            (Kind::ActuatorOffset, Target::Leg(k)) => out.legs[*k].offset_actuator(e.values[0]),
             _ => {}
         }
     }
     out
+}
+
+/// The manipulator with only the spring scalings of `effects` applied: what changes its compliance C, the
+/// rest being terms the measurement model adds to the displacement (`diagnose::measurement`).
+pub fn scaled(m: &Manipulator, effects: &[Effect]) -> Manipulator {
+    let scalings: Vec<Effect> = effects.iter().filter(|e| e.scales_springs()).cloned().collect();
+    with_model_effects(m, &scalings)
 }

@@ -35,9 +35,38 @@ pub struct ModelFile {
     /// The legs (`[[leg]]` tables), each a chain, an MSA structure or a leg of another file.
     #[serde(rename = "leg")]
     pub legs: Spanned<Vec<Spanned<LegSpec>>>,
-    /// Corrections to the nominal model, as `stiff diagnose --model-out` writes them.
+    /// Masses carried by the platform (`[[payload]]`), weighed under `gravity` (standard gravity along -z
+    /// when the file gives none).
+    #[serde(default, rename = "payload")]
+    pub payloads: Vec<Spanned<PayloadSpec>>,
+    /// Actuators sitting away from where they are commanded (`[[actuator_offset]]`, encoder zero offsets).
+    #[serde(default, rename = "actuator_offset")]
+    pub actuator_offsets: Vec<Spanned<ActuatorOffsetSpec>>,
+    /// Corrections to the nominal model (spring scalings) and measurement terms, as `stiff diagnose
+    /// --model-out` writes them.
     #[serde(default, rename = "effect")]
     pub effects: Vec<Spanned<EffectSpec>>,
+}
+
+/// A mass carried by the platform.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PayloadSpec {
+    /// Its mass, kg.
+    pub mass_kg: Num,
+    /// Its centre of mass in the platform frame, mm (default: the reference point).
+    #[serde(default)]
+    pub centre: Option<[Num; 3]>,
+}
+
+/// An actuator further along its axis than commanded.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorOffsetSpec {
+    /// The leg, by number (1-based, in the order the legs and their copies are listed).
+    pub leg: Spanned<i64>,
+    /// Where the actuator sits minus where it is commanded, mm (prismatic) or rad (revolute).
+    pub offset: Num,
 }
 
 /// An effect of the diagnose library: `name`, `target` (a leg number or a spring group) and its values.

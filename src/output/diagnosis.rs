@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 pub struct DiagnosisReport {
     /// The model file diagnosed.
     pub model: String,
-    /// `none`, `effect`, `ambiguous` or `unexplained`.
+    /// `none`, `effect`, `ambiguous`, `unexplained` or `noise`.
     pub verdict: String,
     /// The verdict in one sentence.
     pub sentence: String,
@@ -25,8 +25,17 @@ pub struct DiagnosisReport {
     pub effects: Vec<EffectReport>,
     /// p-value of the residuals left after the accepted effects.
     pub final_p_value: f64,
-    /// For an ambiguous verdict: the two candidates and how to separate them.
+    /// For an ambiguous verdict: the tied candidates and how to separate them.
     pub ambiguous: Option<Ambiguity>,
+    /// Candidates with the same signature on this data: each reported as the first of its pair.
+    #[serde(default)]
+    pub indistinguishable: Vec<Indistinguishable>,
+    /// Correlations of the accepted effects' parameters in their joint fit.
+    #[serde(default)]
+    pub correlations: Option<Correlations>,
+    /// For the `noise` verdict: how the residual variance grows with the load.
+    #[serde(default)]
+    pub noise: Option<String>,
     /// The candidate table of the first step.
     pub candidates: Vec<CandidateReport>,
     /// Per pose, the residual of its row with the largest nominal residual.
@@ -55,21 +64,39 @@ pub struct EffectReport {
     pub values: Vec<f64>,
     /// What the values mean.
     pub meaning: String,
-    /// The fitted parameters (for leg geometry: coordinates in the visible directions).
+    /// The fitted values as reported (for leg geometry: coordinates in the visible directions).
     pub parameters: Vec<f64>,
-    /// Their standard errors.
+    /// Their standard errors, from the joint fit of every accepted effect.
     pub standard_errors: Vec<Option<f64>>,
-    /// The F test's p-value when it was accepted.
+    /// The F test's p-value of this effect given the other accepted ones.
     pub p_value: f64,
-    /// Its delta BIC when it was accepted.
+    /// Delta BIC of this effect given the other accepted ones.
     pub delta_bic: f64,
 }
 
-/// Two candidates that explain the same thing.
+/// Two candidates no data of this design can tell apart.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Indistinguishable {
+    /// The one reported.
+    pub reported_as: String,
+    /// The one with the same signature.
+    pub same_as: String,
+}
+
+/// Correlations of the accepted effects' parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Correlations {
+    /// The parameters, `NAME[:TARGET]` with `[k]` for an effect of several values.
+    pub parameters: Vec<String>,
+    /// The correlation matrix, rows in the order of `parameters`.
+    pub matrix: Vec<Vec<Option<f64>>>,
+}
+
+/// Candidates that explain the same thing as well as the data can tell.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Ambiguity {
-    /// Their labels.
-    pub candidates: [String; 2],
+    /// Their labels, the best-fitting first.
+    pub candidates: Vec<String>,
     /// Where their predictions differ most: advice for the next experiment.
     pub separate_by: String,
 }

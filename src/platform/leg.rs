@@ -127,6 +127,17 @@ impl Leg {
         }
     }
 
+    /// Moves the leg's actuator by `offset` (mm or rad) from where it is commanded: the rest value of its
+    /// actuator spring, which sits in series on the actuator's axis (V_a(q + theta), paper 001 eq 1), so the
+    /// loaded answers see the leg's end pulled as by the offset. A leg without an actuator spring is left.
+    pub fn offset_actuator(&mut self, offset: f64) {
+        if let Leg::Vjm(v) = self {
+            if let Some(s) = v.springs.iter().find(|s| s.actuator) {
+                v.preload[s.first] += offset;
+            }
+        }
+    }
+
     /// The frame of the leg's copy (identity for a leg written once).
     pub fn copy_frame(&self) -> Frame {
         match self {

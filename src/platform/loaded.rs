@@ -119,6 +119,10 @@ impl Manipulator {
             }
             held.iterations = held.iterations.max(r.iterations);
         }
+        // The payload's weight is carried too: h = -sum w_i - W, dh/dt = sum K_i - dW/dt.
+        let (weight, d_weight) = self.weight(platform);
+        held.force -= weight;
+        held.stiffness -= d_weight;
         Ok(held)
     }
 
@@ -129,6 +133,7 @@ impl Manipulator {
     fn newton(
         &self,
         load: &Vec6,
+        weight_share: f64,
         t: &mut Frame,
         state: &mut ManipulatorState,
     ) -> Result<(Held, usize), DeflectionFailure> {
@@ -140,8 +145,10 @@ impl Manipulator {
                     leg.linearize(t, s).map_err(|failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure }))?,
                 );
             }
-            let stiffness: Mat6 = lins.iter().map(|l| l.stiffness).sum();
-            let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum();
+            // The payload's weight (a share of it under load continuation) is a load the legs carry.
+            let (weight, d_weight) = self.weight(t);
+            let stiffness: Mat6 = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
+            let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - weight * weight_share;
             let Some(step) = stiffness.lu().solve(&(load - force)) else {
                 return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
@@ -182,7 +189,7 @@ impl Manipulator {
             return None;
         }
         let k = self.unloaded(commanded, state).ok()?.stiffness;
-        let step = k.lu().solve(wrench)?;
+        let step = k.lu().solve(&(wrench + self.weight(commanded).0))?;
         Some(apply_twist(commanded, &step))
     }
 
@@ -206,7 +213,7 @@ impl Manipulator {
         while done < 1.0 {
             let target = (done + step).min(1.0);
             let (saved_t, saved_state) = (t, state.clone());
-            match self.newton(&(wrench * target), &mut t, state) {
+            match self.newton(&(wrench * target), target, &mut t, state) {
                 Ok((held, its)) => {
                     total_iterations += its;
                     last = Some(held);

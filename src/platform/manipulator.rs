@@ -1,7 +1,7 @@
 //! A parallel manipulator: legs summed at the platform reference point (paper 001 s. 3.3, paper 000 eq 54).
 
 use super::leg::{Leg, LegFailure, LegResponse, LegState};
-use crate::kinematics::frame::{Frame, Mat6, Vec6};
+use crate::kinematics::frame::{Frame, Mat3, Mat6, Vec3, Vec6};
 
 /// A parallel manipulator: its legs, summed at the platform's reference point.
 #[derive(Clone, Debug)]
@@ -14,6 +14,34 @@ pub struct Manipulator {
     pub length_scale: f64,
     /// The model's gravity (m/s^2), when it gives one.
     pub gravity: Option<crate::kinematics::frame::Vec3>,
+    /// A mass carried by the platform (`[[payload]]`), weighed under `weight_gravity`.
+    pub payload: Option<Payload>,
+}
+
+/// Standard gravity (m/s^2) along -z: what a payload weighs under when the model gives no gravity.
+pub const STANDARD_GRAVITY: Vec3 = Vec3::new(0.0, 0.0, -9.81);
+
+/// A mass carried by the platform: its weight is a load on the platform at every pose, so the loaded
+/// studies (map --loaded, curve, assemble) and diagnose's loaded nominal all see it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Payload {
+    /// Its mass, kg.
+    pub mass_kg: f64,
+    /// Its centre of mass in the platform frame, mm.
+    pub centre: Vec3,
+}
+
+impl Payload {
+    /// Two masses as one: total mass at their common centre of mass.
+    pub fn combined(self, other: Payload) -> Payload {
+        let mass_kg = self.mass_kg + other.mass_kg;
+        let centre = if mass_kg != 0.0 {
+            (self.centre * self.mass_kg + other.centre * other.mass_kg) / mass_kg
+        } else {
+            (self.centre + other.centre) / 2.0
+        };
+        Payload { mass_kg, centre }
+    }
 }
 
 /// Warm starts of every leg, carried from one point to the next by one worker.
@@ -89,6 +117,37 @@ impl Manipulator {
             }
         }
         out
+    }
+
+    /// Adds a mass carried by the platform (combined with any payload it has).
+    pub fn add_payload(&mut self, p: Payload) {
+        self.payload = Some(self.payload.map_or(p, |q| q.combined(p)));
+    }
+
+    /// True when the model carries a load with no external wrench (a payload, a preload, weighed chain
+    /// masses): its platform then settles away from the commanded pose at rest.
+    pub fn loaded_at_rest(&self) -> bool {
+        self.payload.is_some() || !self.legs.iter().all(Leg::unloaded_at_placement)
+    }
+
+    /// The gravity a payload weighs under: the model's, or standard gravity along -z.
+    pub fn weight_gravity(&self) -> Vec3 {
+        self.gravity.unwrap_or(STANDARD_GRAVITY)
+    }
+
+    /// The payload's weight as a wrench at the reference point with the platform at `platform` (N, N mm;
+    /// the mass in kg times m/s^2 is N, its lever arm in mm), and its derivative with respect to the
+    /// platform's displacement (dp, dphi): the force is fixed in the base frame and its arm r = R c turns
+    /// with the platform, so d(r x f)/dphi = -((f . r) I - r f^T). Zero without a payload.
+    pub fn weight(&self, platform: &Frame) -> (Vec6, Mat6) {
+        let Some(p) = self.payload else { return (Vec6::zeros(), Mat6::zeros()) };
+        let f = self.weight_gravity() * p.mass_kg;
+        let r = platform.rot * p.centre;
+        let m = r.cross(&f);
+        let mut d = Mat6::zeros();
+        let block: Mat3 = -(Mat3::identity() * f.dot(&r) - r * f.transpose());
+        d.fixed_view_mut::<3, 3>(3, 3).copy_from(&block);
+        (Vec6::new(f.x, f.y, f.z, m.x, m.y, m.z), d)
     }
 
     /// A fresh state (no warm starts).
