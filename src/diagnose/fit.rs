@@ -73,9 +73,8 @@ impl<'a> Problem<'a> {
                     .map_err(|why| fails(&p.id, data.rows[p.rows[0]].line, why))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let equilibrium = |position: Vec3, wrench: &Vec6, state: &mut ManipulatorState| {
-            model.deflect(&Frame::translation(position), wrench, None, state)
-        };
+        let equilibrium =
+            |position: Vec3, wrench: &Vec6, state: &mut ManipulatorState| settled(model, position, wrench, state);
         let settle = |position: Vec3, wrench: &Vec6, state: &mut ManipulatorState| {
             equilibrium(position, wrench, state).map(|d| d.displacement)
         };
@@ -84,7 +83,7 @@ impl<'a> Problem<'a> {
                 .iter()
                 .map(|p| {
                     settle(p.position, &Vec6::zeros(), &mut state)
-                        .map_err(|e| fails(&p.id, data.rows[p.rows[0]].line, PoseError::NoLoadedEquilibrium(e)))
+                        .map_err(|e| fails(&p.id, data.rows[p.rows[0]].line, e))
                 })
                 .collect::<Result<Vec<_>, _>>()?
         } else {
@@ -92,8 +91,7 @@ impl<'a> Problem<'a> {
         };
         let (loaded, tangent) = if with_loaded || loaded_mode {
             let rows = data.rows.iter().zip(&pose_of).map(|(r, &k)| {
-                let d = equilibrium(r.position, &r.wrench, &mut state)
-                    .map_err(|e| fails(&r.pose_id, r.line, PoseError::NoLoadedEquilibrium(e)))?;
+                let d = equilibrium(r.position, &r.wrench, &mut state).map_err(|e| fails(&r.pose_id, r.line, e))?;
                 let c = d.held.stiffness.try_inverse().unwrap_or(poses[k].compliance);
                 Ok((d.displacement, (c + c.transpose()) * 0.5))
             });
@@ -134,9 +132,7 @@ impl<'a> Problem<'a> {
             }
             let rows = self.data.rows.iter().zip(&self.pose_of);
             rows.map(|(r, &k)| {
-                let d = m
-                    .deflect(&Frame::translation(r.position), &r.wrench, None, &mut state)
-                    .map_err(PoseError::NoLoadedEquilibrium)?;
+                let d = settled(&m, r.position, &r.wrench, &mut state)?;
                 Ok(d.displacement - compliance[k] * r.wrench)
             })
             .collect()
@@ -213,6 +209,19 @@ impl<'a> Problem<'a> {
         }
         Ok(r)
     }
+}
+
+/// The loaded equilibrium under `wrench` with the platform commanded to `position`: the legs placed there
+/// first (their actuators fixed by the rigid inverse kinematics), then the platform settles.
+fn settled(
+    m: &Manipulator,
+    position: Vec3,
+    wrench: &Vec6,
+    state: &mut ManipulatorState,
+) -> Result<crate::platform::loaded::Deflection, PoseError> {
+    let pose = Frame::translation(position);
+    m.place(&pose, state).map_err(PoseError::Fails)?;
+    m.deflect(&pose, wrench, None, state).map_err(PoseError::NoLoadedEquilibrium)
 }
 
 /// An effect to fit: its kind, target and, for a leg's end-point error, the directions the data can see
