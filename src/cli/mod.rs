@@ -8,6 +8,7 @@ mod curve;
 mod diagnose;
 mod map;
 mod parse;
+mod plan;
 mod plot;
 mod point;
 mod synth;
@@ -22,7 +23,7 @@ use clap::{CommandFactory, Parser, Subcommand};
     version = VERSION,
     about = "Stiffness of parallel robots (units: mm, N, N mm, rad): compliance maps, one pose, force-deflection \
              curves, assembly with geometric errors, diagnosis against measurements, synthetic measurements, \
-             pictures",
+             measurement plans, pictures",
     after_help = "Exit status: 0 success, 1 the run failed (the message says why), 2 the command line is wrong \
                   (unknown option, missing value); `diagnose --fail-on` turns a verdict into 1.\n\n\
                   Example: stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-cube.toml \
@@ -58,6 +59,9 @@ pub enum Command {
     /// Synthetic measurements with hidden effects, in the format `diagnose` reads.
     #[command(after_help = synth::EXAMPLES)]
     Synth(synth::SynthArgs),
+    /// Which measurements (pose and load) to take so that diagnose can name and separate the effects.
+    #[command(after_help = plan::EXAMPLES)]
+    Plan(plan::PlanArgs),
     /// An SVG picture of a study's output (map, curve or assemble CSV, or diagnose JSON).
     #[command(after_help = plot::EXAMPLES)]
     Plot(plot::PlotArgs),
@@ -85,6 +89,7 @@ pub fn run() -> Result<()> {
         Command::Assemble(a) => assemble::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Synth(a) => synth::run(a),
+        Command::Plan(a) => plan::run(a),
         Command::Plot(a) => plot::run(a),
         Command::Completions { shell } => {
             let mut text = Vec::new();

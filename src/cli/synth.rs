@@ -22,9 +22,10 @@ pub(crate) struct SynthArgs {
     pub(crate) effects: Vec<String>,
     #[command(flatten)]
     pub(crate) points: PointsArgs,
-    /// Wrenches applied at every pose: Fx,Fy,Fz,Mx,My,Mz (N, N mm) separated by `;`.
+    /// Wrenches applied at every pose: Fx,Fy,Fz,Mx,My,Mz (N, N mm) separated by `;` (default: each point's
+    /// own, from the points' Fx_N..Mz_Nmm columns, as `stiff plan` writes them).
     #[arg(long, allow_hyphen_values = true)]
-    pub(crate) wrenches: String,
+    pub(crate) wrenches: Option<String>,
     /// Standard deviation of the measurement noise, mm.
     #[arg(long)]
     pub(crate) noise: f64,
@@ -54,12 +55,14 @@ pub(crate) fn run(a: SynthArgs) -> Result<()> {
         .map(|e| Effect::parse(e, &model.manipulator))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("--effect {e}"))?;
-    let wrenches = a
-        .wrenches
-        .split(';')
-        .map(|w| parse_vec6(w.trim()))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| anyhow::anyhow!("--wrenches: {e}"))?;
+    let wrenches = match &a.wrenches {
+        Some(text) => text
+            .split(';')
+            .map(|w| parse_vec6(w.trim()))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| anyhow::anyhow!("--wrenches: {e}"))?,
+        None => Vec::new(),
+    };
     if !(a.noise >= 0.0 && a.noise.is_finite()) {
         bail!("--noise must be >= 0 (mm)");
     }

@@ -213,7 +213,7 @@ impl<'a> Problem<'a> {
 
 /// The loaded equilibrium under `wrench` with the platform commanded to `position`: the legs placed there
 /// first (their actuators fixed by the rigid inverse kinematics), then the platform settles.
-fn settled(
+pub fn settled(
     m: &Manipulator,
     position: Vec3,
     wrench: &Vec6,

@@ -5,6 +5,7 @@ pub mod data;
 pub mod error;
 pub mod fit;
 pub mod measurement;
+pub mod plan;
 pub mod report;
 pub mod select;
 pub mod synth;

@@ -282,7 +282,7 @@ const NO_SIGNATURE: f64 = 1e-9;
 const RANK_DEFICIENT: f64 = 1e8;
 /// A candidate whose signature keeps less than this share outside what the accepted effects explain is
 /// absorbed by them.
-const ABSORBED_SHARE: f64 = 0.05;
+pub(crate) const ABSORBED_SHARE: f64 = 0.05;
 /// A fitted value counts as away from neutral when at least this many standard errors from it.
 const SIGNIFICANT_T: f64 = 3.0;
 /// Delta BIC below -10: "very strong" evidence (Kass and Raftery 1995, Bayes factors, JASA 90:773).
@@ -299,7 +299,7 @@ const NESTED_SHARE: f64 = 1e-3;
 const SIGNATURE_FLOOR: f64 = 1e-9;
 
 /// A typical size of each effect (its value away from neutral) at which its signature is looked for.
-fn probe_step(kind: Kind) -> f64 {
+pub(crate) fn probe_step(kind: Kind) -> f64 {
     match kind {
         Kind::ActuatorCompliance | Kind::LinkCompliance => 0.7, // log factor: compliance doubled
         Kind::Gravity | Kind::GravityOffset => 1.0,             // 1 kg, 1 kg mm

@@ -20,7 +20,7 @@ use crate::platform::manipulator::{Manipulator, ManipulatorState};
 pub struct SynthOptions {
     /// The hidden effects.
     pub effects: Vec<Effect>,
-    /// Wrenches applied at every pose.
+    /// Wrenches applied at every pose; empty: each point's own wrench (a plan's rows).
     pub wrenches: Vec<Vec6>,
     /// Standard deviation of the measurement noise, mm (each axis).
     pub noise: f64,
@@ -127,8 +127,14 @@ impl SynthStudy<'_> {
         let id = p.name.clone().unwrap_or_else(|| format!("p{index}"));
         let mut pose = Pose { id: id.clone(), position: p.position, rows: Vec::new() };
         let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
-        let per_pose = (o.wrenches.len() * o.repeats.max(1)) as u64;
-        for w in &o.wrenches {
+        // Without wrenches for every pose, each point is measured under its own (a plan's rows).
+        let own: Vec<Vec6> = p.wrench.into_iter().collect();
+        let wrenches = if o.wrenches.is_empty() { &own } else { &o.wrenches };
+        if wrenches.is_empty() {
+            return Err(SynthError::NoWrench { pose_id: id });
+        }
+        let per_pose = (wrenches.len() * o.repeats.max(1)) as u64;
+        for w in wrenches {
             for _ in 0..o.repeats.max(1) {
                 // Measured in input order: the pose's index, then its rows.
                 let order = Some((index * per_pose + data.rows.len() as u64) as f64);
@@ -229,6 +235,11 @@ pub enum SynthError {
     },
     /// No pose of the input is reachable and regular.
     NoReachablePose,
+    /// No wrench for every pose was given and this point has none of its own.
+    NoWrench {
+        /// The pose.
+        pose_id: String,
+    },
     /// No pose has a loaded equilibrium under the wrenches (with the hidden effects): the first pose's reason.
     NoPoseSettles(Box<SynthError>),
 }
@@ -244,6 +255,10 @@ impl std::fmt::Display for SynthError {
                 super::data::MAX_MAGNITUDE
             ),
             SynthError::NoReachablePose => f.write_str("no reachable pose to measure"),
+            SynthError::NoWrench { pose_id } => write!(
+                f,
+                "pose {pose_id} has no wrench: give --wrenches, or points with Fx_N..Mz_Nmm columns (a `stiff plan`)"
+            ),
             SynthError::NoPoseSettles(first) => write!(
                 f,
                 "no pose has a loaded equilibrium under the wrenches with the hidden effects, so nothing can be \

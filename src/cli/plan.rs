@@ -1,0 +1,109 @@
+//! `stiff plan`: which measurements to take so that `diagnose` can name and separate the effects.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+
+use super::args::{point_set, write_stdout, ModelArgs, OutputArgs};
+use super::parse::parse_vec6;
+use crate::diagnose::plan::{plan, plan_table, write_plan, Plan, PlanOptions};
+
+/// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
+pub(crate) const EXAMPLES: &str = "Examples:
+  stiff plan manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --loads \"200,0,0,0,0,0;-200,0,0,0,0,0;0,200,0,0,0,0;0,-200,0,0,0,0;0,0,200,0,0,0;0,0,-200,0,0,0\" --budget 30 --noise 0.002 -o plan.csv
+  stiff synth manipulators/orthoglide-3puu.toml --points plan.csv --effect backlash:1=0.01 --noise 0.002 --seed 1 -o planned.csv
+
+Exit status: 0 success, 1 the run failed, 2 usage error.";
+
+#[derive(Args, Debug)]
+pub(crate) struct PlanArgs {
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
+    #[command(flatten)]
+    pub(crate) poses: CandidateArgs,
+    /// The loads to choose from: Fx,Fy,Fz,Mx,My,Mz (N, N mm) separated by `;`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub(crate) loads: String,
+    /// Measurements to choose (pose and load pairs, each at most once).
+    #[arg(long)]
+    pub(crate) budget: usize,
+    /// Effects to plan for, comma-separated: NAME (every target) or NAME:TARGET (default: every candidate
+    /// of the library the candidates can show, drift excepted).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) effects: Vec<String>,
+    /// Standard deviation of the measurement noise, mm.
+    #[arg(long)]
+    pub(crate) noise: f64,
+    /// Choose the measurements at random with this seed instead: a baseline to compare a plan with.
+    #[arg(long, value_name = "SEED")]
+    pub(crate) random: Option<u64>,
+    #[command(flatten)]
+    pub(crate) output: OutputArgs,
+}
+
+/// Where the candidate poses come from.
+#[derive(Args, Debug)]
+#[group(required = true, multiple = false)]
+pub(crate) struct CandidateArgs {
+    /// Candidate poses (CSV with x_mm,y_mm,z_mm, optional name).
+    #[arg(long)]
+    pub(crate) candidates: Option<PathBuf>,
+    /// Candidate poses from a grid file (TOML).
+    #[arg(long)]
+    pub(crate) grid: Option<PathBuf>,
+}
+
+pub(crate) fn run(a: PlanArgs) -> Result<()> {
+    let model = a.model.load_model()?;
+    let loads = a
+        .loads
+        .split(';')
+        .map(|w| parse_vec6(w.trim()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("--loads: {e}"))?;
+    if !(a.noise > 0.0 && a.noise.is_finite()) {
+        bail!("--noise must be a positive number of mm");
+    }
+    if a.budget == 0 {
+        bail!("--budget must be at least 1");
+    }
+    let mut set = point_set(&a.poses.grid, &a.poses.candidates)?;
+    let mut poses = Vec::new();
+    while set.next_block(4096, &mut poses)? > 0 {}
+    let o = PlanOptions { loads, budget: a.budget, effects: a.effects.clone(), noise: a.noise, random: a.random };
+    let mut sink = a.output.open(&plan_table())?;
+    let p = plan(&model, &poses, &o)?;
+    let mut rows = String::new();
+    write_plan(&p, &mut rows);
+    sink.writer().write_all(rows.as_bytes())?;
+    sink.finish()?;
+    let how = if a.random.is_some() { "chosen at random" } else { "greedy D-optimal on the effects' parameters" };
+    write_stdout(&report(&p, how, a.noise))
+}
+
+/// What the plan achieves, for a person.
+fn report(p: &Plan, how: &str, noise: f64) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{} of {} candidate measurements ({how}); noise {noise} mm; log det of the information {:.2}",
+        p.measurements.len(),
+        p.candidates,
+        p.log_det
+    );
+    let _ = writeln!(s, "smallest size detectable at 5 sigma (weakest direction; factor - 1 for compliance factors):");
+    let _ = writeln!(s, "  {:<26} {:>4} {:>14} {:>18}", "effect", "dim", "alone", "beside the others");
+    for d in &p.detectable {
+        let _ = writeln!(s, "  {:<26} {:>4} {:>14.4e} {:>18.4e}", d.label, d.dim, d.alone, d.beside_others);
+    }
+    if p.inseparable.is_empty() {
+        let _ = writeln!(s, "every pair of effects is separable on this plan");
+    }
+    for (a, b, sine) in &p.inseparable {
+        let _ =
+            writeln!(s, "inseparable on this plan: {a} and {b} (sine of the smallest angle between them {sine:.1e})");
+    }
+    s
+}

@@ -1,0 +1,401 @@
+//! `stiff plan`: which measurements (pose and load) to take so that the diagnosis can name every listed
+//! effect and tell every pair apart. Each candidate measurement (a pose of the candidates with one of the
+//! loads) contributes its three rows of the effects' signatures J (weighted by 1/sigma, each parameter in
+//! units of its typical size); the plan is the greedy D-optimal design on all the effects' parameters
+//! together: N times the measurement that most increases log det(J^T J) (the matrix determinant lemma,
+//! log det(I3 + J_i M^-1 J_i^T)), each at most once. Maximising the joint determinant keeps every
+//! effect's own information and the part of it the others cannot mimic, so identifiability and
+//! separability are one criterion. The report gives, per effect, the smallest size detectable at 5 sigma
+//! (alone, and beside the other effects) and the pairs whose signatures stay within `ABSORBED_SHARE` of
+//! each other on the plan (inseparable).
+
+use nalgebra::{DMatrix, Matrix3};
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+
+use super::data::{Dataset, Measurement, Pose};
+use super::error::DiagnoseError;
+use super::fit::{jacobian, settled, Candidate, Problem};
+use super::measurement::PoseModel;
+use super::select::{candidates, probe_step, ABSORBED_SHARE};
+use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::model::effect::Kind;
+use crate::model::grid::PosePoint;
+use crate::model::Model;
+use crate::output::table::{header_line, names, selected_columns, write_row, Column, Record, Row};
+
+/// How to plan.
+pub struct PlanOptions {
+    /// The loads to choose from (N, N mm).
+    pub loads: Vec<Vec6>,
+    /// Measurements to choose.
+    pub budget: usize,
+    /// Effects to plan for (`NAME` for every target, or `NAME:TARGET`); empty: every candidate.
+    pub effects: Vec<String>,
+    /// Measurement noise, mm (each axis).
+    pub noise: f64,
+    /// Choose at random (seeded) instead: a baseline to compare a plan with.
+    pub random: Option<u64>,
+}
+
+/// One chosen measurement.
+#[derive(Clone, Debug)]
+pub struct Planned {
+    /// The pose's name (its input name, or `p` and its index among the candidates).
+    pub pose: String,
+    /// Its position, mm.
+    pub position: Vec3,
+    /// The load, N and N mm.
+    pub wrench: Vec6,
+}
+
+impl Row for Planned {
+    type Layout = ();
+
+    /// A points file `synth --points` measures, each row with its own load.
+    fn record(&self, _: &(), r: &mut impl Record) {
+        r.text(names::NAME, &self.pose);
+        for k in 0..3 {
+            r.number(names::POSITION[k], self.position[k]);
+        }
+        for k in 0..6 {
+            r.number(names::WRENCH[k], self.wrench[k]);
+        }
+    }
+}
+
+/// The columns of a plan, in order.
+pub fn plan_table() -> Vec<Column> {
+    let blank = Planned { pose: String::new(), position: Vec3::zeros(), wrench: Vec6::zeros() };
+    selected_columns(&blank, &(), None)
+}
+
+/// Writes the plan's measurements as a CSV table (header and rows).
+pub fn write_plan(p: &Plan, out: &mut String) {
+    out.push_str(&header_line(&plan_table()));
+    for m in &p.measurements {
+        write_row(m, &(), out);
+    }
+}
+
+/// What the plan lets a diagnosis see, per effect.
+#[derive(Clone, Debug)]
+pub struct Detectable {
+    /// `NAME[:TARGET]`.
+    pub label: String,
+    /// Number of parameters.
+    pub dim: usize,
+    /// The smallest change of its weakest parameter direction seen at 5 sigma, alone (in the parameter's
+    /// units: factor - 1 for a compliance factor, kg, mm, rad, mm/N, ...); infinite where not identifiable.
+    pub alone: f64,
+    /// The same beside every other listed effect (only the part of its signature they cannot mimic).
+    pub beside_others: f64,
+}
+
+/// A plan and what it achieves.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    /// The chosen measurements, in the order chosen.
+    pub measurements: Vec<Planned>,
+    /// Per effect, the smallest detectable size.
+    pub detectable: Vec<Detectable>,
+    /// Pairs whose signatures on the plan are within `ABSORBED_SHARE` of each other: (a, b, sine of the
+    /// smallest angle between them).
+    pub inseparable: Vec<(String, String, f64)>,
+    /// Candidate measurements considered (poses with a loaded equilibrium under the load).
+    pub candidates: usize,
+    /// log det of the information matrix of the plan (parameters in typical-size units).
+    pub log_det: f64,
+}
+
+/// Why a plan cannot be made.
+#[derive(Debug)]
+pub enum PlanError {
+    /// No candidate pose has a loaded equilibrium under any load.
+    NoCandidates,
+    /// The budget exceeds the candidate measurements.
+    BudgetTooLarge {
+        /// The budget asked.
+        budget: usize,
+        /// Candidate measurements available.
+        candidates: usize,
+    },
+    /// An `--effects` entry names no candidate of this model and these candidates.
+    UnknownEffect {
+        /// The entry.
+        name: String,
+        /// What there is.
+        known: Vec<String>,
+    },
+    /// The model could not predict at the candidates.
+    Model(DiagnoseError),
+}
+
+impl std::fmt::Display for PlanError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PlanError::NoCandidates => f.write_str("no candidate pose has a loaded equilibrium under any of the loads"),
+            PlanError::BudgetTooLarge { budget, candidates } => write!(
+                f,
+                "the budget ({budget}) exceeds the candidate measurements ({candidates} poses x loads that can be \
+                 measured): give more poses or loads, or a smaller budget"
+            ),
+            PlanError::UnknownEffect { name, known } => {
+                write!(f, "`{name}` is not a candidate effect here (candidates: {})", known.join(", "))
+            }
+            PlanError::Model(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for PlanError {}
+
+/// Plans `o.budget` measurements among `poses` x `o.loads`.
+pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan, PlanError> {
+    let m = &model.manipulator;
+    // Every (pose, load) the robot can be measured at.
+    let mut data = Dataset { rows: Vec::new(), poses: Vec::new() };
+    let mut state = m.new_state();
+    for (index, p) in poses.iter().enumerate() {
+        if PoseModel::at(m, &Frame::translation(p.position), &mut state).is_err() {
+            continue;
+        }
+        let id = p.name.clone().unwrap_or_else(|| format!("p{index}"));
+        let mut pose = Pose { id: id.clone(), position: p.position, rows: Vec::new() };
+        for w in &o.loads {
+            if settled(m, p.position, w, &mut state).is_ok() {
+                pose.rows.push(data.rows.len());
+                data.rows.push(Measurement {
+                    pose_id: id.clone(),
+                    position: p.position,
+                    wrench: *w,
+                    sigma: Some(o.noise),
+                    ..Measurement::default()
+                });
+            }
+        }
+        if !pose.rows.is_empty() {
+            data.poses.push(pose);
+        }
+    }
+    let n = data.rows.len();
+    if n == 0 {
+        return Err(PlanError::NoCandidates);
+    }
+    if o.budget > n {
+        return Err(PlanError::BudgetTooLarge { budget: o.budget, candidates: n });
+    }
+    let weights = vec![1.0 / o.noise; n];
+    let problem = Problem::new(m, &model.measurement_terms, &data, weights, true, true).map_err(PlanError::Model)?;
+    // The measurement order of a plan is not known yet: drift is not planned for.
+    let offered: Vec<Candidate> = candidates(&problem, true).into_iter().filter(|c| c.kind != Kind::Drift).collect();
+    let chosen = choose_effects(offered, &o.effects)?;
+    let rows: Vec<usize> = (0..n).collect();
+    let signatures: Vec<DMatrix<f64>> = chosen
+        .iter()
+        .map(|c| {
+            jacobian(&problem, std::slice::from_ref(c), &c.neutral(), 0, &rows)
+                .map(|j| j * probe_step(c.kind))
+                .map_err(|e| PlanError::Model(e.into()))
+        })
+        .collect::<Result<_, _>>()?;
+    let all = hstack(&signatures);
+    let picks = match o.random {
+        Some(seed) => {
+            let mut order: Vec<usize> = (0..n).collect();
+            order.shuffle(&mut rand::rngs::StdRng::seed_from_u64(seed));
+            order.truncate(o.budget);
+            order
+        }
+        None => greedy_d_optimal(&all, o.budget),
+    };
+    let on_plan = |j: &DMatrix<f64>| rows_of(j, &picks);
+    let planned: Vec<DMatrix<f64>> = signatures.iter().map(on_plan).collect();
+    // Nested pairs (one effect's signature inside a larger one's: gravity in gravity-offset, an actuator
+    // offset in its leg's geometry) are told apart by parsimony, not by the data: a larger effect that
+    // contains this one is left out of "the others", and nested pairs are not called inseparable.
+    let contains = |big: usize, small: usize| {
+        chosen[big].dim() > chosen[small].dim() && share_outside(&planned[small], &planned[big]) < NESTED
+    };
+    let detectable = chosen
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let others: Vec<DMatrix<f64>> =
+                (0..chosen.len()).filter(|&k| k != i && !contains(k, i)).map(|k| planned[k].clone()).collect();
+            let own = &planned[i];
+            let rest = outside(own, &hstack(&others));
+            let size = |j: &DMatrix<f64>| to_units(c, 5.0 * probe_step(c.kind) / smallest_singular(j));
+            Detectable { label: c.label(), dim: c.dim(), alone: size(own), beside_others: size(&rest) }
+        })
+        .collect();
+    let mut inseparable = Vec::new();
+    for a in 0..chosen.len() {
+        for b in a + 1..chosen.len() {
+            let sine = smallest_angle_sine(&planned[a], &planned[b]);
+            if sine < ABSORBED_SHARE && !contains(a, b) && !contains(b, a) {
+                inseparable.push((chosen[a].label(), chosen[b].label(), sine));
+            }
+        }
+    }
+    let information = on_plan(&all);
+    let log_det = log_det_regularised(&(information.transpose() * &information), &all);
+    let measurements = picks
+        .iter()
+        .map(|&r| {
+            let row = &data.rows[r];
+            Planned { pose: row.pose_id.clone(), position: row.position, wrench: row.wrench }
+        })
+        .collect();
+    Ok(Plan { measurements, detectable, inseparable, candidates: n, log_det })
+}
+
+/// The listed effects among those offered: `NAME` takes every target, `NAME:TARGET` one.
+fn choose_effects(offered: Vec<Candidate>, wanted: &[String]) -> Result<Vec<Candidate>, PlanError> {
+    if wanted.is_empty() {
+        return Ok(offered);
+    }
+    let mut out: Vec<Candidate> = Vec::new();
+    for w in wanted {
+        let matching: Vec<&Candidate> =
+            offered.iter().filter(|c| c.label() == *w || c.kind.name() == w.as_str()).collect();
+        if matching.is_empty() {
+            return Err(PlanError::UnknownEffect {
+                name: w.clone(),
+                known: offered.iter().map(|c| c.label()).collect(),
+            });
+        }
+        for c in matching {
+            if !out.contains(c) {
+                out.push(c.clone());
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Columns side by side.
+fn hstack(blocks: &[DMatrix<f64>]) -> DMatrix<f64> {
+    let rows = blocks.first().map_or(0, |b| b.nrows());
+    let cols = blocks.iter().map(|b| b.ncols()).sum();
+    let mut out = DMatrix::zeros(rows, cols);
+    let mut at = 0;
+    for b in blocks {
+        out.columns_mut(at, b.ncols()).copy_from(b);
+        at += b.ncols();
+    }
+    out
+}
+
+/// The three rows of each picked measurement.
+fn rows_of(j: &DMatrix<f64>, picks: &[usize]) -> DMatrix<f64> {
+    DMatrix::from_fn(3 * picks.len(), j.ncols(), |r, c| j[(3 * picks[r / 3] + r % 3, c)])
+}
+
+/// The part of `j`'s columns outside the span of `others`' columns.
+fn outside(j: &DMatrix<f64>, others: &DMatrix<f64>) -> DMatrix<f64> {
+    if others.ncols() == 0 {
+        return j.clone();
+    }
+    let svd = others.clone().svd(true, false);
+    let u = svd.u.expect("asked for U");
+    let top = svd.singular_values.max();
+    let keep: Vec<usize> = (0..svd.singular_values.len()).filter(|&i| svd.singular_values[i] > 1e-10 * top).collect();
+    let q = u.select_columns(&keep);
+    j - &q * (q.transpose() * j)
+}
+
+/// A signature lies inside another's span when less than this share of it is outside.
+const NESTED: f64 = 1e-6;
+
+/// The share (Frobenius) of `j` outside the span of `other`.
+fn share_outside(j: &DMatrix<f64>, other: &DMatrix<f64>) -> f64 {
+    outside(j, other).norm() / j.norm().max(1e-300)
+}
+
+fn smallest_singular(j: &DMatrix<f64>) -> f64 {
+    if j.nrows() < j.ncols() {
+        return 0.0;
+    }
+    j.clone().svd(false, false).singular_values.min()
+}
+
+/// The sine of the smallest angle between the column spaces of `a` and `b` (0: some combination of one is a
+/// combination of the other).
+fn smallest_angle_sine(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
+    let q = |m: &DMatrix<f64>| m.clone().svd(true, false).u.expect("asked for U").columns(0, m.ncols()).into_owned();
+    if a.nrows() < a.ncols() + b.ncols() || smallest_singular(a) == 0.0 || smallest_singular(b) == 0.0 {
+        return 0.0;
+    }
+    let qa = q(a);
+    let qb = q(b);
+    let residual = &qa - &qb * (qb.transpose() * &qa);
+    let rb = &qb - &qa * (qa.transpose() * &qb);
+    smallest_singular(&residual).min(smallest_singular(&rb))
+}
+
+/// A size in typical-size units (one probe step) turned into the effect's own: a compliance factor's
+/// logarithm to `factor - 1`.
+fn to_units(c: &Candidate, size: f64) -> f64 {
+    if !size.is_finite() {
+        return f64::INFINITY;
+    }
+    if c.kind.scales_springs() {
+        size.exp() - 1.0
+    } else {
+        size
+    }
+}
+
+/// Ridge added to the information matrix while choosing (share of its mean diagonal over every candidate):
+/// it keeps the first choices, when the matrix is still singular, ordered by what they add.
+const RIDGE: f64 = 1e-9;
+
+fn ridge(all: &DMatrix<f64>) -> f64 {
+    let p = all.ncols().max(1) as f64;
+    RIDGE * all.norm_squared() / p
+}
+
+fn log_det_regularised(m: &DMatrix<f64>, all: &DMatrix<f64>) -> f64 {
+    let r = ridge(all);
+    let mut a = m.clone();
+    for i in 0..a.nrows() {
+        a[(i, i)] += r;
+    }
+    a.cholesky().map_or(f64::NEG_INFINITY, |c| 2.0 * c.l().diagonal().iter().map(|v| v.ln()).sum::<f64>())
+}
+
+/// Greedy D-optimal choice of `budget` measurements (three rows each of `all`), each at most once.
+fn greedy_d_optimal(all: &DMatrix<f64>, budget: usize) -> Vec<usize> {
+    let p = all.ncols();
+    let count = all.nrows() / 3;
+    let mut inverse = DMatrix::<f64>::identity(p, p) / ridge(all);
+    let mut picked = vec![false; count];
+    let mut out = Vec::with_capacity(budget);
+    for _ in 0..budget {
+        let mut best = (f64::NEG_INFINITY, usize::MAX);
+        for i in (0..count).filter(|&i| !picked[i]) {
+            let ji = all.rows(3 * i, 3);
+            let a = &ji * &inverse;
+            let g = Matrix3::identity() + Matrix3::from_fn(|r, c| a.row(r).dot(&ji.row(c)));
+            let gain = g.determinant().ln();
+            if gain > best.0 {
+                best = (gain, i);
+            }
+        }
+        let i = best.1;
+        if i == usize::MAX {
+            break;
+        }
+        picked[i] = true;
+        out.push(i);
+        // Woodbury: (M + J^T J)^-1 = M^-1 - M^-1 J^T (I + J M^-1 J^T)^-1 J M^-1.
+        let ji = all.rows(3 * i, 3).into_owned();
+        let mj = &inverse * ji.transpose();
+        let g = DMatrix::<f64>::identity(3, 3) + &ji * &mj;
+        if let Some(gi) = g.try_inverse() {
+            inverse -= &mj * gi * mj.transpose();
+        }
+    }
+    out
+}
