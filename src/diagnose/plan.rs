@@ -17,7 +17,7 @@ use super::data::{Dataset, Measurement, Pose};
 use super::error::DiagnoseError;
 use super::fit::{jacobian, settled, Candidate, Problem};
 use super::measurement::PoseModel;
-use super::select::{candidates, probe_step, ABSORBED_SHARE};
+use super::select::{candidates, probe_step};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 use crate::model::effect::Kind;
 use crate::model::grid::PosePoint;
@@ -99,8 +99,8 @@ pub struct Plan {
     pub measurements: Vec<Planned>,
     /// Per effect, the smallest detectable size.
     pub detectable: Vec<Detectable>,
-    /// Pairs whose signatures on the plan are within `ABSORBED_SHARE` of each other: (a, b, sine of the
-    /// smallest angle between them).
+    /// Pairs whose signatures on the plan are closer than `SEPARABLE_SINE`: (a, b, sine of the smallest
+    /// angle between them).
     pub inseparable: Vec<(String, String, f64)>,
     /// Candidate measurements considered (poses with a loaded equilibrium under the load).
     pub candidates: usize,
@@ -233,7 +233,7 @@ pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan,
     for a in 0..chosen.len() {
         for b in a + 1..chosen.len() {
             let sine = smallest_angle_sine(&planned[a], &planned[b]);
-            if sine < ABSORBED_SHARE && !contains(a, b) && !contains(b, a) {
+            if sine < SEPARABLE_SINE && !contains(a, b) && !contains(b, a) {
                 inseparable.push((chosen[a].label(), chosen[b].label(), sine));
             }
         }
@@ -304,6 +304,11 @@ fn outside(j: &DMatrix<f64>, others: &DMatrix<f64>) -> DMatrix<f64> {
     let q = u.select_columns(&keep);
     j - &q * (q.transpose() * j)
 }
+
+/// Two effects are inseparable on a plan when the sine of the smallest angle between their signatures is
+/// below this: an effect at the size the plan detects (5 sigma) then differs from the other's best mimic by
+/// less than 1 sigma, so it must be five times larger before a diagnosis can tell them apart.
+const SEPARABLE_SINE: f64 = 0.2;
 
 /// A signature lies inside another's span when less than this share of it is outside.
 const NESTED: f64 = 1e-6;
@@ -376,7 +381,7 @@ fn greedy_d_optimal(all: &DMatrix<f64>, budget: usize) -> Vec<usize> {
         let mut best = (f64::NEG_INFINITY, usize::MAX);
         for i in (0..count).filter(|&i| !picked[i]) {
             let ji = all.rows(3 * i, 3);
-            let a = &ji * &inverse;
+            let a = ji * &inverse;
             let g = Matrix3::identity() + Matrix3::from_fn(|r, c| a.row(r).dot(&ji.row(c)));
             let gain = g.determinant().ln();
             if gain > best.0 {
