@@ -39,7 +39,7 @@ pub struct Problem<'a> {
     pose_of: Vec<usize>,
     /// Per spring scaling (kind and target), per row: the derivative of the loaded response's non-linear
     /// part (loaded - C w) by the logarithm of the factor, computed when first needed (loaded mode).
-    slopes: Mutex<Vec<(Kind, Target, Vec<Vec6>)>>,
+    slopes: Mutex<Vec<(Kind, Target, usize, Vec<Vec6>)>>,
 }
 
 /// Step in the logarithm of a compliance factor by which the non-linear part's derivative is differenced
@@ -117,14 +117,17 @@ impl<'a> Problem<'a> {
         })
     }
 
-    /// d(loaded - C w)/d ln(factor) for every row, for the spring scaling `e` (its value ignored).
-    fn nonlinear_slope(&self, e: &Effect) -> Result<Vec<Vec6>, PoseError> {
+    /// d(loaded - C w)/d ln(factor) for every row, for factor `i` of the spring scaling `e` (its values
+    /// ignored).
+    fn nonlinear_slope(&self, e: &Effect, i: usize) -> Result<Vec<Vec6>, PoseError> {
         let mut cache = self.slopes.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some((_, _, s)) = cache.iter().find(|(k, t, _)| *k == e.kind && *t == e.target) {
+        if let Some((.., s)) = cache.iter().find(|(k, t, j, _)| *k == e.kind && *t == e.target && *j == i) {
             return Ok(s.clone());
         }
         let part = |log_factor: f64| -> Result<Vec<Vec6>, PoseError> {
-            let m = scaled(self.model, &[Effect { values: vec![log_factor.exp()], ..e.clone() }]);
+            let mut values = vec![1.0; e.values.len()];
+            values[i] = log_factor.exp();
+            let m = scaled(self.model, &[Effect { values, ..e.clone() }]);
             let mut state = m.new_state();
             let mut compliance = Vec::with_capacity(self.poses.len());
             for p in &self.data.poses {
@@ -139,7 +142,7 @@ impl<'a> Problem<'a> {
         };
         let (plus, minus) = (part(LOG_FACTOR_STEP)?, part(-LOG_FACTOR_STEP)?);
         let slope: Vec<Vec6> = plus.iter().zip(&minus).map(|(a, b)| (a - b) / (2.0 * LOG_FACTOR_STEP)).collect();
-        cache.push((e.kind, e.target.clone(), slope.clone()));
+        cache.push((e.kind, e.target.clone(), i, slope.clone()));
         Ok(slope)
     }
 
@@ -157,9 +160,8 @@ impl<'a> Problem<'a> {
         let mut state = changed.as_ref().map(|m| m.new_state());
         // Loaded mode: the non-linear part moves with each factor too (first order in its logarithm).
         let slopes: Vec<(f64, Vec<Vec6>)> = if self.loaded_mode && self.loaded.is_some() {
-            scalings
-                .iter()
-                .map(|e| Ok((e.values[0].ln(), self.nonlinear_slope(e)?)))
+            let each = scalings.iter().flat_map(|e| e.values.iter().enumerate().map(move |(i, v)| (e, i, v.ln())));
+            each.map(|(e, i, log_factor)| Ok((log_factor, self.nonlinear_slope(e, i)?)))
                 .collect::<Result<_, PoseError>>()?
         } else {
             Vec::new()

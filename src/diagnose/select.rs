@@ -197,7 +197,9 @@ pub fn candidates(problem: &Problem, loaded: bool) -> Vec<Candidate> {
         out.push(Candidate::new(Kind::ActuatorCompliance, Target::Leg(k)));
     }
     for g in m.link_spring_groups() {
-        out.push(Candidate::new(Kind::LinkCompliance, Target::Group(g)));
+        for kind in [Kind::LinkCompliance, Kind::LinkSections] {
+            out.push(Candidate::new(kind, Target::Group(g.clone())));
+        }
     }
     out.push(Candidate::new(Kind::Gravity, Target::None));
     out.push(Candidate { kind: Kind::GravityOffset, target: Target::None, basis: Some(centre_basis(problem)) });
@@ -301,13 +303,13 @@ const SIGNATURE_FLOOR: f64 = 1e-9;
 /// A typical size of each effect (its value away from neutral) at which its signature is looked for.
 pub(crate) fn probe_step(kind: Kind) -> f64 {
     match kind {
-        Kind::ActuatorCompliance | Kind::LinkCompliance => 0.7, // log factor: compliance doubled
-        Kind::Gravity | Kind::GravityOffset => 1.0,             // 1 kg, 1 kg mm
+        Kind::ActuatorCompliance | Kind::LinkCompliance | Kind::LinkSections => 0.7, // log factor: x2
+        Kind::Gravity | Kind::GravityOffset => 1.0,                                  // 1 kg, 1 kg mm
         Kind::LegGeometry | Kind::ActuatorOffset | Kind::Backlash | Kind::ToolOffset => 0.01, // mm (basis units)
-        Kind::LoadedNonlinearity => 1.0,                        // the whole loaded response
-        Kind::FrameRotation => 1e-4,                            // rad
-        Kind::ToolCompliance => 1e-4,                           // mm/N
-        Kind::Drift => 1e-3,                                    // mm per unit of order
+        Kind::LoadedNonlinearity => 1.0,                                             // the whole loaded response
+        Kind::FrameRotation => 1e-4,                                                 // rad
+        Kind::ToolCompliance => 1e-4,                                                // mm/N
+        Kind::Drift => 1e-3,                                                         // mm per unit of order
     }
 }
 
@@ -540,7 +542,9 @@ fn plausible(c: &Candidate, v: &[f64], se: &[f64]) -> bool {
     let finite = v.iter().all(|x| x.is_finite());
     finite
         && match c.kind {
-            Kind::ActuatorCompliance | Kind::LinkCompliance => v[0] > 0.05 && v[0] < 20.0,
+            Kind::ActuatorCompliance | Kind::LinkCompliance | Kind::LinkSections => {
+                v.iter().all(|f| *f > 0.05 && *f < 20.0)
+            }
             Kind::Gravity | Kind::Backlash | Kind::ToolCompliance => v[0] + 2.0 * se[0] >= 0.0,
             Kind::GravityOffset => v[0] + 2.0 * se[0] >= 0.0 && v[1..].iter().all(|c| c.abs() < 1e5),
             Kind::LoadedNonlinearity => v[0] > 0.0 && v[0] < 5.0,

@@ -195,7 +195,8 @@ impl ChainParts {
         }
         let actuator =
             matches!(self.elements.iter().rev().nth(joints.len()), Some(Element::Joint(j)) if j.role == Role::Actuated);
-        self.springs.push(SpringGroup { name, actuator, first, dim: joints.len(), stiffness, compliance, posture });
+        let dim = joints.len();
+        self.springs.push(SpringGroup { name, actuator, first, dim, stiffness, compliance, posture, beam_axis: None });
     }
 }
 
@@ -290,7 +291,8 @@ impl Builder<'_> {
         Ok(sym)
     }
 
-    fn beam(&self, b: &Spanned<BeamSpec>) -> Result<Mat6, InputError> {
+    /// A beam spring's compliance and its axis (unit, in the spring's coordinates).
+    fn beam(&self, b: &Spanned<BeamSpec>) -> Result<(Mat6, Vec3), InputError> {
         let s = b.get_ref();
         let e = self.positive(&s.e, "E")?;
         let g = self.shear_modulus(e, &s.g, &s.nu, b.span())?;
@@ -300,7 +302,7 @@ impl Builder<'_> {
             Some(d) => self.axis(d)?,
             None => Vec3::x(),
         };
-        Ok(beam_compliance(&section, length, &direction))
+        Ok((beam_compliance(&section, length, &direction), direction.normalize()))
     }
 
     /// A beam section: a round `diameter`, or all of A, Iy, Iz, J.
@@ -534,10 +536,15 @@ impl Builder<'_> {
     fn spring6(&self, e: &Spanned<ElementSpec>, name: String, parts: &mut ChainParts) -> Result<(), InputError> {
         let s = e.get_ref();
         let mut posture = None;
+        let mut beam_axis = None;
         let compliance = match (&s.stiffness_matrix, &s.compliance_matrix, &s.beam, &s.parallelogram) {
             (Some(k), None, None, None) => self.matrix6(k, "stiffness_matrix")?.try_inverse(),
             (None, Some(c), None, None) => Some(self.matrix6(c, "compliance_matrix")?),
-            (None, None, Some(b), None) => Some(self.beam(b)?),
+            (None, None, Some(b), None) => {
+                let (c, axis) = self.beam(b)?;
+                beam_axis = Some(axis);
+                Some(c)
+            }
             (None, None, None, Some(p)) => {
                 let spec = self.parallelogram(p, parts)?;
                 let k = spec.stiffness(0.0).ok_or_else(|| {
@@ -570,6 +577,9 @@ impl Builder<'_> {
             &self.preload(s, 6)?,
             posture,
         );
+        if let Some(spring) = parts.springs.last_mut() {
+            spring.beam_axis = beam_axis;
+        }
         Ok(())
     }
 

@@ -16,6 +16,8 @@ pub enum Kind {
     ActuatorCompliance,
     /// A spring group softer or stiffer (compliance factor).
     LinkCompliance,
+    /// The axial and the bending (with torsion) compliance of a group's beam springs, two factors.
+    LinkSections,
     /// A mass carried at the reference point under the model's gravity.
     Gravity,
     /// A mass carried by the platform with its centre of mass away from the reference point.
@@ -41,9 +43,10 @@ pub enum Kind {
 }
 
 /// Every kind, in the order candidates are listed.
-pub const KINDS: [Kind; 12] = [
+pub const KINDS: [Kind; 13] = [
     Kind::ActuatorCompliance,
     Kind::LinkCompliance,
+    Kind::LinkSections,
     Kind::Gravity,
     Kind::GravityOffset,
     Kind::LegGeometry,
@@ -72,6 +75,7 @@ impl Kind {
         match self {
             Kind::ActuatorCompliance => "actuator-compliance",
             Kind::LinkCompliance => "link-compliance",
+            Kind::LinkSections => "link-sections",
             Kind::Gravity => "gravity",
             Kind::GravityOffset => "gravity-offset",
             Kind::LegGeometry => "leg-geometry",
@@ -98,6 +102,11 @@ impl Kind {
         match self {
             Kind::ActuatorCompliance => (1, "compliance factor of the leg's actuator spring (1 = nominal)"),
             Kind::LinkCompliance => (1, "compliance factor of the spring group (1 = nominal)"),
+            Kind::LinkSections => (
+                2,
+                "axial, and bending with torsion, compliance factors of the group's beams (1 = nominal; a diameter \
+                 times s gives s^-2 and s^-4)",
+            ),
             Kind::Gravity => (1, "mass carried at the reference point, kg, under the model's gravity"),
             Kind::GravityOffset => {
                 (4, "mass carried by the platform, kg, and its centre of mass in the platform frame, mm (x, y, z)")
@@ -119,14 +128,14 @@ impl Kind {
     pub fn target(self) -> TargetKind {
         match self {
             Kind::ActuatorCompliance | Kind::LegGeometry | Kind::ActuatorOffset | Kind::Backlash => TargetKind::Leg,
-            Kind::LinkCompliance => TargetKind::Group,
+            Kind::LinkCompliance | Kind::LinkSections => TargetKind::Group,
             _ => TargetKind::None,
         }
     }
 
     /// Spring scalings change the legs' compliance; the other kinds add to the displacement.
     pub fn scales_springs(self) -> bool {
-        matches!(self, Kind::ActuatorCompliance | Kind::LinkCompliance)
+        matches!(self, Kind::ActuatorCompliance | Kind::LinkCompliance | Kind::LinkSections)
     }
 
     /// Whether the effect is a change of the robot (written into the model) or of the measurement.
@@ -134,6 +143,7 @@ impl Kind {
         match self {
             Kind::ActuatorCompliance
             | Kind::LinkCompliance
+            | Kind::LinkSections
             | Kind::Gravity
             | Kind::GravityOffset
             | Kind::ActuatorOffset => Form::Model,
@@ -149,7 +159,7 @@ impl Kind {
     /// The parameter values of the nominal model (no effect).
     pub fn neutral(self) -> f64 {
         match self {
-            Kind::ActuatorCompliance | Kind::LinkCompliance => 1.0,
+            Kind::ActuatorCompliance | Kind::LinkCompliance | Kind::LinkSections => 1.0,
             _ => 0.0,
         }
     }
@@ -356,7 +366,7 @@ impl Effect {
                 Target::Group(g.to_string())
             }
         };
-        if kind.scales_springs() && values[0] <= 0.0 {
+        if kind.scales_springs() && values.iter().any(|v| *v <= 0.0) {
             return Err(EffectError::NotPositive { kind });
         }
         let values = match kind {
@@ -398,6 +408,7 @@ pub fn with_model_effects(m: &Manipulator, effects: &[Effect]) -> Manipulator {
         match (&e.kind, &e.target) {
             (Kind::ActuatorCompliance, Target::Leg(k)) => out.scale_compliance(&SpringSet::ActuatorOf(*k), e.values[0]),
             (Kind::LinkCompliance, Target::Group(g)) => out.scale_compliance(&SpringSet::Group(g), e.values[0]),
+            (Kind::LinkSections, Target::Group(g)) => out.scale_beam_parts(g, e.values[0], e.values[1]),
             (Kind::Gravity, _) => out.add_payload(Payload { mass_kg: e.values[0], centre: Vec3::zeros() }),
             (Kind::GravityOffset, _) => {
                 let v = e.user_values();

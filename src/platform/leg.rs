@@ -127,6 +127,16 @@ impl Leg {
         }
     }
 
+    /// Scales the axial and the bending (with torsion) compliance of the beam springs `select(name,
+    /// actuator)` picks (`SpringGroup::scale_beam_parts`).
+    pub fn scale_beam_parts(&mut self, select: impl Fn(&str, bool) -> bool, axial: f64, bending: f64) {
+        if let Leg::Vjm(v) = self {
+            for s in v.springs.iter_mut().filter(|s| select(&s.name, s.actuator)) {
+                s.scale_beam_parts(axial, bending);
+            }
+        }
+    }
+
     /// Moves the leg's actuator by `offset` (mm or rad) from where it is commanded: the rest value of its
     /// actuator spring, which sits in series on the actuator's axis (V_a(q + theta), paper 001 eq 1), so the
     /// loaded answers see the leg's end pulled as by the offset. A leg without an actuator spring is left.

@@ -103,6 +103,15 @@ impl Manipulator {
         }
     }
 
+    /// Multiplies the axial compliance (L/EA) of the beam springs named `group` by `axial` and their
+    /// bending and torsion compliance by `bending`, in every leg (a link diameter changed by (1 + e) gives
+    /// (1 + e)^-2 and (1 + e)^-4).
+    pub fn scale_beam_parts(&mut self, group: &str, axial: f64, bending: f64) {
+        for leg in &mut self.legs {
+            leg.scale_beam_parts(|name, _| name == group, axial, bending);
+        }
+    }
+
     /// Whether some leg has a spring group of this name.
     pub fn has_spring_group(&self, name: &str) -> bool {
         self.legs.iter().any(|l| l.spring_groups().any(|(group, _)| group == name))

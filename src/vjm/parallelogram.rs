@@ -37,8 +37,16 @@ impl Parallelogram {
         let bar_dir = Vec3::new(q.cos(), q.sin(), 0.0);
         let compliance = beam_compliance(&self.bar, self.length, &Vec3::x());
         let stiffness = compliance.try_inverse().filter(|k| k.iter().all(|v| v.is_finite()))?;
-        let spring =
-            SpringGroup { name: "bar".into(), actuator: false, first: 0, dim: 6, stiffness, compliance, posture: None };
+        let spring = SpringGroup {
+            name: "bar".into(),
+            actuator: false,
+            first: 0,
+            dim: 6,
+            stiffness,
+            compliance,
+            posture: None,
+            beam_axis: None,
+        };
         let mut total = Mat6::zeros();
         for side in [-0.5, 0.5] {
             let offset = Vec3::new(0.0, side * self.separation, 0.0);
@@ -119,6 +127,7 @@ mod tests {
                 stiffness: k,
                 compliance: c,
                 posture: None,
+                beam_axis: None,
             };
             let z = Vec3::z();
             let mut elements = vec![

@@ -22,6 +22,9 @@ pub struct SpringGroup {
     /// Where the spring depends on the posture (a parallelogram's angle), how; `stiffness` and
     /// `compliance` then hold its value at the nominal posture.
     pub posture: Option<super::parallelogram::Parallelogram>,
+    /// For a spring derived from a straight beam: its axis (unit, in the spring's coordinates), along
+    /// which the translation is the beam's axial compliance L/EA, uncoupled from bending and torsion.
+    pub beam_axis: Option<Vec3>,
 }
 
 impl SpringGroup {
@@ -32,6 +35,21 @@ impl SpringGroup {
         self.compliance *= factor;
         if let Some(p) = &mut self.posture {
             p.compliance_factor *= factor;
+        }
+    }
+
+    /// Multiplies a beam spring's axial compliance (L/EA) by `axial` and the rest (bending L^3/3EI and
+    /// torsion L/GJ, all proportional to d^-4 for a round section where the axial part goes as d^-2) by
+    /// `bending`. A spring that is not a straight beam is left as it is.
+    pub fn scale_beam_parts(&mut self, axial: f64, bending: f64) {
+        let Some(u) = self.beam_axis else { return };
+        let mut along = Mat6::zeros();
+        let a = (u.transpose() * self.compliance.fixed_view::<3, 3>(0, 0) * u)[0];
+        along.fixed_view_mut::<3, 3>(0, 0).copy_from(&(u * u.transpose() * a));
+        let c = along * axial + (self.compliance - along) * bending;
+        if let Some(k) = c.try_inverse() {
+            self.compliance = c;
+            self.stiffness = (k + k.transpose()) * 0.5;
         }
     }
 
