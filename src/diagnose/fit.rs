@@ -39,7 +39,15 @@ pub struct Problem<'a> {
     pose_of: Vec<usize>,
     /// Per spring scaling (kind and target), per row: the derivative of the loaded response's non-linear
     /// part (loaded - C w) by the logarithm of the factor, computed when first needed (loaded mode).
-    slopes: Mutex<Vec<(Kind, Target, usize, Vec<Vec6>)>>,
+    slopes: Mutex<Vec<Slope>>,
+}
+
+/// One factor's slope of the loaded response's non-linear part, per row.
+struct Slope {
+    kind: Kind,
+    target: Target,
+    factor: usize,
+    per_row: Vec<Vec6>,
 }
 
 /// Step in the logarithm of a compliance factor by which the non-linear part's derivative is differenced
@@ -121,8 +129,8 @@ impl<'a> Problem<'a> {
     /// ignored).
     fn nonlinear_slope(&self, e: &Effect, i: usize) -> Result<Vec<Vec6>, PoseError> {
         let mut cache = self.slopes.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some((.., s)) = cache.iter().find(|(k, t, j, _)| *k == e.kind && *t == e.target && *j == i) {
-            return Ok(s.clone());
+        if let Some(s) = cache.iter().find(|s| s.kind == e.kind && s.target == e.target && s.factor == i) {
+            return Ok(s.per_row.clone());
         }
         let part = |log_factor: f64| -> Result<Vec<Vec6>, PoseError> {
             let mut values = vec![1.0; e.values.len()];
@@ -142,7 +150,7 @@ impl<'a> Problem<'a> {
         };
         let (plus, minus) = (part(LOG_FACTOR_STEP)?, part(-LOG_FACTOR_STEP)?);
         let slope: Vec<Vec6> = plus.iter().zip(&minus).map(|(a, b)| (a - b) / (2.0 * LOG_FACTOR_STEP)).collect();
-        cache.push((e.kind, e.target.clone(), i, slope.clone()));
+        cache.push(Slope { kind: e.kind, target: e.target.clone(), factor: i, per_row: slope.clone() });
         Ok(slope)
     }
 
