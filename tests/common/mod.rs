@@ -81,6 +81,7 @@ impl ChainBuilder {
             stiffness: km,
             compliance: cm,
             posture: None,
+            beam_axis: None,
         });
         self
     }
@@ -106,6 +107,7 @@ impl ChainBuilder {
             stiffness: k,
             compliance: c,
             posture: None,
+            beam_axis: None,
         });
         self
     }
