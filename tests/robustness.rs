@@ -290,39 +290,18 @@ fn astronomical_loads_give_statuses_not_nan_rows() {
     let text = String::from_utf8(o.stdout).unwrap();
     statuses_with_finite_ok_rows(&text);
     assert!(!text.contains("nan") && !text.contains("inf"), "{text}");
-    let o = run(&[
-        "synth",
-        PUU,
-        "--grid",
-        SMALL,
-        "--wrenches",
-        "100,0,0,0,0,0",
-        "--noise",
-        "0",
-        "--seed",
-        "1",
-        "--effect",
-        "gravity=1e308",
-    ]);
+    let synth = |extra: &[&str]| {
+        let mut args = vec!["synth", PUU, "--grid", SMALL, "--wrenches", "100,0,0,0,0,0", "--noise", "0"];
+        args.extend(["--seed", "1", "--effect", "gravity=1e308"]);
+        args.extend(extra);
+        run(&args)
+    };
     // A payload of 1e308 kg has no loaded equilibrium anywhere: refused, saying so.
+    let o = synth(&[]);
     assert!(refused(&o).contains("no pose has a loaded equilibrium"), "{}", refused(&o));
     // Synthetic measurements must stay readable by diagnose: an overflowing linear prediction is refused (it
     // used to write rows with empty displacement cells).
-    let o = run(&[
-        "synth",
-        PUU,
-        "--grid",
-        SMALL,
-        "--wrenches",
-        "100,0,0,0,0,0",
-        "--noise",
-        "0",
-        "--seed",
-        "1",
-        "--effect",
-        "gravity=1e308",
-        "--linear",
-    ]);
+    let o = synth(&["--linear"]);
     assert!(refused(&o).contains("not a measurement"));
 }
 
