@@ -458,3 +458,38 @@ fn a_changed_link_diameter_is_named_with_its_two_factors() {
     let (single, two) = (row("link-compliance:leg"), row("link-sections:leg"));
     assert!(two < single - 10.0, "delta BIC: one factor {single:.1}, two {two:.1}");
 }
+
+/// Regression: the loaded equilibrium of each measurement was solved with the legs as the previous pose
+/// had placed them, which the model's own unloaded prediction happened to re-place for a model unloaded at
+/// rest; a model carrying a preload (an actuator offset written back by `--model-out`) then found no
+/// equilibrium, or the wrong one. Each row's loaded prediction must equal the equilibrium of the legs placed
+/// at that row's pose from a fresh state, in any order of the rows.
+#[test]
+fn each_row_is_predicted_from_the_legs_placed_at_its_own_pose() {
+    use stiff::kinematics::frame::Frame;
+    use stiff::model::effect::with_model_effects;
+    let nominal = model();
+    let m = with_model_effects(&nominal, &[Effect::parse("actuator-offset:2=0.02", &nominal).unwrap()]);
+    let points: Vec<PosePoint> = [[-60.0, 110.0, 80.0], [0.0, 0.0, 0.0], [110.0, -60.0, -60.0]]
+        .iter()
+        .map(|p| PosePoint { name: None, position: Vec3::from(*p), rotation: Vec3::zeros(), wrench: None })
+        .collect();
+    let loads = [Vec6::zeros(), Vec6::new(0.0, 150.0, -100.0, 0.0, 0.0, 0.0)];
+    let data = synth_at(&nominal, points, &[], &loads, 0.0, 1);
+    let weights = vec![1.0 / SIGMA; data.rows.len()];
+    let problem = Problem::new(&m, &[], &data, weights, true, true).unwrap();
+    let rows: Vec<usize> = (0..data.rows.len()).rev().collect();
+    let predicted = problem.predict(&[], &rows).unwrap();
+    for (&r, p) in rows.iter().zip(&predicted) {
+        let row = &data.rows[r];
+        let pose = Frame::translation(row.position);
+        let mut state = m.new_state();
+        m.place(&pose, &mut state).unwrap();
+        let d = m.deflect(&pose, &row.wrench, None, &mut state).unwrap().displacement;
+        let expected = Vec3::new(d[0], d[1], d[2]);
+        // Warm and fresh inverse kinematics agree to its tolerance, 1e-9 of the length scale (~1e-6 mm).
+        let tolerance = 2e-9 * m.length_scale;
+        assert!((p - expected).norm() <= tolerance, "row {r}: {} vs {}", p.transpose(), expected.transpose());
+        assert!(expected.norm() > 1e-3, "the offset moves the platform: {expected}");
+    }
+}
