@@ -787,8 +787,8 @@ fn variance_grows_with_load(problem: &Problem, rows: &[usize], r: &DVector<f64>,
 /// (F test at alpha of the means' sum of squares against the rest).
 fn residuals_follow_the_load(problem: &Problem, rows: &[usize], r: &DVector<f64>, alpha: f64) -> bool {
     let mut groups: Vec<(Vec6, Vec<usize>)> = Vec::new();
-    for i in 0..rows.len() {
-        let w = problem.data.rows[rows[i]].wrench;
+    for (i, &row) in rows.iter().enumerate() {
+        let w = problem.data.rows[row].wrench;
         match groups.iter_mut().find(|(g, _)| (g - w).norm() <= 1e-9 * (1.0 + w.norm())) {
             Some((_, members)) => members.push(i),
             None => groups.push((w, vec![i])),
