@@ -187,6 +187,9 @@ fn every_effect_is_named_and_recovered() {
         assert!(z.abs() <= bound, "{what}: |z| = {:.2} beyond {bound:.2}", z.abs());
     }
     eprintln!("95% intervals cover {covered} of {checks} true values");
+    for (z, what) in misses.iter().filter(|(z, _)| z.abs() > 1.96) {
+        eprintln!("beyond 1.96: z = {z:.2}: {what}");
+    }
 }
 
 #[test]
