@@ -47,7 +47,7 @@ pub(crate) struct DiagnoseArgs {
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
     /// Exit with status 1 (after writing every output) when the verdict is `effect` or worse (any verdict but
-    /// none), or `unexplained` (unexplained or ambiguous): a CI gate on measured data.
+    /// none), or `unexplained` (unexplained, ambiguous or noise): a CI gate on measured data.
     #[arg(long, value_enum)]
     pub(crate) fail_on: Option<FailOn>,
 }
@@ -55,9 +55,9 @@ pub(crate) struct DiagnoseArgs {
 /// Which verdicts `--fail-on` turns into a failing exit status.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum FailOn {
-    /// Any discrepancy: effect, ambiguous or unexplained.
+    /// Any discrepancy: effect, ambiguous, unexplained or noise.
     Effect,
-    /// A discrepancy not attributed to one effect: ambiguous or unexplained.
+    /// A discrepancy not attributed to named effects: ambiguous, unexplained or noise.
     Unexplained,
 }
 
