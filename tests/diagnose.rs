@@ -521,3 +521,22 @@ fn noise_that_grows_with_the_load_is_not_an_effect() {
     assert!(d.accepted.is_empty());
     assert!(stiff::diagnose::report::sentence(&d).contains("sigma_mm"));
 }
+
+/// Regression: the instrument's frame rotation turned the measured point (the reference point plus the
+/// tool offset) only when tool-offset came first in the list of effects; a measurement does not depend on
+/// the order its effects are written in.
+#[test]
+fn the_order_of_effects_does_not_change_a_prediction() {
+    let m = model();
+    let data = synth(&m, &[], &wrenches(), 0.0, 1);
+    let weights = vec![1.0 / SIGMA; data.rows.len()];
+    let problem = Problem::new(&m, &[], &data, weights, true, true).unwrap();
+    let rows: Vec<usize> = (0..data.rows.len()).collect();
+    let rotation = Effect::parse("frame-rotation=0.001,-0.002,0.003", &m).unwrap();
+    let tool = Effect::parse("tool-offset=40,-25,60", &m).unwrap();
+    let a = problem.predict(&[rotation.clone(), tool.clone()], &rows).unwrap();
+    let b = problem.predict(&[tool, rotation], &rows).unwrap();
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).norm() <= 1e-12, "{x} vs {y}");
+    }
+}

@@ -57,6 +57,15 @@ fn a_plan_with_one_load_direction_cannot_separate_backlash_from_compliance() {
             .collect::<Vec<_>>(),
     );
     assert!(both_ways.contains("every pair of effects is separable"), "{both_ways}");
+    // A noise below a picometre makes weights whose squares overflow (and decompositions that never end):
+    // refused with the bounds, as diagnose refuses such a sigma.
+    let o = Command::cargo_bin("stiff")
+        .unwrap()
+        .args(["plan", MODEL, "--grid", &g, "--loads", LOADS, "--budget", "3", "--noise", "1e-300", "-o", o])
+        .output()
+        .unwrap();
+    let message = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && message.contains("the noise must lie in [1e-9, 1e100] mm"), "{message}");
     // The plan is a points file with a wrench per row: 12 rows, each a candidate pose and one of the loads.
     let text = std::fs::read_to_string(&out).unwrap();
     assert_eq!(text.lines().next().unwrap(), "name,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm");

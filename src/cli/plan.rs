@@ -63,8 +63,11 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
         .map(|w| parse_vec6(w.trim()))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("--loads: {e}"))?;
-    if !(a.noise > 0.0 && a.noise.is_finite()) {
-        bail!("--noise must be a positive number of mm");
+    // The same bounds as a measurement's sigma in diagnose: below a picometre the weights' squares overflow.
+    use crate::diagnose::data::{MAX_MAGNITUDE, MIN_SIGMA_MM};
+    if !(MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&a.noise) {
+        let e = crate::diagnose::error::DiagnoseError::NoiseOutOfRange { sigma: a.noise };
+        bail!("--noise: {e}");
     }
     if a.budget == 0 {
         bail!("--budget must be at least 1");
@@ -88,7 +91,7 @@ fn report(p: &Plan, how: &str, noise: f64) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{} of {} candidate measurements ({how}); noise {noise} mm; log det of the information {:.2}",
+        "{} of {} candidate measurements ({how}); noise {noise:e} mm; log det of the information {:.2}",
         p.measurements.len(),
         p.candidates,
         p.log_det

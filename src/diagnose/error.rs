@@ -63,7 +63,7 @@ impl fmt::Display for DiagnoseError {
         match self {
             DiagnoseError::Pose { pose_id, line, why } => write!(f, "line {line}: pose `{pose_id}`: {why}"),
             DiagnoseError::NoiseOutOfRange { sigma } => {
-                write!(f, "the noise must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mm, got {sigma}")
+                write!(f, "the noise must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mm, got {sigma:e}")
             }
             DiagnoseError::NoiseUnknown => f.write_str(
                 "the noise level is unknown: give a sigma_mm column, the noise level, or repeated rows (same pose \

@@ -81,16 +81,12 @@ impl<'a> Problem<'a> {
                     .map_err(|why| fails(&p.id, data.rows[p.rows[0]].line, why))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let equilibrium =
-            |position: Vec3, wrench: &Vec6, state: &mut ManipulatorState| settled(model, position, wrench, state);
-        let settle = |position: Vec3, wrench: &Vec6, state: &mut ManipulatorState| {
-            equilibrium(position, wrench, state).map(|d| d.displacement)
-        };
         let rest = if model.loaded_at_rest() {
             data.poses
                 .iter()
                 .map(|p| {
-                    settle(p.position, &Vec6::zeros(), &mut state)
+                    settled(model, p.position, &Vec6::zeros(), &mut state)
+                        .map(|d| d.displacement)
                         .map_err(|e| fails(&p.id, data.rows[p.rows[0]].line, e))
                 })
                 .collect::<Result<Vec<_>, _>>()?
@@ -99,7 +95,7 @@ impl<'a> Problem<'a> {
         };
         let (loaded, tangent) = if with_loaded || loaded_mode {
             let rows = data.rows.iter().zip(&pose_of).map(|(r, &k)| {
-                let d = equilibrium(r.position, &r.wrench, &mut state).map_err(|e| fails(&r.pose_id, r.line, e))?;
+                let d = settled(model, r.position, &r.wrench, &mut state).map_err(|e| fails(&r.pose_id, r.line, e))?;
                 let c = d.held.stiffness.try_inverse().unwrap_or(poses[k].compliance);
                 Ok((d.displacement, (c + c.transpose()) * 0.5))
             });

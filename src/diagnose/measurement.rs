@@ -68,19 +68,20 @@ impl PoseModel {
         // A load added to a loaded platform moves it by the compliance where it stands.
         let c = tangent.unwrap_or(&self.compliance);
         let mut d = *base;
-        let mut tool = Vec3::zeros();
+        // The measured point, wherever the tool-offset stands in the list (frame-rotation turns it).
+        let tool = effects.iter().rev().find(|e| e.kind == Kind::ToolOffset).map_or(Vec3::zeros(), |e| {
+            let v = &e.values;
+            Vec3::new(v[0], v[1], v[2])
+        });
         let mut measured = Vec3::zeros();
         for e in effects {
             let v = &e.values;
             match (&e.kind, &e.target) {
-                (Kind::Gravity, _) => {
+                // A mass's weight at the reference point: force m g, moment (m c) x g (gravity-offset is
+                // stored as (m, m c); plain gravity has c = 0).
+                (Kind::Gravity | Kind::GravityOffset, _) => {
                     let f = g * v[0];
-                    d += c * Vec6::new(f.x, f.y, f.z, 0.0, 0.0, 0.0);
-                }
-                // Stored as (m, m c): the moment (m c) x g.
-                (Kind::GravityOffset, _) => {
-                    let f = g * v[0];
-                    let m = Vec3::new(v[1], v[2], v[3]).cross(g);
+                    let m = if v.len() == 4 { Vec3::new(v[1], v[2], v[3]).cross(g) } else { Vec3::zeros() };
                     d += c * Vec6::new(f.x, f.y, f.z, m.x, m.y, m.z);
                 }
                 (Kind::LegGeometry, Target::Leg(k)) => d += self.end_error(*k, &Vec6::from_column_slice(v)),
@@ -96,7 +97,6 @@ impl PoseModel {
                         d += n * v[0];
                     }
                 }
-                (Kind::ToolOffset, _) => tool = Vec3::new(v[0], v[1], v[2]),
                 // The instrument reads positions p' = p + omega x p: a displacement picks up omega x p.
                 (Kind::FrameRotation, _) => measured += Vec3::new(v[0], v[1], v[2]).cross(&(row.position + tool)),
                 (Kind::ToolCompliance, _) => measured += Vec3::new(w[0], w[1], w[2]) * v[0],

@@ -19,6 +19,7 @@ use super::fit::{jacobian, settled, Candidate, Problem};
 use super::measurement::PoseModel;
 use super::select::{candidates, probe_step};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
+use crate::linalg::{capped_svd, outside_span, span_basis};
 use crate::model::effect::Kind;
 use crate::model::grid::PosePoint;
 use crate::model::Model;
@@ -224,7 +225,7 @@ pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan,
             let others: Vec<DMatrix<f64>> =
                 (0..chosen.len()).filter(|&k| k != i && !contains(k, i)).map(|k| planned[k].clone()).collect();
             let own = &planned[i];
-            let rest = outside(own, &hstack(&others));
+            let rest = outside_span(own, &hstack(&others)).unwrap_or_else(|| own * 0.0);
             let size = |j: &DMatrix<f64>| to_units(c, 5.0 * probe_step(c.kind) / smallest_singular(j));
             Detectable { label: c.label(), dim: c.dim(), alone: size(own), beside_others: size(&rest) }
         })
@@ -292,19 +293,6 @@ fn rows_of(j: &DMatrix<f64>, picks: &[usize]) -> DMatrix<f64> {
     DMatrix::from_fn(3 * picks.len(), j.ncols(), |r, c| j[(3 * picks[r / 3] + r % 3, c)])
 }
 
-/// The part of `j`'s columns outside the span of `others`' columns.
-fn outside(j: &DMatrix<f64>, others: &DMatrix<f64>) -> DMatrix<f64> {
-    if others.ncols() == 0 {
-        return j.clone();
-    }
-    let svd = others.clone().svd(true, false);
-    let u = svd.u.expect("asked for U");
-    let top = svd.singular_values.max();
-    let keep: Vec<usize> = (0..svd.singular_values.len()).filter(|&i| svd.singular_values[i] > 1e-10 * top).collect();
-    let q = u.select_columns(&keep);
-    j - &q * (q.transpose() * j)
-}
-
 /// Two effects are inseparable on a plan when the sine of the smallest angle between their signatures is
 /// below this: an effect at the size the plan detects (5 sigma) then differs from the other's best mimic by
 /// less than 1 sigma, so it must be five times larger before a diagnosis can tell them apart.
@@ -313,27 +301,26 @@ const SEPARABLE_SINE: f64 = 0.2;
 /// A signature lies inside another's span when less than this share of it is outside.
 const NESTED: f64 = 1e-6;
 
-/// The share (Frobenius) of `j` outside the span of `other`.
+/// The share (Frobenius) of `j` outside the span of `other` (all of it where `other` is not finite).
 fn share_outside(j: &DMatrix<f64>, other: &DMatrix<f64>) -> f64 {
-    outside(j, other).norm() / j.norm().max(1e-300)
+    outside_span(j, other).map_or(1.0, |rest| rest.norm() / j.norm().max(1e-300))
 }
 
+/// The smallest singular value of `j` (0 where it has fewer rows than columns or is not finite).
 fn smallest_singular(j: &DMatrix<f64>) -> f64 {
     if j.nrows() < j.ncols() {
         return 0.0;
     }
-    j.clone().svd(false, false).singular_values.min()
+    capped_svd(j.clone(), false, false).map_or(0.0, |svd| svd.singular_values.min())
 }
 
 /// The sine of the smallest angle between the column spaces of `a` and `b` (0: some combination of one is a
-/// combination of the other).
+/// combination of the other, or either is rank-deficient).
 fn smallest_angle_sine(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
-    let q = |m: &DMatrix<f64>| m.clone().svd(true, false).u.expect("asked for U").columns(0, m.ncols()).into_owned();
-    if a.nrows() < a.ncols() + b.ncols() || smallest_singular(a) == 0.0 || smallest_singular(b) == 0.0 {
+    let (Some(qa), Some(qb)) = (span_basis(a), span_basis(b)) else { return 0.0 };
+    if qa.ncols() < a.ncols() || qb.ncols() < b.ncols() || a.nrows() < a.ncols() + b.ncols() {
         return 0.0;
     }
-    let qa = q(a);
-    let qb = q(b);
     let residual = &qa - &qb * (qb.transpose() * &qa);
     let rb = &qb - &qa * (qa.transpose() * &qb);
     smallest_singular(&residual).min(smallest_singular(&rb))

@@ -15,6 +15,7 @@ use super::error::{DiagnoseError, PoseError};
 use super::fit::{effects_of, fit, jacobian, Candidate, Fit, Problem};
 use super::measurement::gravity_of;
 use crate::kinematics::frame::{Vec3, Vec6};
+use crate::linalg::{outside_span, span_basis};
 use crate::model::effect::{Effect, Kind, Target};
 
 /// How the selection runs.
@@ -271,8 +272,7 @@ fn signature(problem: &Problem, c: &Candidate, rows: &[usize]) -> Option<DMatrix
 
 /// Whether the columns of `x` lie in the span of `y`'s, but for a share `share` of their norm.
 fn inside(x: &DMatrix<f64>, y: &DMatrix<f64>, share: f64) -> bool {
-    let q = y.clone().qr().q();
-    (x - &q * (q.transpose() * x)).norm() <= share * x.norm()
+    outside_span(x, y).is_some_and(|rest| rest.norm() <= share * x.norm())
 }
 
 // The thresholds of selection, each with its reason.
@@ -476,18 +476,13 @@ impl Step<'_> {
             jacobian(self.problem, &cands, &theta, 0, &self.rows).ok().map(|all| all.columns(0, k0).into_owned())
         };
         row.orthogonal = match &accepted_sig {
-            Some(a) if k0 > 0 => {
-                let q = a.clone().qr().q();
-                let rest = &sig - &q * (q.transpose() * &sig);
-                rest.norm() / own.max(1e-300)
-            }
-            Some(_) => 1.0,
+            Some(a) => outside_span(&sig, a).map_or(0.0, |rest| rest.norm() / own.max(1e-300)),
             None => 0.0,
         };
         if let Some(a) = &accepted_sig {
             let mut both = a.clone().insert_columns(k0, dim, 0.0);
             both.columns_mut(k0, dim).copy_from(&sig);
-            row.span = both.qr().q();
+            row.span = span_basis(&both).unwrap_or_else(|| DMatrix::zeros(0, 0));
         }
         // NaN (a signature that is not finite) is no signature either.
         if own.is_nan() || own <= NO_SIGNATURE * (self.n as f64).sqrt() {
@@ -721,9 +716,7 @@ fn describe_accepted(step: &Step, accepted: &[Candidate], joint: &Fit, out: &mut
         let dim = c.dim();
         let params = &joint.theta[at..at + dim];
         let (values, se) = c.reported(params, &se_all[at..at + dim]);
-        let others: Vec<Candidate> =
-            accepted.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, c)| c.clone()).collect();
-        let start: Vec<f64> = joint.theta[..at].iter().chain(&joint.theta[at + dim..]).copied().collect();
+        let (others, start) = without_effect(accepted, &joint.theta, i);
         let without = fit(step.problem, &others, &step.rows, Some(&start)).map(|f| f.ssr).unwrap_or(f64::NAN);
         let f = ((without - joint.ssr).max(0.0) / dim as f64) / (joint.ssr / dof as f64);
         out.accepted.push(Accepted {
@@ -904,27 +897,14 @@ fn refine(
 ) -> Result<(Vec<Candidate>, Fit), PoseError> {
     let (problem, rows) = (step.problem, &step.rows);
     let bic = |f: &Fit| f.ssr + f.theta.len() as f64 * step.ln_n;
-    // The accepted fit's parameters without those of effect `skip`: a start for a smaller fit.
-    let without = |set: &[Candidate], theta: &[f64], skip: usize| -> Vec<f64> {
-        let mut at = 0;
-        let mut out = Vec::new();
-        for (i, c) in set.iter().enumerate() {
-            if i != skip {
-                out.extend_from_slice(&theta[at..at + c.dim()]);
-            }
-            at += c.dim();
-        }
-        out
-    };
     for _ in 0..MAX_REFINE {
         let now = bic(&current);
         // Backward: the effect whose removal costs least, if it costs less than strong evidence.
         let mut drop: Option<(f64, usize, Fit)> = None;
         if accepted.len() > 1 {
             for i in 0..accepted.len() {
-                let mut set = accepted.clone();
-                set.remove(i);
-                let f = fit(problem, &set, rows, Some(&without(&accepted, &current.theta, i)))?;
+                let (set, start) = without_effect(&accepted, &current.theta, i);
+                let f = fit(problem, &set, rows, Some(&start))?;
                 let cost = bic(&f) - now;
                 if cost < STRONG_BIC && drop.as_ref().is_none_or(|(c, _, _)| cost < *c) {
                     drop = Some((cost, i, f));
@@ -940,9 +920,7 @@ fn refine(
         let mut swap: Option<(f64, usize, Candidate, Fit)> = None;
         for i in 0..accepted.len() {
             for c in cands.iter().filter(|c| !accepted.contains(c)) {
-                let mut set = accepted.clone();
-                set.remove(i);
-                let mut start = without(&accepted, &current.theta, i);
+                let (mut set, mut start) = without_effect(&accepted, &current.theta, i);
                 set.push(c.clone());
                 start.extend(c.neutral());
                 let Ok(f) = fit(problem, &set, rows, Some(&start)) else { continue };
@@ -958,6 +936,21 @@ fn refine(
         current = f;
     }
     Ok((accepted, current))
+}
+
+/// The set without its effect `skip`, and the joint fit's parameters `theta` without that effect's: a start
+/// for the smaller fit.
+fn without_effect(set: &[Candidate], theta: &[f64], skip: usize) -> (Vec<Candidate>, Vec<f64>) {
+    let (mut kept, mut start) = (Vec::new(), Vec::new());
+    let mut at = 0;
+    for (i, c) in set.iter().enumerate() {
+        if i != skip {
+            kept.push(c.clone());
+            start.extend_from_slice(&theta[at..at + c.dim()]);
+        }
+        at += c.dim();
+    }
+    (kept, start)
 }
 
 /// Whether the last candidate of `set` has plausible values at least `SIGNIFICANT_T` standard errors from

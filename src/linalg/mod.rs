@@ -23,6 +23,29 @@ pub fn capped_svd(
     nalgebra::SVD::try_new(m, compute_u, compute_v, f64::EPSILON, MAX_SWEEPS)
 }
 
+/// Singular values below this share of the largest are round-off: their directions are not in the span.
+pub const SPAN_SHARE: f64 = 1e-10;
+
+/// An orthonormal basis of the column space of `y` (rank-revealing: directions whose singular value is below
+/// `SPAN_SHARE` of the largest are left out). None where `y` is not finite (`capped_svd`).
+pub fn span_basis(y: &nalgebra::DMatrix<f64>) -> Option<nalgebra::DMatrix<f64>> {
+    if y.ncols() == 0 {
+        return Some(nalgebra::DMatrix::zeros(y.nrows(), 0));
+    }
+    let svd = capped_svd(y.clone(), true, false)?;
+    let top = svd.singular_values.max();
+    let keep: Vec<usize> =
+        (0..svd.singular_values.len()).filter(|&i| top > 0.0 && svd.singular_values[i] > SPAN_SHARE * top).collect();
+    Some(svd.u?.select_columns(&keep))
+}
+
+/// The part of `x`'s columns outside the column space of `y` (x - Q Q^T x, Q = `span_basis(y)`). None where
+/// `y` is not finite.
+pub fn outside_span(x: &nalgebra::DMatrix<f64>, y: &nalgebra::DMatrix<f64>) -> Option<nalgebra::DMatrix<f64>> {
+    let q = span_basis(y)?;
+    Some(x - &q * (q.transpose() * x))
+}
+
 /// LU factorisation with partial pivoting of a column-major square matrix, kept in place.
 #[derive(Clone, Debug, Default)]
 pub struct DenseLu {

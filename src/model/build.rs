@@ -642,22 +642,14 @@ impl Builder<'_> {
             let centre = p.centre.as_ref().map(|c| self.vec3(c)).transpose()?.unwrap_or_else(Vec3::zeros);
             nominal.add_payload(Payload { mass_kg: self.num(&p.mass_kg)?, centre });
         }
+        // An actuator offset is the library's effect of that name: the same checks (a leg with an actuator
+        // spring) and the same model change.
         for spec in &file.actuator_offsets {
             let o = spec.get_ref();
-            let legs = nominal.legs.len();
-            let k = usize::try_from(*o.leg.get_ref()).ok().filter(|k| (1..=legs).contains(k)).ok_or_else(|| {
-                self.loc.at(o.leg.span(), format!("`leg` is a leg number, 1 to {legs} (legs and copies in order)"))
-            })?;
-            if !nominal.legs[k - 1].has_actuator_spring() {
-                return Err(self.loc.at(
-                    spec.span(),
-                    format!(
-                        "leg {k} has no actuator spring to offset (an MSA leg, or a chain without `actuator = true`)"
-                    ),
-                ));
-            }
-            let offset = self.num(&o.offset)?;
-            nominal.legs[k - 1].offset_actuator(offset);
+            let leg = o.leg.get_ref().to_string();
+            let e = Effect::new(Kind::ActuatorOffset, Some(&leg), vec![self.num(&o.offset)?], &nominal)
+                .map_err(|e| self.loc.at(o.leg.span(), e.to_string()))?;
+            nominal = with_model_effects(&nominal, &[e]);
         }
         let mut effects = Vec::with_capacity(file.effects.len());
         for spec in &file.effects {
