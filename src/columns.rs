@@ -35,3 +35,14 @@ pub const SIGMA: &str = "sigma_mm";
 /// A measurement's place in the order it was taken (a count or a time in any unit), for the drift effect;
 /// `time` is read as its other name.
 pub const ORDER: &str = "order";
+/// Compensation: how the command was computed (`newton`, `mirror`).
+pub const METHOD: &str = "method";
+/// Compensation: the commanded pose given to the nominal inverse kinematics (marks a compensation table).
+pub const COMMAND: [&str; 6] =
+    ["command_x_mm", "command_y_mm", "command_z_mm", "command_rx_rad", "command_ry_rad", "command_rz_rad"];
+/// Compensation: the prefix of the error with the target as the command.
+pub const UNCOMPENSATED: &str = "uncompensated";
+/// Compensation: the prefix of the error with the mirror command.
+pub const MIRROR: &str = "mirror";
+/// Compensation: the prefix of the error with the command written, from an independent forward solve.
+pub const RESIDUAL: &str = "residual";

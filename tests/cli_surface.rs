@@ -9,7 +9,7 @@ fn stiff() -> Command {
     Command::cargo_bin("stiff").unwrap()
 }
 
-const COMMANDS: [&str; 8] = ["map", "point", "curve", "assemble", "diagnose", "synth", "plan", "plot"];
+const COMMANDS: [&str; 9] = ["map", "point", "curve", "assemble", "compensate", "diagnose", "synth", "plan", "plot"];
 
 /// Every cell of the selected table (`some`, a header row then data rows) equals the full table's cell of
 /// the same column and row.
@@ -97,7 +97,7 @@ fn defaults_are_printed_once() {
 fn the_description_names_every_command() {
     let help = String::from_utf8(stiff().arg("--help").output().unwrap().stdout).unwrap();
     let about = help.lines().next().unwrap();
-    for word in ["maps", "pose", "curves", "assembly", "diagnosis", "synthetic", "plans", "pictures"] {
+    for word in ["maps", "pose", "curves", "assembly", "compensation", "diagnosis", "synthetic", "plans", "pictures"] {
         assert!(about.contains(word), "`{about}` names {word}");
     }
 }

@@ -13,7 +13,8 @@
 
 use std::path::{Path, PathBuf};
 
-use assert_cmd::Command;
+mod common;
+use common::{csv_columns as columns, run_stiff as run};
 
 const MODEL: &str = "manipulators/orthoglide-3puu.toml";
 const GRID: &str = "manipulators/grids/orthoglide-small.toml";
@@ -21,31 +22,6 @@ const WRENCHES: &str =
     "0,0,0,0,0,0;200,0,0,0,0,0;-200,0,0,0,0,0;0,200,0,0,0,0;0,-200,0,0,0,0;0,0,200,0,0,0;0,0,-200,0,0,0";
 /// Both routes solve the same equilibrium to Newton's tolerance (1e-8 of the length scale): mm.
 const SAME_MM: f64 = 1e-7;
-
-fn stiff() -> Command {
-    Command::cargo_bin("stiff").unwrap()
-}
-
-/// Runs `stiff` with `args`, expecting success; returns stdout.
-fn run(args: &[&str]) -> String {
-    let o = stiff().args(args).output().unwrap();
-    assert!(o.status.success(), "stiff {}: {}", args.join(" "), String::from_utf8_lossy(&o.stderr));
-    String::from_utf8(o.stdout).unwrap()
-}
-
-/// A CSV table's named columns, row by row, as numbers (empty cells NaN).
-fn columns(text: &str, names: &[&str]) -> Vec<Vec<f64>> {
-    let mut reader = csv::Reader::from_reader(text.as_bytes());
-    let header = reader.headers().unwrap().clone();
-    let at: Vec<usize> = names.iter().map(|n| header.iter().position(|h| h == *n).expect(n)).collect();
-    reader
-        .records()
-        .map(|r| {
-            let r = r.unwrap();
-            at.iter().map(|&i| r[i].parse().unwrap_or(f64::NAN)).collect()
-        })
-        .collect()
-}
 
 fn assert_same(a: &[Vec<f64>], b: &[Vec<f64>], what: &str) {
     assert_eq!(a.len(), b.len(), "{what}: rows");

@@ -198,6 +198,44 @@ impl PointsArgs {
     }
 }
 
+/// Where the poses come from, a straight path included (assemble, compensate): exactly one of a grid, a
+/// points file and a path.
+#[derive(Args, Debug)]
+#[group(required = true, multiple = false)]
+pub(crate) struct PosesArgs {
+    /// Grid file (TOML): a [box] and/or named [[point]]s.
+    #[arg(long)]
+    pub(crate) grid: Option<PathBuf>,
+    /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name, pose_rx_rad..pose_rz_rad; compensate
+    /// also reads a wrench per row, Fx_N..Mz_Nmm).
+    #[arg(long)]
+    pub(crate) points: Option<PathBuf>,
+    /// A straight path: FROM x,y,z (mm), TO x,y,z (mm), number of points.
+    #[arg(long, num_args = 3, value_names = ["FROM", "TO", "POINTS"], allow_hyphen_values = true)]
+    pub(crate) path: Option<Vec<String>>,
+}
+
+impl PosesArgs {
+    /// The poses of `--grid`, `--points` or `--path`.
+    pub(crate) fn load(&self) -> Result<PointSet> {
+        let Some(path) = &self.path else { return point_set(&self.grid, &self.points) };
+        let from = parse_vec3(&path[0]).map_err(|e| anyhow::anyhow!("--path FROM: {e}"))?;
+        let to = parse_vec3(&path[1]).map_err(|e| anyhow::anyhow!("--path TO: {e}"))?;
+        let count: usize =
+            path[2].parse().map_err(|_| anyhow::anyhow!("--path POINTS: `{}` is not a count", path[2]))?;
+        if count == 0 {
+            bail!("--path needs at least one point");
+        }
+        if count > MAX_PATH_POINTS {
+            bail!("--path POINTS: {count} is more than a path takes ({MAX_PATH_POINTS}); split the path");
+        }
+        Ok(PointSet::from_points(crate::model::grid::path_points(&from, &to, count)))
+    }
+}
+
+/// Most points on a `--path` (held in memory, 64 bytes each).
+const MAX_PATH_POINTS: usize = 100_000_000;
+
 /// Where a table goes.
 #[derive(Args, Debug)]
 pub(crate) struct OutputArgs {

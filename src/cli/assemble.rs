@@ -6,16 +6,13 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{
-    plot_file, plot_needs_output, point_set, progress_bar, select_columns, thread_pool, wrench_text, written,
-    ModelArgs, OutputArgs, PlotStyle, PointsStyle, RunArgs,
+    plot_file, plot_needs_output, progress_bar, select_columns, thread_pool, wrench_text, written, ModelArgs,
+    OutputArgs, PlotStyle, PointsStyle, PosesArgs, RunArgs,
 };
-use super::parse::{parse_vec3, parse_vec6};
+use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
 use crate::model::assembly_errors::ErrorSet;
-use crate::model::grid::PointSet;
-use crate::study::assemble::{
-    assemble_selection, assemble_table, path_points, run_assemble, AssembleOptions, LegErrors,
-};
+use crate::study::assemble::{assemble_selection, assemble_table, run_assemble, AssembleOptions, LegErrors};
 
 /// Most tolerance samples per point (`assemble --samples`): each row waits for all of its samples.
 const MAX_SAMPLES: usize = 10_000_000;
@@ -29,7 +26,6 @@ pub(crate) const EXAMPLES: &str = "Examples:
 Exit status: 0 success, 1 the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
-#[command(group = clap::ArgGroup::new("poses").required(true).multiple(false))]
 pub(crate) struct AssembleArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
@@ -37,15 +33,8 @@ pub(crate) struct AssembleArgs {
     /// manipulators/errors/orthoglide-case-a.toml.
     #[arg(long)]
     pub(crate) errors: PathBuf,
-    /// Grid file (TOML).
-    #[arg(long, group = "poses")]
-    pub(crate) grid: Option<PathBuf>,
-    /// Points file (CSV) with columns x_mm,y_mm,z_mm (optional: name).
-    #[arg(long, group = "poses")]
-    pub(crate) points: Option<PathBuf>,
-    /// A straight path: FROM x,y,z (mm), TO x,y,z (mm), number of points.
-    #[arg(long, group = "poses", num_args = 3, value_names = ["FROM", "TO", "POINTS"], allow_hyphen_values = true)]
-    pub(crate) path: Option<Vec<String>>,
+    #[command(flatten)]
+    pub(crate) poses: PosesArgs,
     /// External wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): adds the load, total and superposition columns.
     #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
     pub(crate) wrench: Option<Vec6>,
@@ -81,19 +70,7 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
         bail!("--scale must be a finite number");
     }
     let perturbed = set.perturbed_legs(a.scale)?;
-    let mut points = match &a.path {
-        None => point_set(&a.grid, &a.points)?,
-        Some(path) => {
-            let from = parse_vec3(&path[0]).map_err(|e| anyhow::anyhow!("--path FROM: {e}"))?;
-            let to = parse_vec3(&path[1]).map_err(|e| anyhow::anyhow!("--path TO: {e}"))?;
-            let count: usize =
-                path[2].parse().map_err(|_| anyhow::anyhow!("--path POINTS: `{}` is not a count", path[2]))?;
-            if count == 0 {
-                bail!("--path needs at least one point");
-            }
-            PointSet::from_points(path_points(&from, &to, count))
-        }
-    };
+    let mut points = a.poses.load()?;
     let pool = thread_pool(a.run.threads)?;
     let mut options =
         AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed, selection: None };

@@ -4,6 +4,7 @@
 
 mod args;
 mod assemble;
+mod compensate;
 mod curve;
 mod diagnose;
 mod map;
@@ -22,7 +23,7 @@ use clap::{CommandFactory, Parser, Subcommand};
     name = "stiff",
     version = VERSION,
     about = "Stiffness of parallel robots (units: mm, N, N mm, rad): compliance maps, one pose, force-deflection \
-             curves, assembly with geometric errors, diagnosis against measurements, synthetic measurements, \
+             curves, assembly with geometric errors, compliance error compensation, diagnosis against measurements, synthetic measurements, \
              measurement plans, pictures",
     after_help = "Exit status: 0 success, 1 the run failed (the message says why), 2 the command line is wrong \
                   (unknown option, missing value); `diagnose --fail-on` turns a verdict into 1.\n\n\
@@ -52,6 +53,10 @@ pub enum Command {
     /// joint deflections, linear and non-linear, with an optional external wrench; tolerance studies.
     #[command(after_help = assemble::EXAMPLES)]
     Assemble(assemble::AssembleArgs),
+    /// Compliance error compensation: the commands that put the real robot (leg errors, corrections,
+    /// process wrench) on the targets, by Newton's method or the mirror method; residuals checked.
+    #[command(after_help = compensate::EXAMPLES)]
+    Compensate(compensate::CompensateArgs),
     /// Where measured deflections and the model disagree: names the missing effect (or none), fits it,
     /// and writes the corrected model.
     #[command(after_help = diagnose::EXAMPLES)]
@@ -87,6 +92,7 @@ pub fn run() -> Result<()> {
         Command::Point(a) => point::run(a),
         Command::Curve(a) => curve::run(a),
         Command::Assemble(a) => assemble::run(a),
+        Command::Compensate(a) => compensate::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Plan(a) => plan::run(a),

@@ -320,10 +320,15 @@ impl Chain {
 
     /// The kind of each virtual joint, by virtual coordinate index.
     pub fn virtual_kinds(&self) -> Vec<JointKind> {
+        self.kinds(Role::Virtual)
+    }
+
+    /// The kind of each joint of a role, by its coordinate index.
+    pub fn kinds(&self, role: Role) -> Vec<JointKind> {
         let mut kinds = Vec::new();
         for e in &self.elements {
             if let Element::Joint(j) = e {
-                if j.role == Role::Virtual {
+                if j.role == role {
                     if kinds.len() <= j.index {
                         kinds.resize(j.index + 1, JointKind::Revolute);
                     }

@@ -53,6 +53,10 @@ pub struct IkWorkspace {
     current_is_valid: bool,
     trial: ChainJacobians,
     trial_coords: Coordinates,
+    /// After converging, take one more Gauss-Newton step (kept where it lowers the error): the pose error
+    /// then falls from below `TOLERANCE` to about its square, so that a command changed by less than the
+    /// tolerance still moves the actuators (compliance compensation iterates on such commands).
+    pub polish: bool,
 }
 
 impl IkWorkspace {
@@ -93,8 +97,10 @@ pub fn solve(
     ws.current_is_valid = false;
     let mut err = weigh_rotations(&ws.current.end.error_to(target), length_scale);
     let mut norm = err.norm();
+    let mut polished = false;
     for iteration in 0..MAX_ITERATIONS {
-        if norm <= tolerance {
+        let converged = norm <= tolerance;
+        if converged && (polished || !ws.polish) {
             ws.current_is_valid = true;
             return Ok(iteration);
         }
@@ -109,7 +115,7 @@ pub fn solve(
             a[(k, k)] += damping;
         }
         let Some(chol) = a.cholesky() else {
-            return Err(IkFailure { iterations: iteration, residual_mm: norm });
+            return finish(converged, iteration, norm, ws);
         };
         let y = chol.solve(&err);
         // Back-tracking: halve the step until the error decreases.
@@ -138,13 +144,20 @@ pub fn solve(
             step *= 0.5;
         }
         if !accepted {
-            return Err(IkFailure { iterations: iteration, residual_mm: norm });
+            // A polishing step that cannot lower the error leaves the converged solution as it is.
+            return finish(converged, iteration, norm, ws);
         }
+        polished = converged;
     }
-    if norm <= tolerance {
+    finish(norm <= tolerance, MAX_ITERATIONS, norm, ws)
+}
+
+/// The end of a solve: converged (the evaluation in `ws` is the solution's) or not.
+fn finish(converged: bool, iterations: usize, norm: f64, ws: &mut IkWorkspace) -> Result<usize, IkFailure> {
+    if converged {
         ws.current_is_valid = true;
-        Ok(MAX_ITERATIONS)
+        Ok(iterations)
     } else {
-        Err(IkFailure { iterations: MAX_ITERATIONS, residual_mm: norm })
+        Err(IkFailure { iterations, residual_mm: norm })
     }
 }

@@ -26,7 +26,8 @@ use crate::vjm::spring::{SpringGroup, SIX_DOF};
 pub struct Model {
     /// The manipulator every study analyses.
     pub manipulator: Manipulator,
-    /// `[[effect]]` entries that are not spring scalings: gravity, leg geometry, preload, ...
+    /// `[[effect]]` entries that are measurement-model terms (`Form::Measurement`: leg geometry, tool offset,
+    /// backlash, ...); the model-form ones are built into `manipulator`.
     pub measurement_terms: Vec<Effect>,
 }
 

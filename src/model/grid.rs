@@ -348,3 +348,23 @@ impl PointSet {
         }
     }
 }
+
+/// Points along the straight line from `from` to `to` (mm), `count` of them, unnamed (a name is the
+/// user's: a path's rows are told apart by their index, and its picture is the path's).
+pub fn path_points(
+    from: &crate::kinematics::frame::Vec3,
+    to: &crate::kinematics::frame::Vec3,
+    count: usize,
+) -> Vec<PosePoint> {
+    (0..count)
+        .map(|k| {
+            let a = if count > 1 { k as f64 / (count - 1) as f64 } else { 0.0 };
+            PosePoint {
+                name: None,
+                position: from + (to - from) * a,
+                rotation: crate::kinematics::frame::Vec3::zeros(),
+                wrench: None,
+            }
+        })
+        .collect()
+}

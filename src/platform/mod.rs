@@ -1,5 +1,6 @@
 //! The leg seam and the sum over legs at the platform.
 pub mod assembly;
+pub mod command;
 pub mod compliance;
 pub mod leg;
 pub mod leg_state;

@@ -1,8 +1,9 @@
 //! Pictures of studies, drawn from what the studies write (their CSV, or diagnose's JSON), so `--plot` on a
 //! study and `stiff plot FILE` afterwards give the same picture: a colour map of a map column over grid
 //! sections, a force-deflection curve with its events, the displacements along an assembly path (paper 000
-//! Figures 10-11), and a diagnosis (residual arrows before and after, per-axis RMS, the candidates' delta BIC).
+//! Figures 10-11) and the errors along a compensated one, and a diagnosis (residual arrows before and after, per-axis RMS, the candidates' delta BIC).
 pub mod assembly;
+pub mod compensation;
 pub mod curve;
 pub mod diagnosis;
 pub mod png;
@@ -85,7 +86,7 @@ pub fn plot_parquet(file: std::fs::File, o: &PlotOptions) -> Result<String> {
 fn kind_of(header: &[String]) -> Result<TableKind> {
     TableKind::of(header).ok_or_else(|| {
         anyhow::anyhow!(
-            "not a table stiff draws: a map, curve, assemble or assemble --samples CSV, or a diagnose JSON \
+            "not a table stiff draws: a map, curve, assemble, assemble --samples or compensate CSV, or a diagnose JSON \
              (columns: {})",
             header.join(", ")
         )
@@ -101,7 +102,8 @@ fn wanted_numbers(kind: TableKind, o: &PlotOptions) -> impl Fn(&str) -> bool + '
             names::POSITION.contains(&c)
                 || o.column.as_deref() == Some(c)
                 || o.column.is_none() && points::default_column(kind).is_some_and(|d| d == c)
-                || kind == TableKind::Assembly && assembly::SERIES.iter().any(|p| c.starts_with(p))
+                || kind == TableKind::Assembly && assembly::SERIES.iter().any(|p| c.starts_with(&format!("{p}_d")))
+                || kind == TableKind::Compensation && compensation::SERIES.iter().any(|p| c.starts_with(p))
         }
     }
 }
@@ -110,6 +112,7 @@ fn wanted_numbers(kind: TableKind, o: &PlotOptions) -> impl Fn(&str) -> bool + '
 fn wanted_texts(kind: TableKind) -> impl Fn(&str) -> bool {
     move |c: &str| match kind {
         TableKind::Curve => [names::STABLE, names::EVENT].contains(&c),
+        TableKind::Compensation => [names::NAME, names::METHOD].contains(&c),
         _ => c == names::NAME,
     }
 }
@@ -119,6 +122,7 @@ fn draw(t: &Table, kind: TableKind, o: &PlotOptions) -> Result<String> {
     match kind {
         TableKind::Curve => curve::curve(t, o),
         TableKind::Assembly if o.column.is_none() && points::is_path(t)? => assembly::assembly_path(t, o),
+        TableKind::Compensation if o.column.is_none() && points::is_path(t)? => compensation::compensation_path(t, o),
         _ => points::picture(t, &points::quantity(t, kind, o.column.as_deref())?, o),
     }
 }

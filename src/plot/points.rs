@@ -63,6 +63,7 @@ pub fn quantity(t: &Table, kind: TableKind, column: Option<&str>) -> Result<Quan
 pub fn default_column(kind: TableKind) -> Option<&'static str> {
     match kind {
         TableKind::Samples => Some("displacement_mean_mm"),
+        TableKind::Compensation => Some("uncompensated_error_mm"),
         TableKind::Assembly => None,
         TableKind::Map | TableKind::Curve => Some(names::C_TRAN_MAX),
     }

@@ -28,6 +28,8 @@ pub enum TableKind {
     Assembly,
     /// `stiff assemble --samples`: has `samples` and the mean displacement `mean_dx_mm`.
     Samples,
+    /// `stiff compensate`: has the command `command_x_mm`.
+    Compensation,
     /// `stiff map`: has `c_tran_max_mm_per_N`, or at least the poses.
     Map,
 }
@@ -43,6 +45,8 @@ impl TableKind {
             Some(TableKind::Assembly)
         } else if has("samples") && has("mean_dx_mm") {
             Some(TableKind::Samples)
+        } else if has(names::COMMAND[0]) {
+            Some(TableKind::Compensation)
         } else if has(names::C_TRAN_MAX) || names::POSITION.iter().all(|c| has(c)) {
             Some(TableKind::Map)
         } else {

@@ -279,25 +279,33 @@ fn linear(
     Ok((a.displacement, loads, joints))
 }
 
+/// The manipulator with every leg's errors built in (times `scale`) at `pose`: VJM legs rebuilt with their
+/// parameter errors, moved by their base error and by their direct end error (a rigid motion about the
+/// reference point at `pose`); MSA legs as they are (their errors offset their placement, `with_errors`).
+pub fn real_manipulator(m: &Manipulator, errors: &LegErrors, pose: &Frame, scale: f64) -> Manipulator {
+    let legs = (m.legs.iter().enumerate())
+        .map(|(k, leg)| {
+            let e = &errors.set.legs[k];
+            leg.with_errors(pose, &(e.eps * scale), &e.base_frame(scale), errors.perturbed[k].as_ref())
+        })
+        .collect();
+    Manipulator { legs, ..m.clone() }
+}
+
 /// The manipulator with every leg's errors built in, and its state placed with the nominal actuators.
 fn with_errors(
     m: &Manipulator,
-    set: &ErrorSet,
-    perturbed: &[Option<Leg>],
+    errors: &LegErrors,
     pose: &Frame,
     scale: f64,
     placed: &Placed,
     state: &ManipulatorState,
 ) -> (Manipulator, ManipulatorState) {
-    let mut legs = Vec::with_capacity(m.legs.len());
     let mut s = state.clone();
-    for (k, leg) in m.legs.iter().enumerate() {
-        let e = &set.legs[k];
-        let base = e.base_frame(scale);
-        legs.push(leg.with_errors(pose, &(e.eps * scale), &base, perturbed[k].as_ref()));
-        s.legs[k].offset_placement(&placed.errors[k].total());
+    for (k, leg_state) in s.legs.iter_mut().enumerate() {
+        leg_state.offset_placement(&placed.errors[k].total());
     }
-    (Manipulator { legs, ..m.clone() }, s)
+    (real_manipulator(m, errors, pose, scale), s)
 }
 
 /// One point, errors as given (times the scale).
@@ -314,7 +322,8 @@ pub fn assemble_point(
     let eps: Vec<Vec6> = placed.errors.iter().map(EndErrors::total).collect();
     let (displacement, loads, joints) = linear(m, &pose, &placed, &eps, state)?;
     // eq (71): sum_i f_i(t_eps | t0) = 0 with the legs' own (erroneous) geometry, actuators as placed.
-    let (perturbed_m, mut perturbed_state) = with_errors(m, set, perturbed, &pose, o.scale, &placed, state);
+    let errors = LegErrors { set, perturbed };
+    let (perturbed_m, mut perturbed_state) = with_errors(m, &errors, &pose, o.scale, &placed, state);
     let zero = Vec6::zeros();
     let nl = perturbed_m.deflect(&pose, &zero, Some(&pose), &mut perturbed_state);
     let nonlinear = nl.as_ref().ok().map(|d| d.displacement);
@@ -477,26 +486,6 @@ impl Study for AssembleStudy<'_> {
         let row = AssemblyRow { index, point: p, outcome };
         write_selected_row(&row, &self.layout, self.o.selection.as_ref(), out);
     }
-}
-
-/// Points along the straight line from `from` to `to` (mm), `count` of them, unnamed (a name is the
-/// user's: a path's rows are told apart by their index, and its picture is the path's).
-pub fn path_points(
-    from: &crate::kinematics::frame::Vec3,
-    to: &crate::kinematics::frame::Vec3,
-    count: usize,
-) -> Vec<PosePoint> {
-    (0..count)
-        .map(|k| {
-            let a = if count > 1 { k as f64 / (count - 1) as f64 } else { 0.0 };
-            PosePoint {
-                name: None,
-                position: from + (to - from) * a,
-                rotation: crate::kinematics::frame::Vec3::zeros(),
-                wrench: None,
-            }
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -80,7 +80,8 @@ pub struct MapSummary {
 }
 
 impl MapSummary {
-    fn add(&mut self, s: Status) {
+    /// Counts a point with this status.
+    pub fn add(&mut self, s: Status) {
         self.points += 1;
         match s {
             Status::Ok => self.ok += 1,

@@ -1,5 +1,6 @@
 //! Batch jobs that turn a request into rows: one point, a map.
 pub mod assemble;
+pub mod compensate;
 pub mod curve;
 pub mod map;
 pub mod point;

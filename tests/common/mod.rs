@@ -238,3 +238,24 @@ pub fn run_with_deadline(
     let (stdout, stderr) = (out_reader.join().unwrap(), err_reader.join().unwrap());
     status.map(|status| Finished { status, stdout, stderr })
 }
+
+/// Runs `stiff` with `args`, expecting success; returns stdout.
+pub fn run_stiff(args: &[&str]) -> String {
+    let o = assert_cmd::Command::cargo_bin("stiff").unwrap().args(args).output().unwrap();
+    assert!(o.status.success(), "stiff {}: {}", args.join(" "), String::from_utf8_lossy(&o.stderr));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+/// A CSV table's named columns, row by row, as numbers (empty cells NaN).
+pub fn csv_columns(text: &str, names: &[&str]) -> Vec<Vec<f64>> {
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let header = reader.headers().unwrap().clone();
+    let at: Vec<usize> = names.iter().map(|n| header.iter().position(|h| h == *n).expect(n)).collect();
+    reader
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            at.iter().map(|&i| r[i].parse().unwrap_or(f64::NAN)).collect()
+        })
+        .collect()
+}

@@ -1,0 +1,661 @@
+//! `stiff compensate`: compliance error compensation along a tool path (paper 000 s. 5.2 and conclusion;
+//! its ref. [73], Klimchik, Pashkevich, Chablat, Hovland, "Compliance error compensation technique for
+//! parallel robots composed of non-perfect serial chains", Robotics and Computer-Integrated Manufacturing 29
+//! (2013) 385-393).
+//!
+//! The controller knows only the nominal geometry: a commanded pose c becomes actuator coordinates a(c) by
+//! the nominal inverse kinematics. The real robot (the description with its corrections, plus the legs'
+//! errors) holds its actuators at a(c) and settles under the process wrench at P(c). For every target T
+//! the study finds the command with P(c) = T in the directions the actuators move the platform (the
+//! reference point for a translational robot, the whole pose for a Stewart platform): Newton's method on
+//! the command, started from the mirror command c = T - (P(T) - T) of [73], with the Jacobian dP/dc from
+//! differences of loaded equilibria where needed and Broyden's secant updates otherwise, carried from one
+//! target to the next along the path. The command found is checked by an independent forward solve: the
+//! real robot's equilibrium with the command's actuator coordinates, from the nominal placement.
+
+use std::borrow::Cow;
+use std::io::Write;
+
+use anyhow::Result;
+use indicatif::ProgressBar;
+use nalgebra::{DMatrix, DVector};
+
+use super::assemble::{real_manipulator, LegErrors};
+use super::map::MapSummary;
+use super::point::Status;
+use crate::batch::{stream, Study, Tally};
+use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec6};
+use crate::model::grid::{PointSet, PosePoint};
+use crate::output::table::{header_line, names, Column, Record, Row};
+use crate::platform::loaded::{Deflection, DeflectionFailure};
+use crate::platform::manipulator::{Manipulator, ManipulatorState};
+
+/// How the command is computed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Method {
+    /// Newton's method on the command until the real robot reaches the target.
+    #[default]
+    Newton,
+    /// The first-order correction of [73]: command = target - the error predicted at the target.
+    Mirror,
+}
+
+impl Method {
+    /// Its name in the table and on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Newton => "newton",
+            Method::Mirror => "mirror",
+        }
+    }
+}
+
+/// What `stiff compensate` computes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CompensateOptions {
+    /// The process wrench at every target (N, N mm at the reference point); None: each point's own wrench
+    /// (zero where it gives none).
+    pub wrench: Option<Vec6>,
+    /// How the command is computed.
+    pub method: Method,
+    /// Factor on every leg error.
+    pub scale: f64,
+}
+
+/// The compensated command meets the target within this (mm, rotations weighted by the length scale), in
+/// the directions the actuators move the platform: far below any machining tolerance, and 25 times what
+/// separates two solves of one loaded equilibrium from different starts (up to 4e-10 mm on the milling
+/// path of paper 000 s. 5.2 with Case A errors), so that the noise of the evaluations never stalls Newton.
+pub const COMMAND_TOLERANCE_MM: f64 = 1e-8;
+/// Most Newton steps on the command per target (from the mirror command a fine path needs one or two).
+pub const MAX_COMMAND_ITERATIONS: usize = 30;
+/// A Newton step that does not shrink the residual at least by this factor refreshes the Jacobian by
+/// differences (Broyden's updates have drifted, or the path jumped).
+const CONTRACTION: f64 = 0.5;
+/// Step of the Jacobian's one-sided differences, mm: truncation ~1e-7 relative (curvatures ~1e-3/mm),
+/// round-off 1e-12 / 1e-4 = 1e-8.
+const DIFFERENCE_STEP_MM: f64 = 1e-4;
+/// Broyden's update is skipped for a smaller step (mm): its secant would carry the evaluations' noise
+/// (~1e-10 mm) as a relative error above 1e-5.
+const SECANT_MIN_STEP_MM: f64 = 1e-5;
+/// Halvings of a step whose command cannot be reached (leaves the workspace) before giving up.
+const MAX_HALVINGS: usize = 12;
+/// The independent forward solve must agree with Newton's last evaluation within this (mm): two different
+/// equilibria reached from two starts mean the robot's pose depends on its history (near a limit point).
+const CHECK_AGREEMENT_MM: f64 = 1e-6;
+
+/// The commands of one target, and how good they are.
+#[derive(Clone, Debug)]
+pub struct Compensation {
+    /// How it ended.
+    pub status: Status,
+    /// The real robot's error with the target as command: P(T) - T (translation mm, rotation vector).
+    pub uncompensated: Option<Vec6>,
+    /// Its error with the mirror command.
+    pub mirror: Option<Vec6>,
+    /// The command (the pose the nominal inverse kinematics is given).
+    pub command: Option<Frame>,
+    /// The actuator coordinates the command gives, leg by leg (mm or rad).
+    pub actuators: Vec<Vec<f64>>,
+    /// The error with the command, from an independent forward solve.
+    pub residual: Option<Vec6>,
+    /// Newton steps on the command after the mirror command (None for the mirror method).
+    pub iterations: Option<usize>,
+    /// Loaded equilibria solved for this target.
+    pub equilibria: usize,
+}
+
+impl Compensation {
+    fn failed(status: Status) -> Self {
+        Compensation {
+            status,
+            uncompensated: None,
+            mirror: None,
+            command: None,
+            actuators: Vec::new(),
+            residual: None,
+            iterations: None,
+            equilibria: 0,
+        }
+    }
+}
+
+/// What fixes a compensation table's columns: the actuated coordinates' names.
+#[derive(Clone, Debug)]
+pub struct CompensateLayout {
+    /// `leg{i}_actuator{j}_{unit}`, leg by leg.
+    pub actuators: Vec<Vec<String>>,
+}
+
+impl CompensateLayout {
+    /// The columns for `m`'s actuated coordinates.
+    pub fn new(m: &Manipulator) -> Self {
+        let actuators = (m.actuator_units().iter().enumerate())
+            .map(|(i, units)| {
+                units.iter().enumerate().map(|(j, u)| format!("leg{}_actuator{}_{u}", i + 1, j + 1)).collect()
+            })
+            .collect();
+        CompensateLayout { actuators }
+    }
+}
+
+/// One row of a compensation table.
+pub struct CompensationRow<'a> {
+    /// Row number in input order.
+    pub index: u64,
+    /// The target.
+    pub point: &'a PosePoint,
+    /// The process wrench at the target.
+    pub wrench: Vec6,
+    /// The method.
+    pub method: Method,
+    /// What was found.
+    pub result: &'a Compensation,
+}
+
+/// The position error's length (mm).
+fn error_mm(e: &Vec6) -> f64 {
+    e.fixed_rows::<3>(0).norm()
+}
+
+impl Row for CompensationRow<'_> {
+    type Layout = CompensateLayout;
+
+    fn record(&self, l: &CompensateLayout, r: &mut impl Record) {
+        let (p, res) = (self.point, self.result);
+        r.count(names::INDEX, Some(self.index));
+        r.text(names::NAME, p.name.as_deref().unwrap_or(""));
+        for k in 0..3 {
+            r.number(names::POSITION[k], p.position[k]);
+        }
+        for k in 0..3 {
+            r.number(names::ORIENTATION[k], p.rotation[k]);
+        }
+        r.six(names::WRENCH, Some(&self.wrench));
+        r.text(names::STATUS, res.status.as_str());
+        r.text(names::METHOD, self.method.as_str());
+        let command = res.command.map(|c| {
+            let rv = rotation_vector(&c.rot);
+            Vec6::new(c.pos.x, c.pos.y, c.pos.z, rv.x, rv.y, rv.z)
+        });
+        r.six(names::COMMAND, command.as_ref());
+        for (i, leg) in l.actuators.iter().enumerate() {
+            for (j, name) in leg.iter().enumerate() {
+                r.optional(name, res.actuators.get(i).and_then(|a| a.get(j)).copied());
+            }
+        }
+        for (prefix, e) in
+            [(names::UNCOMPENSATED, &res.uncompensated), (names::MIRROR, &res.mirror), (names::RESIDUAL, &res.residual)]
+        {
+            r.prefixed_six(prefix, names::DISPLACEMENT, e.as_ref());
+            r.optional(format_args!("{prefix}_error_mm"), e.as_ref().map(error_mm));
+        }
+        r.count(names::ITERATIONS, res.iterations.map(|n| n as u64));
+    }
+}
+
+/// The columns a compensation of `m` writes, in order.
+pub fn compensate_table(m: &Manipulator) -> Vec<Column> {
+    let point = PosePoint::default();
+    let blank = Compensation::failed(Status::Ok);
+    let row =
+        CompensationRow { index: 0, point: &point, wrench: Vec6::zeros(), method: Method::Newton, result: &blank };
+    crate::output::table::selected_columns(&row, &CompensateLayout::new(m), None)
+}
+
+/// The CSV header of a compensation of `m`.
+pub fn compensate_header(m: &Manipulator) -> String {
+    header_line(&compensate_table(m))
+}
+
+/// Counts of a compensation run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CompensateSummary {
+    /// Targets by status.
+    pub statuses: MapSummary,
+    /// Newton steps on the command, over all targets.
+    pub iterations: u64,
+    /// Loaded equilibria solved, over all targets.
+    pub equilibria: u64,
+}
+
+impl Tally for CompensateSummary {
+    fn merge(&mut self, o: &Self) {
+        self.statuses.merge(&o.statuses);
+        self.iterations += o.iterations;
+        self.equilibria += o.equilibria;
+    }
+}
+
+impl CompensateSummary {
+    /// `N targets: a ok, ...; m Newton steps and e loaded equilibria per target`.
+    pub fn line(&self) -> String {
+        let targets = self.statuses.points.max(1) as f64;
+        format!(
+            "{}; {:.2} Newton steps and {:.2} loaded equilibria per target",
+            self.statuses.line().replacen("points", "targets", 1),
+            self.iterations as f64 / targets,
+            self.equilibria as f64 / targets
+        )
+    }
+}
+
+/// The real robot: the description (its corrections built in) and the legs' errors, if any.
+pub struct RealRobot<'a> {
+    /// The description: the controller's nominal geometry, and the real robot without leg errors.
+    pub nominal: &'a Manipulator,
+    /// The legs' errors and their scale.
+    pub errors: Option<(LegErrors<'a>, f64)>,
+}
+
+impl RealRobot<'_> {
+    /// Whether the errors build the same real legs at every target (no direct end error, which is given
+    /// about the reference point of the target).
+    fn fixed(&self) -> bool {
+        self.errors.as_ref().is_none_or(|(e, _)| e.set.legs.iter().all(|l| l.eps == Vec6::zeros()))
+    }
+
+    /// The real manipulator at a target.
+    fn at(&self, target: &Frame) -> Cow<'_, Manipulator> {
+        match &self.errors {
+            None => Cow::Borrowed(self.nominal),
+            Some((e, scale)) => Cow::Owned(real_manipulator(self.nominal, e, target, *scale)),
+        }
+    }
+}
+
+/// Compensates every target, streaming rows to `out` in input order.
+pub fn run_compensate(
+    pool: &rayon::ThreadPool,
+    robot: &RealRobot,
+    points: &mut PointSet,
+    o: &CompensateOptions,
+    out: &mut (dyn Write + Send),
+    progress: &ProgressBar,
+) -> Result<CompensateSummary> {
+    let fixed = robot.fixed().then(|| robot.at(&Frame::IDENTITY).into_owned());
+    let study = CompensateStudy { robot, fixed: fixed.as_ref(), o, layout: CompensateLayout::new(robot.nominal) };
+    stream(pool, &study, points, out, progress)
+}
+
+/// A controller and a real robot commanded together: the nominal legs' placement (the controller's
+/// inverse kinematics) and the real legs' loaded equilibrium, with the last command and where it took the
+/// platform (the next solve's start).
+#[derive(Clone)]
+struct Commanded {
+    nominal: ManipulatorState,
+    real: ManipulatorState,
+    last: Option<(Frame, Frame)>,
+}
+
+impl Commanded {
+    fn new(m: &Manipulator) -> Self {
+        let mut nominal = m.new_state();
+        nominal.polish_placements();
+        Commanded { nominal, real: m.new_state(), last: None }
+    }
+}
+
+/// What a worker carries from one target to the next.
+pub struct CompensateState {
+    /// Commanded with the targets themselves.
+    uncompensated: Commanded,
+    /// Commanded with the mirror and Newton commands.
+    compensated: Commanded,
+    /// The independent forward solve's legs.
+    check: ManipulatorState,
+    /// The Jacobian of the reached pose by the command (weighted coordinates), from the last target.
+    jacobian: Option<Mat6>,
+}
+
+struct CompensateStudy<'a> {
+    robot: &'a RealRobot<'a>,
+    fixed: Option<&'a Manipulator>,
+    o: &'a CompensateOptions,
+    layout: CompensateLayout,
+}
+
+impl Study for CompensateStudy<'_> {
+    type State = CompensateState;
+    type Tally = CompensateSummary;
+
+    fn columns(&self) -> Vec<Column> {
+        compensate_table(self.robot.nominal)
+    }
+
+    fn new_state(&self) -> CompensateState {
+        let m = self.robot.nominal;
+        CompensateState {
+            uncompensated: Commanded::new(m),
+            compensated: Commanded::new(m),
+            check: m.new_state(),
+            jacobian: None,
+        }
+    }
+
+    fn solve(
+        &self,
+        index: u64,
+        p: &PosePoint,
+        st: &mut CompensateState,
+        tally: &mut CompensateSummary,
+        out: &mut String,
+    ) {
+        let wrench = self.o.wrench.or(p.wrench).unwrap_or_else(Vec6::zeros);
+        let target = p.frame();
+        let real = match self.fixed {
+            Some(m) => Cow::Borrowed(m),
+            None => self.robot.at(&target),
+        };
+        let solver = Solver { nominal: self.robot.nominal, real: &real, target, wrench };
+        let result = solver.compensate(self.o.method, st);
+        if result.status != Status::Ok {
+            // A failed target leaves no Jacobian to trust for the next one.
+            st.jacobian = None;
+        }
+        tally.statuses.add(result.status);
+        tally.iterations += result.iterations.unwrap_or(0) as u64;
+        tally.equilibria += result.equilibria as u64;
+        let row = CompensationRow { index, point: p, wrench, method: self.o.method, result: &result };
+        crate::output::table::write_row(&row, &self.layout, out);
+    }
+}
+
+/// The status of a loaded equilibrium that was not found: a tangent stiffness that turned singular on the
+/// way is the load buckling the robot.
+fn deflection_status(e: &DeflectionFailure) -> Status {
+    match e {
+        DeflectionFailure::Leg(e) => Status::of(e),
+        DeflectionFailure::SingularStiffness { .. } => Status::Unstable,
+        DeflectionFailure::NotConverged { .. } => Status::NotConverged,
+    }
+}
+
+/// The directions a command moves the platform in: an orthonormal basis Q (weighted coordinates, rotations
+/// times the length scale) of the span of the actuators' platform motions.
+struct Task {
+    basis: DMatrix<f64>,
+    length_scale: f64,
+}
+
+impl Task {
+    /// The target moved by `y` along the basis.
+    fn command(&self, target: &Frame, y: &DVector<f64>) -> Frame {
+        let w = &self.basis * y;
+        let l = self.length_scale;
+        apply_twist(target, &Vec6::new(w[0], w[1], w[2], w[3] / l, w[4] / l, w[5] / l))
+    }
+
+    /// A pose error in weighted coordinates.
+    fn weighted(&self, e: &Vec6) -> Vec6 {
+        weigh_rotations(e, self.length_scale)
+    }
+
+    /// The components of a weighted error along the basis.
+    fn along(&self, e_w: &Vec6) -> DVector<f64> {
+        self.basis.tr_mul(&DVector::from_column_slice(e_w.as_slice()))
+    }
+
+    /// The Jacobian's block on the basis: Q^T J Q.
+    fn project(&self, j: &Mat6) -> DMatrix<f64> {
+        let jd = DMatrix::from_column_slice(6, 6, j.as_slice());
+        self.basis.tr_mul(&(jd * &self.basis))
+    }
+
+    fn column(&self, k: usize) -> Vec6 {
+        Vec6::from_fn(|r, _| self.basis[(r, k)])
+    }
+}
+
+/// One evaluated command: its coordinates along the task basis, the weighted error and its task part.
+#[derive(Clone)]
+struct Trial {
+    y: DVector<f64>,
+    error_w: Vec6,
+    task: DVector<f64>,
+}
+
+/// One target's compensation.
+struct Solver<'a> {
+    nominal: &'a Manipulator,
+    real: &'a Manipulator,
+    target: Frame,
+    wrench: Vec6,
+}
+
+impl Solver<'_> {
+    /// Commands the real robot with `command` through the controller's nominal inverse kinematics and
+    /// solves its loaded equilibrium, starting from the pair's last one.
+    fn reach(&self, command: &Frame, pair: &mut Commanded) -> Result<Deflection, Status> {
+        self.nominal.place(command, &mut pair.nominal).map_err(|e| Status::of(&e))?;
+        self.real.take_command(&pair.nominal, &mut pair.real, pair.last.is_some());
+        let start = match &pair.last {
+            Some((c, p)) => apply_twist(p, &c.error_to(command)),
+            None => *command,
+        };
+        match self.real.deflect(command, &self.wrench, Some(&start), &mut pair.real) {
+            Ok(d) => {
+                pair.last = Some((*command, d.pose));
+                Ok(d)
+            }
+            Err(e) => {
+                pair.last = None;
+                Err(deflection_status(&e))
+            }
+        }
+    }
+
+    fn compensate(&self, method: Method, st: &mut CompensateState) -> Compensation {
+        let mut out = Compensation::failed(Status::Ok);
+        // The target as the command: the error compensation has to remove.
+        out.equilibria += 1;
+        let reached = match self.reach(&self.target, &mut st.uncompensated) {
+            Ok(d) => d,
+            Err(s) => return Compensation { status: s, ..out },
+        };
+        let uncompensated = self.target.error_to(&reached.pose);
+        out.uncompensated = Some(uncompensated);
+        let task = match self.task(&mut st.uncompensated.nominal) {
+            Ok(t) => t,
+            Err(s) => return Compensation { status: s, ..out },
+        };
+        let start = Trial {
+            y: DVector::zeros(task.basis.ncols()),
+            error_w: task.weighted(&uncompensated),
+            task: task.along(&task.weighted(&uncompensated)),
+        };
+        // The mirror command of [73]: the target minus the error predicted there, in the directions the
+        // actuators move.
+        let y_mirror = -&start.task;
+        let mirror = self.evaluate(&task, &y_mirror, st, &mut out.equilibria);
+        out.mirror = mirror.as_ref().ok().map(|t| self.unweighted(&task, &t.error_w));
+        let found = match method {
+            Method::Mirror => mirror,
+            Method::Newton => {
+                let mut iterations = 0;
+                let found = self.newton(&task, start, mirror.ok(), st, &mut iterations, &mut out.equilibria);
+                out.iterations = Some(iterations);
+                found
+            }
+        };
+        let found = match found {
+            Ok(t) => t,
+            Err(s) => return Compensation { status: s, ..out },
+        };
+        let command = task.command(&self.target, &found.y);
+        out.command = Some(command);
+        // The independent forward solve: the command's actuator coordinates, the real legs from the
+        // nominal placement, nothing carried from Newton's evaluations.
+        let pair = &mut st.compensated;
+        if let Err(e) = self.nominal.place(&command, &mut pair.nominal) {
+            return Compensation { status: Status::of(&e), ..out };
+        }
+        out.actuators = pair.nominal.actuators().map(<[f64]>::to_vec).collect();
+        self.real.take_command(&pair.nominal, &mut st.check, false);
+        out.equilibria += 1;
+        let checked = match self.real.deflect(&command, &self.wrench, Some(&command), &mut st.check) {
+            Ok(d) => d,
+            Err(e) => return Compensation { status: deflection_status(&e), ..out },
+        };
+        let residual = self.target.error_to(&checked.pose);
+        out.residual = Some(residual);
+        let agrees = task.along(&(task.weighted(&residual) - found.error_w)).norm() <= CHECK_AGREEMENT_MM;
+        out.status = if !checked.stable {
+            Status::Unstable
+        } else if !agrees {
+            Status::NotConverged
+        } else {
+            Status::Ok
+        };
+        out
+    }
+
+    /// A weighted error back in mm and rad.
+    fn unweighted(&self, task: &Task, e_w: &Vec6) -> Vec6 {
+        weigh_rotations(e_w, 1.0 / task.length_scale)
+    }
+
+    /// The directions the actuators move the platform at the target (the nominal robot placed there).
+    fn task(&self, nominal: &mut ManipulatorState) -> Result<Task, Status> {
+        let motions = match self.nominal.actuator_motions(&self.target, nominal) {
+            Ok(Some(m)) => m,
+            Ok(None) => return Err(Status::Singular),
+            Err(e) => return Err(Status::of(&e)),
+        };
+        let l = self.nominal.length_scale;
+        let weighted = DMatrix::from_fn(6, motions.len(), |r, c| weigh_rotations(&motions[c], l)[r]);
+        match crate::linalg::span_basis(&weighted) {
+            Some(basis) if basis.ncols() > 0 => Ok(Task { basis, length_scale: l }),
+            Some(_) => Err(Status::Singular),
+            None => Err(Status::Overflow),
+        }
+    }
+
+    /// The real robot under the command at `y`.
+    fn evaluate(
+        &self,
+        task: &Task,
+        y: &DVector<f64>,
+        st: &mut CompensateState,
+        equilibria: &mut usize,
+    ) -> Result<Trial, Status> {
+        *equilibria += 1;
+        let command = task.command(&self.target, y);
+        let d = self.reach(&command, &mut st.compensated)?;
+        let error_w = task.weighted(&self.target.error_to(&d.pose));
+        Ok(Trial { y: y.clone(), task: task.along(&error_w), error_w })
+    }
+
+    /// Newton's method on the command from the target (`start`) and the mirror command (`mirror`, its
+    /// first step with the nominal Jacobian, the identity).
+    fn newton(
+        &self,
+        task: &Task,
+        start: Trial,
+        mirror: Option<Trial>,
+        st: &mut CompensateState,
+        iterations: &mut usize,
+        equilibria: &mut usize,
+    ) -> Result<Trial, Status> {
+        let carried = st.jacobian.take();
+        let mut jacobian = carried.unwrap_or_else(Mat6::identity);
+        let mut best = start;
+        if best.task.norm() > COMMAND_TOLERANCE_MM {
+            if let Some(m) = mirror {
+                broyden(&mut jacobian, task, &best, &m);
+                if m.task.norm() < best.task.norm() {
+                    best = m;
+                }
+            }
+        }
+        // The first target of a run: the Jacobian from differences (Broyden's updates along steps that all
+        // point the same way would learn it in one direction only).
+        let mut refreshed = false;
+        if carried.is_none() && best.task.norm() > COMMAND_TOLERANCE_MM {
+            jacobian = self.differences(task, &best, jacobian, st, equilibria)?;
+            refreshed = true;
+        }
+        // A command the robot cannot take (outside the workspace or a leg's reach) seen on the way makes a
+        // failure `unreachable`: the target needs a command beyond what the robot reaches.
+        let mut outside = false;
+        let fail = |status: Status, outside: bool| if outside { Status::Unreachable } else { status };
+        while best.task.norm() > COMMAND_TOLERANCE_MM {
+            if *iterations == MAX_COMMAND_ITERATIONS {
+                return Err(fail(Status::NotConverged, outside));
+            }
+            *iterations += 1;
+            let step = task.project(&jacobian).lu().solve(&(-&best.task)).filter(|s| s.iter().all(|v| v.is_finite()));
+            let Some(step) = step else {
+                if refreshed {
+                    return Err(fail(Status::NotConverged, outside));
+                }
+                jacobian = self.differences(task, &best, jacobian, st, equilibria).map_err(|s| fail(s, outside))?;
+                refreshed = true;
+                continue;
+            };
+            // Halve a step whose command the robot cannot take.
+            let mut fraction = 1.0;
+            let mut trial = Err(Status::NotConverged);
+            for _ in 0..MAX_HALVINGS {
+                trial = self.evaluate(task, &(&best.y + &step * fraction), st, equilibria);
+                match &trial {
+                    Ok(_) => break,
+                    Err(s) => outside |= matches!(s, Status::Unreachable | Status::IllConditioned),
+                }
+                fraction /= 2.0;
+            }
+            let trial = trial.map_err(|s| fail(s, outside))?;
+            broyden(&mut jacobian, task, &best, &trial);
+            let progress = trial.task.norm() < best.task.norm();
+            let contracted = trial.task.norm() <= CONTRACTION * best.task.norm();
+            if progress {
+                best = trial;
+            }
+            if contracted {
+                refreshed = false;
+            } else if refreshed && !progress {
+                return Err(fail(Status::NotConverged, outside));
+            } else if !refreshed {
+                jacobian = self.differences(task, &best, jacobian, st, equilibria).map_err(|s| fail(s, outside))?;
+                refreshed = true;
+            }
+        }
+        st.jacobian = Some(jacobian);
+        Ok(best)
+    }
+
+    /// The Jacobian with its columns along the task basis replaced by one-sided differences at `at`.
+    fn differences(
+        &self,
+        task: &Task,
+        at: &Trial,
+        mut jacobian: Mat6,
+        st: &mut CompensateState,
+        equilibria: &mut usize,
+    ) -> Result<Mat6, Status> {
+        for k in 0..task.basis.ncols() {
+            let mut y = at.y.clone();
+            y[k] += DIFFERENCE_STEP_MM;
+            let t = self.evaluate(task, &y, st, equilibria)?;
+            let q = task.column(k);
+            let column = (t.error_w - at.error_w) / DIFFERENCE_STEP_MM;
+            jacobian += (column - jacobian * q) * q.transpose();
+        }
+        Ok(jacobian)
+    }
+}
+
+/// Broyden's update of the Jacobian (weighted coordinates) from two evaluated commands: J += (dr - J dc)
+/// dc^T / |dc|^2, so that J maps the step dc onto the change dr it caused.
+fn broyden(jacobian: &mut Mat6, task: &Task, from: &Trial, to: &Trial) {
+    let dy = &to.y - &from.y;
+    let dc: Vec6 = {
+        let w = &task.basis * dy;
+        Vec6::from_column_slice(w.as_slice())
+    };
+    let size = dc.norm_squared();
+    if size >= SECANT_MIN_STEP_MM.powi(2) && size.is_finite() {
+        let dr = to.error_w - from.error_w;
+        *jacobian += (dr - *jacobian * dc) * dc.transpose() / size;
+    }
+}

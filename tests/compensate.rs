@@ -1,0 +1,212 @@
+//! `stiff compensate`: the command that puts the real robot (legs with errors, corrected springs, under the
+//! process wrench) on the target, checked against closed forms, against an independent forward solve, on
+//! paper 000 s. 5.2's milling path, and through the whole loop (synthesise, diagnose, correct, compensate).
+
+mod common;
+use common::{csv_columns, run_stiff};
+
+use nalgebra::{Matrix2, Vector2};
+
+const ORTHOGLIDE: &str = "manipulators/orthoglide-3puu.toml";
+const SLIDER: &str = "tests/models/compensate-slider.toml";
+const PLANAR: &str = "tests/models/compensate-planar.toml";
+const PLANAR_ERRORS: &str = "tests/models/compensate-planar-errors.toml";
+/// Paper 000 s. 5.2: milling from Q2 to Q5 (its labels; Figures 10-11 say Q4) under the cutting wrench.
+const MILLING: [&str; 4] = ["--path", "-73.65,-73.65,-73.65", "-73.65,126.35,-73.65", "41"];
+const CUTTING: &str = "215,-10,-25,1000,21500,0";
+const COMMAND: [&str; 3] = ["command_x_mm", "command_y_mm", "command_z_mm"];
+const TARGET: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
+
+fn statuses(text: &str) -> Vec<String> {
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let k = reader.headers().unwrap().iter().position(|h| h == "status").unwrap();
+    reader.records().map(|r| r.unwrap()[k].to_string()).collect()
+}
+
+/// One slider with its actuator spring k_act in series with a mount spring (k_x, k_y, k_z) at the platform:
+/// a force moves the platform by Fx (1/k_act + 1/k_x) along x, Fy/k_y and Fz/k_z across. The command that
+/// reaches x_T is x_T - Fx (1/k_act + 1/k_x) (the mirror command already, the problem being linear); y and
+/// z are not commanded, so their errors stay.
+#[test]
+fn a_slider_is_commanded_short_by_its_series_compliance() {
+    let (k_act, k_x, k_y, k_z) = (2000.0, 5000.0, 3000.0, 4000.0);
+    let (fx, fy, fz) = (300.0, -200.0, 50.0);
+    let out =
+        run_stiff(&["compensate", SLIDER, "--path", "-20,0,0", "30,0,0", "6", "--wrench", "300,-200,50,0,0,0", "-q"]);
+    assert!(statuses(&out).iter().all(|s| s == "ok"), "{out}");
+    let rows = csv_columns(
+        &out,
+        &[
+            "x_mm",
+            "command_x_mm",
+            "leg1_actuator1_mm",
+            "uncompensated_dx_mm",
+            "residual_dx_mm",
+            "residual_dy_mm",
+            "residual_dz_mm",
+            "iterations",
+        ],
+    );
+    let shift = fx * (1.0 / k_act + 1.0 / k_x);
+    for r in rows {
+        assert!((r[3] - shift).abs() < 1e-12, "uncompensated {} vs {shift}", r[3]);
+        assert!((r[1] - (r[0] - shift)).abs() < 1e-12, "command {} vs {}", r[1], r[0] - shift);
+        // The actuator is the slider's travel from its base at -100 mm to the platform at the command.
+        assert!((r[2] - r[1]).abs() < 1e-12, "actuator {} vs command {}", r[2], r[1]);
+        assert!(r[4].abs() < 1e-8, "residual along the commanded axis {}", r[4]);
+        assert!((r[5] - fy / k_y).abs() < 1e-12 && (r[6] - fz / k_z).abs() < 1e-12, "{r:?}");
+        assert_eq!(r[7], 0.0, "a linear problem is solved by the mirror command");
+    }
+}
+
+/// Two actuated sliders with axial springs k_i along u_i in the plane (a third leg holds z and the
+/// rotations): the actuators set u_i . c (nominal inverse kinematics), a force F moves the platform by
+/// K^-1 F, K = sum k_i u_i u_i^T, and leg a's base moved by 0.3 mm along u_1 moves it by d with u_1 . d = 0.3,
+/// u_2 . d = 0. The command that reaches T is T - d - K^-1 F.
+#[test]
+fn a_planar_mechanism_is_commanded_against_its_offset_and_its_compliance() {
+    let (k1, k2) = (1500.0, 4000.0);
+    let u = |deg: f64| Vector2::new(deg.to_radians().cos(), deg.to_radians().sin());
+    let (u1, u2) = (u(20.0), u(100.0));
+    let k = u1 * u1.transpose() * k1 + u2 * u2.transpose() * k2;
+    let f = Vector2::new(300.0, -200.0);
+    let offset = Matrix2::from_rows(&[u1.transpose(), u2.transpose()]).try_inverse().unwrap() * Vector2::new(0.3, 0.0);
+    let error = offset + k.try_inverse().unwrap() * f;
+    let args = ["compensate", PLANAR, "--errors", PLANAR_ERRORS, "--path", "-20,-10,0", "30,15,0", "5"];
+    let out = run_stiff(&[&args[..], &["--wrench", "300,-200,0,0,0,0", "-q"]].concat());
+    assert!(statuses(&out).iter().all(|s| s == "ok"), "{out}");
+    let names = [
+        "x_mm",
+        "y_mm",
+        "command_x_mm",
+        "command_y_mm",
+        "leg1_actuator1_mm",
+        "leg2_actuator1_mm",
+        "uncompensated_dx_mm",
+        "uncompensated_dy_mm",
+        "residual_dx_mm",
+        "residual_dy_mm",
+        "residual_dz_mm",
+    ];
+    for r in csv_columns(&out, &names) {
+        let (t, c) = (Vector2::new(r[0], r[1]), Vector2::new(r[2], r[3]));
+        assert!((Vector2::new(r[6], r[7]) - error).norm() < 1e-11, "uncompensated {r:?} vs {error}");
+        assert!((c - (t - error)).norm() < 1e-9, "command {c} vs {}", t - error);
+        assert!((r[4] - u1.dot(&c)).abs() < 1e-9 && (r[5] - u2.dot(&c)).abs() < 1e-9, "{r:?}");
+        assert!(Vector2::new(r[8], r[9]).norm() < 1e-8 && r[10].abs() < 1e-12, "residual {r:?}");
+    }
+}
+
+/// With no load, no errors and no payload the real robot is the nominal one: the command is the target,
+/// bit for bit, and the forward solve puts the platform there.
+#[test]
+fn zero_load_and_no_errors_command_the_target_exactly() {
+    let out = run_stiff(&["compensate", ORTHOGLIDE, "--path", "-60,-60,-60", "60,60,60", "13", "-q"]);
+    assert!(statuses(&out).iter().all(|s| s == "ok"), "{out}");
+    let rows = csv_columns(&out, &[&TARGET[..], &COMMAND[..], &["residual_error_mm", "iterations"]].concat());
+    assert!(rows.len() > 10);
+    for r in rows {
+        assert_eq!(&r[0..3], &r[3..6], "the command is the target");
+        assert!(r[6] < 1e-10 && r[7] == 0.0, "{r:?}");
+    }
+}
+
+/// The largest value of a column over the rows.
+fn largest(text: &str, column: &str) -> f64 {
+    csv_columns(text, &[column]).iter().map(|r| r[0]).fold(0.0, f64::max)
+}
+
+/// Paper 000 s. 5.2: along the milling path under the cutting wrench, with the actuators' 1 mm offsets
+/// (Case A) or 1 degree turns (Case B), the robot misses the path by millimetres; Newton's command puts the
+/// reference point on it within a micrometre (1e-6 mm) at every target, as the independent forward solve of
+/// the command's actuator coordinates shows, and the mirror command leaves a residual between the two.
+#[test]
+fn the_milling_path_is_compensated_below_a_micrometre_in_cases_a_and_b() {
+    for case in ["a", "b"] {
+        let errors = format!("manipulators/errors/orthoglide-case-{case}.toml");
+        let out = run_stiff(
+            &[&["compensate", ORTHOGLIDE, "--errors", &errors][..], &MILLING, &["--wrench", CUTTING, "-q"]].concat(),
+        );
+        assert!(statuses(&out).iter().all(|s| s == "ok"), "case {case}: {out}");
+        let (before, mirror, after) = (
+            largest(&out, "uncompensated_error_mm"),
+            largest(&out, "mirror_error_mm"),
+            largest(&out, "residual_error_mm"),
+        );
+        eprintln!("case {case}: largest error {before:.4} mm uncompensated, {mirror:.3e} mirror, {after:.3e} Newton");
+        assert!(before > 0.5, "case {case}: the errors are of paper 000's size ({before} mm)");
+        assert!(after < 1e-6, "case {case}: Newton's residual {after} mm");
+        assert!(mirror > 1e3 * after && mirror < before / 10.0, "case {case}: mirror {mirror} mm");
+    }
+}
+
+/// The mirror command c = T - e(T) misses by e(T - e) - e(T) ~ -(de/dc) e: both factors are proportional to
+/// the errors, so halving every leg error divides the mirror's residual by about 4 (no load, so the errors
+/// are the only source).
+#[test]
+fn the_mirror_residual_is_second_order_in_the_errors() {
+    for case in ["a", "b"] {
+        let errors = format!("manipulators/errors/orthoglide-case-{case}.toml");
+        let residual = |scale: &str| {
+            let out = run_stiff(
+                &[
+                    &["compensate", ORTHOGLIDE, "--errors", &errors, "--scale", scale, "--method", "mirror"][..],
+                    &MILLING,
+                    &["-q"],
+                ]
+                .concat(),
+            );
+            csv_columns(&out, &["residual_error_mm", "mirror_error_mm"])
+        };
+        let (full, half) = (residual("1"), residual("0.5"));
+        for (f, h) in full.iter().zip(&half) {
+            assert!((f[0] - f[1]).abs() <= 1e-8, "the forward solve confirms the mirror's residual: {f:?}");
+            let ratio = f[0] / h[0];
+            assert!((3.6..4.4).contains(&ratio), "case {case}: residual {} then {} (ratio {ratio})", f[0], h[0]);
+        }
+    }
+}
+
+/// Targets are solved in runs fixed by the input (warm starts and the Jacobian carried within a run), so
+/// the bytes do not depend on the thread count; 600 targets span three runs.
+#[test]
+fn rows_do_not_depend_on_the_thread_count() {
+    let args = [
+        "compensate",
+        ORTHOGLIDE,
+        "--errors",
+        "manipulators/errors/orthoglide-case-b.toml",
+        "--path",
+        "-73.65,-73.65,-73.65",
+        "-73.65,126.35,-73.65",
+        "600",
+        "--wrench",
+        CUTTING,
+        "-q",
+    ];
+    let one = run_stiff(&[&args[..], &["--threads", "1"]].concat());
+    let two = run_stiff(&[&args[..], &["--threads", "2"]].concat());
+    assert_eq!(one, two);
+}
+
+/// Bad targets are rows with a status, never an abort: a path that leaves the Orthoglide's workspace midway
+/// (x = 350 mm and beyond cannot be placed), where under the cutting wrench the target x = 300 mm can still
+/// be commanded (the robot then misses it by tens of millimetres) but the command that would reach it lies
+/// beyond the workspace; a target off the one axis a slider commands; and a load beyond the limit load,
+/// where no equilibrium exists (about 12.8 kN along -z at Q0, where `stiff curve` finds the limit point).
+#[test]
+fn bad_targets_become_row_statuses() {
+    let out = run_stiff(&["compensate", ORTHOGLIDE, "--path", "0,0,0", "400,0,0", "9", "-q"]);
+    assert_eq!(statuses(&out), [&["ok"; 7][..], &["unreachable"; 2]].concat(), "{out}");
+    let out = run_stiff(&["compensate", ORTHOGLIDE, "--path", "0,0,0", "400,0,0", "9", "--wrench", CUTTING, "-q"]);
+    assert_eq!(statuses(&out), [&["ok"; 6][..], &["unreachable"; 3]].concat(), "{out}");
+    let at_300 = &csv_columns(&out, &["uncompensated_error_mm", "command_x_mm"])[6];
+    assert!(at_300[0] > 10.0 && at_300[1].is_nan(), "the target is commanded, its compensation is not: {at_300:?}");
+    let out = run_stiff(&["compensate", SLIDER, "--path", "0,0,0", "0,10,0", "3", "-q"]);
+    assert_eq!(statuses(&out), ["ok", "unreachable", "unreachable"], "{out}");
+    let out =
+        run_stiff(&["compensate", ORTHOGLIDE, "--path", "0,0,0", "10,0,0", "3", "--wrench", "0,0,-3e4,0,0,0", "-q"]);
+    assert!(statuses(&out).iter().all(|s| s == "not_converged"), "{out}");
+    let rows = csv_columns(&out, &["command_x_mm", "uncompensated_error_mm"]);
+    assert!(rows.iter().all(|r| r[0].is_nan() && r[1].is_nan()), "nothing is written for a load with no equilibrium");
+}
