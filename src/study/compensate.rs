@@ -11,7 +11,9 @@
 //! the command, started from the mirror command c = T - (P(T) - T) of [73], with the Jacobian dP/dc from
 //! differences of loaded equilibria where needed and Broyden's secant updates otherwise, carried from one
 //! target to the next along the path. The command found is checked by an independent forward solve: the
-//! real robot's equilibrium with the command's actuator coordinates, from the nominal placement.
+//! command placed by its own inverse kinematics and the real robot's equilibrium with those actuator
+//! coordinates, from the last forward solve's equilibrium (as a controller stepping along the path would
+//! see it), never from Newton's evaluations.
 
 use std::borrow::Cow;
 use std::io::Write;
@@ -302,8 +304,8 @@ pub struct CompensateState {
     uncompensated: Commanded,
     /// Commanded with the mirror and Newton commands.
     compensated: Commanded,
-    /// The independent forward solve's legs.
-    check: ManipulatorState,
+    /// Commanded with the command found: the independent forward solve.
+    check: Commanded,
     /// The Jacobian of the reached pose by the command (weighted coordinates), from the last target.
     jacobian: Option<Mat6>,
 }
@@ -328,7 +330,7 @@ impl Study for CompensateStudy<'_> {
         CompensateState {
             uncompensated: Commanded::new(m),
             compensated: Commanded::new(m),
-            check: m.new_state(),
+            check: Commanded::new(m),
             jacobian: None,
         }
     }
@@ -484,18 +486,14 @@ impl Solver<'_> {
         };
         let command = task.command(&self.target, &found.y);
         out.command = Some(command);
-        // The independent forward solve: the command's actuator coordinates, the real legs from the
-        // nominal placement, nothing carried from Newton's evaluations.
-        let pair = &mut st.compensated;
-        if let Err(e) = self.nominal.place(&command, &mut pair.nominal) {
-            return Compensation { status: Status::of(&e), ..out };
-        }
-        out.actuators = pair.nominal.actuators().map(<[f64]>::to_vec).collect();
-        self.real.take_command(&pair.nominal, &mut st.check, false);
+        // The independent forward solve: the command placed by its own inverse kinematics, the real legs'
+        // equilibrium from the last forward solve's (nothing carried from Newton's evaluations).
         out.equilibria += 1;
-        let checked = match self.real.deflect(&command, &self.wrench, Some(&command), &mut st.check) {
+        let checked = self.reach(&command, &mut st.check);
+        out.actuators = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
+        let checked = match checked {
             Ok(d) => d,
-            Err(e) => return Compensation { status: deflection_status(&e), ..out },
+            Err(s) => return Compensation { status: s, ..out },
         };
         let residual = self.target.error_to(&checked.pose);
         out.residual = Some(residual);
