@@ -1,4 +1,4 @@
-//! The streaming routine every batch command shares (map, assemble, synth): a `Study` solves one point into
+//! The streaming routine every batch command shares (map, assemble, synth, compensate): a `Study` solves one point into
 //! a row; `stream` runs it over a point set on the worker pool and writes the rows in input order.
 //!
 //! A reader thread cuts the input into runs of `RUN` consecutive points; the worker pool solves runs in

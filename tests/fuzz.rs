@@ -189,7 +189,7 @@ fn case(r: &mut StdRng) -> Case {
     let model_path = root().join(model).display().to_string();
     let m = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<String>>();
     let mut files: Vec<(String, String)> = Vec::new();
-    let mut args: Vec<String> = match r.random_range(0..12) {
+    let mut args: Vec<String> = match r.random_range(0..13) {
         0 | 1 => {
             files.push(("grid.toml".into(), SMALL_GRID.into()));
             m(&["map", &model_path, "--grid", "grid.toml"])
@@ -271,6 +271,21 @@ fn case(r: &mut StdRng) -> Case {
             };
             files.push((name.into(), text));
             m(&["plot", name, "-o", "out.svg"])
+        }
+        11 => {
+            files.push(("errors.toml".into(), shipped("manipulators/errors/orthoglide-case-a.toml")));
+            files.push(("points.csv".into(), POINTS.into()));
+            let method = if r.random_bool(0.5) { "--method=newton" } else { "--method=mirror" };
+            m(&[
+                "compensate",
+                &root().join(MODELS[0]).display().to_string(),
+                "--errors",
+                "errors.toml",
+                "--points",
+                "points.csv",
+                method,
+                "--scale=1",
+            ])
         }
         _ => {
             // The model itself mutated (copied with its neighbours, which it may reference).

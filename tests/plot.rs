@@ -171,6 +171,53 @@ fn assemble_plot_draws_figure_10() {
     }
 }
 
+/// A compensated milling path (paper 000 Figures 10-11 with the compensation): per axis the error without
+/// compensation, with the mirror command and with Newton's command (three lines on three panels), each named
+/// in the legend with its largest length as the table gives it; with the mirror method, two lines.
+#[test]
+fn compensate_plot_draws_the_errors_before_and_after() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("c.csv");
+    let run = |method: &str| {
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .args([
+                "compensate",
+                "manipulators/orthoglide-3puu.toml",
+                "--errors",
+                "manipulators/errors/orthoglide-case-a.toml",
+            ])
+            .args([
+                "--path",
+                "-73.65,-73.65,-73.65",
+                "-73.65,126.35,-73.65",
+                "11",
+                "--wrench",
+                "215,-10,-25,1000,21500,0",
+            ])
+            .args(["--method", method, "-q", "-o"])
+            .arg(&out)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let csv = std::fs::read_to_string(&out).unwrap();
+        (plot_text(&csv, &PlotOptions::default()).unwrap(), csv)
+    };
+    let (svg, csv) = run("newton");
+    let doc = parse(&svg);
+    assert_eq!(count(&doc, "polyline", "series"), 9);
+    assert_eq!(count(&doc, "line", "target"), 3);
+    let largest = column(&csv, "uncompensated_error_mm").into_iter().fold(0.0, f64::max);
+    let t = texts(&doc);
+    let legend = format!("without compensation (largest {} mm)", stiff::plot::svg::tick_label(largest));
+    for label in ["dx [mm]", "dz [mm]", "y [mm] along the path", legend.as_str()] {
+        assert!(t.iter().any(|s| s == label), "{label} in {t:?}");
+    }
+    assert!(t.iter().any(|s| s.starts_with("mirror command (largest")), "{t:?}");
+    assert!(t.iter().any(|s| s.starts_with("Newton's command, forward solve (largest")), "{t:?}");
+    let (svg, _) = run("mirror");
+    assert_eq!(count(&parse(&svg), "polyline", "series"), 6);
+}
+
 /// A diagnosis: one pair of arrows per pose, per-axis RMS bars, a delta-BIC bar per identifiable candidate.
 #[test]
 fn diagnose_plot_has_arrows_and_bars() {
@@ -487,6 +534,23 @@ fn shipped_pictures_have_no_overlapping_text() {
             "p.csv",
             "--plot",
             "p.svg",
+        ],
+        vec![
+            "compensate",
+            model,
+            "--errors",
+            "manipulators/errors/orthoglide-case-a.toml",
+            "--path",
+            "-73.65,-73.65,-73.65",
+            "-73.65,126.35,-73.65",
+            "21",
+            "--wrench",
+            "215,-10,-25,1000,21500,0",
+            "-q",
+            "-o",
+            "k.csv",
+            "--plot",
+            "k.svg",
         ],
     ] {
         let o = stiff_in(d, &args);

@@ -275,9 +275,54 @@ pub fn run_compensate(
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<CompensateSummary> {
-    let fixed = robot.fixed().then(|| robot.at(&Frame::IDENTITY).into_owned());
-    let study = CompensateStudy { robot, fixed: fixed.as_ref(), o, layout: CompensateLayout::new(robot.nominal) };
-    stream(pool, &study, points, out, progress)
+    stream(pool, &Compensator::new(robot, o), points, out, progress)
+}
+
+/// Compensation one target at a time, each warm-started from the one before (the study streams it in runs;
+/// a controller stepping along a path, or a benchmark, calls `next` directly).
+pub struct Compensator<'a> {
+    robot: &'a RealRobot<'a>,
+    /// The real manipulator when it is the same at every target (`RealRobot::fixed`).
+    fixed: Option<Manipulator>,
+    o: &'a CompensateOptions,
+    layout: CompensateLayout,
+}
+
+impl<'a> Compensator<'a> {
+    /// The compensator of a real robot with these options.
+    pub fn new(robot: &'a RealRobot<'a>, o: &'a CompensateOptions) -> Self {
+        let fixed = robot.fixed().then(|| robot.at(&Frame::IDENTITY).into_owned());
+        Compensator { robot, fixed, o, layout: CompensateLayout::new(robot.nominal) }
+    }
+
+    /// The command for one target (and its wrench: the options', else the point's own, else zero), from
+    /// the state the previous target left.
+    pub fn next(&self, p: &PosePoint, st: &mut CompensateState) -> (Vec6, Compensation) {
+        let wrench = self.o.wrench.or(p.wrench).unwrap_or_else(Vec6::zeros);
+        let target = p.frame();
+        let real = match &self.fixed {
+            Some(m) => Cow::Borrowed(m),
+            None => self.robot.at(&target),
+        };
+        let solver = Solver { nominal: self.robot.nominal, real: &real, target, wrench };
+        let result = solver.compensate(self.o.method, st);
+        if result.status != Status::Ok {
+            // A failed target leaves no Jacobian to trust for the next one.
+            st.jacobian = None;
+        }
+        (wrench, result)
+    }
+
+    /// A fresh state (no warm start).
+    pub fn start(&self) -> CompensateState {
+        let m = self.robot.nominal;
+        CompensateState {
+            uncompensated: Commanded::new(m),
+            compensated: Commanded::new(m),
+            check: Commanded::new(m),
+            jacobian: None,
+        }
+    }
 }
 
 /// A controller and a real robot commanded together: the nominal legs' placement (the controller's
@@ -310,14 +355,7 @@ pub struct CompensateState {
     jacobian: Option<Mat6>,
 }
 
-struct CompensateStudy<'a> {
-    robot: &'a RealRobot<'a>,
-    fixed: Option<&'a Manipulator>,
-    o: &'a CompensateOptions,
-    layout: CompensateLayout,
-}
-
-impl Study for CompensateStudy<'_> {
+impl Study for Compensator<'_> {
     type State = CompensateState;
     type Tally = CompensateSummary;
 
@@ -326,13 +364,7 @@ impl Study for CompensateStudy<'_> {
     }
 
     fn new_state(&self) -> CompensateState {
-        let m = self.robot.nominal;
-        CompensateState {
-            uncompensated: Commanded::new(m),
-            compensated: Commanded::new(m),
-            check: Commanded::new(m),
-            jacobian: None,
-        }
+        self.start()
     }
 
     fn solve(
@@ -343,18 +375,7 @@ impl Study for CompensateStudy<'_> {
         tally: &mut CompensateSummary,
         out: &mut String,
     ) {
-        let wrench = self.o.wrench.or(p.wrench).unwrap_or_else(Vec6::zeros);
-        let target = p.frame();
-        let real = match self.fixed {
-            Some(m) => Cow::Borrowed(m),
-            None => self.robot.at(&target),
-        };
-        let solver = Solver { nominal: self.robot.nominal, real: &real, target, wrench };
-        let result = solver.compensate(self.o.method, st);
-        if result.status != Status::Ok {
-            // A failed target leaves no Jacobian to trust for the next one.
-            st.jacobian = None;
-        }
+        let (wrench, result) = self.next(p, st);
         tally.statuses.add(result.status);
         tally.iterations += result.iterations.unwrap_or(0) as u64;
         tally.equilibria += result.equilibria as u64;

@@ -1,0 +1,52 @@
+//! Compensation latency along a finely sampled tool path, one target after the other as a controller would
+//! step (`stiff::study::compensate::Compensator`): the Orthoglide 3-PUU milling from Q2 to Q5 (paper 000
+//! s. 5.2) under the cutting wrench with the Case B leg errors. Prints targets per second on one core, the
+//! latency per target (median, 99th percentile, largest), Newton steps and loaded equilibria per target.
+//!
+//! `cargo bench --bench compensate [-- TARGETS]` (default 100,000 targets); `scripts/bench-compensate` runs
+//! it with the `dist` profile and adds the command line's thread scaling.
+
+use std::path::Path;
+use std::time::Instant;
+
+use stiff::kinematics::frame::{Vec3, Vec6};
+use stiff::model::assembly_errors::ErrorSet;
+use stiff::model::grid::path_points;
+use stiff::study::assemble::LegErrors;
+use stiff::study::compensate::{CompensateOptions, Compensator, Method, RealRobot};
+use stiff::study::point::Status;
+
+fn main() {
+    let targets: usize = std::env::args().skip(1).find_map(|a| a.parse().ok()).unwrap_or(100_000);
+    let model = Path::new("manipulators/orthoglide-3puu.toml");
+    let m = stiff::model::load_manipulator(model).expect("the shipped model");
+    let set = ErrorSet::load(Path::new("manipulators/errors/orthoglide-case-b.toml"), model, &m).expect("Case B");
+    let perturbed = set.perturbed_legs(1.0).expect("no parameter errors");
+    let robot = RealRobot { nominal: &m, errors: Some((LegErrors { set: &set, perturbed: &perturbed }, 1.0)) };
+    let wrench = Vec6::new(215.0, -10.0, -25.0, 1000.0, 21500.0, 0.0);
+    let options = CompensateOptions { wrench: Some(wrench), method: Method::Newton, scale: 1.0 };
+    let compensator = Compensator::new(&robot, &options);
+    let path = path_points(&Vec3::new(-73.65, -73.65, -73.65), &Vec3::new(-73.65, 126.35, -73.65), targets);
+    let mut state = compensator.start();
+    let mut latencies = Vec::with_capacity(targets);
+    let (mut steps, mut equilibria, mut worst_residual) = (0usize, 0usize, 0.0f64);
+    let start = Instant::now();
+    for p in &path {
+        let t = Instant::now();
+        let (_, c) = compensator.next(p, &mut state);
+        latencies.push(t.elapsed().as_secs_f64() * 1e6);
+        assert_eq!(c.status, Status::Ok, "target {:?}", p.position);
+        steps += c.iterations.unwrap_or(0);
+        equilibria += c.equilibria;
+        worst_residual = worst_residual.max(c.residual.map_or(f64::NAN, |r| r.fixed_rows::<3>(0).norm()));
+    }
+    let total = start.elapsed().as_secs_f64();
+    latencies.sort_by(f64::total_cmp);
+    let at = |q: f64| latencies[((latencies.len() - 1) as f64 * q).round() as usize];
+    let n = targets as f64;
+    println!("{targets} targets on the milling line (Case B, cutting wrench), one core:");
+    println!("  {:.0} targets/s, {:.1} us per target", n / total, 1e6 * total / n);
+    println!("  latency: median {:.1} us, 99th percentile {:.1} us, largest {:.1} us", at(0.5), at(0.99), at(1.0));
+    println!("  {:.2} Newton steps and {:.2} loaded equilibria per target", steps as f64 / n, equilibria as f64 / n);
+    println!("  largest residual {worst_residual:.2e} mm");
+}
