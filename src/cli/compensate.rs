@@ -48,8 +48,8 @@ pub(crate) struct CompensateArgs {
     /// manipulators/errors/orthoglide-case-b.toml [default: no leg errors].
     #[arg(long)]
     pub(crate) errors: Option<PathBuf>,
-    /// Factor on every leg error (with --errors).
-    #[arg(long, default_value_t = 1.0)]
+    /// Factor on every leg error of --errors.
+    #[arg(long, default_value_t = 1.0, requires = "errors")]
     pub(crate) scale: f64,
     /// How the command is computed.
     #[arg(long, value_enum, default_value_t = MethodArg::Newton)]
@@ -72,8 +72,8 @@ pub(crate) fn run(a: CompensateArgs) -> Result<()> {
     let m = &model.manipulator;
     if let Some(leg) = m.legs.iter().find(|l| matches!(l, Leg::Msa(_))) {
         bail!(
-            "leg `{}` is an MSA leg: its actuators are elastic joints without a coordinate a controller sets, so \
-             compensate has no command to change (use the VJM description of the robot)",
+            "leg `{}` is an MSA leg: its actuators are elastic joints, not coordinates a controller sets, so \
+             compensate has no command to change (it needs VJM legs with actuated joints)",
             leg.name()
         );
     }
