@@ -12,8 +12,9 @@ use crate::kinematics::frame::{Frame, Mat6, Vec6};
 impl Manipulator {
     /// After the nominal manipulator placed `nominal` for a command: sets this (real) manipulator's
     /// actuators where that placement put them. With `keep_loaded` the legs start their loaded equilibrium
-    /// from their last one (a neighbouring command: one or two Newton iterations); without it from the
-    /// nominal placement, independently of any earlier solve. The real legs must have the nominal legs'
+    /// from the new placement plus their last equilibrium's departure from its own placement (a
+    /// neighbouring command: two or three Newton iterations); without it from the nominal placement,
+    /// independently of any earlier solve. The real legs must have the nominal legs'
     /// coordinates (errors built in by fixed transforms and parameter values, `Leg::with_errors`).
     pub fn take_command(&self, nominal: &ManipulatorState, state: &mut ManipulatorState, keep_loaded: bool) {
         for (real, placed) in state.legs.iter_mut().zip(&nominal.legs) {
