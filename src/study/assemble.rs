@@ -125,11 +125,7 @@ impl Row for AssemblyRow<'_> {
 
     fn record(&self, l: &AssembleLayout, r: &mut impl Record) {
         let p = self.point;
-        r.count(names::INDEX, Some(self.index));
-        r.text(names::NAME, p.name.as_deref().unwrap_or(""));
-        for k in 0..3 {
-            r.number(names::POSITION[k], p.position[k]);
-        }
+        super::point::record_pose(r, self.index, p, false);
         let (assembled, sampled) = match &self.outcome {
             AssemblyOutcome::Assembled(a) => (Some(&**a), None),
             AssemblyOutcome::Sampled(mean, stats) => (None, Some((mean, stats))),

@@ -165,14 +165,7 @@ impl Row for CompensationRow<'_> {
 
     fn record(&self, l: &CompensateLayout, r: &mut impl Record) {
         let (p, res) = (self.point, self.result);
-        r.count(names::INDEX, Some(self.index));
-        r.text(names::NAME, p.name.as_deref().unwrap_or(""));
-        for k in 0..3 {
-            r.number(names::POSITION[k], p.position[k]);
-        }
-        for k in 0..3 {
-            r.number(names::ORIENTATION[k], p.rotation[k]);
-        }
+        super::point::record_pose(r, self.index, p, true);
         r.six(names::WRENCH, Some(&self.wrench));
         r.text(names::STATUS, res.status.as_str());
         r.text(names::METHOD, self.method.as_str());

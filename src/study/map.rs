@@ -155,16 +155,7 @@ impl Row for MapRow<'_> {
 
     fn record(&self, c: &MapColumns, r: &mut impl Record) {
         let (p, res) = (self.point, self.result);
-        r.count(names::INDEX, Some(self.index));
-        r.text(names::NAME, p.name.as_deref().unwrap_or(""));
-        for k in 0..3 {
-            r.number(names::POSITION[k], p.position[k]);
-        }
-        if c.orientation {
-            for k in 0..3 {
-                r.number(names::ORIENTATION[k], p.rotation[k]);
-            }
-        }
+        super::point::record_pose(r, self.index, p, c.orientation);
         r.text(names::STATUS, res.status.as_str());
         r.count("rank", res.rank.map(|k| k as u64));
         r.free_directions("free_directions", &res.free);

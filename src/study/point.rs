@@ -507,3 +507,19 @@ impl ResultJson {
         }
     }
 }
+
+/// A row's first cells, as every table over poses writes them: its index, the point's name, its position
+/// and, with `orientation`, its orientation (so a table's output reads back as a points file).
+pub fn record_pose(r: &mut impl crate::output::table::Record, index: u64, p: &PosePoint, orientation: bool) {
+    use crate::output::table::names;
+    r.count(names::INDEX, Some(index));
+    r.text(names::NAME, p.name.as_deref().unwrap_or(""));
+    for k in 0..3 {
+        r.number(names::POSITION[k], p.position[k]);
+    }
+    if orientation {
+        for k in 0..3 {
+            r.number(names::ORIENTATION[k], p.rotation[k]);
+        }
+    }
+}
