@@ -398,13 +398,17 @@ impl Task {
     /// The target moved by `y` along the basis.
     fn command(&self, target: &Frame, y: &DVector<f64>) -> Frame {
         let w = &self.basis * y;
-        let l = self.length_scale;
-        apply_twist(target, &Vec6::new(w[0], w[1], w[2], w[3] / l, w[4] / l, w[5] / l))
+        apply_twist(target, &self.unweighted(&Vec6::from_column_slice(w.as_slice())))
     }
 
     /// A pose error in weighted coordinates.
     fn weighted(&self, e: &Vec6) -> Vec6 {
         weigh_rotations(e, self.length_scale)
+    }
+
+    /// A weighted displacement back in mm and rad.
+    fn unweighted(&self, e_w: &Vec6) -> Vec6 {
+        weigh_rotations(e_w, 1.0 / self.length_scale)
     }
 
     /// The components of a weighted error along the basis.
@@ -484,7 +488,7 @@ impl Solver<'_> {
         // actuators move.
         let y_mirror = -&start.task;
         let mirror = self.evaluate(&task, &y_mirror, st, &mut out.equilibria);
-        out.mirror = mirror.as_ref().ok().map(|t| self.unweighted(&task, &t.error_w));
+        out.mirror = mirror.as_ref().ok().map(|t| task.unweighted(&t.error_w));
         let found = match method {
             Method::Mirror => mirror,
             Method::Newton => {
@@ -520,11 +524,6 @@ impl Solver<'_> {
             Status::Ok
         };
         out
-    }
-
-    /// A weighted error back in mm and rad.
-    fn unweighted(&self, task: &Task, e_w: &Vec6) -> Vec6 {
-        weigh_rotations(e_w, 1.0 / task.length_scale)
     }
 
     /// The directions the actuators move the platform at the target (the nominal robot placed there).
