@@ -71,6 +71,7 @@ fn synth_at(
         seed,
         repeats: 1,
         linear: false,
+        portion: false,
     };
     let mut text = Vec::new();
     synthesize(

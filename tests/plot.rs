@@ -248,6 +248,7 @@ fn diagnose_plot_has_arrows_and_bars() {
         seed: 1,
         repeats: 1,
         linear: false,
+        portion: false,
     };
     let mut text = Vec::new();
     let mut points = stiff::model::grid::PointSet::from_points(points);

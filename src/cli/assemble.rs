@@ -3,13 +3,14 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
-use clap::Args;
+use clap::{ArgMatches, Args};
 
 use super::args::{
     plot_file, plot_needs_output, progress_bar, select_columns, thread_pool, wrench_text, written, ModelArgs,
     OutputArgs, PlotStyle, PointsStyle, PosesArgs, RunArgs,
 };
 use super::parse::parse_vec6;
+use super::shard::{write_shard_preamble, ShardArgs};
 use crate::kinematics::frame::Vec6;
 use crate::model::assembly_errors::ErrorSet;
 use crate::study::assemble::{assemble_selection, assemble_table, run_assemble, AssembleOptions, LegErrors};
@@ -60,10 +61,12 @@ pub(crate) struct AssembleArgs {
     #[command(flatten)]
     pub(crate) style: PointsStyle,
     #[command(flatten)]
+    pub(crate) shard: ShardArgs,
+    #[command(flatten)]
     pub(crate) run: RunArgs,
 }
 
-pub(crate) fn run(a: AssembleArgs) -> Result<()> {
+pub(crate) fn run(a: AssembleArgs, matches: &ArgMatches) -> Result<()> {
     let model = a.model.load()?;
     let set = ErrorSet::load(&a.errors, &a.model.model, &model)?;
     if !(a.scale.is_finite()) {
@@ -71,6 +74,7 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
     }
     let perturbed = set.perturbed_legs(a.scale)?;
     let mut points = a.poses.load()?;
+    let shard = a.shard.split_points(&mut points, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
     let mut options =
         AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed, selection: None };
@@ -103,7 +107,9 @@ pub(crate) fn run(a: AssembleArgs) -> Result<()> {
             crate::plot::parse_section(s).map_err(|e| anyhow::anyhow!("--section: {e}"))?;
         }
     }
-    let mut sink = a.output.open(&assemble_table(model.legs.len(), &options))?;
+    let table = assemble_table(model.legs.len(), &options);
+    let mut sink = a.output.open(&table)?;
+    write_shard_preamble(&shard, &mut sink, matches, "assemble", table)?;
     let bar = progress_bar(points.len, a.run.quiet);
     let summary = run_assemble(
         &pool,

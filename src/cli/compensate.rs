@@ -3,13 +3,14 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
-use clap::{Args, ValueEnum};
+use clap::{ArgMatches, Args, ValueEnum};
 
 use super::args::{
     plot_file, plot_needs_output, progress_bar, thread_pool, wrench_text, written, ModelArgs, OutputArgs, PlotStyle,
     PosesArgs, RunArgs,
 };
 use super::parse::parse_vec6;
+use super::shard::{write_shard_preamble, ShardArgs};
 use crate::kinematics::frame::Vec6;
 use crate::model::assembly_errors::ErrorSet;
 use crate::platform::leg::Leg;
@@ -64,10 +65,12 @@ pub(crate) struct CompensateArgs {
     #[command(flatten)]
     pub(crate) style: super::args::PointsStyle,
     #[command(flatten)]
+    pub(crate) shard: ShardArgs,
+    #[command(flatten)]
     pub(crate) run: RunArgs,
 }
 
-pub(crate) fn run(a: CompensateArgs) -> Result<()> {
+pub(crate) fn run(a: CompensateArgs, matches: &ArgMatches) -> Result<()> {
     let model = a.model.load_model()?;
     let m = &model.manipulator;
     if let Some(leg) = m.legs.iter().find(|l| matches!(l, Leg::Msa(_))) {
@@ -92,6 +95,7 @@ pub(crate) fn run(a: CompensateArgs) -> Result<()> {
         None => Vec::new(),
     };
     let mut points = a.poses.load()?;
+    let shard = a.shard.split_points(&mut points, &a.output, a.plot.as_ref())?;
     if a.wrench.is_some() && points.has_wrench {
         bail!(
             "the targets carry their own wrenches (Fx_N..Mz_Nmm) and --wrench gives another: drop --wrench to use \
@@ -115,7 +119,9 @@ pub(crate) fn run(a: CompensateArgs) -> Result<()> {
         );
     }
     let pool = thread_pool(a.run.threads)?;
-    let mut sink = a.output.open(&compensate_table(m))?;
+    let table = compensate_table(m);
+    let mut sink = a.output.open(&table)?;
+    write_shard_preamble(&shard, &mut sink, matches, "compensate", table)?;
     let bar = progress_bar(points.len, a.run.quiet);
     let errors = set.as_ref().map(|set| (LegErrors { set, perturbed: &perturbed }, a.scale));
     let robot = RealRobot { nominal: m, errors };

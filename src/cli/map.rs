@@ -3,13 +3,14 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
-use clap::Args;
+use clap::{ArgMatches, Args};
 
 use super::args::{
     name_plot_flag, plot_file, plot_needs_output, progress_bar, select_columns, thread_pool, wrench_text, written,
     MapStyle, ModelArgs, OutputArgs, PlotStyle, PointsArgs, RunArgs,
 };
 use super::parse::parse_vec6;
+use super::shard::{write_shard_preamble, ShardArgs};
 use crate::kinematics::frame::Vec6;
 use crate::study::map::{map_columns, map_header, map_selection, map_table, run_map, MapOptions};
 
@@ -51,12 +52,15 @@ pub(crate) struct MapArgs {
     #[command(flatten)]
     pub(crate) style: MapStyle,
     #[command(flatten)]
+    pub(crate) shard: ShardArgs,
+    #[command(flatten)]
     pub(crate) run: RunArgs,
 }
 
-pub(crate) fn run(a: MapArgs) -> Result<()> {
+pub(crate) fn run(a: MapArgs, matches: &ArgMatches) -> Result<()> {
     let model = a.model.load()?;
     let mut points = a.points.load()?;
+    let shard = a.shard.split_points(&mut points, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
     if a.loaded && !points.has_wrench {
         bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
@@ -65,7 +69,9 @@ pub(crate) fn run(a: MapArgs) -> Result<()> {
         MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded, selection: None };
     let columns = map_columns(&points, &options);
     options.selection = select_columns(&a.columns, |w| map_selection(&columns, w))?;
-    let mut sink = a.output.open(&map_table(&columns, options.selection.as_ref()))?;
+    let table = map_table(&columns, options.selection.as_ref());
+    let mut sink = a.output.open(&table)?;
+    write_shard_preamble(&shard, &mut sink, matches, "map", table)?;
     plot_needs_output(&a.plot, &a.output.output, "map")?;
     if a.plot.is_some() {
         let header = map_header(&columns, options.selection.as_ref());

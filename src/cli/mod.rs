@@ -12,10 +12,11 @@ mod parse;
 mod plan;
 mod plot;
 mod point;
+mod shard;
 mod synth;
 
 use anyhow::Result;
-use clap::{CommandFactory, Parser, Subcommand};
+use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// `stiff`'s arguments.
 #[derive(Parser, Debug)]
@@ -67,6 +68,10 @@ pub enum Command {
     /// Which measurements (pose and load) to take so that diagnose can name and separate the effects.
     #[command(after_help = plan::EXAMPLES)]
     Plan(plan::PlanArgs),
+    /// Joins the shards of a batch run (`--shard K/N` on map, assemble, compensate, synth, sweep) into the
+    /// file the unsharded run writes, after checking that each shard of the run is there exactly once.
+    #[command(after_help = shard::MERGE_EXAMPLES)]
+    Merge(shard::MergeArgs),
     /// An SVG picture of a study's output (map, curve or assemble CSV, or diagnose JSON).
     #[command(after_help = plot::EXAMPLES)]
     Plot(plot::PlotArgs),
@@ -86,15 +91,20 @@ const VERSION: &str = concat!(env!("CARGO_PKG_VERSION"), " (", env!("STIFF_GIT_C
 
 /// Parses the command line and runs the command.
 pub fn run() -> Result<()> {
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    // The command's options as parsed: a shard's preamble names its run by them.
+    let options = matches.subcommand().map(|(_, m)| m.clone()).unwrap_or_default();
+    let options: &ArgMatches = &options;
     match cli.command {
-        Command::Map(a) => map::run(a),
+        Command::Map(a) => map::run(a, options),
         Command::Point(a) => point::run(a),
         Command::Curve(a) => curve::run(a),
-        Command::Assemble(a) => assemble::run(a),
-        Command::Compensate(a) => compensate::run(a),
+        Command::Assemble(a) => assemble::run(a, options),
+        Command::Compensate(a) => compensate::run(a, options),
         Command::Diagnose(a) => diagnose::run(a),
-        Command::Synth(a) => synth::run(a),
+        Command::Synth(a) => synth::run(a, options),
+        Command::Merge(a) => shard::merge(a),
         Command::Plan(a) => plan::run(a),
         Command::Plot(a) => plot::run(a),
         Command::Completions { shell } => {

@@ -1,10 +1,11 @@
 //! `stiff synth`: synthetic measurements with hidden effects.
 
 use anyhow::{bail, Result};
-use clap::Args;
+use clap::{ArgMatches, Args};
 
 use super::args::{progress_bar, thread_pool, ModelArgs, OutputArgs, PointsArgs, RunArgs};
 use super::parse::parse_vec6;
+use super::shard::{write_shard_preamble, ShardArgs};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -42,10 +43,12 @@ pub(crate) struct SynthArgs {
     #[command(flatten)]
     pub(crate) output: OutputArgs,
     #[command(flatten)]
+    pub(crate) shard: ShardArgs,
+    #[command(flatten)]
     pub(crate) run: RunArgs,
 }
 
-pub(crate) fn run(a: SynthArgs) -> Result<()> {
+pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     use crate::diagnose::synth;
     use crate::model::effect::Effect;
     let model = a.model.load_model()?;
@@ -67,10 +70,20 @@ pub(crate) fn run(a: SynthArgs) -> Result<()> {
         bail!("--noise must be >= 0 (mm)");
     }
     let mut points = a.points.load()?;
-    let options =
-        synth::SynthOptions { effects, wrenches, noise: a.noise, seed: a.seed, repeats: a.repeats, linear: a.linear };
+    let shard = a.shard.split_points(&mut points, &a.output, None)?;
+    let options = synth::SynthOptions {
+        effects,
+        wrenches,
+        noise: a.noise,
+        seed: a.seed,
+        repeats: a.repeats,
+        linear: a.linear,
+        portion: shard.is_some(),
+    };
     let pool = thread_pool(a.run.threads)?;
-    let mut sink = a.output.open(&synth::synth_table())?;
+    let table = synth::synth_table();
+    let mut sink = a.output.open(&table)?;
+    write_shard_preamble(&shard, &mut sink, matches, "synth", table)?;
     let bar = progress_bar(points.len, a.run.quiet);
     let summary = synth::synthesize(&pool, &model, &mut points, &options, sink.writer(), &bar)?;
     sink.finish()?;

@@ -31,6 +31,9 @@ pub struct SynthOptions {
     /// Predict by the linear response C w (effects all as first-order terms) instead of the loaded
     /// equilibrium of the model with the hidden model-form effects built in.
     pub linear: bool,
+    /// The points are a shard's portion of a run: none settling is no error here (the other shards'
+    /// may), it is the merged file's.
+    pub portion: bool,
 }
 
 /// A standard normal draw (Box-Muller).
@@ -68,7 +71,7 @@ pub fn synthesize(
     if let Some(e) = summary.error.take() {
         return Err(e.into());
     }
-    if summary.rows == 0 {
+    if summary.rows == 0 && !o.portion {
         return Err(match summary.first_unsettled.take() {
             Some(e) => SynthError::NoPoseSettles(Box::new(e)),
             None => SynthError::NoReachablePose,
@@ -181,6 +184,7 @@ pub fn synth_table() -> Vec<Column> {
 }
 
 impl Study for SynthStudy<'_> {
+    type Item = PosePoint;
     type State = ManipulatorState;
     type Tally = SynthSummary;
 

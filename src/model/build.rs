@@ -2,7 +2,7 @@
 //! checked symmetric positive definite, each error located in the file.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use toml::Spanned;
 
@@ -99,6 +99,32 @@ fn file_parameters(
         specs.insert(name.clone(), Spanned::new(span, ExprSrc::Number(*value)));
     }
     evaluate_parameters(loc, &specs)
+}
+
+/// The files a description at `path` reads besides itself (`parameters_from`, legs taken `from` other
+/// files, and theirs), in the order it reads them: what a run's fingerprint must hash with it.
+pub fn referenced_files(path: &Path) -> Result<Vec<PathBuf>, InputError> {
+    let mut found = Vec::new();
+    collect_referenced(path, 0, &mut found)?;
+    Ok(found)
+}
+
+fn collect_referenced(path: &Path, depth: usize, found: &mut Vec<PathBuf>) -> Result<(), InputError> {
+    let source = read_text(path)?;
+    let loc = Locator { path, source: &source };
+    let file: ModelFile = toml::from_str(&source).map_err(|e| loc.syntax(e))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let others =
+        file.parameters_from.iter().chain(file.legs.get_ref().iter().filter_map(|l| l.get_ref().from.as_ref()));
+    for other in others {
+        let other_path = dir.join(other.get_ref());
+        if depth >= 8 {
+            return Err(loc.at(other.span(), "`from` nests more than 8 files deep (a cycle?)"));
+        }
+        found.push(other_path.clone());
+        collect_referenced(&other_path, depth + 1, found)?;
+    }
+    Ok(())
 }
 
 /// The evaluated parameters of the model file at `path` (for errors given as parameter values).

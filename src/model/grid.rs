@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::error::{not_finite, open_input, read_text, InputError, Locator};
+use super::error::{is_stdin, not_finite, open_input, read_text, InputError, Locator};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 
 /// One pose to evaluate.
@@ -168,6 +168,10 @@ pub struct PointSet {
     /// Number of points, when known in advance.
     pub len: Option<u64>,
     source: Source,
+    /// The input index of the next point read.
+    next_index: u64,
+    /// The index where reading stops (a shard's portion), if before the end.
+    end_index: Option<u64>,
 }
 
 impl PointSet {
@@ -178,6 +182,8 @@ impl PointSet {
             has_wrench: points.iter().any(|p| p.wrench.is_some()),
             len: Some(points.len() as u64),
             source: Source::Grid { grid: None, named: points, next: 0 },
+            next_index: 0,
+            end_index: None,
         }
     }
 
@@ -250,7 +256,14 @@ impl PointSet {
             b.is_some_and(|b| b.orientation.is_some()) || file.points.iter().any(|p| p.orientation.is_some());
         let has_wrench = b.is_some_and(|b| b.wrench.is_some()) || file.points.iter().any(|p| p.wrench.is_some());
         let len = grid.as_ref().map_or(0, |g| g.len()) + named.len() as u64;
-        Ok(Self { has_orientation, has_wrench, len: Some(len), source: Source::Grid { grid, named, next: 0 } })
+        Ok(Self {
+            has_orientation,
+            has_wrench,
+            len: Some(len),
+            source: Source::Grid { grid, named, next: 0 },
+            next_index: 0,
+            end_index: None,
+        })
     }
 
     /// A CSV with columns `x_mm,y_mm,z_mm`, optionally `name`, `pose_rx_rad,pose_ry_rad,pose_rz_rad` and
@@ -283,11 +296,79 @@ impl PointSet {
             has_wrench: columns.wrench.is_some(),
             len: None,
             source: Source::Csv { path: path.to_path_buf(), reader, columns, record: csv::StringRecord::new() },
+            next_index: 0,
+            end_index: None,
         })
+    }
+
+    /// The input index of the next point read (where a shard's portion starts, before reading).
+    pub fn next_index(&self) -> u64 {
+        self.next_index
+    }
+
+    /// The number of points: known for a grid or a path, counted for a points file (a pass over its
+    /// records, each checked as CSV only), which must be a file: standard input cannot be read twice.
+    pub fn count(&mut self) -> Result<u64, InputError> {
+        if let Some(n) = self.len {
+            return Ok(n);
+        }
+        let Source::Csv { path, .. } = &self.source else { unreachable!("grids know their length") };
+        if is_stdin(path) {
+            return Err(InputError::Whole {
+                path: path.clone(),
+                message: "the points must be counted before the run, so they must be in a file, not standard input"
+                    .into(),
+            });
+        }
+        let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).from_reader(open_input(path)?);
+        let mut record = csv::ByteRecord::new();
+        let mut n = 0u64;
+        loop {
+            match reader.read_byte_record(&mut record) {
+                Ok(false) => break,
+                Ok(true) => n += 1,
+                Err(e) => {
+                    let line = e.position().map_or(0, |p| p.line()) as usize;
+                    return Err(InputError::At { path: path.clone(), line, column: 1, message: e.to_string() });
+                }
+            }
+        }
+        self.len = Some(n);
+        Ok(n)
+    }
+
+    /// Keeps only the points with input indices in `portion` (a shard's): the ones before it are skipped
+    /// (read, for a points file, and checked), reading stops at its end, and `len` becomes its length.
+    pub fn keep_portion(&mut self, portion: std::ops::Range<u64>) -> Result<(), InputError> {
+        let mut skipped = Vec::new();
+        while self.next_index < portion.start {
+            skipped.clear();
+            let n = (portion.start - self.next_index).min(SKIP_BLOCK as u64) as usize;
+            if self.read_block(n, &mut skipped)? == 0 {
+                break;
+            }
+        }
+        self.end_index = Some(portion.end);
+        self.len = Some(portion.end.saturating_sub(portion.start));
+        Ok(())
     }
 
     /// Appends up to `n` points to `out`; returns how many were added (0 at the end).
     pub fn next_block(&mut self, n: usize, out: &mut Vec<PosePoint>) -> Result<usize, InputError> {
+        let n = match self.end_index {
+            Some(end) => n.min(end.saturating_sub(self.next_index) as usize),
+            None => n,
+        };
+        self.read_block(n, out)
+    }
+
+    fn read_block(&mut self, n: usize, out: &mut Vec<PosePoint>) -> Result<usize, InputError> {
+        let added = self.read_source(n, out)?;
+        self.next_index += added as u64;
+        Ok(added)
+    }
+
+    fn read_source(&mut self, n: usize, out: &mut Vec<PosePoint>) -> Result<usize, InputError> {
         match &mut self.source {
             Source::Grid { grid, named, next } => {
                 let in_grid = grid.as_ref().map_or(0, |g| g.len());
@@ -348,6 +429,9 @@ impl PointSet {
         }
     }
 }
+
+/// Points read at a time while skipping to a shard's portion.
+const SKIP_BLOCK: usize = 4096;
 
 /// Points along the straight line from `from` to `to` (mm), `count` of them, unnamed (a name is the
 /// user's: a path's rows are told apart by their index, and its picture is the path's).

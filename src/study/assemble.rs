@@ -446,6 +446,7 @@ struct AssembleStudy<'a> {
 }
 
 impl Study for AssembleStudy<'_> {
+    type Item = PosePoint;
     type State = ManipulatorState;
     type Tally = AssembleSummary;
 

@@ -349,6 +349,7 @@ pub struct CompensateState {
 }
 
 impl Study for Compensator<'_> {
+    type Item = PosePoint;
     type State = CompensateState;
     type Tally = CompensateSummary;
 

@@ -214,6 +214,7 @@ struct MapStudy<'a> {
 }
 
 impl Study for MapStudy<'_> {
+    type Item = PosePoint;
     /// Warm starts of the legs, and of the loaded equilibrium from the previous points.
     type State = (ManipulatorState, LoadedHistory);
     type Tally = MapSummary;

@@ -7,6 +7,8 @@
 //! the same for any number of threads. At most `WINDOW_PER_THREAD` runs per worker are in flight, so
 //! memory stays bounded whatever the number of points, and no worker ever waits on a block barrier.
 
+pub mod shard;
+
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -15,6 +17,7 @@ use std::sync::mpsc::{channel, sync_channel};
 use anyhow::{anyhow, Result};
 use indicatif::ProgressBar;
 
+use crate::model::error::InputError;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header_line, Column};
 
@@ -29,9 +32,35 @@ pub trait Tally: Default + Send {
     fn merge(&mut self, other: &Self);
 }
 
-/// A batch study over points, as every streamed command runs it: a header, then one row per point in
-/// input order, each solved by a worker with the state it carries from the previous point of its run.
+/// Where a study's items come from, read in blocks: the poses of a grid or points file
+/// (`model::grid::PointSet`), a sweep's designs.
+pub trait Source: Send {
+    /// What one row is solved from.
+    type Item: Send;
+    /// Appends up to `n` items to `out`; returns how many were added (0 at the end).
+    fn next_block(&mut self, n: usize, out: &mut Vec<Self::Item>) -> Result<usize, InputError>;
+    /// The input index of the first item read (not 0 where a shard's portion starts further in).
+    fn first_index(&self) -> u64;
+}
+
+impl Source for PointSet {
+    type Item = PosePoint;
+
+    fn next_block(&mut self, n: usize, out: &mut Vec<PosePoint>) -> Result<usize, InputError> {
+        PointSet::next_block(self, n, out)
+    }
+
+    fn first_index(&self) -> u64 {
+        self.next_index()
+    }
+}
+
+/// A batch study, as every streamed command runs it: a header, then the rows of each item (a pose, a
+/// design) in input order, each solved by a worker with the state it carries from the previous item of its
+/// run.
 pub trait Study: Sync {
+    /// What one row is solved from.
+    type Item: Send + Sync;
     /// What a worker carries from one point to the next (warm starts); fresh at the start of each run.
     type State;
     /// Counts over the rows (the summary on stderr).
@@ -40,15 +69,15 @@ pub trait Study: Sync {
     fn columns(&self) -> Vec<Column>;
     /// A worker's state at the start of a run.
     fn new_state(&self) -> Self::State;
-    /// Solves the point with input index `index`, appends its row to `out` and counts it in `tally`.
-    fn solve(&self, index: u64, point: &PosePoint, state: &mut Self::State, tally: &mut Self::Tally, out: &mut String);
+    /// Solves the item with input index `index`, appends its rows to `out` and counts it in `tally`.
+    fn solve(&self, index: u64, item: &Self::Item, state: &mut Self::State, tally: &mut Self::Tally, out: &mut String);
 }
 
 /// Runs `study` over `points` on `pool`, writing its table to `out`; returns the summed tally.
 pub fn stream<S: Study>(
     pool: &rayon::ThreadPool,
     study: &S,
-    points: &mut PointSet,
+    points: &mut dyn Source<Item = S::Item>,
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<S::Tally> {
@@ -74,21 +103,23 @@ const TYPICAL_ROW_BYTES: usize = 700;
 
 /// Writes `header`, then for every run of points the text `solve_run(first_index, points)` returns, in
 /// input order.
-fn stream_rows<T, F>(
+fn stream_rows<I, T, F>(
     pool: &rayon::ThreadPool,
-    points: &mut PointSet,
+    points: &mut dyn Source<Item = I>,
     header: &str,
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
     solve_run: F,
 ) -> Result<T>
 where
+    I: Send,
     T: Tally,
-    F: Fn(u64, &[PosePoint]) -> (String, T) + Sync,
+    F: Fn(u64, &[I]) -> (String, T) + Sync,
 {
     out.write_all(header.as_bytes())?;
     let window = WINDOW_PER_THREAD * pool.current_num_threads();
-    let (run_tx, run_rx) = sync_channel::<Result<Vec<PosePoint>>>(window);
+    let mut first_index = points.first_index();
+    let (run_tx, run_rx) = sync_channel::<Result<Vec<I>>>(window);
     let (done_tx, done_rx) = channel::<(usize, usize, String, T)>();
     let (token_tx, token_rx) = sync_channel::<()>(window);
     for _ in 0..window {
@@ -142,7 +173,6 @@ where
         let mut read_failure: Option<anyhow::Error> = None;
         let solve_run = &solve_run;
         pool.in_place_scope(|scope| {
-            let mut first_index = 0u64;
             for (index, run) in run_rx.iter().enumerate() {
                 let run = match run {
                     Ok(r) => r,
