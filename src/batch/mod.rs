@@ -67,6 +67,11 @@ pub trait Study: Sync {
     type Tally: Tally;
     /// The table's columns (the header line, and the types of a columnar output).
     fn columns(&self) -> Vec<Column>;
+    /// Items per run: consecutive items one worker solves in order, its state carried from one to the
+    /// next (a shard's portion is cut at whole runs).
+    fn run_length(&self) -> usize {
+        RUN
+    }
     /// A worker's state at the start of a run.
     fn new_state(&self) -> Self::State;
     /// Solves the item with input index `index`, appends its rows to `out` and counts it in `tally`.
@@ -81,7 +86,8 @@ pub fn stream<S: Study>(
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
 ) -> Result<S::Tally> {
-    stream_rows(pool, points, &header_line(&study.columns()), out, progress, |first_index, run| {
+    let header = header_line(&study.columns());
+    stream_rows(pool, points, study.run_length(), &header, out, progress, |first_index, run| {
         let mut state = study.new_state();
         let mut tally = S::Tally::default();
         let mut text = String::with_capacity(run.len() * TYPICAL_ROW_BYTES);
@@ -106,6 +112,7 @@ const TYPICAL_ROW_BYTES: usize = 700;
 fn stream_rows<I, T, F>(
     pool: &rayon::ThreadPool,
     points: &mut dyn Source<Item = I>,
+    run_length: usize,
     header: &str,
     out: &mut (dyn Write + Send),
     progress: &ProgressBar,
@@ -130,8 +137,8 @@ where
     let stop = &stop;
     std::thread::scope(|threads| -> Result<T> {
         let reader = threads.spawn(move || loop {
-            let mut run = Vec::with_capacity(RUN);
-            match points.next_block(RUN, &mut run) {
+            let mut run = Vec::with_capacity(run_length);
+            match points.next_block(run_length, &mut run) {
                 Ok(0) => break,
                 Ok(_) => {
                     if run_tx.send(Ok(run)).is_err() {

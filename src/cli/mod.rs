@@ -13,6 +13,7 @@ mod plan;
 mod plot;
 mod point;
 mod shard;
+mod sweep;
 mod synth;
 
 use anyhow::Result;
@@ -68,6 +69,10 @@ pub enum Command {
     /// Which measurements (pose and load) to take so that diagnose can name and separate the effects.
     #[command(after_help = plan::EXAMPLES)]
     Plan(plan::PlanArgs),
+    /// Design study: many parameter sets of one description (factorial, Latin hypercube or a CSV), each
+    /// mapped over a workspace and summarised in one row (statuses, compliance statistics, worst point).
+    #[command(after_help = sweep::EXAMPLES)]
+    Sweep(sweep::SweepArgs),
     /// Joins the shards of a batch run (`--shard K/N` on map, assemble, compensate, synth, sweep) into the
     /// file the unsharded run writes, after checking that each shard of the run is there exactly once.
     #[command(after_help = shard::MERGE_EXAMPLES)]
@@ -104,6 +109,7 @@ pub fn run() -> Result<()> {
         Command::Compensate(a) => compensate::run(a, options),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Synth(a) => synth::run(a, options),
+        Command::Sweep(a) => sweep::run(a, options),
         Command::Merge(a) => shard::merge(a),
         Command::Plan(a) => plan::run(a),
         Command::Plot(a) => plot::run(a),

@@ -33,3 +33,37 @@ pub(crate) fn parse_vec3(s: &str) -> Result<Vec3, String> {
 pub(crate) fn parse_vec6(s: &str) -> Result<Vec6, String> {
     parse_numbers(s, 6).map(|v| Vec6::from_column_slice(&v))
 }
+
+/// `NAME=FROM:TO:COUNT` (or `NAME=FROM:TO` for a sampled sweep): a parameter's range.
+pub(crate) fn parse_parameter_range(s: &str) -> Result<crate::study::sweep::ParameterRange, String> {
+    let usage = || format!("expected NAME=FROM:TO:COUNT (e.g. k_act=10000:40000:7), got `{s}`");
+    let (name, range) = s.split_once('=').ok_or_else(usage)?;
+    let parts: Vec<&str> = range.split(':').map(str::trim).collect();
+    if !(2..=3).contains(&parts.len()) || name.trim().is_empty() {
+        return Err(usage());
+    }
+    let number = |t: &str| match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(crate::model::error::not_finite(t)),
+        Err(_) => Err(format!("`{t}` is not a number ({})", usage())),
+    };
+    let count = match parts.get(2) {
+        None => None,
+        Some(t) => match t.parse::<u64>() {
+            Ok(n) if n >= 1 => Some(n),
+            _ => return Err(format!("COUNT `{t}` must be a whole number >= 1 ({})", usage())),
+        },
+    };
+    let (from, to) = (number(parts[0])?, number(parts[1])?);
+    if count == Some(1) && from != to {
+        return Err(format!("`{s}`: one value needs FROM equal to TO"));
+    }
+    Ok(crate::study::sweep::ParameterRange { name: name.trim().to_string(), from, to, count })
+}
+
+/// `lhs:N`: a Latin hypercube of N designs.
+pub(crate) fn parse_sample(s: &str) -> Result<u64, String> {
+    let n =
+        s.strip_prefix("lhs:").ok_or_else(|| format!("expected lhs:N (a Latin hypercube of N designs), got `{s}`"))?;
+    n.trim().parse::<u64>().ok().filter(|&n| n >= 1).ok_or_else(|| format!("`{s}`: N must be a whole number >= 1"))
+}

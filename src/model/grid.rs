@@ -301,6 +301,17 @@ impl PointSet {
         })
     }
 
+    /// The volume each point of a box grid stands for (mm^3: the product of its three spacings), where the
+    /// points are a box with more than one point along every axis and nothing else.
+    pub fn cell_volume(&self) -> Option<f64> {
+        match &self.source {
+            Source::Grid { grid: Some(g), named, .. } if named.is_empty() && g.steps.iter().all(|&n| n > 1) => {
+                Some((0..3).map(|k| (g.to[k] - g.from[k]).abs() / (g.steps[k] - 1) as f64).product())
+            }
+            _ => None,
+        }
+    }
+
     /// The input index of the next point read (where a shard's portion starts, before reading).
     pub fn next_index(&self) -> u64 {
         self.next_index

@@ -206,6 +206,21 @@ pub fn map_columns(points: &PointSet, options: &MapOptions) -> MapColumns {
     }
 }
 
+/// What the map finds at `p` (unloaded, or loaded as `options` say), warm-started from `state`.
+pub fn map_point(
+    m: &Manipulator,
+    p: &PosePoint,
+    options: &MapOptions,
+    (state, history): &mut (ManipulatorState, LoadedHistory),
+) -> PointResult {
+    let wrench = if options.use_point_wrench { p.wrench } else { options.wrench };
+    match (options.wrench.is_some() || options.use_point_wrench, wrench) {
+        (false, _) => unloaded_point(m, p, state),
+        (true, Some(w)) => loaded_point(m, p, &w, state, history),
+        (true, None) => loaded_point(m, p, &Vec6::zeros(), state, history),
+    }
+}
+
 /// The map as a streamed study.
 struct MapStudy<'a> {
     m: &'a Manipulator,
@@ -228,13 +243,7 @@ impl Study for MapStudy<'_> {
     }
 
     fn solve(&self, index: u64, p: &PosePoint, state: &mut Self::State, tally: &mut MapSummary, out: &mut String) {
-        let (state, history) = state;
-        let wrench = if self.options.use_point_wrench { p.wrench } else { self.options.wrench };
-        let r = match (self.columns.loaded, wrench) {
-            (false, _) => unloaded_point(self.m, p, state),
-            (true, Some(w)) => loaded_point(self.m, p, &w, state, history),
-            (true, None) => loaded_point(self.m, p, &Vec6::zeros(), state, history),
-        };
+        let r = map_point(self.m, p, &self.options, state);
         tally.add(r.status);
         let row = MapRow { index, point: p, result: &r };
         write_selected_row(&row, &self.columns, self.options.selection.as_ref(), out);

@@ -37,6 +37,18 @@ pub enum Status {
 }
 
 impl Status {
+    /// Every status, in the order of `as_str`'s list.
+    pub const ALL: [Status; 8] = [
+        Status::Ok,
+        Status::Unreachable,
+        Status::Singular,
+        Status::SingularLeg,
+        Status::NotConverged,
+        Status::Unstable,
+        Status::IllConditioned,
+        Status::Overflow,
+    ];
+
     /// The status's name in CSV and reports.
     pub fn as_str(self) -> &'static str {
         match self {
