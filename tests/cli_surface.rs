@@ -9,7 +9,8 @@ fn stiff() -> Command {
     Command::cargo_bin("stiff").unwrap()
 }
 
-const COMMANDS: [&str; 9] = ["map", "point", "curve", "assemble", "compensate", "diagnose", "synth", "plan", "plot"];
+const COMMANDS: [&str; 11] =
+    ["map", "point", "curve", "assemble", "compensate", "diagnose", "synth", "plan", "plot", "sweep", "merge"];
 
 /// Every cell of the selected table (`some`, a header row then data rows) equals the full table's cell of
 /// the same column and row.
@@ -60,7 +61,7 @@ fn every_help_example_runs() {
             let args: Vec<String> = words[1..]
                 .iter()
                 .map(|w| {
-                    let written = [".csv", ".svg", ".json", ".toml"].iter().any(|e| w.ends_with(e));
+                    let written = [".csv", ".svg", ".json", ".toml", "/"].iter().any(|e| w.ends_with(e));
                     if written && !Path::new(w).exists() {
                         dir.path().join(w).display().to_string()
                     } else {

@@ -17,7 +17,9 @@ pub(crate) const MERGE_EXAMPLES: &str = "Examples:
   stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-cube.toml --shard 1/2 -o s1.csv
   stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-cube.toml --shard 2/2 -o s2.csv
   stiff merge cube.csv s1.csv s2.csv
-  stiff merge --missing cube.csv s*.csv      # the shard numbers to resubmit, e.g. for sbatch --array=
+  stiff merge --missing cube.csv s1.csv
+
+--missing prints the numbers of the shards with no file (here 2), e.g. for sbatch --array=.
 
 Exit status: 0 merged (or, with --missing, listed), 1 a shard is missing, foreign or given twice, 2 usage error.";
 

@@ -19,7 +19,7 @@ use crate::study::sweep::{
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
   stiff sweep manipulators/orthoglide-3puu.toml --vary k_act=10000:40000:7 --vary d_leg=10:16:4 --grid manipulators/grids/orthoglide-q.toml -o designs.csv
-  stiff sweep manipulators/orthoglide-3puu.toml --vary L=280:340 --vary d_leg=10:16 --sample lhs:50 --seed 7 --grid manipulators/grids/orthoglide-cube.toml --threshold 1e-3 -o lhs.csv
+  stiff sweep manipulators/orthoglide-3puu.toml --vary L=280:340 --vary d_leg=10:16 --sample lhs:50 --seed 7 --grid manipulators/grids/orthoglide-small.toml --threshold 1e-3 -o lhs.csv
   stiff sweep manipulators/navaro2.toml --vary mode=1:2:2 --grid manipulators/grids/navaro2-workspace.toml --maps maps/ -o modes.csv
 
 A design sets parameters of the description ([parameters], in that file's units) as --set does; a design
