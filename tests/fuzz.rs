@@ -189,7 +189,7 @@ fn case(r: &mut StdRng) -> Case {
     let model_path = root().join(model).display().to_string();
     let m = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<String>>();
     let mut files: Vec<(String, String)> = Vec::new();
-    let mut args: Vec<String> = match r.random_range(0..13) {
+    let mut args: Vec<String> = match r.random_range(0..15) {
         0 | 1 => {
             files.push(("grid.toml".into(), SMALL_GRID.into()));
             m(&["map", &model_path, "--grid", "grid.toml"])
@@ -286,6 +286,37 @@ fn case(r: &mut StdRng) -> Case {
                 method,
                 "--scale=1",
             ])
+        }
+        12 => {
+            files.push(("designs.csv".into(), "design,k_act,d_leg\nsoft,10000,10\nstiff,40000,16\n".into()));
+            files.push(("grid.toml".into(), SMALL_GRID.into()));
+            let designs = if r.random_bool(0.5) { "--designs=designs.csv" } else { "--vary=k_act=1000:50000:3" };
+            let shard = ["--shard=1/1", "--shard=2/3", "--threshold=1e-3", "--sample=lhs:3"][r.random_range(0..4)];
+            let sample_ok = designs.starts_with("--vary") || !shard.starts_with("--sample");
+            let mut a = m(&["sweep", &root().join(MODELS[0]).display().to_string(), designs, "--grid", "grid.toml"]);
+            if sample_ok {
+                a.push(shard.into());
+            }
+            a
+        }
+        13 => {
+            // Two shards of one run, written as `--shard` writes them, for the merge's reader.
+            let shard = |k: u64, rows: &str| {
+                format!(
+                    "# stiff shard {k}/2 run 5a5a\n# stiff portion 0..2 (input indices, end excluded)\n# stiff run \
+                     items = 2\n# stiff kinds ctn\nindex,name,x_mm\n{rows}"
+                )
+            };
+            files.push(("s1.csv".into(), shard(1, "0,a,1.5\n")));
+            files.push(("s2.csv".into(), shard(2, "1,\"b,c\",-2e-3\n")));
+            // Sometimes only listing the missing shards, sometimes a shard given twice.
+            let mut a = m(&["merge", "merged.csv", "s1.csv", "s2.csv"]);
+            match r.random_range(0..3) {
+                0 => a.push("--missing".into()),
+                1 => a.push("s1.csv".into()),
+                _ => {}
+            }
+            a
         }
         _ => {
             // The model itself mutated (copied with its neighbours, which it may reference).

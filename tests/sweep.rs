@@ -193,4 +193,5 @@ fn sweep_usage_errors_say_what_to_do() {
     fails(&["sweep", MODEL, "--vary", "k_act=1:2:0", "--grid", GRID], "COUNT");
     fails(&["sweep", MODEL, "--vary", "k_act=1:2:2", "--grid", GRID, "--threshold=-1"], "--threshold");
     fails(&["sweep", MODEL, "--vary", "k_act=1:2:2", "--sample", "mc:3", "--grid", GRID], "lhs:N");
+    fails(&["sweep", MODEL, "--vary", "k_act=1:2:2", "--vary", "k_act=3:4:2", "--grid", GRID], "given twice");
 }

@@ -316,7 +316,7 @@ mod tests {
                     let p = Shard { k, n }.portion(items, 256);
                     assert_eq!(p.start, next, "{items} items, shard {k}/{n}");
                     assert!(p.start <= p.end);
-                    assert!(p.start % 256 == 0 || p.start == items);
+                    assert!(p.start.is_multiple_of(256) || p.start == items);
                     next = p.end;
                 }
                 assert_eq!(next, items, "{items} items in {n} shards");

@@ -83,6 +83,9 @@ pub(crate) fn run(a: SweepArgs, matches: &ArgMatches) -> Result<()> {
         (None, Some(n)) => DesignSet::latin_hypercube(&a.vary, n, a.seed).map_err(|e| anyhow!("--sample {e}"))?,
         (None, None) => DesignSet::factorial(&a.vary).map_err(|e| anyhow!("--vary {e}"))?,
     };
+    if let Some(p) = designs.repeated_parameter() {
+        bail!("parameter `{p}` is given twice (one --vary or one designs column per parameter)");
+    }
     for p in &designs.parameters {
         if !known.contains_key(p) {
             let names: Vec<&str> = known.keys().map(String::as_str).collect();

@@ -62,6 +62,12 @@ pub struct DesignSet {
 }
 
 impl DesignSet {
+    /// The parameter that appears twice, if one does (each must be one column).
+    pub fn repeated_parameter(&self) -> Option<&str> {
+        let p = &self.parameters;
+        (1..p.len()).find(|&k| p[..k].contains(&p[k])).map(|k| p[k].as_str())
+    }
+
     fn new(parameters: Vec<String>, designs: Vec<Design>) -> DesignSet {
         let end = designs.len();
         DesignSet { parameters, designs, next: 0, end }
@@ -133,10 +139,8 @@ impl DesignSet {
         let name_column = headers.iter().position(|h| h == DESIGN);
         let parameter_columns: Vec<usize> = (0..headers.len()).filter(|&i| Some(i) != name_column).collect();
         let parameters: Vec<String> = parameter_columns.iter().map(|&i| headers[i].to_string()).collect();
-        for (k, p) in parameters.iter().enumerate() {
-            if p.is_empty() || parameters[..k].contains(p) {
-                return Err(whole(format!("parameter columns need distinct names (column `{p}`)")));
-            }
+        if parameters.iter().any(String::is_empty) {
+            return Err(whole("every parameter column needs a name in the header".into()));
         }
         let mut designs = Vec::new();
         for record in reader.records() {
@@ -230,19 +234,16 @@ pub struct Workspace {
 
 impl Workspace {
     /// Reads every point of `points` (at most `MAX_SWEEP_POINTS`).
-    pub fn read(points: &mut PointSet, options: &MapOptions) -> Result<Workspace, InputError> {
+    pub fn read(points: &mut PointSet, options: &MapOptions) -> Result<Workspace> {
         let columns = map_columns(points, options);
         let cell_volume = points.cell_volume();
         let mut all = Vec::new();
         while points.next_block(4096, &mut all)? > 0 {
             if all.len() as u64 > MAX_SWEEP_POINTS {
-                return Err(InputError::Whole {
-                    path: PathBuf::from("(workspace)"),
-                    message: format!(
-                        "more than {MAX_SWEEP_POINTS} points per design: a coarser grid (sweep designs, then map \
-                         the best finely)"
-                    ),
-                });
+                anyhow::bail!(
+                    "the workspace has more than {MAX_SWEEP_POINTS} points, each mapped at every design: sweep \
+                     over a coarser grid, then map the best designs finely"
+                );
             }
         }
         Ok(Workspace { points: all, columns, cell_volume })
