@@ -1,7 +1,8 @@
-//! The streaming routine every batch command shares (map, assemble, synth, compensate): a `Study` solves one point into
-//! a row; `stream` runs it over a point set on the worker pool and writes the rows in input order.
+//! The streaming routine every batch command shares (map, assemble, synth, compensate, sweep): a `Study`
+//! solves one item (a pose, a design) into rows; `stream` runs it over a `Source` on the worker pool and
+//! writes the rows in input order. Shards of a run and their merge: `shard`.
 //!
-//! A reader thread cuts the input into runs of `RUN` consecutive points; the worker pool solves runs in
+//! A reader thread cuts the input into runs of `Study::run_length` consecutive items (`RUN` points); the worker pool solves runs in
 //! parallel (each run in order, so warm starts carry from point to point); a writer thread puts the rows
 //! back in input order. Runs are fixed by the input, never by the thread count, so the bytes written are
 //! the same for any number of threads. At most `WINDOW_PER_THREAD` runs per worker are in flight, so
