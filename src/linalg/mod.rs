@@ -140,6 +140,79 @@ impl DenseLu {
     }
 }
 
+/// An in-place Cholesky factorisation A = L L^T of a dense symmetric column-major matrix (its lower
+/// triangle read), its buffer kept between uses: MSA's reduced stiffness at every pose.
+#[derive(Clone, Debug, Default)]
+pub struct DenseCholesky {
+    n: usize,
+    a: Vec<f64>,
+}
+
+impl DenseCholesky {
+    /// Factorises the n x n matrix `m`; the smallest and largest pivot L_ii^2, or None where a pivot is
+    /// not positive or not finite (not positive definite).
+    pub fn factor(&mut self, m: &[f64], n: usize) -> Option<(f64, f64)> {
+        assert_eq!(m.len(), n * n);
+        self.n = n;
+        self.a.clear();
+        self.a.extend_from_slice(m);
+        let a = &mut self.a;
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        for k in 0..n {
+            // Column k of L: a_ik - sum_{j<k} l_ij l_kj, left-looking.
+            for j in 0..k {
+                let lkj = a[j * n + k];
+                if lkj != 0.0 {
+                    let (left, right) = a.split_at_mut(k * n);
+                    let lcol = &left[j * n + k..j * n + n];
+                    for (x, l) in right[k..n].iter_mut().zip(lcol) {
+                        *x -= l * lkj;
+                    }
+                }
+            }
+            let d = a[k * n + k];
+            if !(d > 0.0 && d.is_finite()) {
+                return None;
+            }
+            lo = lo.min(d);
+            hi = hi.max(d);
+            let root = d.sqrt();
+            for x in &mut a[k * n + k..k * n + n] {
+                *x /= root;
+            }
+        }
+        Some((lo, hi))
+    }
+
+    /// Solves L y = b in place (the first half of a solve: with it, B^T A^-1 C = (L^-1 B)^T (L^-1 C)).
+    pub fn forward_in_place(&self, b: &mut [f64]) {
+        let (n, a) = (self.n, &self.a);
+        let b = &mut b[..n];
+        for k in 0..n {
+            let col = &a[k * n + k..k * n + n];
+            b[k] /= col[0];
+            let bk = b[k];
+            if bk != 0.0 {
+                for (x, l) in b[k + 1..].iter_mut().zip(&col[1..]) {
+                    *x -= l * bk;
+                }
+            }
+        }
+    }
+
+    /// Solves A x = b in place for one right-hand side of length n.
+    pub fn solve_in_place(&self, b: &mut [f64]) {
+        let (n, a) = (self.n, &self.a);
+        self.forward_in_place(b);
+        let b = &mut b[..n];
+        for k in (0..n).rev() {
+            let col = &a[k * n + k..k * n + n];
+            let dot: f64 = b[k + 1..].iter().zip(&col[1..]).map(|(x, l)| x * l).sum();
+            b[k] = (b[k] - dot) / col[0];
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,5 +234,31 @@ mod tests {
             assert!((x[i] - expected[i]).abs() < 1e-12 * expected.amax());
         }
         assert!(!lu.factor(DMatrix::<f64>::zeros(3, 3).as_slice(), 3));
+    }
+
+    /// A symmetric positive definite system solved as nalgebra's Cholesky solves it; the pivots are the
+    /// squares of L's diagonal; an indefinite matrix is refused.
+    #[test]
+    fn cholesky_solves_like_nalgebra() {
+        let n = 11;
+        let g = DMatrix::from_fn(n, n, |i, j| ((i * 5 + j * 3) % 7) as f64 - 3.0 + if i == j { 4.0 } else { 0.0 });
+        let m = &g * g.transpose();
+        let b = DVector::from_fn(n, |i, _| 1.5 - i as f64);
+        let expected = m.clone().cholesky().unwrap();
+        let mut c = DenseCholesky::default();
+        let (lo, hi) = c.factor(m.as_slice(), n).unwrap();
+        let l = expected.l();
+        let squares: Vec<f64> = (0..n).map(|i| l[(i, i)] * l[(i, i)]).collect();
+        assert!((lo - squares.iter().cloned().fold(f64::MAX, f64::min)).abs() < 1e-12 * hi);
+        assert!((hi - squares.iter().cloned().fold(0.0, f64::max)).abs() < 1e-12 * hi);
+        let mut x = b.as_slice().to_vec();
+        c.solve_in_place(&mut x);
+        let x_expected = expected.solve(&b);
+        for i in 0..n {
+            assert!((x[i] - x_expected[i]).abs() < 1e-12 * x_expected.amax());
+        }
+        let mut indefinite = DMatrix::<f64>::identity(3, 3);
+        indefinite[(1, 1)] = -1.0;
+        assert!(c.factor(indefinite.as_slice(), 3).is_none());
     }
 }

@@ -237,8 +237,37 @@ struct Edge<'a> {
     connection: std::borrow::Cow<'a, Connection>,
 }
 
-/// How a node's twist depends on the coordinates: t = T z (6 x n_z).
-type Map = DMatrix<f64>;
+/// How every node's twist depends on the coordinates: t_v = sum of x z_c over node v's entries (c, x),
+/// sorted by column. A node moves only with the coordinates along its forest path, a few of the
+/// structure's, so the maps are kept sparse (dense 6 x n_z maps cost most of a pose).
+struct NodeMaps {
+    entries: Vec<(usize, Vec6)>,
+    spans: Vec<std::ops::Range<usize>>,
+}
+
+impl NodeMaps {
+    fn of(&self, v: usize) -> &[(usize, Vec6)] {
+        &self.entries[self.spans[v].clone()]
+    }
+
+    /// Node v's twist per unit coordinate, dense over the coordinates (a loop's relative displacement).
+    fn dense(&self, v: Option<usize>, nz: usize) -> Vec<Vec6> {
+        let mut d = vec![Vec6::zeros(); nz];
+        if let Some(v) = v {
+            for (c, x) in self.of(v) {
+                d[*c] = *x;
+            }
+        }
+        d
+    }
+}
+
+/// A twist at one point carried rigidly to a point `d` away: (v + w x d, w), `point_shift(d)` applied.
+fn carry(d: &Vec3, x: &Vec6) -> Vec6 {
+    let (v, w) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
+    let moved = v + w.cross(d);
+    Vec6::new(moved[0], moved[1], moved[2], w[0], w[1], w[2])
+}
 
 impl Structure {
     /// The Cartesian stiffness at the end node (eq 17), base frame, at the end node's point.
@@ -375,7 +404,10 @@ impl Structure {
         if !plan.end_is_root {
             // The end node reached through the forest: its twist must equal the prescribed u.
             for r in 0..6 {
-                let mut row = t[self.end].row(r).transpose();
+                let mut row = DVector::zeros(nz);
+                for (c, x) in t.of(self.end) {
+                    row[*c] = x[r];
+                }
                 row[n_y + r] -= 1.0;
                 sys.constraints.push(row);
             }
@@ -387,63 +419,49 @@ impl Structure {
             Err(failure) => failure,
             Ok(null) => {
                 // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
-                let mut nodes: Vec<usize> = (0..n)
-                    .filter(|&v| null.iter().any(|y| (t[v].columns(0, n_y) * y).norm() > NODE_MOVES * y.norm()))
-                    .collect();
+                let moves = |v: usize, y: &DVector<f64>| {
+                    let twist: Vec6 = t.of(v).iter().filter(|(c, _)| *c < n_y).map(|(c, x)| x * y[*c]).sum();
+                    twist.norm() > NODE_MOVES * y.norm()
+                };
+                let mut nodes: Vec<usize> = (0..n).filter(|&v| null.iter().any(|y| moves(v, y))).collect();
                 nodes.sort_unstable();
                 MsaFailure::Mechanism { free: null.len(), nodes }
             }
         })
     }
 
-    /// Carries a twist at node `from` (the base where None) to node `to`'s point.
-    fn shift(&self, from: Option<usize>, to: usize) -> Mat6 {
-        match from {
-            Some(a) => point_shift(&(self.nodes[to] - self.nodes[a])),
-            None => Mat6::identity(),
-        }
-    }
-
     /// Each node's twist as a linear map of the reduced coordinates, along the spanning forest; the tree
     /// joints' springs act on their own coordinates (energy 1/2 (s - s0)^T K (s - s0)).
-    fn node_maps(&self, plan: &Plan, sys: &mut Reduced) -> Vec<Map> {
+    fn node_maps(&self, plan: &Plan, sys: &mut Reduced) -> NodeMaps {
         let n = self.nodes.len();
-        let (n_y, nz) = (plan.n_y, plan.n_y + 6);
-        let mut t: Vec<Map> = vec![Map::zeros(0, 0); n];
-        let base = Map::zeros(6, nz);
+        let n_y = plan.n_y;
+        let mut t = NodeMaps { entries: Vec::new(), spans: vec![0..0; n] };
         for (slot, &(v, via)) in plan.order.iter().enumerate() {
             let c0 = plan.first[slot];
-            t[v] = match via {
-                None if v == self.end => {
-                    let mut m = Map::zeros(6, nz);
-                    m.view_mut((0, n_y), (6, 6)).fill_with_identity();
-                    m
-                }
+            let start = t.entries.len();
+            match via {
                 None => {
-                    let mut m = Map::zeros(6, nz);
-                    m.view_mut((0, c0), (6, 6)).fill_with_identity();
-                    m
+                    // A root: the end node's six prescribed coordinates, or a free root's own six.
+                    let first = if v == self.end { n_y } else { c0 };
+                    t.entries.extend((0..6).map(|r| (first + r, Vec6::from_fn(|k, _| if k == r { 1.0 } else { 0.0 }))));
                 }
                 Some(k) => {
                     let e = &plan.edges[k];
-                    let moving = e.connection.free.iter().chain(&e.connection.elastic);
                     let parent_is_a = e.b == v;
                     let parent = if parent_is_a { e.a } else { Some(e.b) };
-                    let tp = match parent {
-                        Some(p) => &t[p],
-                        None => &base,
-                    };
-                    let mut m = if parent_is_a {
-                        // t_b = A_ab t_a + dt
-                        to_dmatrix(&self.shift(e.a, e.b)) * tp
-                    } else {
-                        // t_a = A_ba (t_b - dt)
-                        to_dmatrix(&point_shift(&(self.nodes[v] - self.nodes[e.b]))) * tp
-                    };
-                    let back = point_shift(&(self.nodes[v] - self.nodes[e.b]));
+                    if let Some(p) = parent {
+                        // t_b = A_ab t_a + dt, or t_a = A_ba (t_b - dt): the parent's map carried to v.
+                        let d = self.nodes[v] - self.nodes[p];
+                        for q in t.spans[p].clone() {
+                            let (c, x) = t.entries[q];
+                            t.entries.push((c, carry(&d, &x)));
+                        }
+                    }
+                    let back = self.nodes[v] - self.nodes[e.b];
+                    let moving = e.connection.free.iter().chain(&e.connection.elastic);
                     for (c, d) in moving.enumerate() {
-                        let col = if parent_is_a { *d } else { -(back * d) };
-                        m.view_mut((0, c0 + c), (6, 1)).copy_from(&col);
+                        let col = if parent_is_a { *d } else { -carry(&back, d) };
+                        t.entries.push((c0 + c, col));
                     }
                     // Elastic coordinates follow the free ones: energy 1/2 (s - s0)^T K (s - s0).
                     let ne = e.connection.elastic.len();
@@ -454,34 +472,37 @@ impl Structure {
                         let mut rows = sys.f.rows_mut(s0, ne);
                         rows += &e.connection.stiffness * &e.connection.preload;
                     }
-                    m
                 }
-            };
+            }
+            t.entries[start..].sort_by_key(|(c, _)| *c);
+            t.spans[v] = start..t.entries.len();
         }
         t
     }
 
     /// Connections outside the forest close loops: their rigid directions become constraints, their
     /// elastic ones springs on the relative displacement dt.
-    fn close_loops(&self, plan: &Plan, t: &[Map], sys: &mut Reduced) {
-        let base = Map::zeros(6, plan.n_y + 6);
+    fn close_loops(&self, plan: &Plan, t: &NodeMaps, sys: &mut Reduced) {
+        let nz = plan.n_y + 6;
         for (k, e) in plan.edges.iter().enumerate() {
             if plan.tree_edge[k] {
                 continue;
             }
-            let ta = match e.a {
-                Some(a) => &t[a],
-                None => &base,
-            };
-            let dt: Map = &t[e.b] - to_dmatrix(&self.shift(e.a, e.b)) * ta;
+            // dt = t_b - A_ab t_a, per coordinate.
+            let mut dt = t.dense(Some(e.b), nz);
+            if let Some(a) = e.a {
+                let d = self.nodes[e.b] - self.nodes[a];
+                for (c, x) in t.of(a) {
+                    dt[*c] -= carry(&d, x);
+                }
+            }
             let (_, rigid) = e.connection.moving_and_rigid();
             for d in &rigid {
-                sys.constraints.push(dt.tr_mul(&DVector::from_column_slice(d.as_slice())));
+                sys.constraints.push(DVector::from_iterator(nz, dt.iter().map(|x| x.dot(d))));
             }
             let ne = e.connection.elastic.len();
             if ne > 0 {
-                let l = DMatrix::from_fn(ne, 6, |r, c| e.connection.elastic[r][c]);
-                let b = l * &dt;
+                let b = DMatrix::from_fn(ne, nz, |r, c| e.connection.elastic[r].dot(&dt[c]));
                 let kb = &e.connection.stiffness * &b;
                 sys.kz += b.transpose() * &kb;
                 sys.f += b.transpose() * (&e.connection.stiffness * &e.connection.preload);
@@ -491,26 +512,43 @@ impl Structure {
 
     /// Flexible links (eq 1): energy 1/2 [t_i; t_j]^T K [t_i; t_j], over the few coordinates that move
     /// nodes i and j (those along their forest paths), not all of them.
-    fn add_flexible_links(&self, t: &[Map], sys: &mut Reduced) {
-        let nz = sys.f.len();
-        let used: Vec<Vec<usize>> =
-            t.iter().map(|m| (0..nz).filter(|&c| m.column(c).iter().any(|v| *v != 0.0)).collect()).collect();
+    fn add_flexible_links(&self, t: &NodeMaps, sys: &mut Reduced) {
+        // Per coordinate moving i or j: its twists at i and j, and K times them (the link's wrenches).
+        let mut cols: Vec<(usize, Vec6, Vec6)> = Vec::new();
+        let mut loads: Vec<(Vec6, Vec6)> = Vec::new();
         for e in &self.elements {
-            if let Element::Flexible { i, j, k } = e {
-                let mut cols: Vec<usize> = used[*i].iter().chain(&used[*j]).copied().collect();
-                cols.sort_unstable();
-                cols.dedup();
-                let tij =
-                    DMatrix::from_fn(
-                        12,
-                        cols.len(),
-                        |r, c| if r < 6 { t[*i][(r, cols[c])] } else { t[*j][(r - 6, cols[c])] },
-                    );
-                let k12 = DMatrix::from_fn(12, 12, |r, c| k[r / 6][c / 6][(r % 6, c % 6)]);
-                let kc = tij.transpose() * (k12 * &tij);
-                for (a, &ca) in cols.iter().enumerate() {
-                    for (b, &cb) in cols.iter().enumerate() {
-                        sys.kz[(ca, cb)] += kc[(a, b)];
+            let Element::Flexible { i, j, k } = e else { continue };
+            cols.clear();
+            let (ti, tj) = (t.of(*i), t.of(*j));
+            let (mut p, mut q) = (0, 0);
+            while p < ti.len() || q < tj.len() {
+                let (ci, cj) = (ti.get(p).map_or(usize::MAX, |x| x.0), tj.get(q).map_or(usize::MAX, |x| x.0));
+                let c = ci.min(cj);
+                let xi = if ci == c {
+                    p += 1;
+                    ti[p - 1].1
+                } else {
+                    Vec6::zeros()
+                };
+                let xj = if cj == c {
+                    q += 1;
+                    tj[q - 1].1
+                } else {
+                    Vec6::zeros()
+                };
+                cols.push((c, xi, xj));
+            }
+            loads.clear();
+            loads.extend(cols.iter().map(|(_, xi, xj)| (k[0][0] * xi + k[0][1] * xj, k[1][0] * xi + k[1][1] * xj)));
+            // The link's energy is symmetric in the coordinates: the upper triangle, mirrored.
+            let nz = sys.kz.nrows();
+            let kz = sys.kz.as_mut_slice();
+            for (a, (ca, xi, xj)) in cols.iter().enumerate() {
+                for ((cb, _, _), (wi, wj)) in cols[a..].iter().zip(&loads[a..]) {
+                    let v = xi.dot(wi) + xj.dot(wj);
+                    kz[cb * nz + ca] += v;
+                    if cb != ca {
+                        kz[ca * nz + cb] += v;
                     }
                 }
             }
@@ -560,10 +598,6 @@ fn independent(rows: Vec<DVector<f64>>) -> Vec<DVector<f64>> {
     kept
 }
 
-fn to_dmatrix(m: &Mat6) -> DMatrix<f64> {
-    DMatrix::from_column_slice(6, 6, m.as_slice())
-}
-
 /// Condenses min 1/2 z^T K z - f^T z subject to C z = 0 onto the last six coordinates u (eq 17): returns the
 /// end stiffness and the holding wrench at u = 0, or the null space (as vectors over y) of a mechanism.
 fn solve_condensed(
@@ -573,6 +607,9 @@ fn solve_condensed(
     n_y: usize,
 ) -> Result<EndAnswer, Result<Vec<DVector<f64>>, MsaFailure>> {
     let m = constraints.len();
+    if m == 0 && n_y > 0 {
+        return condense_by_cholesky(kz, f, n_y);
+    }
     let size = n_y + m;
     // Constraint rows scaled to the stiffness' size, for a balanced factorisation.
     let scale = (0..kz.nrows()).map(|i| kz[(i, i)].abs()).fold(1.0, f64::max);
@@ -599,15 +636,7 @@ fn solve_condensed(
     let x = if size == 0 {
         DMatrix::zeros(0, 7)
     } else {
-        let solved = if m == 0 {
-            // No loop closes: the reduced stiffness is symmetric positive definite unless a mechanism.
-            a.clone().cholesky().and_then(|c| {
-                let l = c.l_dirty();
-                let diag = (0..size).map(|i| l[(i, i)] * l[(i, i)]);
-                let (lo, hi) = diag.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
-                (lo > PIVOT_RATIO * hi).then(|| c.solve(&rhs))
-            })
-        } else {
+        let solved = {
             let lu = a.clone().lu();
             let u = lu.u();
             let pivots = (0..size).map(|i| u[(i, i)].abs());
@@ -644,6 +673,54 @@ fn solve_condensed(
         }
     }
     Ok(EndAnswer { stiffness: (stiffness + stiffness.transpose()) * 0.5, holding_wrench: holding })
+}
+
+/// `solve_condensed` where no loop closes: the reduced stiffness K_yy is symmetric positive definite
+/// unless the structure is a mechanism, and with K_yy = L L^T, W = L^-1 K_yu and g = L^-1 f_y the end's
+/// stiffness is K_uu - W^T W and its holding wrench W^T g - f_u (eq 17, as a Schur complement).
+fn condense_by_cholesky(
+    kz: &DMatrix<f64>,
+    f: &DVector<f64>,
+    n_y: usize,
+) -> Result<EndAnswer, Result<Vec<DVector<f64>>, MsaFailure>> {
+    let nz = kz.nrows();
+    let k = kz.as_slice();
+    let mut yy = vec![0.0; n_y * n_y];
+    for c in 0..n_y {
+        yy[c * n_y..(c + 1) * n_y].copy_from_slice(&k[c * nz..c * nz + n_y]);
+    }
+    let mut cholesky = crate::linalg::DenseCholesky::default();
+    match cholesky.factor(&yy, n_y) {
+        Some((lo, hi)) if lo > PIVOT_RATIO * hi => {}
+        _ => return Err(null_space(&DMatrix::from_column_slice(n_y, n_y, &yy), n_y)),
+    }
+    // Columns of W (K_yu's six, then f_y), each L^-1 applied.
+    let mut w = vec![0.0; 7 * n_y];
+    for c in 0..6 {
+        w[c * n_y..(c + 1) * n_y].copy_from_slice(&k[(n_y + c) * nz..(n_y + c) * nz + n_y]);
+    }
+    w[6 * n_y..].copy_from_slice(&f.as_slice()[..n_y]);
+    for c in 0..7 {
+        cholesky.forward_in_place(&mut w[c * n_y..(c + 1) * n_y]);
+    }
+    if !w.iter().all(|v| v.is_finite()) {
+        return Err(null_space(&DMatrix::from_column_slice(n_y, n_y, &yy), n_y));
+    }
+    let column = |c: usize| &w[c * n_y..(c + 1) * n_y];
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let mut stiffness = Mat6::zeros();
+    let mut holding = Vec6::zeros();
+    for r in 0..6 {
+        for c in r..6 {
+            // K_uu is symmetric to round-off: its mean, as the general route symmetrises its result.
+            let kuu = 0.5 * (kz[(n_y + r, n_y + c)] + kz[(n_y + c, n_y + r)]);
+            let v = kuu - dot(column(r), column(c));
+            stiffness[(r, c)] = v;
+            stiffness[(c, r)] = v;
+        }
+        holding[r] = dot(column(r), column(6)) - f[n_y + r];
+    }
+    Ok(EndAnswer { stiffness, holding_wrench: holding })
 }
 
 /// The null space of a singular reduced system, restricted to the coordinates y (the free motions).
