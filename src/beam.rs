@@ -1,5 +1,5 @@
-//! Straight beams: cross-section, material and the compliance of a clamped-free beam (Euler-Bernoulli),
-//! shared by VJM link springs (paper 001 s. 4.2) and MSA flexible links (paper 003 eq 3).
+//! Straight beams: cross-section, material and the compliance of a clamped-free beam (Euler-Bernoulli) and its
+//! inverse, shared by VJM link springs (paper 001 s. 4.2) and MSA flexible links (paper 003 eq 3).
 
 use crate::kinematics::frame::{block_rotation, Mat3, Mat6, Vec3};
 
@@ -47,6 +47,25 @@ pub fn cantilever_compliance(s: &BeamSection, l: f64) -> Mat6 {
     c
 }
 
+/// The inverse of `cantilever_compliance`: the stiffness at the free end with the other clamped, in closed
+/// form (each bending pair [[l^3/3EI, +-l^2/2EI], [+-l^2/2EI, l/EI]] inverts to
+/// [[12EI/l^3, -+6EI/l^2], [-+6EI/l^2, 4EI/l]]).
+pub fn cantilever_stiffness(s: &BeamSection, l: f64) -> Mat6 {
+    let (eiy, eiz) = (s.e * s.iy, s.e * s.iz);
+    let mut k = Mat6::zeros();
+    k[(0, 0)] = s.e * s.area / l;
+    k[(1, 1)] = 12.0 * eiz / l.powi(3);
+    k[(2, 2)] = 12.0 * eiy / l.powi(3);
+    k[(3, 3)] = s.g * s.j / l;
+    k[(4, 4)] = 4.0 * eiy / l;
+    k[(5, 5)] = 4.0 * eiz / l;
+    k[(1, 5)] = -6.0 * eiz / (l * l);
+    k[(5, 1)] = k[(1, 5)];
+    k[(2, 4)] = 6.0 * eiy / (l * l);
+    k[(4, 2)] = k[(2, 4)];
+    k
+}
+
 /// A rotation taking the x axis to `direction` (the beam's axis); the section's y axis is chosen
 /// perpendicular to it in a fixed way (irrelevant for round sections).
 pub fn frame_along(direction: &Vec3) -> Mat3 {
@@ -66,6 +85,15 @@ pub fn beam_compliance(s: &BeamSection, l: f64, direction: &Vec3) -> Mat6 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_closed_form_stiffness_inverts_the_compliance() {
+        let s = BeamSection { e: 2e5, g: 8e4, area: 100.0, iy: 900.0, iz: 400.0, j: 1300.0 };
+        for l in [0.5, 30.0, 250.0, 4000.0] {
+            let product = cantilever_stiffness(&s, l) * cantilever_compliance(&s, l);
+            assert!((product - Mat6::identity()).amax() < 1e-12, "l = {l}: {product}");
+        }
+    }
 
     #[test]
     fn cantilever_compliance_is_symmetric_positive_definite() {

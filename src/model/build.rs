@@ -382,13 +382,12 @@ impl Builder<'_> {
         let angle = parts.passive_index(&s.angle).ok_or_else(|| {
             self.loc.at(s.angle.span(), format!("no passive joint named `{}` before this spring", s.angle.get_ref()))
         })?;
-        Ok(Parallelogram {
-            bar: BeamSection::round(e, g, self.positive(&s.bar_diameter, "bar_diameter")?),
-            length: self.positive(&s.length, "length")?,
-            separation: self.positive(&s.separation, "separation")?,
+        Ok(Parallelogram::new(
+            BeamSection::round(e, g, self.positive(&s.bar_diameter, "bar_diameter")?),
+            self.positive(&s.length, "length")?,
+            self.positive(&s.separation, "separation")?,
             angle,
-            compliance_factor: 1.0,
-        })
+        ))
     }
 
     /// One element of a chain, appended to `parts` (joints, springs, fixed transforms, masses).

@@ -37,7 +37,7 @@ const NODE_MOVES: f64 = 1e-6;
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::beam::{cantilever_compliance, frame_along, BeamSection};
+use crate::beam::{cantilever_stiffness, frame_along, BeamSection};
 use crate::kinematics::frame::{block_rotation, point_shift, Mat3, Mat6, Vec3, Vec6};
 
 /// How two nodes (or a node and the base) are joined, at the second node's point: the relative small
@@ -186,10 +186,13 @@ pub fn oriented_beam_stiffness(
         None => frame_along(&d),
     };
     let r = block_rotation(&frame);
-    let c = r * cantilever_compliance(section, d.norm()) * r.transpose();
-    // A non-finite entry off the diagonal, if any, is caught downstream: the condensed system's solution is
-    // checked, and its null space comes from a checked SVD.
-    let k = c.try_inverse().filter(|k| k.diagonal().iter().all(|v| v.is_finite()))?;
+    let k = r * cantilever_stiffness(section, d.norm()) * r.transpose();
+    // A zero length or a modulus at the edge of doubles shows on the diagonal; a non-finite entry off it,
+    // if any, is caught downstream: the condensed system's solution is checked, and its null space comes
+    // from a checked SVD.
+    if !k.diagonal().iter().all(|v| v.is_finite() && *v > 0.0) {
+        return None;
+    }
     Some(link_stiffness(&k, pi, pj))
 }
 

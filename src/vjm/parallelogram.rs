@@ -10,69 +10,48 @@ use super::spring::{push_six_dof, SpringGroup};
 use super::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 use crate::beam::{beam_compliance, BeamSection};
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates, Element, Joint, JointKind, Role};
-use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3, Vec6};
+use crate::kinematics::frame::{block_rotation, rotation_about, shift_stiffness, Frame, Mat6, Vec3, Vec6};
 
 /// A parallelogram whose bars turn about the local z axis by the angle of passive coordinate `angle`, bars
 /// along local x at angle 0, separated along local y.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Parallelogram {
     /// Each bar's section (round bars: both alike).
-    pub bar: BeamSection,
+    bar: BeamSection,
     /// Bar length, mm.
-    pub length: f64,
+    length: f64,
     /// Distance between the bars, mm.
-    pub separation: f64,
+    separation: f64,
     /// Index of the passive coordinate that is the parallelogram angle.
     pub angle: usize,
     /// Factor on the compliance derived from the bars (1 as built; `SpringGroup::scale_compliance` changes
     /// it, so a scaling reaches every posture).
     pub compliance_factor: f64,
+    /// One bar pinned at both ends, its stiffness at its end pin (None: not finite), derived once.
+    pinned_bar: Option<Mat6>,
 }
 
 impl Parallelogram {
+    /// The parallelogram of two bars of this section and length, `separation` apart (mm), its angle the
+    /// passive coordinate `angle`.
+    pub fn new(bar: BeamSection, length: f64, separation: f64, angle: usize) -> Parallelogram {
+        let pinned_bar = pinned_bar(&bar, length);
+        Parallelogram { bar, length, separation, angle, compliance_factor: 1.0, pinned_bar }
+    }
+
     /// The stiffness of the parallelogram at its end side (frame with the base side's axes, at the middle of
     /// the end side), for parallelogram angle `q` (rad). None where the bars give no finite stiffness
     /// (parameters at the edge of doubles: a modulus of 5e-324, a length of 1e300, a gap of 4e9 mm).
+    ///
+    /// Each bar with its two pins is the bar of `pinned_bar` turned by q about z (a rigid copy), its end pin
+    /// at (0, +-separation/2, 0): its stiffness turned, then moved to the middle of the end side (paper 000
+    /// eq 54-55), and the two summed (paper 001 eq 22).
     pub fn stiffness(&self, q: f64) -> Option<Mat6> {
-        let bar_dir = Vec3::new(q.cos(), q.sin(), 0.0);
-        let compliance = beam_compliance(&self.bar, self.length, &Vec3::x());
-        let stiffness = compliance.try_inverse().filter(|k| k.iter().all(|v| v.is_finite()))?;
-        let spring = SpringGroup {
-            name: "bar".into(),
-            actuator: false,
-            first: 0,
-            dim: 6,
-            stiffness,
-            compliance,
-            posture: None,
-            beam_axis: None,
-        };
+        let r = block_rotation(&rotation_about(&Vec3::z(), q));
+        let turned = r * self.pinned_bar? * r.transpose();
         let mut total = Mat6::zeros();
         for side in [-0.5, 0.5] {
-            let offset = Vec3::new(0.0, side * self.separation, 0.0);
-            let z = Vec3::z();
-            let mut elements = vec![
-                Element::Fixed(Frame::translation(offset - bar_dir * self.length)),
-                Element::Joint(Joint { kind: JointKind::Revolute, axis: z, role: Role::Passive, index: 0, gain: 1.0 }),
-                Element::Fixed(Frame::new(rotation_about(&z, q), Vec3::zeros())),
-                Element::Fixed(Frame::translation(Vec3::new(self.length, 0.0, 0.0))),
-            ];
-            push_six_dof(&mut elements, 0);
-            elements.push(Element::Joint(Joint {
-                kind: JointKind::Revolute,
-                axis: z,
-                role: Role::Passive,
-                index: 1,
-                gain: 1.0,
-            }));
-            elements.push(Element::Fixed(Frame::new(rotation_about(&z, -q), Vec3::zeros())));
-            elements.push(Element::Fixed(Frame::translation(-offset)));
-            let chain = Chain::new(elements);
-            let mut j = ChainJacobians::default();
-            chain.evaluate(&Coordinates::zeros(&chain), &mut j);
-            j.fill_virtual();
-            let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(&spring), &[]);
-            total += leg_stiffness(&s, &passive_range(&j.passive, self.length))?;
+            total += shift_stiffness(&turned, &Vec3::new(0.0, side * self.separation, 0.0));
         }
         // The parallelogram's own motion: the end side translating across the bars, without turning.
         let motion = Vec6::new(-q.sin(), q.cos(), 0.0, 0.0, 0.0, 0.0);
@@ -82,18 +61,46 @@ impl Parallelogram {
     }
 }
 
+/// A bar along x pinned about z at both ends (a passive revolute joint, the bar as a clamped-free beam, a
+/// passive revolute joint): the stiffness of this chain at its end pin, paper 001 eq (9). It is singular
+/// along the two motions the pins allow (a turn about the end pin, a swing about the first).
+fn pinned_bar(bar: &BeamSection, length: f64) -> Option<Mat6> {
+    let compliance = beam_compliance(bar, length, &Vec3::x());
+    let stiffness = compliance.try_inverse().filter(|k| k.iter().all(|v| v.is_finite()))?;
+    let spring = SpringGroup {
+        name: "bar".into(),
+        actuator: false,
+        first: 0,
+        dim: 6,
+        stiffness,
+        compliance,
+        posture: None,
+        beam_axis: None,
+    };
+    let z = Vec3::z();
+    let pin =
+        |index| Element::Joint(Joint { kind: JointKind::Revolute, axis: z, role: Role::Passive, index, gain: 1.0 });
+    let mut elements = vec![
+        Element::Fixed(Frame::translation(Vec3::new(-length, 0.0, 0.0))),
+        pin(0),
+        Element::Fixed(Frame::translation(Vec3::new(length, 0.0, 0.0))),
+    ];
+    push_six_dof(&mut elements, 0);
+    elements.push(pin(1));
+    let chain = Chain::new(elements);
+    let mut j = ChainJacobians::default();
+    chain.evaluate(&Coordinates::zeros(&chain), &mut j);
+    j.fill_virtual();
+    let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(&spring), &[]);
+    leg_stiffness(&s, &passive_range(&j.passive, length))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn sample() -> Parallelogram {
-        Parallelogram {
-            bar: BeamSection::round(210000.0, 80769.0, 8.5),
-            length: 310.25,
-            separation: 196.0,
-            angle: 0,
-            compliance_factor: 1.0,
-        }
+        Parallelogram::new(BeamSection::round(210000.0, 80769.0, 8.5), 310.25, 196.0, 0)
     }
 
     /// At angle 0 the bars run along x, pinned at both ends in the plane: the end side resists a pull along
@@ -108,6 +115,60 @@ mod tests {
         let krz = ea_l * p.separation * p.separation / 2.0;
         assert!((k[(5, 5)] - krz).abs() < 1e-9 * krz, "{} vs {krz}", k[(5, 5)]);
         assert!(k[(0, 5)].abs() < 1e-9 * (k[(0, 0)] * k[(5, 5)]).sqrt());
+    }
+
+    /// The parallelogram derived from scratch at angle q, as paper 001 s. 4.2 builds it: each bar's chain
+    /// (pin, bar, pin) placed at its angle and side, eq (9) at the middle of the end side, the two summed.
+    fn both_bars_at(p: &Parallelogram, q: f64) -> Mat6 {
+        let compliance = beam_compliance(&p.bar, p.length, &Vec3::x());
+        let spring = SpringGroup {
+            name: "bar".into(),
+            actuator: false,
+            first: 0,
+            dim: 6,
+            stiffness: compliance.try_inverse().unwrap(),
+            compliance,
+            posture: None,
+            beam_axis: None,
+        };
+        let (z, bar_dir) = (Vec3::z(), Vec3::new(q.cos(), q.sin(), 0.0));
+        let pin =
+            |index| Element::Joint(Joint { kind: JointKind::Revolute, axis: z, role: Role::Passive, index, gain: 1.0 });
+        let mut total = Mat6::zeros();
+        for side in [-0.5, 0.5] {
+            let offset = Vec3::new(0.0, side * p.separation, 0.0);
+            let mut elements = vec![
+                Element::Fixed(Frame::translation(offset - bar_dir * p.length)),
+                pin(0),
+                Element::Fixed(Frame::new(rotation_about(&z, q), Vec3::zeros())),
+                Element::Fixed(Frame::translation(Vec3::new(p.length, 0.0, 0.0))),
+            ];
+            push_six_dof(&mut elements, 0);
+            elements.push(pin(1));
+            elements.push(Element::Fixed(Frame::new(rotation_about(&z, -q), Vec3::zeros())));
+            elements.push(Element::Fixed(Frame::translation(-offset)));
+            let chain = Chain::new(elements);
+            let mut j = ChainJacobians::default();
+            chain.evaluate(&Coordinates::zeros(&chain), &mut j);
+            j.fill_virtual();
+            let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(&spring), &[]);
+            total += leg_stiffness(&s, &passive_range(&j.passive, p.length)).unwrap();
+        }
+        let motion = Vec6::new(-q.sin(), q.cos(), 0.0, 0.0, 0.0, 0.0);
+        total += motion * motion.transpose() * (total.trace() / 6.0);
+        (total + total.transpose()) * 0.5
+    }
+
+    /// Physics: a bar with its pins at angle q is a rigid copy of the bar at angle 0 turned about z, so
+    /// turning one pinned bar's stiffness and moving it to the end side's middle gives what deriving both
+    /// bars' chains at q gives (the derivation the spring did at every posture before it was done once).
+    #[test]
+    fn the_turned_pinned_bar_equals_both_bars_derived_at_the_angle() {
+        let p = sample();
+        for q in [-1.2, -0.4, 0.0, 0.25, 0.7, 1.4] {
+            let (fast, derived) = (p.stiffness(q).unwrap(), both_bars_at(&p, q));
+            assert!((fast - derived).amax() < 1e-10 * derived.amax(), "q = {q}\n{fast}\n{derived}");
+        }
     }
 
     /// The stiffness added along the parallelogram's own motion (only to make the spring invertible) does
