@@ -25,8 +25,8 @@ use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
     name = "stiff",
     version = VERSION,
     about = "Stiffness of parallel robots (units: mm, N, N mm, rad): compliance maps, one pose, force-deflection \
-             curves, assembly with geometric errors, compliance error compensation, diagnosis against measurements, synthetic measurements, \
-             measurement plans, pictures",
+             curves, assembly with geometric errors, compliance error compensation, design sweeps, diagnosis against \
+             measurements, synthetic measurements, measurement plans, pictures; batch runs sharded and merged",
     after_help = "Exit status: 0 success, 1 the run failed (the message says why), 2 the command line is wrong \
                   (unknown option, missing value); `diagnose --fail-on` turns a verdict into 1.\n\n\
                   Example: stiff map manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-cube.toml \
