@@ -150,3 +150,32 @@ fn a_merge_refuses_missing_foreign_and_repeated_shards() {
     let usage = stiff(&[&["map", MODEL][..], &grid, &["--shard", "3/2"]].concat());
     assert_eq!(usage.status.code(), Some(2), "K > N is a usage error");
 }
+
+/// Regression: the merge held every shard file open at once, so a run of more shards than the process may
+/// open files (the usual limit is 1,024) could not be merged. Under a limit of 64 open files, 300 shards of
+/// a one-point map (the last holds the point's run, the others are empty, as `--shard K/300` writes them)
+/// merge into the whole map.
+#[test]
+fn a_merge_opens_one_shard_at_a_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |name: &str| dir.path().join(name).display().to_string();
+    std::fs::write(d("one.csv"), "x_mm,y_mm,z_mm\n10,-5,20\n").unwrap();
+    let map = ["map", MODEL, "--points", &d("one.csv"), "-q"];
+    ok(&[&map[..], &["-o", &d("whole.csv")]].concat());
+    ok(&[&map[..], &["--shard", "300/300", "-o", &d("s300.csv")]].concat());
+    let last = std::fs::read_to_string(d("s300.csv")).unwrap();
+    let header_start = last.find("\nindex,").unwrap() + 1;
+    let header_end = header_start + last[header_start..].find('\n').unwrap() + 1;
+    let mut files = Vec::new();
+    for k in 1..300 {
+        let empty = last[..header_end].replacen("shard 300/300", &format!("shard {k}/300"), 1);
+        std::fs::write(d(&format!("s{k}.csv")), empty).unwrap();
+        files.push(d(&format!("s{k}.csv")));
+    }
+    files.push(d("s300.csv"));
+    let bin = assert_cmd::cargo::cargo_bin("stiff");
+    let script = format!("ulimit -n 64 && exec \"{}\" merge \"{}\" \"$@\"", bin.display(), d("merged.csv"));
+    let o = std::process::Command::new("sh").arg("-c").arg(&script).arg("sh").args(&files).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(d("merged.csv")).unwrap(), std::fs::read(d("whole.csv")).unwrap());
+}

@@ -127,19 +127,19 @@ fn kinds_text(columns: &[Column]) -> String {
         .collect()
 }
 
-/// A shard file as its preamble names it, its reader left at the table's header line.
+/// A shard file as its preamble names it. Only the preamble is read when the shards are checked; a file is
+/// opened again, one at a time, to copy its rows (a run of thousands of shards must not hold thousands of
+/// files open: the usual limit is 1,024).
 struct ShardFile {
     path: PathBuf,
     shard: Shard,
     run: String,
     kinds: String,
-    reader: Box<dyn BufRead + Send>,
 }
 
 impl ShardFile {
     fn open(path: &Path) -> Result<ShardFile> {
-        let input = crate::model::error::open_input(path)?;
-        let mut reader: Box<dyn BufRead + Send> = Box::new(std::io::BufReader::with_capacity(1 << 20, input));
+        let mut reader = Self::reader(path)?;
         let not_shard = || {
             anyhow!(
                 "{} is not a shard file (no `{PREFIX}shard K/N run ...` first line): write shards with --shard",
@@ -154,29 +154,43 @@ impl ShardFile {
         let shard: Shard = shard.parse().map_err(|e| anyhow!("{}: {e}", path.display()))?;
         let run = run.to_string();
         let mut kinds = None;
-        // The other preamble lines, up to the header line (which does not start with `#`).
-        while reader.fill_buf().with_context(|| format!("cannot read {}", path.display()))?.first() == Some(&b'#') {
-            line.clear();
-            reader.read_line(&mut line).with_context(|| format!("cannot read {}", path.display()))?;
-            if let Some(k) = line.trim_end().strip_prefix(PREFIX).and_then(|l| l.strip_prefix("kinds ")) {
+        while let Some(l) = Self::comment_line(&mut reader, path)? {
+            if let Some(k) = l.trim_end().strip_prefix(PREFIX).and_then(|l| l.strip_prefix("kinds ")) {
                 kinds = Some(k.to_string());
             }
         }
         let kinds = kinds.ok_or_else(|| anyhow!("{}: the preamble has no `{PREFIX}kinds` line", path.display()))?;
-        Ok(ShardFile { path: path.to_path_buf(), shard, run, kinds, reader })
+        Ok(ShardFile { path: path.to_path_buf(), shard, run, kinds })
     }
 
-    /// The table's header line (read from the file, newline included).
-    fn header(&mut self) -> Result<String> {
+    fn reader(path: &Path) -> Result<Box<dyn BufRead + Send>> {
+        let input = crate::model::error::open_input(path)?;
+        Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, input)))
+    }
+
+    /// The next preamble line, or None at the table's header line (which does not start with `#`).
+    fn comment_line(reader: &mut Box<dyn BufRead + Send>, path: &Path) -> Result<Option<String>> {
+        if reader.fill_buf().with_context(|| format!("cannot read {}", path.display()))?.first() != Some(&b'#') {
+            return Ok(None);
+        }
         let mut line = String::new();
-        self.reader.read_line(&mut line).with_context(|| format!("cannot read {}", self.path.display()))?;
+        reader.read_line(&mut line).with_context(|| format!("cannot read {}", path.display()))?;
+        Ok(Some(line))
+    }
+
+    /// The file opened again past its preamble, and its table's header line (newline included).
+    fn table(&self) -> Result<(Box<dyn BufRead + Send>, String)> {
+        let mut reader = Self::reader(&self.path)?;
+        while Self::comment_line(&mut reader, &self.path)?.is_some() {}
+        let mut line = String::new();
+        reader.read_line(&mut line).with_context(|| format!("cannot read {}", self.path.display()))?;
         if !line.ends_with('\n') {
             bail!(
                 "{} ends before its table's header line (a shard writes one even when it has no rows)",
                 self.path.display()
             );
         }
-        Ok(line)
+        Ok((reader, line))
     }
 }
 
@@ -239,17 +253,8 @@ impl ShardSet {
                 list(&self.missing)
             );
         }
-        let mut files = self.files;
-        let mut header = None;
-        for f in files.iter_mut() {
-            let h = f.header()?;
-            match &header {
-                None => header = Some(h),
-                Some(first) if *first != h => bail!("{}: its table's header differs from shard 1's", f.path.display()),
-                Some(_) => {}
-            }
-        }
-        let header = header.expect("a run has at least one shard");
+        let files = self.files;
+        let (_, header) = files[0].table()?;
         let names: Vec<&str> = header.trim_end().split(',').collect();
         let kinds = &files[0].kinds;
         if kinds.len() != names.len() {
@@ -274,8 +279,12 @@ impl ShardSet {
         let mut sink = Sink::table(out, &columns)?;
         let w = sink.writer();
         w.write_all(header.as_bytes())?;
-        for f in files.iter_mut() {
-            std::io::copy(&mut f.reader, w).with_context(|| format!("cannot merge {}", f.path.display()))?;
+        for f in &files {
+            let (mut rows, h) = f.table()?;
+            if h != header {
+                bail!("{}: its table's header differs from shard 1's", f.path.display());
+            }
+            std::io::copy(&mut rows, w).with_context(|| format!("cannot merge {}", f.path.display()))?;
         }
         sink.finish()
     }
@@ -283,12 +292,12 @@ impl ShardSet {
 
 /// The (run, shard count) most files carry; the first file's where counts tie.
 fn most_common<'a>(runs: impl Iterator<Item = (&'a str, u64)>) -> Option<(&'a str, u64)> {
-    let runs: Vec<(&str, u64)> = runs.collect();
-    let count = |r: &(&str, u64)| runs.iter().filter(|s| *s == r).count();
-    runs.iter().copied().fold(None, |best, r| match best {
-        Some(b) if count(&b) >= count(&r) => Some(b),
-        _ => Some(r),
-    })
+    let mut counts: std::collections::HashMap<(&str, u64), (usize, usize)> = std::collections::HashMap::new();
+    for (order, r) in runs.enumerate() {
+        counts.entry(r).or_insert((0, order)).0 += 1;
+    }
+    // Most files first, then the earliest first seen.
+    counts.into_iter().max_by(|a, b| a.1 .0.cmp(&b.1 .0).then(b.1 .1.cmp(&a.1 .1))).map(|(r, _)| r)
 }
 
 /// A fingerprint's first 12 digits, for messages.

@@ -236,6 +236,33 @@ impl PosesArgs {
 /// Most points on a `--path` (held in memory, 64 bytes each).
 const MAX_PATH_POINTS: usize = 100_000_000;
 
+/// The load of a map or a sweep: none (unloaded), one wrench at every point, or each point's own.
+#[derive(Args, Debug)]
+pub(crate) struct LoadArgs {
+    /// Loaded mode: at every point, the equilibrium under this wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm) at the
+    /// reference point; the map then reports its displacement and the tangent compliance there.
+    #[arg(long, value_parser = super::parse::parse_vec6, allow_hyphen_values = true, conflicts_with = "loaded")]
+    pub(crate) wrench: Option<crate::kinematics::frame::Vec6>,
+    /// Loaded mode under each point's reference wrench (from the grid or the points file).
+    #[arg(long)]
+    pub(crate) loaded: bool,
+}
+
+impl LoadArgs {
+    /// The map's options for `points` under this load (`--loaded` needs the points' wrenches).
+    pub(crate) fn map_options(&self, points: &PointSet, stiffness: bool) -> Result<crate::study::map::MapOptions> {
+        if self.loaded && !points.has_wrench {
+            bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
+        }
+        Ok(crate::study::map::MapOptions {
+            stiffness,
+            wrench: self.wrench,
+            use_point_wrench: self.loaded,
+            selection: None,
+        })
+    }
+}
+
 /// Where a table goes.
 #[derive(Args, Debug)]
 pub(crate) struct OutputArgs {

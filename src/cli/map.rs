@@ -2,17 +2,15 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::{ArgMatches, Args};
 
 use super::args::{
     name_plot_flag, plot_file, plot_needs_output, progress_bar, select_columns, thread_pool, wrench_text, written,
-    MapStyle, ModelArgs, OutputArgs, PlotStyle, PointsArgs, RunArgs,
+    LoadArgs, MapStyle, ModelArgs, OutputArgs, PlotStyle, PointsArgs, RunArgs,
 };
-use super::parse::parse_vec6;
 use super::shard::{write_shard_preamble, ShardArgs};
-use crate::kinematics::frame::Vec6;
-use crate::study::map::{map_columns, map_header, map_selection, map_table, run_map, MapOptions};
+use crate::study::map::{map_columns, map_header, map_selection, map_table, run_map};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -33,13 +31,8 @@ pub(crate) struct MapArgs {
     /// Also write the 21 entries of the stiffness matrix (K11..K66).
     #[arg(long)]
     pub(crate) stiffness: bool,
-    /// Loaded mode: at every point, the equilibrium under this wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm) at the
-    /// reference point; the map then reports its displacement and the tangent compliance there.
-    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true, conflicts_with = "loaded")]
-    pub(crate) wrench: Option<Vec6>,
-    /// Loaded mode under each point's reference wrench (from the grid or the points file).
-    #[arg(long)]
-    pub(crate) loaded: bool,
+    #[command(flatten)]
+    pub(crate) load: LoadArgs,
     /// The columns to write: names or groups (pose, status, principal, deflection, C, K), comma-separated,
     /// written in the table's order [default: all]. For very large maps `--columns pose,status,principal`
     /// writes 12 columns instead of 33 or more.
@@ -62,11 +55,7 @@ pub(crate) fn run(a: MapArgs, matches: &ArgMatches) -> Result<()> {
     let mut points = a.points.load()?;
     let shard = a.shard.split_points(&mut points, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
-    if a.loaded && !points.has_wrench {
-        bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
-    }
-    let mut options =
-        MapOptions { stiffness: a.stiffness, wrench: a.wrench, use_point_wrench: a.loaded, selection: None };
+    let mut options = a.load.map_options(&points, a.stiffness)?;
     let columns = map_columns(&points, &options);
     options.selection = select_columns(&a.columns, |w| map_selection(&columns, w))?;
     let table = map_table(&columns, options.selection.as_ref());
@@ -82,7 +71,7 @@ pub(crate) fn run(a: MapArgs, matches: &ArgMatches) -> Result<()> {
     sink.finish()?;
     bar.finish_and_clear();
     if let Some(plot) = &a.plot {
-        let load = match (a.wrench, a.loaded) {
+        let load = match (a.load.wrench, a.load.loaded) {
             (Some(w), _) => format!("loaded by wrench {} (N, N mm)", wrench_text(&w)),
             (None, true) => "loaded by each point's reference wrench".into(),
             (None, false) if points.has_wrench => "deflections under each point's reference wrench".into(),

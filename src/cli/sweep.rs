@@ -5,13 +5,11 @@ use std::path::PathBuf;
 use anyhow::{anyhow, bail, Result};
 use clap::{ArgMatches, Args};
 
-use super::args::{progress_bar, thread_pool, ModelArgs, OutputArgs, PointsArgs, RunArgs};
-use super::parse::{parse_parameter_range, parse_sample, parse_vec6};
+use super::args::{progress_bar, thread_pool, LoadArgs, ModelArgs, OutputArgs, PointsArgs, RunArgs};
+use super::parse::{parse_parameter_range, parse_sample};
 use super::shard::{write_shard_preamble, ShardArgs};
-use crate::kinematics::frame::Vec6;
 use crate::model::build::parameter_values;
 use crate::model::error::read_text;
-use crate::study::map::MapOptions;
 use crate::study::sweep::{
     run_sweep, sweep_layout, sweep_table, Description, DesignSet, ParameterRange, SweepOptions, Workspace,
 };
@@ -50,12 +48,8 @@ pub(crate) struct SweepArgs {
     pub(crate) seed: u64,
     #[command(flatten)]
     pub(crate) points: PointsArgs,
-    /// Loaded mode at every point under this wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm), as `stiff map --wrench`.
-    #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true, conflicts_with = "loaded")]
-    pub(crate) wrench: Option<Vec6>,
-    /// Loaded mode under each point's reference wrench (from the grid or the points file).
-    #[arg(long)]
-    pub(crate) loaded: bool,
+    #[command(flatten)]
+    pub(crate) load: LoadArgs,
     /// Also count the points where c_tran_max is at most this (mm/N), and for a box grid the workspace
     /// volume they stand for (points x the grid's cell volume, mm^3).
     #[arg(long, value_name = "C_MM_PER_N")]
@@ -98,9 +92,7 @@ pub(crate) fn run(a: SweepArgs, matches: &ArgMatches) -> Result<()> {
         }
     }
     let mut points = a.points.load()?;
-    if a.loaded && !points.has_wrench {
-        bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
-    }
+    let map = a.load.map_options(&points, false)?;
     let shard = a.shard.plan(|| Ok(designs.len()), 1, &a.output, None)?;
     if let Some(s) = &shard {
         designs.keep_portion(s.portion.clone());
@@ -108,7 +100,6 @@ pub(crate) fn run(a: SweepArgs, matches: &ArgMatches) -> Result<()> {
     if let Some(dir) = &a.maps {
         std::fs::create_dir_all(dir).map_err(|e| anyhow!("--maps {}: {}", dir.display(), e.kind()))?;
     }
-    let map = MapOptions { stiffness: false, wrench: a.wrench, use_point_wrench: a.loaded, selection: None };
     let options = SweepOptions { map, threshold: a.threshold, maps: a.maps.clone() };
     let workspace = Workspace::read(&mut points, &options.map)?;
     let pool = thread_pool(a.run.threads)?;
