@@ -386,6 +386,10 @@ chain = [
         assert!((p - r.load_factor).abs() < 1e-6 * p_cr, "row {}: P {} vs {p}", r.step, r.load_factor);
         let smallest = r.spectrum.unwrap().translational_min;
         assert!((smallest - lateral.min(1e5)).abs() < 1e-6 * k, "row {}: {smallest} vs {lateral}", r.step);
-        assert_eq!(r.stable(), lateral > 0.0, "row {}", r.step);
+        // At the critical row itself the lateral stiffness is zero to round-off (1e-11 of k): its sign,
+        // and so the flag, is not the model's to decide.
+        if lateral.abs() > 1e-12 * k {
+            assert_eq!(r.stable(), lateral > 0.0, "row {}: lateral stiffness {lateral}", r.step);
+        }
     }
 }

@@ -165,6 +165,8 @@ pub struct ChainJacobians {
     virtual_filled: bool,
     placed: Vec<PlacedJoint>,
     masses: Vec<PlacedMass>,
+    /// Scratch of `add_point_hessian`: each joint's motion of the load point.
+    motions: Vec<Vec3>,
 }
 
 /// Where a coordinate sits among the unknowns of an equilibrium: passive coordinates first, then virtual
@@ -208,18 +210,19 @@ impl ChainJacobians {
     /// base frame: the Hessians H_qq, H_q theta, H_theta q, H_theta theta of paper 000 eq (41)-(44), exact
     /// for twist Jacobians (a joint moves the axes, origins and load points downstream of it). Added into
     /// `out` (rows: generalised force, columns: coordinate).
-    pub fn add_load_hessian(&self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
+    pub fn add_load_hessian(&mut self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
         let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
-        self.add_point_hessian(&self.end.pos, &f, &m, self.placed.len(), n_passive, out);
+        self.add_point_hessian(&self.end.pos.clone(), &f, &m, self.placed.len(), n_passive, out);
         if *gravity != Vec3::zeros() {
-            for pm in &self.masses {
+            for i in 0..self.masses.len() {
+                let pm = self.masses[i];
                 self.add_point_hessian(&pm.point, &(gravity * pm.kg), &Vec3::zeros(), pm.upstream, n_passive, out);
             }
         }
     }
 
     fn add_point_hessian(
-        &self,
+        &mut self,
         x: &Vec3,
         f: &Vec3,
         m: &Vec3,
@@ -236,6 +239,13 @@ impl ChainJacobians {
         //   l at or after k:         dphi_k = dx_l . (f x w_k) (revolute k), 0 (prismatic k)
         // where c_k = m + (x - o_k) x f: one dot product per pair.
         let joints = &self.placed[..upto];
+        // dx_l, the motion of x per unit motion of joint l, once per joint rather than once per pair.
+        let mut motions = std::mem::take(&mut self.motions);
+        motions.clear();
+        motions.extend(joints.iter().map(|pl| match pl.joint.kind {
+            JointKind::Revolute => pl.axis_world.cross(&(x - pl.origin_world)),
+            JointKind::Prismatic => pl.axis_world,
+        }));
         for (a, pk) in joints.iter().enumerate() {
             let Some(row) = unknown_index(&pk.joint, n_passive) else { continue };
             let wk = pk.axis_world;
@@ -259,14 +269,14 @@ impl ChainJacobians {
                         0.0
                     }
                 } else if revolute_k {
-                    let dx = if revolute_l { wl.cross(&(x - pl.origin_world)) } else { wl };
-                    dx.dot(&s)
+                    motions[b].dot(&s)
                 } else {
                     0.0
                 };
                 out[(row, col)] += gk * pl.joint.gain * d;
             }
         }
+        self.motions = motions;
     }
 
     /// Computes the Jacobian columns of the virtual coordinates from the last evaluation.

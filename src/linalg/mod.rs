@@ -73,11 +73,10 @@ impl DenseLu {
 
         for k in 0..n {
             let (mut p, mut best) = (k, a[k * n + k].abs());
-            for i in k + 1..n {
-                let v = a[k * n + i].abs();
-                if v > best {
-                    best = v;
-                    p = i;
+            for (i, v) in a[k * n + k + 1..k * n + n].iter().enumerate() {
+                if v.abs() > best {
+                    best = v.abs();
+                    p = k + 1 + i;
                 }
             }
             if best == 0.0 {
@@ -85,20 +84,23 @@ impl DenseLu {
             }
             self.pivots[k] = p;
             if p != k {
-                for j in 0..n {
-                    a.swap(j * n + k, j * n + p);
+                for col in a.chunks_exact_mut(n) {
+                    col.swap(k, p);
                 }
             }
-            let d = a[k * n + k];
-            for i in k + 1..n {
-                a[k * n + i] /= d;
+            // Right-looking elimination: column k below the pivot becomes L's, and every later column j
+            // loses l * a_kj (the same operations, in the same order, as row by row).
+            let (left, right) = a.split_at_mut((k + 1) * n);
+            let pivot_column = &mut left[k * n + k..k * n + n];
+            let d = pivot_column[0];
+            for x in &mut pivot_column[1..] {
+                *x /= d;
             }
-            for j in k + 1..n {
-                let f = a[j * n + k];
+            let lcol = &pivot_column[1..];
+            for col in right.chunks_exact_mut(n) {
+                let f = col[k];
                 if f != 0.0 {
-                    let (left, right) = a.split_at_mut(j * n);
-                    let lcol = &left[k * n + k + 1..k * n + n];
-                    for (x, l) in right[k + 1..n].iter_mut().zip(lcol) {
+                    for (x, l) in col[k + 1..].iter_mut().zip(lcol) {
                         *x -= l * f;
                     }
                 }

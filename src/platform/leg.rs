@@ -176,6 +176,7 @@ impl Leg {
             end_wrench: Vec6::zeros(),
             last_target: Frame::IDENTITY,
             saved: zeros.clone(),
+            checkpoint: (zeros.clone(), Vec6::zeros()),
             placed: zeros,
             ik: IkWorkspace::default(),
             jac: ChainJacobians::default(),
@@ -233,16 +234,13 @@ impl Leg {
                     .linearize(&target, &state.coords, &state.end_wrench, &mut state.equilibrium)
                     .ok_or(LegFailure::SingularChain)?;
                 let v = lin.end - platform.pos;
-                let corrected = lin.wrench + Vec6::from_fn(|r, _| lin.correction[lin.correction.len() - 6 + r]);
-                let corrected_force = at_reference_point(&corrected, &Mat6::zeros(), &v).wrench;
                 let at_rp = at_reference_point(&lin.wrench, &lin.stiffness(), &v);
-                let distance = lin.distance_from_equilibrium(l.length_scale);
                 Ok(LegLinear {
                     shift: point_shift(&v),
-                    corrected_force,
+                    corrected_force: corrected_force(&lin, platform),
                     stiffness: at_rp.stiffness,
                     magnitude: at_rp.magnitude,
-                    distance,
+                    distance: lin.distance_from_equilibrium(l.length_scale),
                     lin: Some(lin),
                 })
             }
@@ -257,6 +255,29 @@ impl Leg {
                     magnitude: r.magnitude,
                     distance: 0.0,
                 })
+            }
+        }
+    }
+
+    /// A chord step of the manipulator's Newton method: `lin` made afresh at the leg's current state except
+    /// its stiffness and sensitivities, which stay those of the full linearisation it was made by (see
+    /// `LoadedChain::refresh`). A linear MSA leg is linearised afresh (exact, and cheap).
+    pub fn refresh(&self, platform: &Frame, state: &mut LegState, lin: &mut LegLinear) -> Result<(), LegFailure> {
+        match (self, &mut lin.lin) {
+            (Leg::Vjm(l), Some(chain)) => {
+                state.ik.invalidate();
+                let target = l.target(platform);
+                let loaded = l.loaded_chain();
+                if !loaded.refresh(&target, &state.coords, &state.end_wrench, &mut state.equilibrium, chain) {
+                    return Err(LegFailure::SingularChain);
+                }
+                lin.corrected_force = corrected_force(chain, platform);
+                lin.distance = chain.distance_from_equilibrium(l.length_scale);
+                Ok(())
+            }
+            _ => {
+                *lin = self.linearize(platform, state)?;
+                Ok(())
             }
         }
     }
@@ -302,6 +323,13 @@ impl Leg {
             }
         }
     }
+}
+
+/// The wrench the platform applies to a leg once the leg's own Newton correction is made, at the
+/// reference point.
+fn corrected_force(lin: &Linearization, platform: &Frame) -> Vec6 {
+    let corrected = lin.wrench + Vec6::from_fn(|r, _| lin.correction[lin.correction.len() - 6 + r]);
+    at_reference_point(&corrected, &Mat6::zeros(), &(lin.end - platform.pos)).wrench
 }
 
 /// A wrench the platform applies at a leg's end point, and the leg's tangent stiffness there, seen at the

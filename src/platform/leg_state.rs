@@ -22,6 +22,8 @@ pub struct LegState {
     pub(super) last_target: Frame,
     /// The configuration before a warm-started attempt, restored if that attempt fails.
     pub(super) saved: Coordinates,
+    /// The configuration and end wrench kept by `checkpoint` for `rollback`.
+    pub(super) checkpoint: (Coordinates, Vec6),
     /// The rigid configuration found by `place`.
     pub(super) placed: Coordinates,
     pub(super) ik: IkWorkspace,
@@ -41,18 +43,43 @@ pub struct LoadedOffsets {
 }
 
 impl LoadedOffsets {
-    /// The linear extrapolation `2 self - older` (the next of three equally spaced points).
-    pub fn extrapolate(&self, older: &LoadedOffsets) -> LoadedOffsets {
-        let lin = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| 2.0 * x - y).collect();
-        LoadedOffsets {
-            passive: lin(&self.passive, &older.passive),
-            virtual_: lin(&self.virtual_, &older.virtual_),
-            wrench: self.wrench * 2.0 - older.wrench,
+    /// The weighted sum `sum w_k o_k` of offsets at earlier points: with the weights of a polynomial
+    /// extrapolation (`2, -1` linear; `3, -3, 1` quadratic) the prediction at the next of equally spaced points.
+    pub fn combine(weighted: &[(f64, &LoadedOffsets)]) -> LoadedOffsets {
+        let first = weighted[0].1;
+        let mut sum = LoadedOffsets {
+            passive: vec![0.0; first.passive.len()],
+            virtual_: vec![0.0; first.virtual_.len()],
+            wrench: Vec6::zeros(),
+        };
+        for (w, o) in weighted {
+            for (s, x) in sum.passive.iter_mut().zip(&o.passive) {
+                *s += w * x;
+            }
+            for (s, x) in sum.virtual_.iter_mut().zip(&o.virtual_) {
+                *s += w * x;
+            }
+            sum.wrench += o.wrench * *w;
         }
+        sum
     }
 }
 
 impl LegState {
+    /// Keeps what a loaded Newton attempt changes (configuration, end wrench), for `rollback` (no
+    /// allocation once the buffers have their size, unlike a clone of the whole state).
+    pub fn checkpoint(&mut self) {
+        self.checkpoint.0.clone_from(&self.coords);
+        self.checkpoint.1 = self.end_wrench;
+    }
+
+    /// Back to the last `checkpoint`.
+    pub fn rollback(&mut self) {
+        self.coords.clone_from(&self.checkpoint.0);
+        self.end_wrench = self.checkpoint.1;
+        self.ik.invalidate();
+    }
+
     /// After a loaded answer: its departure from the placement.
     pub fn loaded_offsets(&self) -> LoadedOffsets {
         LoadedOffsets {

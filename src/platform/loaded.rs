@@ -3,6 +3,7 @@
 //! method with load continuation (eq 73-75).
 
 use super::compliance::positive_definite;
+use super::leg::LegState;
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
@@ -96,6 +97,12 @@ const MAX_NEWTON: usize = 30;
 /// Convergence of the manipulator-level Newton method: the last step below this times the length scale
 /// (mm, rotations weighted) and every leg within this of its equilibrium (rad or mm).
 const NEWTON_TOLERANCE: f64 = 1e-8;
+/// The linearisation whose tangent stiffness is reported is this close to the equilibrium (platform step
+/// over the length scale, legs' corrections in rad or mm): the stiffness's error is first order in it.
+const TANGENT_TOLERANCE: f64 = 1e-12;
+/// Chord steps follow a full step whose distance from equilibrium is below this (relative, as above): from
+/// there the matrices change by so little that a chord step gains several digits.
+const CHORD_RANGE: f64 = 1e-3;
 /// Largest platform step in one Newton iteration, in mm (rotations weighted by the length scale).
 const MAX_STEP_MM: f64 = 5.0;
 
@@ -130,6 +137,12 @@ impl Manipulator {
     /// leg's configuration and end wrench move together, each step built from the legs' linearised
     /// equilibria (eq 45) and the sum of their stiffnesses, so no leg is solved to convergence at a pose
     /// the platform then leaves (the nested scheme of eq 73-75 costs several times more).
+    ///
+    /// Once a full step has brought the start within `CHORD_RANGE`, chord steps follow: the legs' residuals
+    /// afresh, solved with the factorisations and stiffnesses of that step, contracting by the small
+    /// change of the matrices since, for the price of one evaluation per leg. When they have converged, a
+    /// last full linearisation confirms the equilibrium and gives the tangent stiffness there; a chord step
+    /// that fails to contract gives way to full steps.
     fn newton(
         &self,
         load: &Vec6,
@@ -137,26 +150,36 @@ impl Manipulator {
         t: &mut Frame,
         state: &mut ManipulatorState,
     ) -> Result<(Held, usize), DeflectionFailure> {
+        let leg_failure = |i: usize| move |failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure });
         let mut lins = Vec::with_capacity(self.legs.len());
+        let mut stiffness = Mat6::zeros();
+        let mut full = true;
+        let mut last_distance = f64::INFINITY;
         for it in 0..MAX_NEWTON {
-            lins.clear();
-            for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
-                lins.push(
-                    leg.linearize(t, s).map_err(|failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure }))?,
-                );
+            if full {
+                lins.clear();
+                for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
+                    lins.push(leg.linearize(t, s).map_err(leg_failure(i))?);
+                }
+                stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - self.weight(t).1 * weight_share;
+            } else {
+                for (i, ((leg, s), l)) in self.legs.iter().zip(state.legs.iter_mut()).zip(lins.iter_mut()).enumerate() {
+                    leg.refresh(t, s, l).map_err(leg_failure(i))?;
+                }
             }
             // The payload's weight (a share of it under load continuation) is a load the legs carry.
-            let (weight, d_weight) = self.weight(t);
-            let stiffness: Mat6 = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
-            let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - weight * weight_share;
+            let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - self.weight(t).0 * weight_share;
             let Some(step) = stiffness.lu().solve(&(load - force)) else {
                 return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
-            let step_size = weigh_rotations(&step, self.length_scale).norm();
-            if step_size <= NEWTON_TOLERANCE * self.length_scale && lins.iter().all(|l| l.distance <= NEWTON_TOLERANCE)
-            {
-                // Quadratic convergence: after this last full step the error is of the order of its square.
-                // The stiffness is the one linearised just before it, 1e-8 (relative) away.
+            let step_size = weigh_rotations(&step, self.length_scale).norm() / self.length_scale;
+            let distance = lins.iter().map(|l| l.distance).fold(step_size, f64::max);
+            // Quadratic convergence: after this last full step the pose's error is of the order of its
+            // square. The stiffness is the one linearised before the step, so its error is of the order of
+            // the step itself: it is taken once the step is below `TANGENT_TOLERANCE`, or where the steps no
+            // longer shrink (round-off).
+            let stalled = distance > 0.1 * last_distance;
+            if full && distance <= NEWTON_TOLERANCE && (distance <= TANGENT_TOLERANCE || stalled) {
                 let unstable_legs = (self.legs.iter().zip(&state.legs).enumerate())
                     .filter(|(_, (leg, s))| !leg.stable(s))
                     .fold(0, |bits, (i, _)| bits | leg_bit(i));
@@ -170,7 +193,15 @@ impl Manipulator {
                     it + 1,
                 ));
             }
-            let mut fraction = if step_size > MAX_STEP_MM { MAX_STEP_MM / step_size } else { 1.0 };
+            // The next step: chord steps while they contract, a full one to confirm their convergence once
+            // the distance left after this step (contracting as the last one did) is within the tolerance.
+            full = match full {
+                true => distance > CHORD_RANGE,
+                false => stalled || distance * (distance / last_distance) <= TANGENT_TOLERANCE,
+            };
+            last_distance = distance;
+            let step_mm = step_size * self.length_scale;
+            let mut fraction = if step_mm > MAX_STEP_MM { MAX_STEP_MM / step_mm } else { 1.0 };
             for (leg, l) in self.legs.iter().zip(&lins) {
                 fraction = fraction.min(leg.step_fraction(l, &step));
             }
@@ -212,7 +243,8 @@ impl Manipulator {
         let mut last: Option<Held> = None;
         while done < 1.0 {
             let target = (done + step).min(1.0);
-            let (saved_t, saved_state) = (t, state.clone());
+            let saved_t = t;
+            state.legs.iter_mut().for_each(LegState::checkpoint);
             match self.newton(&(wrench * target), target, &mut t, state) {
                 Ok((held, its)) => {
                     total_iterations += its;
@@ -222,7 +254,7 @@ impl Manipulator {
                 }
                 Err(e) => {
                     t = saved_t;
-                    *state = saved_state;
+                    state.legs.iter_mut().for_each(LegState::rollback);
                     step /= 4.0;
                     if step < 1.0 / 4096.0 {
                         return Err(match e {

@@ -5,3 +5,4 @@ pub mod curve;
 pub mod map;
 pub mod point;
 pub mod sweep;
+pub mod warm_start;

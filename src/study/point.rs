@@ -3,12 +3,13 @@
 
 use std::fmt::Write;
 
+pub use super::warm_start::LoadedHistory;
 use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{Mat6, Vec3, Vec6};
 use crate::model::grid::PosePoint;
 use crate::output::report::{fmt6, matrix, TWIST, WRENCH};
 use crate::platform::compliance::{analyse, principal, Outcome, PrincipalCompliance};
-use crate::platform::leg::{LegFailure, LoadedOffsets};
+use crate::platform::leg::LegFailure;
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 
@@ -195,44 +196,6 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
         _ => None,
     };
     r.check_finite()
-}
-
-/// The last two loaded solutions of a run (commanded position, displacement, legs' departures from their
-/// placements), from which the next point's equilibrium starts: extrapolated linearly when the three points
-/// are equally spaced on a line (the rows of a grid), else the last solution as it is. A better start saves
-/// a Newton iteration per point.
-#[derive(Clone, Debug, Default)]
-pub struct LoadedHistory {
-    entries: Vec<(Vec3, Vec6, Vec<LoadedOffsets>)>,
-}
-
-impl LoadedHistory {
-    fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
-        match self.entries.as_slice() {
-            [] => None,
-            [(_, d1, o1)] => Some((*d1, o1.clone())),
-            [.., (p0, d0, o0), (p1, d1, o1)] => {
-                let step = p1 - p0;
-                let next = position - p1;
-                if (next - step).norm() <= 1e-9 * step.norm().max(1e-9) {
-                    Some((d1 * 2.0 - d0, o1.iter().zip(o0).map(|(a, b)| a.extrapolate(b)).collect()))
-                } else {
-                    Some((*d1, o1.clone()))
-                }
-            }
-        }
-    }
-
-    fn push(&mut self, position: Vec3, displacement: Vec6, offsets: Vec<LoadedOffsets>) {
-        if self.entries.len() == 2 {
-            self.entries.remove(0);
-        }
-        self.entries.push((position, displacement, offsets));
-    }
-
-    fn clear(&mut self) {
-        self.entries.clear();
-    }
 }
 
 /// The loaded equilibrium under `wrench` at a commanded pose: where the platform settles (its displacement

@@ -139,9 +139,8 @@ impl LoadedChain<'_> {
         resize_zeroed(a, size, size);
         resize_zeroed(rhs, size, 7);
         resize_zeroed(h, n + m, n + m);
-        let e = jac.end.error_to(target);
+        self.residual(coords, wrench, target, jac, generalised, &mut rhs.as_mut_slice()[..size]);
         for r in 0..6 {
-            rhs[(r, 0)] = e[r];
             rhs[(r, 1 + r)] = 1.0;
             for (k, c) in jac.passive.iter().enumerate() {
                 a[(r, k)] = c[r];
@@ -154,40 +153,89 @@ impl LoadedChain<'_> {
         }
         jac.add_load_hessian(wrench, &self.gravity, n, h);
         a.view_mut((6, 0), (n + m, n + m)).copy_from(h);
-        generalised.clear();
-        generalised.resize(n + m, 0.0);
-        jac.add_generalised_forces(wrench, &self.gravity, n, generalised);
-        for (k, g) in generalised.iter().enumerate() {
-            rhs[(6 + k, 0)] = -g;
-        }
         for s in self.springs {
             let (stiffness, _) = s.at(&coords.passive);
-            let deflection = |j: usize| coords.virtual_[s.first + j] - self.preload[s.first + j];
             for i in 0..s.dim {
-                let mut reaction = 0.0;
                 for j in 0..s.dim {
                     a[(6 + n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
-                    reaction += stiffness[(i, j)] * deflection(j);
                 }
-                rhs[(6 + n + s.first + i, 0)] += reaction;
             }
             // A spring whose stiffness depends on a passive coordinate q (paper 000 s. 6: "an equivalent
             // non-linear virtual spring whose stiffness depends on the internal variable"): its energy
             // 1/2 dtheta^T K(q) dtheta also pushes on q, and both statics rows depend on q.
             if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive, &stiffness) {
-                let d = nalgebra::DVector::from_fn(s.dim, |j, _| deflection(j));
-                let dk = dk.view((0, 0), (s.dim, s.dim));
-                let dk_d = dk * &d;
-                let energy_slope = 0.5 * d.dot(&dk_d);
-                let energy_curvature = 0.5 * d.dot(&(ddk.view((0, 0), (s.dim, s.dim)) * &d));
-                rhs[(6 + q, 0)] += energy_slope;
-                a[(6 + q, q)] -= energy_curvature;
+                let d = self.deflection(s, coords);
+                let dk_d = dk.view((0, 0), (s.dim, s.dim)) * &d;
+                a[(6 + q, q)] -= 0.5 * d.dot(&(ddk.view((0, 0), (s.dim, s.dim)) * &d));
                 for i in 0..s.dim {
                     a[(6 + n + s.first + i, q)] -= dk_d[i];
                     a[(6 + q, n + s.first + i)] -= dk_d[i];
                 }
             }
         }
+    }
+
+    /// The spring group's deflection theta - theta0.
+    fn deflection(&self, s: &SpringGroup, coords: &Coordinates) -> DVector<f64> {
+        DVector::from_fn(s.dim, |j, _| coords.virtual_[s.first + j] - self.preload[s.first + j])
+    }
+
+    /// The residuals `[e; -r]` of eq (31) at the evaluation in `jac`, in equation order (kinematics,
+    /// q-statics, theta-statics), written into `out` (length n + m + 6): the end's pose error, and the
+    /// generalised forces the springs do not balance.
+    fn residual(
+        &self,
+        coords: &Coordinates,
+        wrench: &Vec6,
+        target: &Frame,
+        jac: &ChainJacobians,
+        generalised: &mut Vec<f64>,
+        out: &mut [f64],
+    ) {
+        let (n, m) = self.sizes();
+        out.fill(0.0);
+        out[..6].copy_from_slice(jac.end.error_to(target).as_slice());
+        generalised.clear();
+        generalised.resize(n + m, 0.0);
+        jac.add_generalised_forces(wrench, &self.gravity, n, generalised);
+        for (k, g) in generalised.iter().enumerate() {
+            out[6 + k] = -g;
+        }
+        for s in self.springs {
+            let (stiffness, _) = s.at(&coords.passive);
+            let deflection = |j: usize| coords.virtual_[s.first + j] - self.preload[s.first + j];
+            for i in 0..s.dim {
+                out[6 + n + s.first + i] += (0..s.dim).map(|j| stiffness[(i, j)] * deflection(j)).sum::<f64>();
+            }
+            // The posture-dependent spring's energy pushes on its passive coordinate (see `assemble`).
+            if let Some((q, dk, _)) = s.posture_derivatives(&coords.passive, &stiffness) {
+                let d = self.deflection(s, coords);
+                out[6 + q] += 0.5 * d.dot(&(dk.view((0, 0), (s.dim, s.dim)) * &d));
+            }
+        }
+    }
+
+    /// A chord step (simplified Newton): the residuals at `coords` solved with the factorisation of the
+    /// last full linearisation in `ws`, into `lin`, whose sensitivities stay those of that linearisation.
+    /// Near the solution it contracts by the relative change of the matrix since, for the price of one
+    /// evaluation and one solve. False where the solution is not finite.
+    pub fn refresh(
+        &self,
+        target: &Frame,
+        coords: &Coordinates,
+        wrench: &Vec6,
+        ws: &mut EquilibriumWorkspace,
+        lin: &mut Linearization,
+    ) -> bool {
+        self.chain.evaluate(coords, &mut ws.jac);
+        ws.jac.fill_virtual();
+        let correction = lin.correction.as_mut_slice();
+        self.residual(coords, wrench, target, &ws.jac, &mut ws.generalised, correction);
+        ws.lu.solve_in_place(correction);
+        lin.end = ws.jac.end.pos;
+        lin.wrench = *wrench;
+        lin.end_error = target.error_to(&ws.jac.end);
+        correction.iter().all(|v| v.is_finite())
     }
 
     /// Linearises the equilibrium with the chain's end asked at `target`.
@@ -301,12 +349,13 @@ impl LoadedChain<'_> {
         // Basic columns by Gaussian elimination with complete pivoting on a copy of J.
         let mut j = a.view((0, 0), (6, k)).into_owned();
         let largest = j.amax();
+        let mut is_basic = vec![false; k];
         let mut basic: Vec<usize> = Vec::with_capacity(6);
         let mut rows_left: Vec<usize> = (0..6).collect();
         for _ in 0..6 {
             let mut best = (0usize, 0usize, 0.0f64);
             for &r in &rows_left {
-                for c in (0..k).filter(|c| !basic.contains(c)) {
+                for c in (0..k).filter(|&c| !is_basic[c]) {
                     if j[(r, c)].abs() > best.2 {
                         best = (r, c, j[(r, c)].abs());
                     }
@@ -327,8 +376,9 @@ impl LoadedChain<'_> {
             }
             rows_left.retain(|&r| r != pr);
             basic.push(pc);
+            is_basic[pc] = true;
         }
-        let free: Vec<usize> = (0..k).filter(|c| !basic.contains(c)).collect();
+        let free: Vec<usize> = (0..k).filter(|&c| !is_basic[c]).collect();
         if free.is_empty() {
             return true;
         }
@@ -347,17 +397,35 @@ impl LoadedChain<'_> {
                 _ => return false,
             }
         };
-        // Z = [I; -X] on (free; basic) coordinates: Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X, with
-        // H the energy Hessian, minus the symmetrised load block of eq (45).
-        let hess = |r: usize, c: usize| -0.5 * (a[(6 + r, c)] + a[(6 + c, r)]);
-        let h_ff = DMatrix::from_fn(free.len(), free.len(), |r, c| hess(free[r], free[c]));
-        let h_fb = DMatrix::from_fn(free.len(), basic.len(), |r, c| hess(free[r], basic[c]));
-        let h_bb = DMatrix::from_fn(basic.len(), basic.len(), |r, c| hess(basic[r], basic[c]));
-        let fb_x = &h_fb * &x;
-        let reduced = h_ff - &fb_x - fb_x.transpose() + x.transpose() * (h_bb * &x);
+        // Z = [I; -X] on (free; basic) coordinates, so Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X, with
+        // H the energy Hessian, minus the symmetrised load block of eq (45). Column by column of Z,
+        // z_c = e_free[c] - sum_b X[b, c] e_basic[b]: reduced[r, c] = z_r^T (H z_c).
+        let (f, b) = (free.len(), basic.len());
+        // H, row-major: the symmetrised energy Hessian.
+        let mut hess = vec![0.0; k * k];
+        for r in 0..k {
+            for c in 0..k {
+                hess[r * k + c] = -0.5 * (a[(6 + r, c)] + a[(6 + c, r)]);
+            }
+        }
+        let x = x.as_slice(); // column-major b x f
+        let mut hz = vec![0.0; k];
+        let mut reduced = DMatrix::zeros(f, f);
+        for c in 0..f {
+            let xc = &x[c * b..(c + 1) * b];
+            for (value, row) in hz.iter_mut().zip(hess.chunks_exact(k)) {
+                *value = row[free[c]] - basic.iter().zip(xc).map(|(&bb, xb)| row[bb] * xb).sum::<f64>();
+            }
+            for r in 0..f {
+                let xr = &x[r * b..(r + 1) * b];
+                reduced[(r, c)] = hz[free[r]] - basic.iter().zip(xr).map(|(&bb, xb)| xb * hz[bb]).sum::<f64>();
+            }
+        }
         let tol = 1e-12 * reduced.amax().max(f64::MIN_POSITIVE);
-        let shifted = reduced - DMatrix::identity(free.len(), free.len()) * tol;
-        shifted.cholesky().is_some()
+        for d in 0..f {
+            reduced[(d, d)] -= tol;
+        }
+        reduced.cholesky().is_some()
     }
 }
 

@@ -1,0 +1,115 @@
+//! Warm starts of a run's loaded equilibria: each point's Newton method starts from a prediction made from
+//! the points solved before it in the same run (paper 000 s. 6: from the previous solution the equilibrium
+//! "converges in 1-2 iterations" for small increments).
+
+use crate::kinematics::frame::{Vec3, Vec6};
+use crate::platform::leg::LoadedOffsets;
+
+/// One loaded solution: commanded position, platform displacement, each leg's departure from its placement.
+#[derive(Clone, Debug)]
+struct Solution {
+    position: Vec3,
+    displacement: Vec6,
+    offsets: Vec<LoadedOffsets>,
+}
+
+/// The last few solutions of a sequence of points, oldest first, and the prediction they make for the next.
+#[derive(Clone, Debug, Default)]
+struct Sequence {
+    solutions: Vec<Solution>,
+}
+
+/// Solutions a sequence keeps: three, for a quadratic extrapolation.
+const KEPT: usize = 3;
+
+impl Sequence {
+    /// The polynomial extrapolation to `position` through the last three solutions (quadratic) or two
+    /// (linear) when they and `position` are equally spaced on a line, else the last solution as it is.
+    /// The quadratic start is O(h^3) from the equilibrium, the linear one O(h^2): along a grid's rows
+    /// Newton's method then confirms it with one linearisation fewer.
+    fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
+        let newest = self.solutions.last()?;
+        let weights: &[f64] = match self.equally_spaced(position) {
+            1 => &[1.0],
+            2 => &[2.0, -1.0],
+            _ => &[3.0, -3.0, 1.0],
+        };
+        let used: Vec<&Solution> = self.solutions.iter().rev().zip(weights).map(|(s, _)| s).collect();
+        let displacement = used.iter().zip(weights).map(|(s, w)| s.displacement * *w).sum();
+        let offsets = (0..newest.offsets.len())
+            .map(|leg| {
+                let weighted: Vec<(f64, &LoadedOffsets)> =
+                    used.iter().zip(weights).map(|(s, w)| (*w, &s.offsets[leg])).collect();
+                LoadedOffsets::combine(&weighted)
+            })
+            .collect();
+        Some((displacement, offsets))
+    }
+
+    /// How many of the last solutions lie with `position` equally spaced on a line (at least 1).
+    fn equally_spaced(&self, position: &Vec3) -> usize {
+        let Some(newest) = self.solutions.last() else { return 0 };
+        let step = position - newest.position;
+        let mut count = 1;
+        for pair in self.solutions.windows(2).rev() {
+            let spacing = pair[1].position - pair[0].position;
+            if (spacing - step).norm() > 1e-9 * step.norm().max(1e-9) {
+                break;
+            }
+            count += 1;
+        }
+        count
+    }
+
+    fn push(&mut self, solution: Solution) {
+        if self.solutions.len() == KEPT {
+            self.solutions.remove(0);
+        }
+        self.solutions.push(solution);
+    }
+
+    fn distance(&self, position: &Vec3) -> f64 {
+        self.solutions.last().map_or(f64::INFINITY, |s| (position - s.position).norm())
+    }
+}
+
+/// A run's loaded solutions: the last points, and the first points of the last lines (the starts of a
+/// grid's rows), so a point that begins a line starts from the lines before it rather than from the far
+/// end of the previous row.
+#[derive(Clone, Debug, Default)]
+pub struct LoadedHistory {
+    recent: Sequence,
+    line_starts: Sequence,
+    /// The current line (three equally spaced points) has its first point among `line_starts`.
+    line_recorded: bool,
+}
+
+impl LoadedHistory {
+    /// The start for the equilibrium at `position`: the platform's displacement and each leg's offsets.
+    pub fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
+        let continues_line = self.recent.equally_spaced(position) >= 2;
+        if !continues_line && self.line_starts.distance(position) < self.recent.distance(position) {
+            return self.line_starts.predict(position);
+        }
+        self.recent.predict(position)
+    }
+
+    /// Records the solution at `position`.
+    pub fn push(&mut self, position: Vec3, displacement: Vec6, offsets: Vec<LoadedOffsets>) {
+        let continues_line = self.recent.equally_spaced(&position) >= 2;
+        if !continues_line {
+            self.line_recorded = false;
+        }
+        self.recent.push(Solution { position, displacement, offsets });
+        // Three equally spaced points make a line: its first is the oldest of them.
+        if continues_line && !self.line_recorded {
+            self.line_starts.push(self.recent.solutions[self.recent.solutions.len() - 3].clone());
+            self.line_recorded = true;
+        }
+    }
+
+    /// Forgets every solution (after a point that failed: its neighbours' starts are no longer trusted).
+    pub fn clear(&mut self) {
+        *self = Self::default();
+    }
+}
