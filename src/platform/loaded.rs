@@ -156,19 +156,20 @@ impl Manipulator {
         let mut full = true;
         let mut last_distance = f64::INFINITY;
         for it in 0..MAX_NEWTON {
+            let (weight, d_weight) = self.weight(t);
             if full {
                 lins.clear();
                 for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
                     lins.push(leg.linearize(t, s).map_err(leg_failure(i))?);
                 }
-                stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - self.weight(t).1 * weight_share;
+                stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
             } else {
                 for (i, ((leg, s), l)) in self.legs.iter().zip(state.legs.iter_mut()).zip(lins.iter_mut()).enumerate() {
                     leg.refresh(t, s, l).map_err(leg_failure(i))?;
                 }
             }
             // The payload's weight (a share of it under load continuation) is a load the legs carry.
-            let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - self.weight(t).0 * weight_share;
+            let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - weight * weight_share;
             let Some(step) = stiffness.lu().solve(&(load - force)) else {
                 return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
