@@ -8,7 +8,7 @@ use rand::Rng;
 use stiff::beam::BeamSection;
 use stiff::kinematics::chain::{Chain, Element as ChainElement, JointKind, Role};
 use stiff::kinematics::frame::{block_rotation, Frame, Mat6, Vec3, Vec6};
-use stiff::msa::{beam_stiffness, link_stiffness, Connection, Element, Structure};
+use stiff::msa::{beam_stiffness, Connection, Element, Structure};
 use stiff::platform::leg::Leg;
 
 fn section() -> BeamSection {
@@ -25,7 +25,7 @@ fn cantilever_tip_deflections() {
     let st = Structure {
         nodes: vec![p0, p1],
         elements: vec![
-            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1).unwrap() },
+            Element::Flexible { i: 0, j: 1, kjj: beam_stiffness(&s, &p0, &p1).unwrap() },
             Element::Base { node: 0, connection: Connection::rigid() },
         ],
         end: 1,
@@ -48,7 +48,7 @@ fn beams_in_series_equal_one_beam() {
     let one = Structure {
         nodes: vec![p0, p2],
         elements: vec![
-            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p2).unwrap() },
+            Element::Flexible { i: 0, j: 1, kjj: beam_stiffness(&s, &p0, &p2).unwrap() },
             Element::Base { node: 0, connection: Connection::rigid() },
         ],
         end: 1,
@@ -56,8 +56,8 @@ fn beams_in_series_equal_one_beam() {
     let two = Structure {
         nodes: vec![p0, p1, p2],
         elements: vec![
-            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1).unwrap() },
-            Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p1, &p2).unwrap() },
+            Element::Flexible { i: 0, j: 1, kjj: beam_stiffness(&s, &p0, &p1).unwrap() },
+            Element::Flexible { i: 1, j: 2, kjj: beam_stiffness(&s, &p1, &p2).unwrap() },
             Element::Base { node: 0, connection: Connection::rigid() },
         ],
         end: 2,
@@ -76,8 +76,8 @@ fn portal_frame_lateral_stiffness() {
     let nodes = vec![Vec3::zeros(), Vec3::new(b, 0.0, 0.0), Vec3::new(0.0, 0.0, h), Vec3::new(b, 0.0, h)];
     let st = Structure {
         elements: vec![
-            Element::Flexible { i: 0, j: 2, k: beam_stiffness(&s, &nodes[0], &nodes[2]).unwrap() },
-            Element::Flexible { i: 1, j: 3, k: beam_stiffness(&s, &nodes[1], &nodes[3]).unwrap() },
+            Element::Flexible { i: 0, j: 2, kjj: beam_stiffness(&s, &nodes[0], &nodes[2]).unwrap() },
+            Element::Flexible { i: 1, j: 3, kjj: beam_stiffness(&s, &nodes[1], &nodes[3]).unwrap() },
             Element::Rigid { i: 2, j: 3 },
             Element::Base { node: 0, connection: Connection::rigid() },
             Element::Base { node: 1, connection: Connection::rigid() },
@@ -105,7 +105,7 @@ fn a_pin_removes_one_direction() {
                 j: 1,
                 connection: Connection::passive(vec![Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]),
             },
-            Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p0, &p1).unwrap() },
+            Element::Flexible { i: 1, j: 2, kjj: beam_stiffness(&s, &p0, &p1).unwrap() },
         ],
         end: 2,
     };
@@ -160,13 +160,13 @@ fn msa_equals_vjm_on_an_orthoglide_leg() {
             {
                 // A link and its 6-dof spring: a flexible link with the spring's stiffness at its tip.
                 let f = frame_after(k);
-                let (start, i) = (nodes[current.unwrap()], current.unwrap());
+                let i = current.unwrap();
                 nodes.push(f.pos);
                 let spring = &leg.springs[spring_index];
                 spring_index += 1;
                 let b = block_rotation(&f.rot);
                 let kjj: Mat6 = b * spring.stiffness * b.transpose();
-                msa.push(Element::Flexible { i, j: nodes.len() - 1, k: link_stiffness(&kjj, &start, &f.pos) });
+                msa.push(Element::Flexible { i, j: nodes.len() - 1, kjj });
                 current = Some(nodes.len() - 1);
                 k += 7;
             }
@@ -220,7 +220,7 @@ fn a_redundant_pin_is_reported_as_a_mechanism() {
             Element::Base { node: 0, connection: Connection::rigid() },
             Element::Joint { i: 0, j: 1, connection: pin() },
             Element::Joint { i: 1, j: 2, connection: pin() },
-            Element::Flexible { i: 2, j: 3, k: beam_stiffness(&s, &p0, &p1).unwrap() },
+            Element::Flexible { i: 2, j: 3, kjj: beam_stiffness(&s, &p0, &p1).unwrap() },
         ],
         end: 3,
     };
@@ -242,7 +242,7 @@ fn an_elastic_joint_preload_loads_the_held_end() {
         nodes: vec![p0, p1],
         elements: vec![
             Element::Base { node: 0, connection: spring },
-            Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1).unwrap() },
+            Element::Flexible { i: 0, j: 1, kjj: beam_stiffness(&s, &p0, &p1).unwrap() },
         ],
         end: 1,
     };
@@ -263,8 +263,8 @@ fn forest_choice_does_not_change_the_answer() {
     let (p0, p1, p2) = (Vec3::zeros(), Vec3::new(200.0, 50.0, 0.0), Vec3::new(200.0, 50.0, 180.0));
     let pin = Connection::passive(vec![Vec6::new(0.0, 0.0, 0.0, 0.0, 1.0, 0.0)]);
     let beams = vec![
-        Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1).unwrap() },
-        Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p1, &p2).unwrap() },
+        Element::Flexible { i: 0, j: 1, kjj: beam_stiffness(&s, &p0, &p1).unwrap() },
+        Element::Flexible { i: 1, j: 2, kjj: beam_stiffness(&s, &p1, &p2).unwrap() },
     ];
     let mut single = beams.clone();
     single.push(Element::Base { node: 0, connection: pin.clone() });
@@ -282,8 +282,8 @@ fn forest_choice_does_not_change_the_answer() {
     let c_tip = c.try_inverse().unwrap();
     // Compliance at node 0 of the clamped-at-2 structure = compliance at 2 of the clamped-at-0 one, moved.
     let mut clamped0 = vec![
-        Element::Flexible { i: 0, j: 1, k: beam_stiffness(&s, &p0, &p1).unwrap() },
-        Element::Flexible { i: 1, j: 2, k: beam_stiffness(&s, &p1, &p2).unwrap() },
+        Element::Flexible { i: 0, j: 1, kjj: beam_stiffness(&s, &p0, &p1).unwrap() },
+        Element::Flexible { i: 1, j: 2, kjj: beam_stiffness(&s, &p1, &p2).unwrap() },
     ];
     clamped0.push(Element::Base { node: 0, connection: Connection::rigid() });
     let d = Structure { nodes: vec![p0, p1, p2], elements: clamped0, end: 2 }.end_stiffness().unwrap();
@@ -438,4 +438,30 @@ fn navaro_reach_and_rank_in_both_modes() {
         }
     }
     assert!(reachable > 40 && unreachable > 40, "{reachable} / {unreachable}");
+}
+
+/// The reduced system's forest, columns and envelope ordering depend only on a structure's shape (which
+/// elements join which nodes, with how many free and elastic directions), not on its pose: one condenser
+/// carried across the poses of a map, and across a structure of another shape and back, answers bit for
+/// bit as a fresh one does at every pose.
+#[test]
+fn a_reused_condenser_answers_as_a_fresh_one() {
+    let navaro = model_with("manipulators/navaro2.toml", &[("mode", 1.0)]);
+    let puu = model("manipulators/orthoglide-3puu-msa.toml");
+    let msa_leg = |m: &stiff::platform::manipulator::Manipulator, k: usize| match &m.legs[k] {
+        Leg::Msa(l) => l.clone(),
+        Leg::Vjm(_) => panic!("an MSA leg"),
+    };
+    let (pantograph, puu_leg) = (msa_leg(&navaro, 1), msa_leg(&puu, 0));
+    let mut condenser = stiff::msa::Condenser::default();
+    let mut r = rng(3);
+    for step in 0..12 {
+        let (leg, p) = if step % 4 == 3 {
+            (&puu_leg, Vec3::new(r.random_range(-50.0..50.0), r.random_range(-50.0..50.0), r.random_range(-50.0..50.0)))
+        } else {
+            (&pantograph, Vec3::new(r.random_range(-60.0..60.0), r.random_range(-60.0..60.0), 0.0))
+        };
+        let structure = leg.structure_at(&Frame::translation(p)).unwrap();
+        assert_eq!(condenser.condense(&structure), structure.condense(), "step {step} at {p}");
+    }
 }

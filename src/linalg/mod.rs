@@ -142,74 +142,88 @@ impl DenseLu {
     }
 }
 
-/// An in-place Cholesky factorisation A = L L^T of a dense symmetric column-major matrix (its lower
-/// triangle read), its buffer kept between uses: MSA's reduced stiffness at every pose.
+/// A Cholesky factorisation A = L L^T made in the caller's buffer (MSA's reduced stiffness at every pose,
+/// factorised where it was assembled), with the envelope of A kept: row r of L is zero left of row r's
+/// first non-zero in A (no fill outside the envelope), so column j of L is worked only down to the last
+/// row whose envelope reaches j. A banded or block-structured matrix then costs what its envelope holds,
+/// not n^3 / 6.
 #[derive(Clone, Debug, Default)]
-pub struct DenseCholesky {
+pub struct EnvelopeCholesky {
     n: usize,
-    a: Vec<f64>,
+    /// Per row: its first non-zero column in the lower triangle.
+    first: Vec<usize>,
+    /// Per column: the last row whose envelope reaches it (L's column is zero below).
+    last: Vec<usize>,
 }
 
-impl DenseCholesky {
-    /// Factorises the n x n matrix `m`; the smallest and largest pivot L_ii^2, or None where a pivot is
-    /// not positive or not finite (not positive definite).
-    pub fn factor(&mut self, m: &[f64], n: usize) -> Option<(f64, f64)> {
-        assert_eq!(m.len(), n * n);
+impl EnvelopeCholesky {
+    /// Factorises the leading n x n block of the column-major matrix `a` (columns `stride` long) in place:
+    /// its lower triangle (read) becomes L, its strict upper triangle is left untouched. The smallest and
+    /// largest pivot L_ii^2, or None where a pivot is not positive or not finite (not positive definite).
+    pub fn factor(&mut self, a: &mut [f64], stride: usize, n: usize) -> Option<(f64, f64)> {
+        assert!(n <= stride && a.len() >= stride * n.saturating_sub(1) + n);
         self.n = n;
-        self.a.clear();
-        self.a.extend_from_slice(m);
-        let a = &mut self.a;
+        self.first.clear();
+        self.first.extend((0..n).map(|r| (0..r).find(|&j| a[j * stride + r] != 0.0).unwrap_or(r)));
+        self.last.clear();
+        self.last.extend(0..n);
+        for (r, &f) in self.first.iter().enumerate() {
+            self.last[f] = self.last[f].max(r);
+        }
+        for j in 1..n {
+            self.last[j] = self.last[j].max(self.last[j - 1]);
+        }
         let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
         for k in 0..n {
-            // Column k of L: a_ik - sum_{j<k} l_ij l_kj, left-looking.
-            for j in 0..k {
-                let lkj = a[j * n + k];
+            // Column k of L, left-looking: a_rk - sum_{j<k} l_rj l_kj over the envelope.
+            let (left, right) = a.split_at_mut(k * stride);
+            let column = &mut right[..n];
+            for j in self.first[k]..k {
+                let lkj = left[j * stride + k];
                 if lkj != 0.0 {
-                    let (left, right) = a.split_at_mut(k * n);
-                    let lcol = &left[j * n + k..j * n + n];
-                    for (x, l) in right[k..n].iter_mut().zip(lcol) {
+                    let end = self.last[j] + 1;
+                    for (x, l) in column[k..end].iter_mut().zip(&left[j * stride + k..j * stride + end]) {
                         *x -= l * lkj;
                     }
                 }
             }
-            let d = a[k * n + k];
+            let d = column[k];
             if !(d > 0.0 && d.is_finite()) {
                 return None;
             }
             lo = lo.min(d);
             hi = hi.max(d);
             let root = d.sqrt();
-            for x in &mut a[k * n + k..k * n + n] {
+            for x in &mut column[k..self.last[k] + 1] {
                 *x /= root;
             }
         }
         Some((lo, hi))
     }
 
-    /// Solves L y = b in place (the first half of a solve: with it, B^T A^-1 C = (L^-1 B)^T (L^-1 C)).
-    pub fn forward_in_place(&self, b: &mut [f64]) {
-        let (n, a) = (self.n, &self.a);
-        let b = &mut b[..n];
-        for k in 0..n {
-            let col = &a[k * n + k..k * n + n];
+    /// Solves L y = b in place (the first half of a solve: with it, B^T A^-1 C = (L^-1 B)^T (L^-1 C)), `l`
+    /// the buffer `factor` worked in.
+    pub fn forward_in_place(&self, l: &[f64], stride: usize, b: &mut [f64]) {
+        let b = &mut b[..self.n];
+        for k in 0..self.n {
+            let col = &l[k * stride + k..k * stride + self.last[k] + 1];
             b[k] /= col[0];
             let bk = b[k];
             if bk != 0.0 {
-                for (x, l) in b[k + 1..].iter_mut().zip(&col[1..]) {
+                for (x, l) in b[k + 1..self.last[k] + 1].iter_mut().zip(&col[1..]) {
                     *x -= l * bk;
                 }
             }
         }
     }
 
-    /// Solves A x = b in place for one right-hand side of length n.
-    pub fn solve_in_place(&self, b: &mut [f64]) {
-        let (n, a) = (self.n, &self.a);
-        self.forward_in_place(b);
-        let b = &mut b[..n];
-        for k in (0..n).rev() {
-            let col = &a[k * n + k..k * n + n];
-            let dot: f64 = b[k + 1..].iter().zip(&col[1..]).map(|(x, l)| x * l).sum();
+    /// Solves A x = b in place for one right-hand side, `l` the buffer `factor` worked in.
+    pub fn solve_in_place(&self, l: &[f64], stride: usize, b: &mut [f64]) {
+        self.forward_in_place(l, stride, b);
+        let b = &mut b[..self.n];
+        for k in (0..self.n).rev() {
+            let col = &l[k * stride + k..k * stride + self.last[k] + 1];
+            let dot: f64 = b[k + 1..self.last[k] + 1].iter().zip(&col[1..]).map(|(x, l)| x * l).sum();
             b[k] = (b[k] - dot) / col[0];
         }
     }
@@ -238,29 +252,53 @@ mod tests {
         assert!(!lu.factor(DMatrix::<f64>::zeros(3, 3).as_slice(), 3));
     }
 
-    /// A symmetric positive definite system solved as nalgebra's Cholesky solves it; the pivots are the
-    /// squares of L's diagonal; an indefinite matrix is refused.
+    /// A symmetric positive definite system solved as nalgebra's Cholesky solves it, dense and with an
+    /// envelope (a banded block with zeros inside the band and a stray far entry), factorised in a larger
+    /// buffer whose strict upper triangle is left as it was; the pivots are the squares of L's diagonal; an
+    /// indefinite matrix is refused.
     #[test]
-    fn cholesky_solves_like_nalgebra() {
+    fn envelope_cholesky_solves_like_nalgebra() {
         let n = 11;
-        let g = DMatrix::from_fn(n, n, |i, j| ((i * 5 + j * 3) % 7) as f64 - 3.0 + if i == j { 4.0 } else { 0.0 });
-        let m = &g * g.transpose();
-        let b = DVector::from_fn(n, |i, _| 1.5 - i as f64);
-        let expected = m.clone().cholesky().unwrap();
-        let mut c = DenseCholesky::default();
-        let (lo, hi) = c.factor(m.as_slice(), n).unwrap();
-        let l = expected.l();
-        let squares: Vec<f64> = (0..n).map(|i| l[(i, i)] * l[(i, i)]).collect();
-        assert!((lo - squares.iter().cloned().fold(f64::MAX, f64::min)).abs() < 1e-12 * hi);
-        assert!((hi - squares.iter().cloned().fold(0.0, f64::max)).abs() < 1e-12 * hi);
-        let mut x = b.as_slice().to_vec();
-        c.solve_in_place(&mut x);
-        let x_expected = expected.solve(&b);
-        for i in 0..n {
-            assert!((x[i] - x_expected[i]).abs() < 1e-12 * x_expected.amax());
+        let dense = DMatrix::from_fn(n, n, |i, j| ((i * 5 + j * 3) % 7) as f64 - 3.0 + if i == j { 4.0 } else { 0.0 });
+        let banded = DMatrix::from_fn(n, n, |i, j| {
+            let near = i.abs_diff(j) <= 2 && (i + j) % 5 != 1;
+            if i == j {
+                3.0
+            } else if near || (i, j) == (9, 1) || (i, j) == (1, 9) {
+                0.3 + 0.05 * (i + j) as f64
+            } else {
+                0.0
+            }
+        });
+        for g in [dense, banded] {
+            let m = &g * g.transpose();
+            let b = DVector::from_fn(n, |i, _| 1.5 - i as f64);
+            let expected = m.clone().cholesky().unwrap();
+            let stride = n + 3;
+            let mut buffer = DMatrix::from_fn(stride, n + 1, |i, j| if i < n && j < n { m[(i, j)] } else { 7.0 });
+            let upper_before: Vec<f64> = (0..n).flat_map(|j| (0..j).map(move |i| (i, j))).map(|p| buffer[p]).collect();
+            let mut c = EnvelopeCholesky::default();
+            let (lo, hi) = c.factor(buffer.as_mut_slice(), stride, n).unwrap();
+            let upper_after: Vec<f64> = (0..n).flat_map(|j| (0..j).map(move |i| (i, j))).map(|p| buffer[p]).collect();
+            assert_eq!(upper_before, upper_after);
+            let l = expected.l();
+            for j in 0..n {
+                for i in j..n {
+                    assert!((buffer[(i, j)] - l[(i, j)]).abs() < 1e-12 * l.amax(), "L[{i},{j}]");
+                }
+            }
+            let squares: Vec<f64> = (0..n).map(|i| l[(i, i)] * l[(i, i)]).collect();
+            assert!((lo - squares.iter().cloned().fold(f64::MAX, f64::min)).abs() < 1e-12 * hi);
+            assert!((hi - squares.iter().cloned().fold(0.0, f64::max)).abs() < 1e-12 * hi);
+            let mut x = b.as_slice().to_vec();
+            c.solve_in_place(buffer.as_slice(), stride, &mut x);
+            let x_expected = expected.solve(&b);
+            for i in 0..n {
+                assert!((x[i] - x_expected[i]).abs() < 1e-12 * x_expected.amax());
+            }
         }
         let mut indefinite = DMatrix::<f64>::identity(3, 3);
         indefinite[(1, 1)] = -1.0;
-        assert!(c.factor(indefinite.as_slice(), 3).is_none());
+        assert!(EnvelopeCholesky::default().factor(indefinite.as_mut_slice(), 3, 3).is_none());
     }
 }

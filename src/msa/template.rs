@@ -5,7 +5,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::{link_stiffness, oriented_beam_stiffness, Connection, Element, Structure};
+use super::{oriented_beam_stiffness, Connection, Element, Structure};
 use crate::beam::BeamSection;
 use crate::expr::Expr;
 use crate::kinematics::frame::{block_rotation, rotation_vector, Frame, Mat6, Vec3, Vec6};
@@ -110,6 +110,20 @@ impl Template {
     /// The structure at a pose: `end` is the leg's end frame in the leg's own frame, `place` the copy's frame
     /// (leg frame -> base frame); the structure comes out in the base frame.
     pub fn structure(&self, end: &Frame, place: &Frame, slots: &mut Vec<f64>) -> Result<Structure, PoseOutOfReach> {
+        let mut structure = Structure::default();
+        self.fill(end, place, slots, &mut structure)?;
+        Ok(structure)
+    }
+
+    /// As `structure`, written over `out`, whose vectors are reused (a map fills one structure per leg
+    /// without allocating once it has this template's shape). On an error `out` is left part-filled.
+    pub fn fill(
+        &self,
+        end: &Frame,
+        place: &Frame,
+        slots: &mut Vec<f64>,
+        out: &mut Structure,
+    ) -> Result<(), PoseOutOfReach> {
         slots.clear();
         slots.extend(end.pos.iter());
         slots.extend(rotation_vector(&end.rot).iter());
@@ -128,7 +142,8 @@ impl Template {
             return Err(PoseOutOfReach::NotFinite);
         }
         let point = |p: &[Expr; 3]| Vec3::new(p[0].eval(slots), p[1].eval(slots), p[2].eval(slots));
-        let mut nodes = Vec::with_capacity(self.nodes.len());
+        let nodes = &mut out.nodes;
+        nodes.clear();
         for p in &self.nodes {
             let local = point(p);
             if !local.iter().all(|v| v.is_finite()) {
@@ -136,6 +151,7 @@ impl Template {
             }
             nodes.push(place.transform_point(&local));
         }
+        out.end = self.end;
         let rot6 = block_rotation(&place.rot);
         let direction = |d: &DirectionTemplate| -> Result<Vec6, PoseOutOfReach> {
             let v = Vec6::from_fn(|r, _| d.twist[r].eval(slots));
@@ -145,38 +161,53 @@ impl Template {
             }
             Ok(rot6 * (v / n))
         };
-        let mut elements = Vec::with_capacity(self.elements.len());
-        for e in &self.elements {
-            elements.push(match e {
+        out.elements.truncate(self.elements.len());
+        for (k, e) in self.elements.iter().enumerate() {
+            let element = match e {
                 ElementTemplate::Beam { i, j, section, y_axis } => {
                     let hint = y_axis.as_ref().map(|y| place.rot * point(y));
-                    Element::Flexible {
-                        i: *i,
-                        j: *j,
-                        k: oriented_beam_stiffness(section, &nodes[*i], &nodes[*j], hint)
-                            .ok_or(PoseOutOfReach::Degenerate)?,
-                    }
+                    let kjj = oriented_beam_stiffness(section, &nodes[*i], &nodes[*j], hint)
+                        .ok_or(PoseOutOfReach::Degenerate)?;
+                    Element::Flexible { i: *i, j: *j, kjj }
                 }
-                ElementTemplate::Link { i, j, kjj } => Element::Flexible {
-                    i: *i,
-                    j: *j,
-                    k: link_stiffness(&(rot6 * kjj * rot6.transpose()), &nodes[*i], &nodes[*j]),
-                },
+                ElementTemplate::Link { i, j, kjj } => {
+                    Element::Flexible { i: *i, j: *j, kjj: rot6 * kjj * rot6.transpose() }
+                }
                 ElementTemplate::Rigid { i, j } => Element::Rigid { i: *i, j: *j },
                 ElementTemplate::Joint { i, j, free, elastic, stiffness, preload } => {
-                    let connection = Connection {
-                        free: free.iter().map(direction).collect::<Result<_, _>>()?,
-                        elastic: elastic.iter().map(direction).collect::<Result<_, _>>()?,
-                        stiffness: stiffness.clone(),
-                        preload: preload.clone(),
+                    // The connection this slot held at the last pose, its vectors refilled.
+                    let mut connection = match out.elements.get_mut(k) {
+                        Some(Element::Joint { connection, .. } | Element::Base { connection, .. }) => {
+                            std::mem::replace(connection, Connection::rigid())
+                        }
+                        _ => Connection::rigid(),
                     };
+                    connection.free.clear();
+                    for d in free {
+                        connection.free.push(direction(d)?);
+                    }
+                    connection.elastic.clear();
+                    for d in elastic {
+                        connection.elastic.push(direction(d)?);
+                    }
+                    if connection.stiffness.shape() == stiffness.shape() {
+                        connection.stiffness.copy_from(stiffness);
+                        connection.preload.copy_from(preload);
+                    } else {
+                        connection.stiffness = stiffness.clone();
+                        connection.preload = preload.clone();
+                    }
                     match i {
                         Some(i) => Element::Joint { i: *i, j: *j, connection },
                         None => Element::Base { node: *j, connection },
                     }
                 }
-            });
+            };
+            match out.elements.get_mut(k) {
+                Some(slot) => *slot = element,
+                None => out.elements.push(element),
+            }
         }
-        Ok(Structure { nodes, elements, end: self.end })
+        Ok(())
     }
 }

@@ -7,7 +7,7 @@
 use super::leg::{at_reference_point, LegFailure, LegResponse};
 use crate::kinematics::frame::Frame;
 use crate::msa::template::{PoseOutOfReach, Template};
-use crate::msa::{MsaFailure, Structure};
+use crate::msa::{Condenser, MsaFailure, Structure};
 
 /// An MSA leg: a structure evaluated at each pose (paper 003), answered through the leg seam.
 #[derive(Clone, Debug)]
@@ -24,12 +24,17 @@ pub struct MsaLeg {
     pub length_scale: f64,
 }
 
-/// What an MSA leg keeps between calls: the answer at its placement (for the linear loaded answer) and the
-/// formulas' value table.
+/// What an MSA leg keeps between calls: the answer at its placement (for the linear loaded answer), and
+/// the buffers of its evaluation (the formulas' value table, the structure, its condenser), so a map
+/// allocates nothing per pose.
 #[derive(Clone, Debug, Default)]
 pub struct MsaState {
     /// The formulas' value table.
     pub slots: Vec<f64>,
+    /// The structure at the last pose evaluated.
+    pub structure: Structure,
+    /// The solver of the structure, its forest and buffers made at the first pose.
+    pub condenser: Condenser,
     /// Platform pose at placement, and the leg's answer there.
     pub placed: Option<(Frame, LegResponse)>,
 }
@@ -37,13 +42,15 @@ pub struct MsaState {
 impl MsaLeg {
     /// The structure (base frame) with the platform at `platform`.
     pub fn structure_at(&self, platform: &Frame) -> Result<Structure, LegFailure> {
-        self.structure_with(platform, &mut Vec::new())
+        let mut structure = Structure::default();
+        self.fill(platform, &mut Vec::new(), &mut structure)?;
+        Ok(structure)
     }
 
-    fn structure_with(&self, platform: &Frame, slots: &mut Vec<f64>) -> Result<Structure, LegFailure> {
+    fn fill(&self, platform: &Frame, slots: &mut Vec<f64>, structure: &mut Structure) -> Result<(), LegFailure> {
         let target = platform.compose(&self.attachment);
         let local = self.place.inverse().compose(&target);
-        self.template.structure(&local, &self.place, slots).map_err(|e| match e {
+        self.template.fill(&local, &self.place, slots, structure).map_err(|e| match e {
             PoseOutOfReach::Condition(k) => LegFailure::OutOfReach { condition: Some(k) },
             PoseOutOfReach::NotFinite => LegFailure::OutOfReach { condition: None },
             PoseOutOfReach::Degenerate => LegFailure::NotFinite,
@@ -51,9 +58,10 @@ impl MsaLeg {
     }
 
     /// The leg's answer with the platform at `platform`, its geometry evaluated there.
-    pub fn answer(&self, platform: &Frame, slots: &mut Vec<f64>) -> Result<LegResponse, LegFailure> {
-        let structure = self.structure_with(platform, slots)?;
-        let end = structure.condense().map_err(|e| match e {
+    fn answer(&self, platform: &Frame, state: &mut MsaState) -> Result<LegResponse, LegFailure> {
+        self.fill(platform, &mut state.slots, &mut state.structure)?;
+        let structure = &state.structure;
+        let end = state.condenser.condense(structure).map_err(|e| match e {
             MsaFailure::Mechanism { .. } | MsaFailure::BadNode(_) => LegFailure::SingularChain,
             MsaFailure::NotFinite => LegFailure::NotFinite,
         })?;
@@ -72,7 +80,7 @@ impl MsaLeg {
     /// Places the leg: evaluates it at the commanded pose and keeps the answer.
     pub fn place(&self, platform: &Frame, state: &mut MsaState) -> Result<LegResponse, LegFailure> {
         state.placed = None;
-        let r = self.answer(platform, &mut state.slots)?;
+        let r = self.answer(platform, state)?;
         state.placed = Some((*platform, r));
         Ok(r)
     }

@@ -1,0 +1,743 @@
+//! The reduced system of a structure (paper 003 eq 15-17 in the forest's coordinates) and its condensation
+//! onto the end node. A structure's graph, spanning forest, coordinates and each node's sparsity depend only
+//! on its shape (which elements join which nodes, and how many free and elastic directions each has), not on
+//! the pose: a `Condenser` makes them once for a shape and keeps its buffers, so a map of poses only fills
+//! numbers (no allocation per pose on the route without loop constraints).
+
+use nalgebra::{DMatrix, DVector};
+
+use super::{Connection, Element, EndAnswer, MsaFailure, Structure};
+use crate::kinematics::frame::{Mat6, Vec3, Vec6};
+use crate::linalg::EnvelopeCholesky;
+
+// Tolerances of the reduced system, relative to the sizes they compare (row norms, the largest pivot or
+// singular value), each well above round-off (~1e-16 per operation) and well below any real size.
+
+/// A constraint row independent of those kept: its residual exceeds this share of its norm.
+const ROW_INDEPENDENCE: f64 = 1e-10;
+/// A pivot (Cholesky L_ii^2, LU |U_ii|) below this share of the largest marks a mechanism.
+const PIVOT_RATIO: f64 = 1e-12;
+/// Singular values of a singular system below this share of the largest span its free motions.
+const NULL_SHARE: f64 = 1e-11;
+/// A null vector whose coordinates are below this is a pattern of multipliers only, not a motion.
+const MOTION_FLOOR: f64 = 1e-9;
+/// A node moves with a free motion where its twist exceeds this share of the motion's size.
+const NODE_MOVES: f64 = 1e-6;
+
+/// What the plan needs of an element: its kind, its nodes and its directions' counts (free, elastic).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Shape {
+    Flexible(usize, usize),
+    Rigid(usize, usize),
+    Joint(usize, usize, usize, usize),
+    Base(usize, usize, usize),
+}
+
+fn shape(e: &Element) -> Shape {
+    match e {
+        Element::Flexible { i, j, .. } => Shape::Flexible(*i, *j),
+        Element::Rigid { i, j } => Shape::Rigid(*i, *j),
+        Element::Joint { i, j, connection } => Shape::Joint(*i, *j, connection.free.len(), connection.elastic.len()),
+        Element::Base { node, connection } => Shape::Base(*node, connection.free.len(), connection.elastic.len()),
+    }
+}
+
+/// All six directions rigid: the connection of a rigid link.
+fn rigid() -> &'static Connection {
+    static RIGID: std::sync::OnceLock<Connection> = std::sync::OnceLock::new();
+    RIGID.get_or_init(Connection::rigid)
+}
+
+/// A connection as an edge of the graph, `dt = t_b - A_ab t_a` (a = None: the base), made by an element.
+#[derive(Clone, Copy, Debug)]
+struct Edge {
+    element: usize,
+    a: Option<usize>,
+    b: usize,
+    /// Free plus elastic directions: the coordinates the edge adds when it is in the forest.
+    moving: usize,
+}
+
+impl Edge {
+    fn connection<'s>(&self, s: &'s Structure) -> &'s Connection {
+        match &s.elements[self.element] {
+            Element::Joint { connection, .. } | Element::Base { connection, .. } => connection,
+            _ => rigid(),
+        }
+    }
+}
+
+/// The spanning forest and the coordinates of one shape of structure.
+#[derive(Clone, Debug)]
+struct Plan {
+    edges: Vec<Edge>,
+    tree_edge: Vec<bool>,
+    /// Visiting order: (node, edge it was reached by, or None for a root).
+    order: Vec<(usize, Option<usize>)>,
+    /// First column of each visited node's coordinates (same indexing as `order`).
+    first: Vec<usize>,
+    n_y: usize,
+    end_is_root: bool,
+    /// The reduced system's column of each forest coordinate (an ordering with a small envelope; the
+    /// end's six last).
+    column: Vec<usize>,
+}
+
+impl Plan {
+    /// The spanning forest: from the base first, then from the end node (whose six coordinates are the
+    /// prescribed ones), then from any node still unreached (a free root of six coordinates).
+    fn new(shapes: &[Shape], n: usize, end: usize) -> Result<Plan, MsaFailure> {
+        let check = |i: usize| if i < n { Ok(i) } else { Err(MsaFailure::BadNode(i)) };
+        let mut edges = Vec::new();
+        for (element, s) in shapes.iter().enumerate() {
+            let (a, b, moving) = match *s {
+                Shape::Flexible(i, j) => {
+                    check(i)?;
+                    check(j)?;
+                    continue;
+                }
+                Shape::Rigid(i, j) => (Some(check(i)?), check(j)?, 0),
+                Shape::Joint(i, j, free, elastic) => (Some(check(i)?), check(j)?, free + elastic),
+                Shape::Base(node, free, elastic) => (None, check(node)?, free + elastic),
+            };
+            edges.push(Edge { element, a, b, moving });
+        }
+        check(end)?;
+        let mut adjacent: Vec<Vec<usize>> = vec![Vec::new(); n];
+        let mut from_base = Vec::new();
+        for (k, e) in edges.iter().enumerate() {
+            adjacent[e.b].push(k);
+            match e.a {
+                Some(a) => adjacent[a].push(k),
+                None => from_base.push(k),
+            }
+        }
+        let mut reached = vec![false; n];
+        let mut tree_edge = vec![false; edges.len()];
+        let mut order: Vec<(usize, Option<usize>)> = Vec::new();
+        let mut queue = std::collections::VecDeque::new();
+        let mut visit = |start_edges: &[usize],
+                         root: Option<usize>,
+                         reached: &mut Vec<bool>,
+                         tree_edge: &mut Vec<bool>,
+                         order: &mut Vec<(usize, Option<usize>)>| {
+            if let Some(r) = root {
+                reached[r] = true;
+                order.push((r, None));
+                queue.push_back(r);
+            }
+            for &k in start_edges {
+                let b = edges[k].b;
+                if !reached[b] {
+                    reached[b] = true;
+                    tree_edge[k] = true;
+                    order.push((b, Some(k)));
+                    queue.push_back(b);
+                }
+            }
+            while let Some(v) = queue.pop_front() {
+                for &k in &adjacent[v] {
+                    if tree_edge[k] {
+                        continue;
+                    }
+                    let e = &edges[k];
+                    let other = if e.b == v { e.a } else { Some(e.b) };
+                    if let Some(w) = other {
+                        if !reached[w] {
+                            reached[w] = true;
+                            tree_edge[k] = true;
+                            order.push((w, Some(k)));
+                            queue.push_back(w);
+                        }
+                    }
+                }
+            }
+        };
+        visit(&from_base, None, &mut reached, &mut tree_edge, &mut order);
+        let end_is_root = !reached[end];
+        if end_is_root {
+            visit(&[], Some(end), &mut reached, &mut tree_edge, &mut order);
+        }
+        for v in 0..n {
+            if !reached[v] {
+                visit(&[], Some(v), &mut reached, &mut tree_edge, &mut order);
+            }
+        }
+        // Columns: every coordinate but the end's six, then those six (u).
+        let mut n_y = 0;
+        let mut first = vec![0usize; order.len()];
+        for (slot, (v, via)) in order.iter().enumerate() {
+            first[slot] = n_y;
+            n_y += match via {
+                None if *v == end => 0,
+                None => 6,
+                Some(k) => edges[*k].moving,
+            };
+        }
+        let mut plan = Plan { edges, tree_edge, order, first, n_y, end_is_root, column: (0..n_y + 6).collect() };
+        plan.column = plan.envelope_order(shapes, n, end);
+        Ok(plan)
+    }
+
+    /// The coordinates each node moves with (by forest index, the end's six last), from the forest alone.
+    fn node_coordinates(&self, n: usize, end: usize) -> Vec<Vec<usize>> {
+        let mut moved: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (slot, &(v, via)) in self.order.iter().enumerate() {
+            let c0 = self.first[slot];
+            moved[v] = match via {
+                None if v == end => (self.n_y..self.n_y + 6).collect(),
+                None => (c0..c0 + 6).collect(),
+                Some(k) => {
+                    let e = &self.edges[k];
+                    let parent = if e.b == v { e.a } else { Some(e.b) };
+                    let mut cols = parent.map(|p| moved[p].clone()).unwrap_or_default();
+                    cols.extend(c0..c0 + e.moving);
+                    cols
+                }
+            };
+        }
+        moved
+    }
+
+    /// Columns for the forest's coordinates that keep the reduced stiffness' envelope small (the
+    /// Cholesky factorisation costs what the envelope holds): which coordinates share an entry follows
+    /// from the shape alone (a flexible link couples every coordinate moving either end, a spring its
+    /// own, a loop its ends'), and the ordering is the reverse Cuthill-McKee ordering of that graph from
+    /// whichever start gives the smallest envelope (or the forest's own order, if smaller). The end's six
+    /// coordinates stay last.
+    fn envelope_order(&self, shapes: &[Shape], n: usize, end: usize) -> Vec<usize> {
+        let n_y = self.n_y;
+        let moved = self.node_coordinates(n, end);
+        let mut adjacent = vec![vec![false; n_y]; n_y];
+        let mut couple = |cols: &[usize]| {
+            for &a in cols.iter().filter(|&&a| a < n_y) {
+                for &b in cols.iter().filter(|&&b| b < n_y) {
+                    adjacent[a][b] = true;
+                }
+            }
+        };
+        for shape in shapes {
+            if let Shape::Flexible(i, j) = *shape {
+                couple(&[moved[i].as_slice(), moved[j].as_slice()].concat());
+            }
+        }
+        for (slot, &(_, via)) in self.order.iter().enumerate() {
+            if let Some(k) = via {
+                couple(&(self.first[slot]..self.first[slot] + self.edges[k].moving).collect::<Vec<_>>());
+            }
+        }
+        for (k, e) in self.edges.iter().enumerate() {
+            if !self.tree_edge[k] {
+                let a = e.a.map(|a| moved[a].clone()).unwrap_or_default();
+                couple(&[a.as_slice(), moved[e.b].as_slice()].concat());
+            }
+        }
+        let neighbours: Vec<Vec<usize>> =
+            (0..n_y).map(|a| (0..n_y).filter(|&b| b != a && adjacent[a][b]).collect()).collect();
+        // The envelope of an ordering (position -> coordinate): per row, its distance to its first neighbour.
+        let envelope = |order: &[usize]| {
+            let mut position = vec![0; n_y];
+            for (p, &v) in order.iter().enumerate() {
+                position[v] = p;
+            }
+            (0..n_y)
+                .map(|v| position[v] - neighbours[v].iter().map(|&u| position[u]).fold(position[v], usize::min))
+                .sum()
+        };
+        let mut best: (usize, Vec<usize>) = ((0..n_y).map(|_| 0).sum::<usize>(), (0..n_y).collect());
+        best.0 = envelope(&best.1);
+        for start in 0..n_y {
+            let mut order = Vec::with_capacity(n_y);
+            let mut seen = vec![false; n_y];
+            let mut next = Some(start);
+            while let Some(root) = next {
+                seen[root] = true;
+                let mut head = order.len();
+                order.push(root);
+                while head < order.len() {
+                    let v = order[head];
+                    head += 1;
+                    let mut fresh: Vec<usize> = neighbours[v].iter().copied().filter(|&u| !seen[u]).collect();
+                    fresh.sort_by_key(|&u| (neighbours[u].len(), u));
+                    for u in fresh {
+                        seen[u] = true;
+                        order.push(u);
+                    }
+                }
+                next = (0..n_y).filter(|&u| !seen[u]).min_by_key(|&u| (neighbours[u].len(), u));
+            }
+            order.reverse();
+            let size = envelope(&order);
+            if size < best.0 {
+                best = (size, order);
+            }
+        }
+        let mut column: Vec<usize> = (0..n_y + 6).collect();
+        for (p, &v) in best.1.iter().enumerate() {
+            column[v] = p;
+        }
+        column
+    }
+}
+
+/// How every node's twist depends on the coordinates: t_v = sum of x z_c over node v's entries (c, x),
+/// sorted by column. A node moves only with the coordinates along its forest path, a few of the
+/// structure's, so the maps are kept sparse (dense 6 x n_z maps cost most of a pose).
+#[derive(Clone, Debug, Default)]
+struct NodeMaps {
+    entries: Vec<(usize, Vec6)>,
+    spans: Vec<std::ops::Range<usize>>,
+}
+
+impl NodeMaps {
+    fn of(&self, v: usize) -> &[(usize, Vec6)] {
+        &self.entries[self.spans[v].clone()]
+    }
+}
+
+/// A twist at one point carried rigidly to a point `d` away: (v + w x d, w), `point_shift(d)` applied.
+fn carry(d: &Vec3, x: &Vec6) -> Vec6 {
+    let (v, w) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
+    let moved = v + w.cross(d);
+    Vec6::new(moved[0], moved[1], moved[2], w[0], w[1], w[2])
+}
+
+/// The reduced system being assembled and what solving it needs, kept between poses.
+#[derive(Clone, Debug)]
+struct Work {
+    maps: NodeMaps,
+    /// Stiffness on the forest's coordinates and the end's six (column-major, nz square), and the load.
+    kz: DMatrix<f64>,
+    f: DVector<f64>,
+    /// Loop-closure constraint rows over the nz coordinates, one after another.
+    constraints: Vec<f64>,
+    /// A loop's relative displacement per coordinate.
+    dt: Vec<Vec6>,
+    /// A flexible link's coordinates: (column, relative displacement across the link, K times it).
+    link: Vec<(usize, Vec6, Vec6)>,
+    cholesky: EnvelopeCholesky,
+    /// K_yy's diagonal as assembled (the factorisation overwrites it).
+    diagonal: Vec<f64>,
+}
+
+impl Default for Work {
+    fn default() -> Work {
+        Work {
+            maps: NodeMaps::default(),
+            kz: DMatrix::zeros(0, 0),
+            f: DVector::zeros(0),
+            constraints: Vec::new(),
+            dt: Vec::new(),
+            link: Vec::new(),
+            cholesky: EnvelopeCholesky::default(),
+            diagonal: Vec::new(),
+        }
+    }
+}
+
+/// The solver of structures of one shape: the forest and coordinates made at the first structure and
+/// kept while later ones have the same shape (remade otherwise), with its buffers.
+#[derive(Clone, Debug, Default)]
+pub struct Condenser {
+    shapes: Vec<Shape>,
+    nodes: usize,
+    end: usize,
+    plan: Option<Plan>,
+    work: Work,
+}
+
+impl Condenser {
+    /// Solves the structure (eq 15-17): the end node's stiffness and the wrench holding it against preloads.
+    pub fn condense(&mut self, s: &Structure) -> Result<EndAnswer, MsaFailure> {
+        let fits = self.plan.is_some()
+            && self.nodes == s.nodes.len()
+            && self.end == s.end
+            && self.shapes.len() == s.elements.len()
+            && self.shapes.iter().zip(&s.elements).all(|(a, e)| *a == shape(e));
+        if !fits {
+            self.plan = None;
+            self.shapes.clear();
+            self.shapes.extend(s.elements.iter().map(shape));
+            self.nodes = s.nodes.len();
+            self.end = s.end;
+            self.plan = Some(Plan::new(&self.shapes, self.nodes, self.end)?);
+        }
+        let plan = self.plan.as_ref().expect("made above");
+        self.work.solve(plan, s)
+    }
+}
+
+impl Work {
+    fn solve(&mut self, plan: &Plan, s: &Structure) -> Result<EndAnswer, MsaFailure> {
+        let (n_y, nz) = (plan.n_y, plan.n_y + 6);
+        if self.kz.nrows() != nz {
+            self.kz = DMatrix::zeros(nz, nz);
+            self.f = DVector::zeros(nz);
+        } else {
+            self.kz.as_mut_slice().fill(0.0);
+            self.f.as_mut_slice().fill(0.0);
+        }
+        self.constraints.clear();
+        self.node_maps(plan, s);
+        self.close_loops(plan, s);
+        if !plan.end_is_root {
+            // The end node reached through the forest: its twist must equal the prescribed u.
+            for r in 0..6 {
+                let start = self.constraints.len();
+                self.constraints.resize(start + nz, 0.0);
+                let row = &mut self.constraints[start..];
+                for (c, x) in self.maps.of(s.end) {
+                    row[*c] = x[r];
+                }
+                row[n_y + r] -= 1.0;
+            }
+        }
+        self.add_flexible_links(s);
+        let answer = if self.constraints.is_empty() && n_y > 0 {
+            self.condense_by_cholesky(n_y)
+        } else {
+            let constraints = independent(&self.constraints, nz);
+            solve_condensed(&self.kz, &self.f, &constraints, n_y)
+        };
+        answer.map_err(|null| match null {
+            Err(failure) => failure,
+            Ok(null) => {
+                // Which nodes a free motion moves (the multipliers' part of a null vector is not a motion).
+                let moves = |v: usize, y: &DVector<f64>| {
+                    let twist: Vec6 = self.maps.of(v).iter().filter(|(c, _)| *c < n_y).map(|(c, x)| x * y[*c]).sum();
+                    twist.norm() > NODE_MOVES * y.norm()
+                };
+                let nodes: Vec<usize> = (0..s.nodes.len()).filter(|&v| null.iter().any(|y| moves(v, y))).collect();
+                MsaFailure::Mechanism { free: null.len(), nodes }
+            }
+        })
+    }
+
+    /// Each node's twist as a linear map of the reduced coordinates, along the spanning forest; the tree
+    /// joints' springs act on their own coordinates (energy 1/2 (s - s0)^T K (s - s0)).
+    fn node_maps(&mut self, plan: &Plan, s: &Structure) {
+        let (n_y, nz) = (plan.n_y, plan.n_y + 6);
+        let t = &mut self.maps;
+        t.entries.clear();
+        t.spans.clear();
+        t.spans.resize(s.nodes.len(), 0..0);
+        for (slot, &(v, via)) in plan.order.iter().enumerate() {
+            let c0 = plan.first[slot];
+            let start = t.entries.len();
+            match via {
+                None => {
+                    // A root: the end node's six prescribed coordinates, or a free root's own six.
+                    let first = if v == s.end { n_y } else { c0 };
+                    t.entries.extend(
+                        (0..6).map(|r| (plan.column[first + r], Vec6::from_fn(|k, _| if k == r { 1.0 } else { 0.0 }))),
+                    );
+                }
+                Some(k) => {
+                    let e = &plan.edges[k];
+                    let connection = e.connection(s);
+                    let parent_is_a = e.b == v;
+                    let parent = if parent_is_a { e.a } else { Some(e.b) };
+                    if let Some(p) = parent {
+                        // t_b = A_ab t_a + dt, or t_a = A_ba (t_b - dt): the parent's map carried to v.
+                        let d = s.nodes[v] - s.nodes[p];
+                        for q in t.spans[p].clone() {
+                            let (c, x) = t.entries[q];
+                            t.entries.push((c, carry(&d, &x)));
+                        }
+                    }
+                    let back = s.nodes[v] - s.nodes[e.b];
+                    let moving = connection.free.iter().chain(&connection.elastic);
+                    for (c, d) in moving.enumerate() {
+                        let col = if parent_is_a { *d } else { -carry(&back, d) };
+                        t.entries.push((plan.column[c0 + c], col));
+                    }
+                    // Elastic coordinates follow the free ones: energy 1/2 (s - s0)^T K (s - s0).
+                    let ne = connection.elastic.len();
+                    let s0 = c0 + connection.free.len();
+                    let (k, preload) = (&connection.stiffness, &connection.preload);
+                    for c in 0..ne {
+                        for r in 0..ne {
+                            let (row, col) = (plan.column[s0 + r], plan.column[s0 + c]);
+                            self.kz[(row, col)] += k[(r, c)];
+                            self.f[row] += k[(r, c)] * preload[c];
+                        }
+                    }
+                }
+            }
+            t.entries[start..].sort_by_key(|(c, _)| *c);
+            t.spans[v] = start..t.entries.len();
+        }
+        debug_assert!(t.entries.iter().all(|(c, _)| *c < nz));
+    }
+
+    /// Connections outside the forest close loops: their rigid directions become constraints, their
+    /// elastic ones springs on the relative displacement dt.
+    fn close_loops(&mut self, plan: &Plan, s: &Structure) {
+        let nz = plan.n_y + 6;
+        for (k, e) in plan.edges.iter().enumerate() {
+            if plan.tree_edge[k] {
+                continue;
+            }
+            // dt = t_b - A_ab t_a, per coordinate.
+            let dt = &mut self.dt;
+            dt.clear();
+            dt.resize(nz, Vec6::zeros());
+            for (c, x) in self.maps.of(e.b) {
+                dt[*c] = *x;
+            }
+            if let Some(a) = e.a {
+                let d = s.nodes[e.b] - s.nodes[a];
+                for (c, x) in self.maps.of(a) {
+                    dt[*c] -= carry(&d, x);
+                }
+            }
+            let connection = e.connection(s);
+            let (_, rigid) = connection.moving_and_rigid();
+            for d in &rigid {
+                self.constraints.extend(dt.iter().map(|x| x.dot(d)));
+            }
+            // Springs on the relative displacement: energy 1/2 (B z - s0)^T K (B z - s0), B = elastic^T dt.
+            let (elastic, stiffness) = (&connection.elastic, &connection.stiffness);
+            let ne = elastic.len();
+            if ne > 0 {
+                let b = DMatrix::from_fn(ne, nz, |r, c| elastic[r].dot(&dt[c]));
+                let kb = stiffness * &b;
+                self.kz += b.transpose() * &kb;
+                self.f += b.transpose() * (stiffness * &connection.preload);
+            }
+        }
+    }
+
+    /// Flexible links (eq 1): energy 1/2 dt^T K_jj dt over the relative displacement dt = t_j - A_ij t_i
+    /// (the 12x12 form [t_i; t_j]^T K [t_i; t_j] of eq 1 with K_ji = -K_jj A_ij, K_ii = A_ij^T K_jj A_ij
+    /// by rigid-body invariance, written as one square), over the few coordinates that move nodes i and j
+    /// (those along their forest paths), not all of them.
+    fn add_flexible_links(&mut self, s: &Structure) {
+        let nz = self.kz.nrows();
+        for e in &s.elements {
+            let Element::Flexible { i, j, kjj } = e else { continue };
+            let k = (kjj + kjj.transpose()) * 0.5;
+            let d = s.nodes[*j] - s.nodes[*i];
+            let (ti, tj) = (self.maps.of(*i), self.maps.of(*j));
+            self.link.clear();
+            let (mut p, mut q) = (0, 0);
+            while p < ti.len() || q < tj.len() {
+                let (ci, cj) = (ti.get(p).map_or(usize::MAX, |x| x.0), tj.get(q).map_or(usize::MAX, |x| x.0));
+                let c = ci.min(cj);
+                let mut dt = Vec6::zeros();
+                if cj == c {
+                    dt = tj[q].1;
+                    q += 1;
+                }
+                if ci == c {
+                    dt -= carry(&d, &ti[p].1);
+                    p += 1;
+                }
+                self.link.push((c, dt, k * dt));
+            }
+            // The link's energy is symmetric in the coordinates: the upper triangle, mirrored.
+            let kz = self.kz.as_mut_slice();
+            for (a, (ca, dta, _)) in self.link.iter().enumerate() {
+                for (cb, _, load) in &self.link[a..] {
+                    let v = dta.dot(load);
+                    kz[cb * nz + ca] += v;
+                    if cb != ca {
+                        kz[ca * nz + cb] += v;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The solution where no loop closes: the reduced stiffness K_yy is symmetric positive definite unless
+    /// the structure is a mechanism, and with K_yy = L L^T, W = L^-1 K_yu and g = L^-1 f_y the end's
+    /// stiffness is K_uu - W^T W and its holding wrench W^T g - f_u (eq 17, as a Schur complement). L, W
+    /// and g overwrite K_yy's lower triangle, K_yu and f_y where they were assembled.
+    fn condense_by_cholesky(&mut self, n_y: usize) -> Result<EndAnswer, Result<Vec<DVector<f64>>, MsaFailure>> {
+        let nz = self.kz.nrows();
+        // K_yy as assembled, for the free motions of a mechanism: its strict upper triangle is left by the
+        // factorisation, its diagonal kept here.
+        self.diagonal.clear();
+        self.diagonal.extend((0..n_y).map(|i| self.kz[(i, i)]));
+        let (k, f) = (self.kz.as_mut_slice(), self.f.as_mut_slice());
+        let (yy, rest) = k.split_at_mut(n_y * nz);
+        let diagonal = &self.diagonal;
+        let assembled = |yy: &[f64]| {
+            DMatrix::from_fn(n_y, n_y, |r, c| match r.cmp(&c) {
+                std::cmp::Ordering::Less => yy[c * nz + r],
+                std::cmp::Ordering::Equal => diagonal[r],
+                std::cmp::Ordering::Greater => yy[r * nz + c],
+            })
+        };
+        match self.cholesky.factor(yy, nz, n_y) {
+            Some((lo, hi)) if lo > PIVOT_RATIO * hi => {}
+            _ => return Err(null_space(&assembled(yy), n_y)),
+        }
+        // Columns of W (K_yu's six), then g, each L^-1 applied in place.
+        for c in 0..6 {
+            self.cholesky.forward_in_place(yy, nz, &mut rest[c * nz..c * nz + n_y]);
+        }
+        self.cholesky.forward_in_place(yy, nz, &mut f[..n_y]);
+        let column = |c: usize| if c < 6 { &rest[c * nz..c * nz + n_y] } else { &f[..n_y] };
+        if !(0..7).all(|c| column(c).iter().all(|v| v.is_finite())) {
+            return Err(null_space(&assembled(yy), n_y));
+        }
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let mut stiffness = Mat6::zeros();
+        let mut holding = Vec6::zeros();
+        for r in 0..6 {
+            for c in r..6 {
+                // K_uu is symmetric to round-off: its mean, as the general route symmetrises its result.
+                let kuu = 0.5 * (rest[c * nz + n_y + r] + rest[r * nz + n_y + c]);
+                let v = kuu - dot(column(r), column(c));
+                stiffness[(r, c)] = v;
+                stiffness[(c, r)] = v;
+            }
+            holding[r] = dot(column(r), column(6)) - f[n_y + r];
+        }
+        Ok(EndAnswer { stiffness, holding_wrench: holding })
+    }
+}
+
+/// Drops constraint rows that repeat others (a loop of joints closed exactly, as in an over-constrained
+/// mechanism written with consistent geometry): they carry no information, and kept they make the
+/// system singular although the structure is not a mechanism.
+fn independent(rows: &[f64], nz: usize) -> Vec<DVector<f64>> {
+    let mut basis: Vec<DVector<f64>> = Vec::new();
+    let mut kept = Vec::new();
+    for row in rows.chunks_exact(nz) {
+        let row = DVector::from_column_slice(row);
+        let mut v = row.clone();
+        for _ in 0..2 {
+            for b in &basis {
+                let d = b.dot(&v);
+                v.axpy(-d, b, 1.0);
+            }
+        }
+        let n = v.norm();
+        if n > ROW_INDEPENDENCE * row.norm() {
+            basis.push(v / n);
+            kept.push(row);
+        }
+    }
+    kept
+}
+
+/// Condenses min 1/2 z^T K z - f^T z subject to C z = 0 onto the last six coordinates u (eq 17): returns the
+/// end stiffness and the holding wrench at u = 0, or the null space (as vectors over y) of a mechanism.
+fn solve_condensed(
+    kz: &DMatrix<f64>,
+    f: &DVector<f64>,
+    constraints: &[DVector<f64>],
+    n_y: usize,
+) -> Result<EndAnswer, Result<Vec<DVector<f64>>, MsaFailure>> {
+    let m = constraints.len();
+    let size = n_y + m;
+    // Constraint rows scaled to the stiffness' size, for a balanced factorisation.
+    let scale = (0..kz.nrows()).map(|i| kz[(i, i)].abs()).fold(1.0, f64::max);
+    let mut a = DMatrix::<f64>::zeros(size, size);
+    a.view_mut((0, 0), (n_y, n_y)).copy_from(&kz.view((0, 0), (n_y, n_y)));
+    let mut rhs = DMatrix::<f64>::zeros(size, 7);
+    for c in 0..6 {
+        for r in 0..n_y {
+            rhs[(r, c)] = -kz[(r, n_y + c)];
+        }
+    }
+    for r in 0..n_y {
+        rhs[(r, 6)] = f[r];
+    }
+    for (row, g) in constraints.iter().enumerate() {
+        for c in 0..n_y {
+            a[(n_y + row, c)] = scale * g[c];
+            a[(c, n_y + row)] = scale * g[c];
+        }
+        for c in 0..6 {
+            rhs[(n_y + row, c)] = -scale * g[n_y + c];
+        }
+    }
+    let x = if size == 0 {
+        DMatrix::zeros(0, 7)
+    } else {
+        let solved = {
+            let lu = a.clone().lu();
+            let u = lu.u();
+            let pivots = (0..size).map(|i| u[(i, i)].abs());
+            let (lo, hi) = pivots.fold((f64::INFINITY, 0.0f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
+            if lo > PIVOT_RATIO * hi {
+                lu.solve(&rhs)
+            } else {
+                None
+            }
+        };
+        match solved {
+            Some(x) if x.iter().all(|v| v.is_finite()) => x,
+            _ => return Err(null_space(&a, n_y)),
+        }
+    };
+    // Wrench at the end: dE/du = K_uy y + K_uu u + C_u^T lambda - f_u, lambda = scale * multipliers.
+    let mut stiffness = Mat6::zeros();
+    let mut holding = Vec6::zeros();
+    for r in 0..6 {
+        let ur = n_y + r;
+        for col in 0..7 {
+            let mut w = if col < 6 { kz[(ur, n_y + col)] } else { -f[ur] };
+            for c in 0..n_y {
+                w += kz[(ur, c)] * x[(c, col)];
+            }
+            for (row, g) in constraints.iter().enumerate() {
+                w += g[ur] * scale * x[(n_y + row, col)];
+            }
+            if col < 6 {
+                stiffness[(r, col)] = w;
+            } else {
+                holding[r] = w;
+            }
+        }
+    }
+    Ok(EndAnswer { stiffness: (stiffness + stiffness.transpose()) * 0.5, holding_wrench: holding })
+}
+
+/// The null space of a singular reduced system, restricted to the coordinates y (the free motions).
+fn null_space(a: &DMatrix<f64>, n_y: usize) -> Result<Vec<DVector<f64>>, MsaFailure> {
+    let svd = crate::linalg::capped_svd(a.clone(), false, true).ok_or(MsaFailure::NotFinite)?;
+    let v_t = svd.v_t.expect("asked for V^T");
+    let top = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    Ok(svd
+        .singular_values
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| **s <= NULL_SHARE * top)
+        .map(|(k, _)| v_t.row(k).columns(0, n_y).transpose())
+        .filter(|y| y.norm() > MOTION_FLOOR)
+        .collect())
+}
+
+/// The flexible links' assembly against eq 1 as the paper writes it.
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::frame::point_shift;
+
+    /// The 12x12 stiffness of eq 1 from K_jj by rigid-body invariance (a rigid motion of both ends loads
+    /// nothing): K_ji = -K_jj A, K_ij = K_ji^T, K_ii = A^T K_jj A, A carrying a twist at i to j.
+    fn twelve_by_twelve(kjj: &Mat6, pi: &Vec3, pj: &Vec3) -> [[Mat6; 2]; 2] {
+        let a = point_shift(&(pj - pi));
+        let kji = -(kjj * a);
+        [[a.transpose() * kjj * a, kji.transpose()], [kji, *kjj]]
+    }
+
+    /// The link energy as one square over the relative displacement equals eq 1's 12x12 quadratic form.
+    #[test]
+    fn relative_displacement_energy_equals_the_twelve_by_twelve_form() {
+        let g = Mat6::from_fn(|r, c| ((r * 7 + c * 3) % 5) as f64 - 2.0 + if r == c { 6.0 } else { 0.0 });
+        let kjj = g * g.transpose();
+        let (pi, pj) = (Vec3::new(1.0, -2.0, 0.5), Vec3::new(40.0, 12.0, -7.0));
+        let k = twelve_by_twelve(&kjj, &pi, &pj);
+        let ti = Vec6::new(0.3, -0.1, 0.7, 0.02, -0.05, 0.01);
+        let tj = Vec6::new(-0.2, 0.4, 0.1, -0.03, 0.06, 0.02);
+        let full = ti.dot(&(k[0][0] * ti + k[0][1] * tj)) + tj.dot(&(k[1][0] * ti + k[1][1] * tj));
+        let dt = tj - carry(&(pj - pi), &ti);
+        let square = dt.dot(&(kjj * dt));
+        assert!((full - square).abs() < 1e-12 * full.abs(), "{full} vs {square}");
+    }
+}
