@@ -161,8 +161,16 @@ impl EnvelopeCholesky {
     /// its lower triangle (read) becomes L, its strict upper triangle is left untouched. The smallest and
     /// largest pivot L_ii^2, or None where a pivot is not positive or not finite (not positive definite).
     pub fn factor(&mut self, a: &mut [f64], stride: usize, n: usize) -> Option<(f64, f64)> {
-        assert!(n <= stride && a.len() >= stride * n.saturating_sub(1) + n);
-        self.n = n;
+        self.eliminate(a, stride, n, n)
+    }
+
+    /// Eliminates the first `m` of the n coordinates of the symmetric n x n block: with A = [[A_yy, A_yu],
+    /// [A_uy, A_uu]], A_yy = L L^T, the lower triangle's first m columns become [L; A_uy L^-T] and the
+    /// trailing block's lower triangle becomes the Schur complement A_uu - A_uy A_yy^-1 A_yu (static
+    /// condensation, as one factorisation). Pivots as `factor`, over the m eliminated.
+    pub fn eliminate(&mut self, a: &mut [f64], stride: usize, n: usize, m: usize) -> Option<(f64, f64)> {
+        assert!(m <= n && n <= stride && a.len() >= stride * n.saturating_sub(1) + n);
+        self.n = m;
         self.first.clear();
         self.first.extend((0..n).map(|r| (0..r).find(|&j| a[j * stride + r] != 0.0).unwrap_or(r)));
         self.last.clear();
@@ -175,10 +183,10 @@ impl EnvelopeCholesky {
         }
         let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
         for k in 0..n {
-            // Column k of L, left-looking: a_rk - sum_{j<k} l_rj l_kj over the envelope.
+            // Column k, left-looking: a_rk - sum_{j<k, j<m} l_rj l_kj over the envelope.
             let (left, right) = a.split_at_mut(k * stride);
             let column = &mut right[..n];
-            for j in self.first[k]..k {
+            for j in self.first[k]..k.min(m) {
                 let lkj = left[j * stride + k];
                 if lkj != 0.0 {
                     let end = self.last[j] + 1;
@@ -186,6 +194,9 @@ impl EnvelopeCholesky {
                         *x -= l * lkj;
                     }
                 }
+            }
+            if k >= m {
+                continue;
             }
             let d = column[k];
             if !(d > 0.0 && d.is_finite()) {
@@ -206,11 +217,12 @@ impl EnvelopeCholesky {
     pub fn forward_in_place(&self, l: &[f64], stride: usize, b: &mut [f64]) {
         let b = &mut b[..self.n];
         for k in 0..self.n {
-            let col = &l[k * stride + k..k * stride + self.last[k] + 1];
+            let end = (self.last[k] + 1).min(self.n);
+            let col = &l[k * stride + k..k * stride + end];
             b[k] /= col[0];
             let bk = b[k];
             if bk != 0.0 {
-                for (x, l) in b[k + 1..self.last[k] + 1].iter_mut().zip(&col[1..]) {
+                for (x, l) in b[k + 1..end].iter_mut().zip(&col[1..]) {
                     *x -= l * bk;
                 }
             }
@@ -222,8 +234,9 @@ impl EnvelopeCholesky {
         self.forward_in_place(l, stride, b);
         let b = &mut b[..self.n];
         for k in (0..self.n).rev() {
-            let col = &l[k * stride + k..k * stride + self.last[k] + 1];
-            let dot: f64 = b[k + 1..self.last[k] + 1].iter().zip(&col[1..]).map(|(x, l)| x * l).sum();
+            let end = (self.last[k] + 1).min(self.n);
+            let col = &l[k * stride + k..k * stride + end];
+            let dot: f64 = b[k + 1..end].iter().zip(&col[1..]).map(|(x, l)| x * l).sum();
             b[k] = (b[k] - dot) / col[0];
         }
     }
@@ -300,5 +313,35 @@ mod tests {
         let mut indefinite = DMatrix::<f64>::identity(3, 3);
         indefinite[(1, 1)] = -1.0;
         assert!(EnvelopeCholesky::default().factor(indefinite.as_mut_slice(), 3, 3).is_none());
+    }
+
+    /// Eliminating the first m coordinates leaves the Schur complement A_uu - A_uy A_yy^-1 A_yu (computed
+    /// here with nalgebra's inverse) in the trailing block, and A_uy L^-T below L.
+    #[test]
+    fn elimination_leaves_the_schur_complement() {
+        let (n, m) = (10, 7);
+        let g = DMatrix::from_fn(n, n, |i, j| {
+            if i.abs_diff(j) <= 3 || i >= m || j >= m {
+                ((i * 3 + j * 5) % 7) as f64 - 3.0 + if i == j { 5.0 } else { 0.0 }
+            } else {
+                0.0
+            }
+        });
+        let a = &g * g.transpose();
+        let (ayy, ayu, auu) = (a.view((0, 0), (m, m)), a.view((0, m), (m, n - m)), a.view((m, m), (n - m, n - m)));
+        let schur = auu - ayu.transpose() * ayy.clone_owned().try_inverse().unwrap() * ayu;
+        let l = ayy.clone_owned().cholesky().unwrap().l();
+        let below = ayu.transpose() * l.transpose().try_inverse().unwrap();
+        let mut buffer = a.clone();
+        let mut c = EnvelopeCholesky::default();
+        c.eliminate(buffer.as_mut_slice(), n, n, m).unwrap();
+        for j in 0..n - m {
+            for i in j..n - m {
+                assert!((buffer[(m + i, m + j)] - schur[(i, j)]).abs() < 1e-10 * schur.amax(), "S[{i},{j}]");
+            }
+            for k in 0..m {
+                assert!((buffer[(m + j, k)] - below[(j, k)]).abs() < 1e-10 * below.amax(), "W[{j},{k}]");
+            }
+        }
     }
 }

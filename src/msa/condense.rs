@@ -551,49 +551,44 @@ impl Work {
 
     /// The solution where no loop closes: the reduced stiffness K_yy is symmetric positive definite unless
     /// the structure is a mechanism, and with K_yy = L L^T, W = L^-1 K_yu and g = L^-1 f_y the end's
-    /// stiffness is K_uu - W^T W and its holding wrench W^T g - f_u (eq 17, as a Schur complement). L, W
-    /// and g overwrite K_yy's lower triangle, K_yu and f_y where they were assembled.
+    /// stiffness is the Schur complement K_uu - W^T W and its holding wrench W^T g - f_u (eq 17). One
+    /// elimination of the y coordinates, in place where the system was assembled, leaves L, W^T below it
+    /// and the Schur complement in the trailing block.
     fn condense_by_cholesky(&mut self, n_y: usize) -> Result<EndAnswer, Result<Vec<DVector<f64>>, MsaFailure>> {
         let nz = self.kz.nrows();
         // K_yy as assembled, for the free motions of a mechanism: its strict upper triangle is left by the
-        // factorisation, its diagonal kept here.
+        // elimination, its diagonal kept here.
         self.diagonal.clear();
         self.diagonal.extend((0..n_y).map(|i| self.kz[(i, i)]));
         let (k, f) = (self.kz.as_mut_slice(), self.f.as_mut_slice());
-        let (yy, rest) = k.split_at_mut(n_y * nz);
         let diagonal = &self.diagonal;
-        let assembled = |yy: &[f64]| {
+        let assembled = |k: &[f64]| {
             DMatrix::from_fn(n_y, n_y, |r, c| match r.cmp(&c) {
-                std::cmp::Ordering::Less => yy[c * nz + r],
+                std::cmp::Ordering::Less => k[c * nz + r],
                 std::cmp::Ordering::Equal => diagonal[r],
-                std::cmp::Ordering::Greater => yy[r * nz + c],
+                std::cmp::Ordering::Greater => k[r * nz + c],
             })
         };
-        match self.cholesky.factor(yy, nz, n_y) {
+        match self.cholesky.eliminate(k, nz, nz, n_y) {
             Some((lo, hi)) if lo > PIVOT_RATIO * hi => {}
-            _ => return Err(null_space(&assembled(yy), n_y)),
+            _ => return Err(null_space(&assembled(k), n_y)),
         }
-        // Columns of W (K_yu's six), then g, each L^-1 applied in place.
-        for c in 0..6 {
-            self.cholesky.forward_in_place(yy, nz, &mut rest[c * nz..c * nz + n_y]);
+        self.cholesky.forward_in_place(k, nz, &mut f[..n_y]);
+        let finite = |v: &f64| v.is_finite();
+        if !(f[..n_y].iter().all(finite) && (n_y..nz).all(|c| k[c * nz + c..(c + 1) * nz].iter().all(finite))) {
+            return Err(null_space(&assembled(k), n_y));
         }
-        self.cholesky.forward_in_place(yy, nz, &mut f[..n_y]);
-        let column = |c: usize| if c < 6 { &rest[c * nz..c * nz + n_y] } else { &f[..n_y] };
-        if !(0..7).all(|c| column(c).iter().all(|v| v.is_finite())) {
-            return Err(null_space(&assembled(yy), n_y));
-        }
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
         let mut stiffness = Mat6::zeros();
         let mut holding = Vec6::zeros();
-        for r in 0..6 {
-            for c in r..6 {
-                // K_uu is symmetric to round-off: its mean, as the general route symmetrises its result.
-                let kuu = 0.5 * (rest[c * nz + n_y + r] + rest[r * nz + n_y + c]);
-                let v = kuu - dot(column(r), column(c));
+        for c in 0..6 {
+            for r in c..6 {
+                let v = k[(n_y + c) * nz + n_y + r];
                 stiffness[(r, c)] = v;
                 stiffness[(c, r)] = v;
             }
-            holding[r] = dot(column(r), column(6)) - f[n_y + r];
+            // Row c of W^T: column j's entry at row n_y + c.
+            let wg: f64 = (0..n_y).map(|j| k[j * nz + n_y + c] * f[j]).sum();
+            holding[c] = wg - f[n_y + c];
         }
         Ok(EndAnswer { stiffness, holding_wrench: holding })
     }
