@@ -66,6 +66,30 @@ pub fn cantilever_stiffness(s: &BeamSection, l: f64) -> Mat6 {
     k
 }
 
+/// `cantilever_stiffness` turned into the frame whose columns are the beam's x, y, z axes:
+/// `B K B^T` with B = `block_rotation(frame)`. Each 3x3 block of the local stiffness is diagonal or holds
+/// two entries, so each turned block is a sum of outer products of the frame's axes, about a third of the
+/// dense 6x6 products' work (an MSA beam is turned at every pose).
+pub fn turned_cantilever_stiffness(s: &BeamSection, l: f64, frame: &Mat3) -> Mat6 {
+    let k = cantilever_stiffness(s, l);
+    let axes = [frame.column(0).into_owned(), frame.column(1).into_owned(), frame.column(2).into_owned()];
+    let outer = |u: &Vec3, v: &Vec3| u * v.transpose();
+    let (mut forces, mut moments) = (Mat3::zeros(), Mat3::zeros());
+    for (i, a) in axes.iter().enumerate() {
+        let aa = outer(a, a);
+        forces += aa * k[(i, i)];
+        moments += aa * k[(3 + i, 3 + i)];
+    }
+    // The couplings: a lateral force along y with a moment about z, along z with a moment about y.
+    let coupling = outer(&axes[1], &axes[2]) * k[(1, 5)] + outer(&axes[2], &axes[1]) * k[(2, 4)];
+    let mut turned = Mat6::zeros();
+    turned.fixed_view_mut::<3, 3>(0, 0).copy_from(&forces);
+    turned.fixed_view_mut::<3, 3>(0, 3).copy_from(&coupling);
+    turned.fixed_view_mut::<3, 3>(3, 0).copy_from(&coupling.transpose());
+    turned.fixed_view_mut::<3, 3>(3, 3).copy_from(&moments);
+    turned
+}
+
 /// A rotation taking the x axis to `direction` (the beam's axis); the section's y axis is chosen
 /// perpendicular to it in a fixed way (irrelevant for round sections).
 pub fn frame_along(direction: &Vec3) -> Mat3 {
@@ -101,6 +125,22 @@ mod tests {
         let c = cantilever_compliance(&s, 300.0);
         assert_eq!(c, c.transpose());
         assert!(c.cholesky().is_some());
+    }
+
+    /// The turned stiffness by outer products equals the dense product B K B^T, for sections with
+    /// Iy != Iz in frames of every orientation.
+    #[test]
+    fn turned_stiffness_equals_the_dense_product() {
+        let s = BeamSection { e: 2e5, g: 8e4, area: 100.0, iy: 900.0, iz: 400.0, j: 1300.0 };
+        for (k, d) in
+            [Vec3::new(3.0, 0.0, 0.0), Vec3::new(1.0, -2.0, 0.5), Vec3::new(0.0, 0.1, -4.0)].iter().enumerate()
+        {
+            let frame = frame_along(d);
+            let b = block_rotation(&frame);
+            let dense = b * cantilever_stiffness(&s, 120.0 + 50.0 * k as f64) * b.transpose();
+            let turned = turned_cantilever_stiffness(&s, 120.0 + 50.0 * k as f64, &frame);
+            assert!((dense - turned).amax() < 1e-13 * dense.amax(), "{d}: {dense}\n{turned}");
+        }
     }
 
     #[test]

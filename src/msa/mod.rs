@@ -11,9 +11,10 @@
 //! (the internal wrenches of eq 15), their elastic directions springs on the relative displacement. The
 //! remaining system, symmetric and of the size of the structure's joint coordinates plus its loop
 //! constraints, is factorised once per pose (Cholesky where no loop closes, else LU with partial pivoting)
-//! and condensed onto the end node's six
-//! coordinates (eq 17). A singular system (a mechanism with the end held: a redundant passive joint, or a
-//! node left free) is reported with its number of free motions and the nodes they move.
+//! and condensed onto the end node's six coordinates (eq 17); `condense.rs` holds that solver, made once
+//! per shape of structure and reused pose after pose. A singular system (a mechanism with the end held: a
+//! redundant passive joint, or a node left free) is reported with its number of free motions and the nodes
+//! they move.
 
 mod condense;
 pub mod template;
@@ -30,8 +31,8 @@ const COMPLEMENT_INDEPENDENCE: f64 = 1e-9;
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::beam::{cantilever_stiffness, frame_along, BeamSection};
-use crate::kinematics::frame::{block_rotation, Mat3, Mat6, Vec3, Vec6};
+use crate::beam::{frame_along, turned_cantilever_stiffness, BeamSection};
+use crate::kinematics::frame::{Mat3, Mat6, Vec3, Vec6};
 
 /// How two nodes (or a node and the base) are joined, at the second node's point: the relative small
 /// displacement `dt = t_j - A_ij t_i` (`A_ij` carries i's twist to j's point, so for coincident nodes
@@ -175,8 +176,7 @@ pub fn oriented_beam_stiffness(section: &BeamSection, pi: &Vec3, pj: &Vec3, y_hi
         }
         None => frame_along(&d),
     };
-    let r = block_rotation(&frame);
-    let k = r * cantilever_stiffness(section, d.norm()) * r.transpose();
+    let k = turned_cantilever_stiffness(section, d.norm(), &frame);
     // A zero length or a modulus at the edge of doubles shows on the diagonal; a non-finite entry off it,
     // if any, is caught downstream: the condensed system's solution is checked, and its null space comes
     // from a checked SVD.
