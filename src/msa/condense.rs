@@ -24,6 +24,9 @@ const MOTION_FLOOR: f64 = 1e-9;
 /// A node moves with a free motion where its twist exceeds this share of the motion's size.
 const NODE_MOVES: f64 = 1e-6;
 
+/// Most starting coordinates tried for the envelope ordering (each costs a pass over the coupling graph).
+const ORDERING_STARTS: usize = 64;
+
 /// What the plan needs of an element: its kind, its nodes and its directions' counts (free, elastic).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Shape {
@@ -244,9 +247,14 @@ impl Plan {
                 .map(|v| position[v] - neighbours[v].iter().map(|&u| position[u]).fold(position[v], usize::min))
                 .sum()
         };
-        let mut best: (usize, Vec<usize>) = ((0..n_y).map(|_| 0).sum::<usize>(), (0..n_y).collect());
-        best.0 = envelope(&best.1);
-        for start in 0..n_y {
+        let forest_order: Vec<usize> = (0..n_y).collect();
+        let mut best = (envelope(&forest_order), forest_order);
+        // Starts of least degree first (the classic choice: a peripheral coordinate), at most
+        // `ORDERING_STARTS` of them, so that a structure of thousands of coordinates is ordered in time.
+        let mut starts: Vec<usize> = (0..n_y).collect();
+        starts.sort_by_key(|&v| (neighbours[v].len(), v));
+        starts.truncate(ORDERING_STARTS);
+        for start in starts {
             let mut order = Vec::with_capacity(n_y);
             let mut seen = vec![false; n_y];
             let mut next = Some(start);

@@ -190,7 +190,7 @@ impl Template {
                     for d in elastic {
                         connection.elastic.push(direction(d)?);
                     }
-                    if connection.stiffness.shape() == stiffness.shape() {
+                    if connection.stiffness.shape() == stiffness.shape() && connection.preload.len() == preload.len() {
                         connection.stiffness.copy_from(stiffness);
                         connection.preload.copy_from(preload);
                     } else {
