@@ -238,7 +238,7 @@ impl Plan {
         let neighbours: Vec<Vec<usize>> =
             (0..n_y).map(|a| (0..n_y).filter(|&b| b != a && adjacent[a][b]).collect()).collect();
         // The envelope of an ordering (position -> coordinate): per row, its distance to its first neighbour.
-        let envelope = |order: &[usize]| {
+        let envelope = |order: &[usize]| -> usize {
             let mut position = vec![0; n_y];
             for (p, &v) in order.iter().enumerate() {
                 position[v] = p;
