@@ -1,27 +1,30 @@
 //! An MSA leg evaluated pose after pose (a map) allocates nothing once its buffers have their size: its
 //! structure is refilled in place and its condenser keeps the forest, the coordinates' order and the
-//! reduced system's storage (the issue of allocation on the hot path, checked here by counting).
-//! One test in this binary, counting only on its own thread.
+//! reduced system's storage (the issue of allocation on the hot path, checked here by counting); so does a
+//! VJM manipulator's loaded equilibrium. Each test counts only the allocations made on its own thread.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
-use stiff::kinematics::frame::{Frame, Vec3};
+use stiff::kinematics::frame::{apply_twist, Frame, Vec3, Vec6};
 
 struct Counting;
 
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
 thread_local! {
     static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+/// Counts an allocation made while its thread counts.
+fn count() {
+    if COUNTING.with(Cell::get) {
+        ALLOCATIONS.with(|a| a.set(a.get() + 1));
+    }
 }
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
+        count();
         unsafe { System.alloc(layout) }
     }
 
@@ -30,9 +33,7 @@ unsafe impl GlobalAlloc for Counting {
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
+        count();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -41,11 +42,11 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 fn counted<T>(f: impl FnOnce() -> T) -> (T, usize) {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = ALLOCATIONS.with(Cell::get);
     COUNTING.with(|c| c.set(true));
     let out = f();
     COUNTING.with(|c| c.set(false));
-    (out, ALLOCATIONS.load(Ordering::Relaxed) - before)
+    (out, ALLOCATIONS.with(Cell::get) - before)
 }
 
 #[test]
@@ -66,4 +67,37 @@ fn msa_legs_allocate_nothing_per_pose() {
         assert_eq!(reached, 19, "{path}: every pose reachable");
         assert_eq!(allocations, 0, "{path} mode {mode:?}: allocations over 19 poses");
     }
+}
+
+/// The loaded equilibrium of a VJM manipulator (paper 000 eq 73-75: Newton on the platform pose and every
+/// leg's configuration and end wrench) is linearised, factorised and solved several times per point; once
+/// its buffers have their size, a point warm-started from its neighbour allocates nothing.
+#[test]
+fn loaded_vjm_deflections_allocate_nothing_per_point() {
+    let p = std::path::Path::new("manipulators/orthoglide-3puu.toml");
+    let source = std::fs::read_to_string(p).unwrap();
+    let m = stiff::model::parse_with(p, &source, &Default::default(), 0).unwrap().manipulator;
+    let mut state = m.new_state();
+    let wrench = Vec6::new(115.47, 115.47, 115.47, 0.0, 0.0, 0.0);
+    let pose = |k: usize| Frame::translation(Vec3::new(-40.0 + 4.0 * k as f64, 10.0 - 2.0 * k as f64, 5.0));
+    m.place(&pose(0), &mut state).unwrap();
+    let mut last = m.deflect(&pose(0), &wrench, None, &mut state).unwrap();
+    let (solved, allocations) = counted(|| {
+        (1..20)
+            .filter(|&k| {
+                m.place(&pose(k), &mut state).unwrap();
+                // The neighbour's displacement as the start, as a map's warm start makes it.
+                let start = apply_twist(&pose(k), &last.displacement);
+                match m.deflect(&pose(k), &wrench, Some(&start), &mut state) {
+                    Ok(d) => {
+                        last = d;
+                        true
+                    }
+                    Err(_) => false,
+                }
+            })
+            .count()
+    });
+    assert_eq!(solved, 19, "every point solved");
+    assert_eq!(allocations, 0, "allocations over 19 loaded points");
 }

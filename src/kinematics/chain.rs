@@ -88,7 +88,7 @@ pub enum Element {
 }
 
 /// Values of a chain's coordinates, by role.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct Coordinates {
     /// Actuated coordinates (mm or rad).
     pub actuated: Vec<f64>,
@@ -96,6 +96,19 @@ pub struct Coordinates {
     pub passive: Vec<f64>,
     /// Virtual (spring) coordinates.
     pub virtual_: Vec<f64>,
+}
+
+impl Clone for Coordinates {
+    fn clone(&self) -> Self {
+        Self { actuated: self.actuated.clone(), passive: self.passive.clone(), virtual_: self.virtual_.clone() }
+    }
+
+    /// Into the existing buffers (warm starts are saved and restored at every point).
+    fn clone_from(&mut self, source: &Self) {
+        self.actuated.clone_from(&source.actuated);
+        self.passive.clone_from(&source.passive);
+        self.virtual_.clone_from(&source.virtual_);
+    }
 }
 
 impl Coordinates {

@@ -223,38 +223,49 @@ impl Leg {
         }
     }
 
-    /// Linearises the leg's equilibrium with the platform at `platform` (Newton on the whole manipulator).
-    pub fn linearize(&self, platform: &Frame, state: &mut LegState) -> Result<LegLinear, LegFailure> {
+    /// Linearises the leg's equilibrium with the platform at `platform` (Newton on the whole manipulator),
+    /// into `lin`'s buffers (see `LegLinear::empty`).
+    pub fn linearize_into(
+        &self,
+        platform: &Frame,
+        state: &mut LegState,
+        lin: &mut LegLinear,
+    ) -> Result<(), LegFailure> {
         match self {
             Leg::Vjm(l) => {
                 state.ik.invalidate();
                 let target = l.target(platform);
-                let loaded = l.loaded_chain();
-                let lin = loaded
-                    .linearize(&target, &state.coords, &state.end_wrench, &mut state.equilibrium)
-                    .ok_or(LegFailure::SingularChain)?;
-                let v = lin.end - platform.pos;
-                let at_rp = at_reference_point(&lin.wrench, &lin.stiffness(), &v);
-                Ok(LegLinear {
-                    shift: point_shift(&v),
-                    corrected_force: corrected_force(&lin, platform),
-                    stiffness: at_rp.stiffness,
-                    magnitude: at_rp.magnitude,
-                    distance: lin.distance_from_equilibrium(l.length_scale),
-                    lin: Some(lin),
-                })
+                let chain = lin.lin.get_or_insert_with(Linearization::empty);
+                if !l.loaded_chain().linearize_into(
+                    &target,
+                    &state.coords,
+                    &state.end_wrench,
+                    &mut state.equilibrium,
+                    chain,
+                ) {
+                    return Err(LegFailure::SingularChain);
+                }
+                let v = chain.end - platform.pos;
+                let at_rp = at_reference_point(&chain.wrench, &chain.stiffness(), &v);
+                lin.shift = point_shift(&v);
+                lin.corrected_force = corrected_force(chain, platform);
+                lin.stiffness = at_rp.stiffness;
+                lin.magnitude = at_rp.magnitude;
+                lin.distance = chain.distance_from_equilibrium(l.length_scale);
+                Ok(())
             }
             // Linear: the answer at `platform` is exact, nothing inside the leg to correct.
             Leg::Msa(l) => {
                 let r = l.respond(platform, &state.msa)?;
-                Ok(LegLinear {
+                *lin = LegLinear {
                     lin: None,
                     shift: Mat6::identity(),
                     corrected_force: -r.wrench,
                     stiffness: r.stiffness,
                     magnitude: r.magnitude,
                     distance: 0.0,
-                })
+                };
+                Ok(())
             }
         }
     }
@@ -275,10 +286,7 @@ impl Leg {
                 lin.distance = chain.distance_from_equilibrium(l.length_scale);
                 Ok(())
             }
-            _ => {
-                *lin = self.linearize(platform, state)?;
-                Ok(())
-            }
+            _ => self.linearize_into(platform, state, lin),
         }
     }
 
@@ -300,9 +308,9 @@ impl Leg {
     }
 
     /// Stability with its end held of the leg's last linearised equilibrium (in its state).
-    pub fn stable(&self, state: &LegState) -> bool {
+    pub fn stable(&self, state: &mut LegState) -> bool {
         match self {
-            Leg::Vjm(l) => l.loaded_chain().stable(&state.equilibrium),
+            Leg::Vjm(l) => l.loaded_chain().stable(&mut state.equilibrium),
             Leg::Msa(_) => true,
         }
     }
@@ -365,7 +373,7 @@ pub struct AtReferencePoint {
 
 /// A leg's linearised equilibrium seen from the platform: one Newton step of the whole manipulator
 /// (platform pose and every leg's configuration together) is built from these.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct LegLinear {
     /// The VJM chain's linearised equilibrium (None for a linear MSA leg).
     lin: Option<Linearization>,

@@ -3,7 +3,7 @@
 //! method with load continuation (eq 73-75).
 
 use super::compliance::positive_definite;
-use super::leg::LegState;
+use super::leg::{LegLinear, LegState};
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
@@ -151,22 +151,22 @@ impl Manipulator {
         state: &mut ManipulatorState,
     ) -> Result<(Held, usize), DeflectionFailure> {
         let leg_failure = |i: usize| move |failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure });
-        let mut lins = Vec::with_capacity(self.legs.len());
+        let ManipulatorState { legs: states, linear: lins } = state;
+        lins.resize_with(self.legs.len(), LegLinear::default);
         let mut stiffness = Mat6::zeros();
         let mut full = true;
         let mut last_distance = f64::INFINITY;
         for it in 0..MAX_NEWTON {
             let (weight, d_weight) = self.weight(t);
+            for (i, ((leg, s), l)) in self.legs.iter().zip(states.iter_mut()).zip(lins.iter_mut()).enumerate() {
+                match full {
+                    true => leg.linearize_into(t, s, l),
+                    false => leg.refresh(t, s, l),
+                }
+                .map_err(leg_failure(i))?;
+            }
             if full {
-                lins.clear();
-                for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
-                    lins.push(leg.linearize(t, s).map_err(leg_failure(i))?);
-                }
                 stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
-            } else {
-                for (i, ((leg, s), l)) in self.legs.iter().zip(state.legs.iter_mut()).zip(lins.iter_mut()).enumerate() {
-                    leg.refresh(t, s, l).map_err(leg_failure(i))?;
-                }
             }
             // The payload's weight (a share of it under load continuation) is a load the legs carry.
             let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - weight * weight_share;
@@ -181,10 +181,10 @@ impl Manipulator {
             // longer shrink (round-off).
             let stalled = distance > 0.1 * last_distance;
             if full && distance <= NEWTON_TOLERANCE && (distance <= TANGENT_TOLERANCE || stalled) {
-                let unstable_legs = (self.legs.iter().zip(&state.legs).enumerate())
-                    .filter(|(_, (leg, s))| !leg.stable(s))
-                    .fold(0, |bits, (i, _)| bits | leg_bit(i));
-                for ((leg, l), s) in self.legs.iter().zip(&lins).zip(state.legs.iter_mut()) {
+                let unstable_legs = (self.legs.iter().zip(states.iter_mut()).enumerate())
+                    .filter_map(|(i, (leg, s))| (!leg.stable(s)).then_some(i))
+                    .fold(0, |bits, i| bits | leg_bit(i));
+                for ((leg, l), s) in self.legs.iter().zip(lins.iter()).zip(states.iter_mut()) {
                     leg.advance(l, &step, 1.0, s);
                 }
                 *t = apply_twist(t, &step);
@@ -203,10 +203,10 @@ impl Manipulator {
             last_distance = distance;
             let step_mm = step_size * self.length_scale;
             let mut fraction = if step_mm > MAX_STEP_MM { MAX_STEP_MM / step_mm } else { 1.0 };
-            for (leg, l) in self.legs.iter().zip(&lins) {
+            for (leg, l) in self.legs.iter().zip(lins.iter()) {
                 fraction = fraction.min(leg.step_fraction(l, &step));
             }
-            for ((leg, l), s) in self.legs.iter().zip(&lins).zip(state.legs.iter_mut()) {
+            for ((leg, l), s) in self.legs.iter().zip(lins.iter()).zip(states.iter_mut()) {
                 leg.advance(l, &step, fraction, s);
             }
             *t = apply_twist(t, &(step * fraction));

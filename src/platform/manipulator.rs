@@ -1,6 +1,6 @@
 //! A parallel manipulator: legs summed at the platform reference point (paper 001 s. 3.3, paper 000 eq 54).
 
-use super::leg::{Leg, LegFailure, LegResponse, LegState};
+use super::leg::{Leg, LegFailure, LegLinear, LegResponse, LegState};
 use crate::kinematics::frame::{Frame, Mat3, Mat6, Vec3, Vec6};
 
 /// A parallel manipulator: its legs, summed at the platform's reference point.
@@ -49,6 +49,9 @@ impl Payload {
 pub struct ManipulatorState {
     /// One per leg.
     pub legs: Vec<LegState>,
+    /// The legs' linearised equilibria of the loaded Newton method, one per leg, their buffers reused
+    /// from one iteration and one point to the next.
+    pub(super) linear: Vec<LegLinear>,
 }
 
 /// The sum over legs at one pose.
@@ -161,7 +164,10 @@ impl Manipulator {
 
     /// A fresh state (no warm starts).
     pub fn new_state(&self) -> ManipulatorState {
-        ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect() }
+        ManipulatorState {
+            legs: self.legs.iter().map(Leg::new_state).collect(),
+            linear: self.legs.iter().map(|_| LegLinear::default()).collect(),
+        }
     }
 
     /// Places every leg for the commanded pose (inverse kinematics).

@@ -16,7 +16,7 @@ use nalgebra::{DMatrix, DVector};
 use super::spring::SpringGroup;
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec3, Vec6};
-use crate::linalg::DenseLu;
+use crate::linalg::{DenseLu, EnvelopeCholesky};
 
 /// What a loaded chain needs besides its kinematics.
 pub struct LoadedChain<'a> {
@@ -70,12 +70,34 @@ pub const MAX_ITERATIONS: usize = 40;
 pub struct EquilibriumWorkspace {
     jac: ChainJacobians,
     generalised: Vec<f64>,
+    residual: Vec<f64>,
     /// The matrix of eq (45) at the last linearisation (kept for the stability test), its right-hand
-    /// sides, the load Hessian, and the factorisation.
+    /// sides by rows (the residuals, then a unit end displacement along each axis: solved together by
+    /// `DenseLu::solve_rows`), the load Hessian, and the factorisation.
     matrix: DMatrix<f64>,
-    rhs: DMatrix<f64>,
+    rhs: Vec<[f64; 7]>,
     hessian: DMatrix<f64>,
     lu: DenseLu,
+    stability: StabilityWork,
+}
+
+/// Buffers of the stability test (`LoadedChain::stable`), reused so that the test allocates nothing.
+#[derive(Clone, Debug, Default)]
+struct StabilityWork {
+    /// The constraint Jacobian J under elimination (6 x k, column-major).
+    jacobian: Vec<f64>,
+    basic: Vec<usize>,
+    free: Vec<usize>,
+    /// The basic columns' square block B of J (column-major) and its factorisation.
+    block: Vec<f64>,
+    lu: DenseLu,
+    /// X = B^-1 N (basic x free, column-major).
+    x: Vec<f64>,
+    /// The symmetrised energy Hessian (k x k, row-major), one column of H Z, and Z^T H Z (f x f).
+    hessian: Vec<f64>,
+    hz: Vec<f64>,
+    reduced: Vec<f64>,
+    cholesky: EnvelopeCholesky,
 }
 
 /// The linearised equilibrium of eq (45) at the current configuration: one factorisation serves the Newton
@@ -96,6 +118,24 @@ pub struct Linearization {
 }
 
 impl Linearization {
+    /// An empty linearisation, for `LoadedChain::linearize_into` to fill.
+    pub fn empty() -> Self {
+        Linearization {
+            correction: DVector::zeros(0),
+            sensitivity: DMatrix::zeros(0, 6),
+            end: Vec3::zeros(),
+            wrench: Vec6::zeros(),
+            end_error: Vec6::zeros(),
+        }
+    }
+
+    /// The change of coordinate `k` (in unknown order q, theta, F) for the end moved by `end_twist`:
+    /// the correction plus the sensitivities' response.
+    fn delta(&self, k: usize, end_twist: &Vec6) -> f64 {
+        let response = (0..6).fold(0.0, |sum, j| sum + self.sensitivity[(k, j)] * end_twist[j]);
+        self.correction[k] + response
+    }
+
     /// The tangent stiffness at the end (the last six rows of the sensitivities).
     pub fn stiffness(&self) -> Mat6 {
         let o = self.sensitivity.nrows() - 6;
@@ -135,13 +175,18 @@ impl LoadedChain<'_> {
     fn assemble(&self, coords: &Coordinates, wrench: &Vec6, target: &Frame, ws: &mut EquilibriumWorkspace) {
         let (n, m) = self.sizes();
         let size = n + m + 6;
-        let EquilibriumWorkspace { jac, generalised, matrix: a, rhs, hessian: h, .. } = ws;
+        let EquilibriumWorkspace { jac, generalised, residual, matrix: a, rhs, hessian: h, .. } = ws;
         resize_zeroed(a, size, size);
-        resize_zeroed(rhs, size, 7);
         resize_zeroed(h, n + m, n + m);
-        self.residual(coords, wrench, target, jac, generalised, &mut rhs.as_mut_slice()[..size]);
+        rhs.clear();
+        rhs.resize(size, [0.0; 7]);
+        residual.resize(size, 0.0);
+        self.residual(coords, wrench, target, jac, generalised, residual);
+        for (row, value) in rhs.iter_mut().zip(residual.iter()) {
+            row[0] = *value;
+        }
         for r in 0..6 {
-            rhs[(r, 1 + r)] = 1.0;
+            rhs[r][1 + r] = 1.0;
             for (k, c) in jac.passive.iter().enumerate() {
                 a[(r, k)] = c[r];
                 a[(6 + k, n + m + r)] = c[r];
@@ -246,26 +291,45 @@ impl LoadedChain<'_> {
         wrench: &Vec6,
         ws: &mut EquilibriumWorkspace,
     ) -> Option<Linearization> {
+        let mut lin = Linearization::empty();
+        self.linearize_into(target, coords, wrench, ws, &mut lin).then_some(lin)
+    }
+
+    /// `linearize` into `lin`'s buffers (the manipulator's Newton method linearises every leg several
+    /// times per point). False where the matrix is singular or the solution not finite.
+    pub fn linearize_into(
+        &self,
+        target: &Frame,
+        coords: &Coordinates,
+        wrench: &Vec6,
+        ws: &mut EquilibriumWorkspace,
+        lin: &mut Linearization,
+    ) -> bool {
         self.chain.evaluate(coords, &mut ws.jac);
         ws.jac.fill_virtual();
         self.assemble(coords, wrench, target, ws);
         let size = ws.matrix.nrows();
         if !ws.lu.factor(ws.matrix.as_slice(), size) {
-            return None;
+            return false;
         }
-        for c in 0..7 {
-            ws.lu.solve_in_place(ws.rhs.column_mut(c).as_mut_slice());
+        ws.lu.solve_rows(&mut ws.rhs);
+        if !ws.rhs.iter().flatten().all(|v| v.is_finite()) {
+            return false;
         }
-        if !ws.rhs.iter().all(|v| v.is_finite()) {
-            return None;
+        if lin.correction.len() != size {
+            lin.correction = DVector::zeros(size);
+            lin.sensitivity = DMatrix::zeros(size, 6);
         }
-        Some(Linearization {
-            correction: ws.rhs.column(0).into_owned(),
-            sensitivity: ws.rhs.columns(1, 6).into_owned(),
-            end: ws.jac.end.pos,
-            wrench: *wrench,
-            end_error: target.error_to(&ws.jac.end),
-        })
+        for (k, row) in ws.rhs.iter().enumerate() {
+            lin.correction[k] = row[0];
+            for c in 0..6 {
+                lin.sensitivity[(k, c)] = row[1 + c];
+            }
+        }
+        lin.end = ws.jac.end.pos;
+        lin.wrench = *wrench;
+        lin.end_error = target.error_to(&ws.jac.end);
+        true
     }
 
     /// Moves (q, theta, F) by the linearisation's correction plus its response to an end displacement
@@ -279,23 +343,21 @@ impl LoadedChain<'_> {
         wrench: &mut Vec6,
     ) {
         let (n, m) = self.sizes();
-        let delta = &lin.correction + &lin.sensitivity * DVector::from_column_slice(end_twist.as_slice());
         for k in 0..n {
-            coords.passive[k] += fraction * delta[k];
+            coords.passive[k] += fraction * lin.delta(k, end_twist);
         }
         for k in 0..m {
-            coords.virtual_[k] += fraction * delta[n + k];
+            coords.virtual_[k] += fraction * lin.delta(n + k, end_twist);
         }
         for r in 0..6 {
-            wrench[r] += fraction * delta[n + m + r];
+            wrench[r] += fraction * lin.delta(n + m + r, end_twist);
         }
     }
 
     /// The fraction of a Newton step that keeps every coordinate change within `MAX_STEP`.
     pub fn damping(&self, lin: &Linearization, end_twist: &Vec6) -> f64 {
         let (n, m) = self.sizes();
-        let delta = &lin.correction + &lin.sensitivity * DVector::from_column_slice(end_twist.as_slice());
-        let largest = delta.rows(0, n + m).amax();
+        let largest = (0..n + m).fold(0.0f64, |largest, k| largest.max(lin.delta(k, end_twist).abs()));
         if largest > MAX_STEP {
             MAX_STEP / largest
         } else {
@@ -342,22 +404,25 @@ impl LoadedChain<'_> {
     /// constraint Jacobian J = [J_q J_theta]. The null space is spanned by Z = [I; -B^-1 N] over six basic
     /// columns B of J chosen by complete pivoting (any basis serves a definiteness test); definiteness by a
     /// Cholesky factorisation of Z^T H Z.
-    pub fn stable(&self, ws: &EquilibriumWorkspace) -> bool {
+    pub fn stable(&self, ws: &mut EquilibriumWorkspace) -> bool {
         let (n, m) = self.sizes();
         let k = n + m;
-        let a = &ws.matrix;
-        // Basic columns by Gaussian elimination with complete pivoting on a copy of J.
-        let mut j = a.view((0, 0), (6, k)).into_owned();
-        let largest = j.amax();
-        let mut is_basic = vec![false; k];
-        let mut basic: Vec<usize> = Vec::with_capacity(6);
-        let mut rows_left: Vec<usize> = (0..6).collect();
+        let EquilibriumWorkspace { matrix: a, stability: w, .. } = ws;
+        let size = a.nrows();
+        let a = a.as_slice(); // column-major: a[(r, c)] = a[c * size + r]
+                              // Basic columns by Gaussian elimination with complete pivoting on a copy of J (column-major 6 x k).
+        w.jacobian.clear();
+        (0..k).for_each(|c| w.jacobian.extend_from_slice(&a[c * size..c * size + 6]));
+        let j = &mut w.jacobian;
+        let largest = j.iter().fold(0.0f64, |l, v| l.max(v.abs()));
+        w.basic.clear();
+        let mut rows_left = [true; 6];
         for _ in 0..6 {
             let mut best = (0usize, 0usize, 0.0f64);
-            for &r in &rows_left {
-                for c in (0..k).filter(|&c| !is_basic[c]) {
-                    if j[(r, c)].abs() > best.2 {
-                        best = (r, c, j[(r, c)].abs());
+            for r in (0..6).filter(|&r| rows_left[r]) {
+                for c in (0..k).filter(|c| !w.basic.contains(c)) {
+                    if j[c * 6 + r].abs() > best.2 {
+                        best = (r, c, j[c * 6 + r].abs());
                     }
                 }
             }
@@ -365,67 +430,73 @@ impl LoadedChain<'_> {
                 break;
             }
             let (pr, pc, _) = best;
-            for &r in &rows_left {
-                if r != pr {
-                    let f = j[(r, pc)] / j[(pr, pc)];
-                    for c in 0..k {
-                        let v = j[(pr, c)];
-                        j[(r, c)] -= f * v;
-                    }
+            for r in (0..6).filter(|&r| rows_left[r] && r != pr) {
+                let f = j[pc * 6 + r] / j[pc * 6 + pr];
+                for c in 0..k {
+                    let v = j[c * 6 + pr];
+                    j[c * 6 + r] -= f * v;
                 }
             }
-            rows_left.retain(|&r| r != pr);
-            basic.push(pc);
-            is_basic[pc] = true;
+            rows_left[pr] = false;
+            w.basic.push(pc);
         }
-        let free: Vec<usize> = (0..k).filter(|&c| !is_basic[c]).collect();
+        w.free.clear();
+        w.free.extend((0..k).filter(|c| !w.basic.contains(c)));
+        let (basic, free) = (&w.basic, &w.free);
         if free.is_empty() {
             return true;
         }
-        let jb = DMatrix::from_fn(6, basic.len(), |r, c| a[(r, basic[c])]);
-        let jn = DMatrix::from_fn(6, free.len(), |r, c| a[(r, free[c])]);
-        // With six basic columns B is square and regular; with fewer (J of rank below 6: directions the
-        // chain cannot move at all) least squares gives the same null space.
-        let x = if basic.len() == 6 {
-            match jb.lu().solve(&jn) {
-                Some(x) => x,
-                None => return false,
+        let (f, b) = (free.len(), basic.len());
+        // X = B^-1 N, B and N the basic and free columns of J. With six basic columns B is square and
+        // regular; with fewer (J of rank below 6: directions the chain cannot move at all) least squares
+        // gives the same null space.
+        w.x.clear();
+        if b == 6 {
+            w.block.clear();
+            basic.iter().for_each(|&c| w.block.extend_from_slice(&a[c * size..c * size + 6]));
+            if !w.lu.factor(&w.block, 6) {
+                return false;
+            }
+            for &c in free {
+                let start = w.x.len();
+                w.x.extend_from_slice(&a[c * size..c * size + 6]);
+                w.lu.solve_in_place(&mut w.x[start..]);
             }
         } else {
+            let jb = DMatrix::from_fn(6, b, |r, c| a[basic[c] * size + r]);
+            let jn = DMatrix::from_fn(6, f, |r, c| a[free[c] * size + r]);
             match crate::linalg::capped_svd(jb, true, true).map(|svd| svd.solve(&jn, 1e-12)) {
-                Some(Ok(x)) => x,
+                Some(Ok(x)) => w.x.extend_from_slice(x.as_slice()),
                 _ => return false,
             }
-        };
+        }
         // Z = [I; -X] on (free; basic) coordinates, so Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X, with
         // H the energy Hessian, minus the symmetrised load block of eq (45). Column by column of Z,
         // z_c = e_free[c] - sum_b X[b, c] e_basic[b]: reduced[r, c] = z_r^T (H z_c).
-        let (f, b) = (free.len(), basic.len());
         // H, row-major: the symmetrised energy Hessian.
-        let mut hess = vec![0.0; k * k];
+        w.hessian.clear();
         for r in 0..k {
-            for c in 0..k {
-                hess[r * k + c] = -0.5 * (a[(6 + r, c)] + a[(6 + c, r)]);
-            }
+            w.hessian.extend((0..k).map(|c| -0.5 * (a[c * size + 6 + r] + a[r * size + 6 + c])));
         }
-        let x = x.as_slice(); // column-major b x f
-        let mut hz = vec![0.0; k];
-        let mut reduced = DMatrix::zeros(f, f);
+        let x = &w.x; // column-major b x f
+        w.hz.resize(k, 0.0);
+        w.reduced.clear();
+        w.reduced.resize(f * f, 0.0);
         for c in 0..f {
             let xc = &x[c * b..(c + 1) * b];
-            for (value, row) in hz.iter_mut().zip(hess.chunks_exact(k)) {
+            for (value, row) in w.hz.iter_mut().zip(w.hessian.chunks_exact(k)) {
                 *value = row[free[c]] - basic.iter().zip(xc).map(|(&bb, xb)| row[bb] * xb).sum::<f64>();
             }
             for r in 0..f {
                 let xr = &x[r * b..(r + 1) * b];
-                reduced[(r, c)] = hz[free[r]] - basic.iter().zip(xr).map(|(&bb, xb)| xb * hz[bb]).sum::<f64>();
+                w.reduced[c * f + r] = w.hz[free[r]] - basic.iter().zip(xr).map(|(&bb, xb)| xb * w.hz[bb]).sum::<f64>();
             }
         }
-        let tol = 1e-12 * reduced.amax().max(f64::MIN_POSITIVE);
+        let tol = 1e-12 * w.reduced.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
         for d in 0..f {
-            reduced[(d, d)] -= tol;
+            w.reduced[d * f + d] -= tol;
         }
-        reduced.cholesky().is_some()
+        w.cholesky.factor(&mut w.reduced, f, f).is_some()
     }
 }
 
