@@ -393,3 +393,42 @@ chain = [
         }
     }
 }
+
+/// The equilibrium under a load and its tangent stiffness are properties of the pose, not of the path the
+/// solver took: a point solved with chord steps on its neighbour's factorisations (the state carried from
+/// a solve 3 mm away, as along a map's row), or after the legs were linearised for something else in
+/// between (`hold`, which leaves other factorisations in the legs' workspaces), agrees with the same point
+/// solved from a fresh state, to the solver's tolerance.
+#[test]
+fn a_point_solved_from_its_neighbours_factorisations_agrees_with_a_fresh_solve() {
+    let m = orthoglide();
+    let wrench = Vec6::new(215.0, -10.0, -25.0, 1000.0, 21500.0, 0.0);
+    let at = |x: f64| Frame::translation(Vec3::new(x, 20.0 - 0.4 * x, -10.0 + 0.2 * x));
+    let fresh = |x: f64| {
+        let mut s = m.new_state();
+        s.polish_placements();
+        m.place(&at(x), &mut s).unwrap();
+        m.deflect(&at(x), &wrench, None, &mut s).unwrap()
+    };
+    // Placements converged past the usual tolerance, so that both solves hold the same actuators.
+    let mut carried = m.new_state();
+    carried.polish_placements();
+    m.place(&at(-30.0), &mut carried).unwrap();
+    let mut last = m.deflect(&at(-30.0), &wrench, None, &mut carried).unwrap();
+    for (k, x) in [-27.0, -24.0, -21.0, 0.0].into_iter().enumerate() {
+        m.place(&at(x), &mut carried).unwrap();
+        if k == 2 {
+            m.hold(&at(x), &mut carried).unwrap();
+        }
+        let start = apply_twist(&at(x), &last.displacement);
+        let path = m.deflect(&at(x), &wrench, Some(&start), &mut carried).unwrap();
+        let alone = fresh(x);
+        let scale = alone.displacement.norm();
+        let gap = (path.displacement - alone.displacement).norm() / scale;
+        assert!(gap < 1e-8, "x = {x}: displacement gap {gap:e}, {}", path.displacement - alone.displacement);
+        let k_scale = alone.held.stiffness.norm();
+        assert!((path.held.stiffness - alone.held.stiffness).norm() < 1e-8 * k_scale, "x = {x}: stiffness");
+        assert_eq!(path.stable, alone.stable, "x = {x}");
+        last = path;
+    }
+}

@@ -272,21 +272,25 @@ impl Leg {
 
     /// A chord step of the manipulator's Newton method: `lin` made afresh at the leg's current state except
     /// its stiffness and sensitivities, which stay those of the full linearisation it was made by (see
-    /// `LoadedChain::refresh`). A linear MSA leg is linearised afresh (exact, and cheap).
-    pub fn refresh(&self, platform: &Frame, state: &mut LegState, lin: &mut LegLinear) -> Result<(), LegFailure> {
+    /// `LoadedChain::refresh`). A linear MSA leg is linearised afresh (exact, and cheap). False where the
+    /// leg's workspace no longer holds that linearisation's factorisation: `linearize_into` must come first.
+    pub fn refresh(&self, platform: &Frame, state: &mut LegState, lin: &mut LegLinear) -> Result<bool, LegFailure> {
         match (self, &mut lin.lin) {
             (Leg::Vjm(l), Some(chain)) => {
                 state.ik.invalidate();
                 let target = l.target(platform);
                 let loaded = l.loaded_chain();
-                if !loaded.refresh(&target, &state.coords, &state.end_wrench, &mut state.equilibrium, chain) {
-                    return Err(LegFailure::SingularChain);
+                match loaded.refresh(&target, &state.coords, &state.end_wrench, &mut state.equilibrium, chain) {
+                    None => return Ok(false),
+                    Some(false) => return Err(LegFailure::SingularChain),
+                    Some(true) => {}
                 }
                 lin.corrected_force = corrected_force(chain, platform);
                 lin.distance = chain.distance_from_equilibrium(l.length_scale);
-                Ok(())
+                Ok(true)
             }
-            _ => self.linearize_into(platform, state, lin),
+            (Leg::Vjm(_), None) => Ok(false),
+            (Leg::Msa(_), _) => self.linearize_into(platform, state, lin).map(|_| true),
         }
     }
 

@@ -151,21 +151,27 @@ impl Manipulator {
         state: &mut ManipulatorState,
     ) -> Result<(Held, usize), DeflectionFailure> {
         let leg_failure = |i: usize| move |failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure });
-        let ManipulatorState { legs: states, linear: lins } = state;
+        let ManipulatorState { legs: states, linear: lins, chord_stiffness } = state;
         lins.resize_with(self.legs.len(), LegLinear::default);
-        let mut stiffness = Mat6::zeros();
-        let mut full = true;
+        // Chord steps first where the last solve's factorisations are at hand (the neighbouring point's, or
+        // the last load step's): from a warm start they contract by the small change of the matrices
+        // between neighbours, and the one full linearisation the point needs is then the last.
+        let (mut stiffness, mut full) = match chord_stiffness.take() {
+            Some(k) => (k, false),
+            None => (Mat6::zeros(), true),
+        };
         let mut last_distance = f64::INFINITY;
         for it in 0..MAX_NEWTON {
             let (weight, d_weight) = self.weight(t);
-            for (i, ((leg, s), l)) in self.legs.iter().zip(states.iter_mut()).zip(lins.iter_mut()).enumerate() {
-                match full {
-                    true => leg.linearize_into(t, s, l),
-                    false => leg.refresh(t, s, l),
+            if !full {
+                for (i, ((leg, s), l)) in self.legs.iter().zip(states.iter_mut()).zip(lins.iter_mut()).enumerate() {
+                    full |= !leg.refresh(t, s, l).map_err(leg_failure(i))?;
                 }
-                .map_err(leg_failure(i))?;
             }
             if full {
+                for (i, ((leg, s), l)) in self.legs.iter().zip(states.iter_mut()).zip(lins.iter_mut()).enumerate() {
+                    leg.linearize_into(t, s, l).map_err(leg_failure(i))?;
+                }
                 stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
             }
             // The payload's weight (a share of it under load continuation) is a load the legs carry.
@@ -189,6 +195,7 @@ impl Manipulator {
                 }
                 *t = apply_twist(t, &step);
                 let magnitude: Vec6 = lins.iter().map(|l| l.magnitude).sum();
+                *chord_stiffness = Some(stiffness);
                 return Ok((
                     Held { force: force + stiffness * step, stiffness, magnitude, unstable_legs, iterations: it + 1 },
                     it + 1,
@@ -196,9 +203,11 @@ impl Manipulator {
             }
             // The next step: chord steps while they contract, a full one to confirm their convergence once
             // the distance left after this step (contracting as the last one did) is within the tolerance.
+            // (A first chord step, from the last solve's factorisations, has no contraction to go by yet.)
+            let contraction = if last_distance.is_finite() { distance / last_distance } else { 1.0 };
             full = match full {
                 true => distance > CHORD_RANGE,
-                false => stalled || distance * (distance / last_distance) <= TANGENT_TOLERANCE,
+                false => stalled || distance * contraction <= TANGENT_TOLERANCE,
             };
             last_distance = distance;
             let step_mm = step_size * self.length_scale;

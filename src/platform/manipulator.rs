@@ -52,6 +52,10 @@ pub struct ManipulatorState {
     /// The legs' linearised equilibria of the loaded Newton method, one per leg, their buffers reused
     /// from one iteration and one point to the next.
     pub(super) linear: Vec<LegLinear>,
+    /// The manipulator's tangent stiffness of the full linearisation the last loaded solve ended with,
+    /// while the legs' linearisations and factorisations are still those: the next point starts with chord
+    /// steps on them.
+    pub(super) chord_stiffness: Option<Mat6>,
 }
 
 /// The sum over legs at one pose.
@@ -167,6 +171,7 @@ impl Manipulator {
         ManipulatorState {
             legs: self.legs.iter().map(Leg::new_state).collect(),
             linear: self.legs.iter().map(|_| LegLinear::default()).collect(),
+            chord_stiffness: None,
         }
     }
 

@@ -78,6 +78,9 @@ pub struct EquilibriumWorkspace {
     rhs: Vec<[f64; 7]>,
     hessian: DMatrix<f64>,
     lu: DenseLu,
+    /// Factorisations made in `lu` so far: a linearisation records the number of its own, so that a chord
+    /// step knows whether `lu` still holds it.
+    factorizations: u64,
     stability: StabilityWork,
 }
 
@@ -115,6 +118,8 @@ pub struct Linearization {
     pub wrench: Vec6,
     /// Where the end is minus where it was asked (translation, rotation vector).
     pub end_error: Vec6,
+    /// The number of its factorisation in the workspace that made it (see `EquilibriumWorkspace`).
+    factorization: u64,
 }
 
 impl Linearization {
@@ -126,6 +131,7 @@ impl Linearization {
             end: Vec3::zeros(),
             wrench: Vec6::zeros(),
             end_error: Vec6::zeros(),
+            factorization: 0,
         }
     }
 
@@ -263,7 +269,9 @@ impl LoadedChain<'_> {
     /// A chord step (simplified Newton): the residuals at `coords` solved with the factorisation of the
     /// last full linearisation in `ws`, into `lin`, whose sensitivities stay those of that linearisation.
     /// Near the solution it contracts by the relative change of the matrix since, for the price of one
-    /// evaluation and one solve. False where the solution is not finite.
+    /// evaluation and one solve. None where `ws` no longer holds `lin`'s factorisation (the chain was
+    /// linearised since for another purpose): a full linearisation must come first. Some(false) where the
+    /// solution is not finite.
     pub fn refresh(
         &self,
         target: &Frame,
@@ -271,7 +279,10 @@ impl LoadedChain<'_> {
         wrench: &Vec6,
         ws: &mut EquilibriumWorkspace,
         lin: &mut Linearization,
-    ) -> bool {
+    ) -> Option<bool> {
+        if lin.factorization == 0 || lin.factorization != ws.factorizations {
+            return None;
+        }
         self.chain.evaluate(coords, &mut ws.jac);
         ws.jac.fill_virtual();
         let correction = lin.correction.as_mut_slice();
@@ -280,7 +291,7 @@ impl LoadedChain<'_> {
         lin.end = ws.jac.end.pos;
         lin.wrench = *wrench;
         lin.end_error = target.error_to(&ws.jac.end);
-        correction.iter().all(|v| v.is_finite())
+        Some(correction.iter().all(|v| v.is_finite()))
     }
 
     /// Linearises the equilibrium with the chain's end asked at `target`.
@@ -309,6 +320,7 @@ impl LoadedChain<'_> {
         ws.jac.fill_virtual();
         self.assemble(coords, wrench, target, ws);
         let size = ws.matrix.nrows();
+        ws.factorizations += 1;
         if !ws.lu.factor(ws.matrix.as_slice(), size) {
             return false;
         }
@@ -329,6 +341,7 @@ impl LoadedChain<'_> {
         lin.end = ws.jac.end.pos;
         lin.wrench = *wrench;
         lin.end_error = target.error_to(&ws.jac.end);
+        lin.factorization = ws.factorizations;
         true
     }
 
