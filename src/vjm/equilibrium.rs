@@ -98,6 +98,7 @@ struct StabilityWork {
     x: Vec<f64>,
     /// The symmetrised energy Hessian (k x k, row-major), one column of H Z, and Z^T H Z (f x f).
     hessian: Vec<f64>,
+    basic_columns: Vec<f64>,
     hz: Vec<f64>,
     reduced: Vec<f64>,
     cholesky: EnvelopeCholesky,
@@ -422,8 +423,9 @@ impl LoadedChain<'_> {
         let k = n + m;
         let EquilibriumWorkspace { matrix: a, stability: w, .. } = ws;
         let size = a.nrows();
-        let a = a.as_slice(); // column-major: a[(r, c)] = a[c * size + r]
-                              // Basic columns by Gaussian elimination with complete pivoting on a copy of J (column-major 6 x k).
+        // Column-major: a[(r, c)] = a[c * size + r].
+        let a = a.as_slice();
+        // Basic columns by Gaussian elimination with complete pivoting on a copy of J (column-major 6 x k).
         w.jacobian.clear();
         (0..k).for_each(|c| w.jacobian.extend_from_slice(&a[c * size..c * size + 6]));
         let j = &mut w.jacobian;
@@ -492,17 +494,28 @@ impl LoadedChain<'_> {
             w.hessian.extend((0..k).map(|c| -0.5 * (a[c * size + 6 + r] + a[r * size + 6 + c])));
         }
         let x = &w.x; // column-major b x f
+                      // H's basic columns gathered by rows (k x b), so that each sum over the basic coordinates runs
+                      // over two contiguous slices.
+        w.basic_columns.clear();
+        for row in w.hessian.chunks_exact(k) {
+            w.basic_columns.extend(basic.iter().map(|&bb| row[bb]));
+        }
         w.hz.resize(k, 0.0);
         w.reduced.clear();
         w.reduced.resize(f * f, 0.0);
+        let mut hz_basic = [0.0; 6];
         for c in 0..f {
             let xc = &x[c * b..(c + 1) * b];
-            for (value, row) in w.hz.iter_mut().zip(w.hessian.chunks_exact(k)) {
-                *value = row[free[c]] - basic.iter().zip(xc).map(|(&bb, xb)| row[bb] * xb).sum::<f64>();
+            let rows = w.hessian.chunks_exact(k).zip(w.basic_columns.chunks_exact(b));
+            for (value, (row, row_basic)) in w.hz.iter_mut().zip(rows) {
+                *value = row[free[c]] - row_basic.iter().zip(xc).map(|(h, xb)| h * xb).sum::<f64>();
+            }
+            for (h, &bb) in hz_basic.iter_mut().zip(basic) {
+                *h = w.hz[bb];
             }
             for r in 0..f {
                 let xr = &x[r * b..(r + 1) * b];
-                w.reduced[c * f + r] = w.hz[free[r]] - basic.iter().zip(xr).map(|(&bb, xb)| xb * w.hz[bb]).sum::<f64>();
+                w.reduced[c * f + r] = w.hz[free[r]] - xr.iter().zip(&hz_basic).map(|(xb, h)| xb * h).sum::<f64>();
             }
         }
         let tol = 1e-12 * w.reduced.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
