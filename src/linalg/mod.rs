@@ -109,6 +109,15 @@ impl DenseLu {
         true
     }
 
+    /// The factorisation's row exchanges applied to a right-hand side (its values, or its rows).
+    fn exchange_rows<T>(&self, b: &mut [T]) {
+        for (k, &p) in self.pivots.iter().enumerate() {
+            if p != k {
+                b.swap(k, p);
+            }
+        }
+    }
+
     /// Solves in place for W right-hand sides at once, stored by rows (row i of every right-hand side in
     /// `b[i]`): each elimination updates a whole row of W values, which the compiler keeps in vector
     /// registers, where W separate solves would each walk the factors. Per right-hand side, the same
@@ -116,11 +125,7 @@ impl DenseLu {
     pub fn solve_rows<const W: usize>(&self, b: &mut [[f64; W]]) {
         let (n, a) = (self.n, &self.a);
         let b = &mut b[..n];
-        for (k, &p) in self.pivots.iter().enumerate() {
-            if p != k {
-                b.swap(k, p);
-            }
-        }
+        self.exchange_rows(b);
         for k in 0..n {
             let (done, below) = b.split_at_mut(k + 1);
             let bk = done[k];
@@ -149,11 +154,7 @@ impl DenseLu {
     pub fn solve_in_place(&self, b: &mut [f64]) {
         let (n, a) = (self.n, &self.a);
         let b = &mut b[..n];
-        for (k, &p) in self.pivots.iter().enumerate() {
-            if p != k {
-                b.swap(k, p);
-            }
-        }
+        self.exchange_rows(b);
         // Forward substitution with the unit lower triangle, column by column.
         for k in 0..n {
             let bk = b[k];
