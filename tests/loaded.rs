@@ -432,3 +432,25 @@ fn a_point_solved_from_its_neighbours_factorisations_agrees_with_a_fresh_solve()
         last = path;
     }
 }
+
+/// A chord step solves eq (45)'s residuals with the factorisation its linearisation made. Once the leg's
+/// workspace holds another (the leg linearised since at another pose), or where there never was one, the
+/// chord step is refused (the Newton method then linearises afresh) rather than solved with a matrix that
+/// belongs to another configuration.
+#[test]
+fn a_chord_step_on_a_factorisation_no_longer_held_is_refused() {
+    use stiff::platform::leg::LegLinear;
+    let m = orthoglide();
+    let leg = &m.legs[1];
+    let mut s = leg.new_state();
+    let (pose, moved) =
+        (Frame::translation(Vec3::new(10.0, -20.0, 5.0)), Frame::translation(Vec3::new(10.2, -20.0, 5.0)));
+    leg.place(&pose, &mut s).unwrap();
+    assert!(!leg.refresh(&pose, &mut s, &mut LegLinear::default()).unwrap(), "never linearised");
+    let (mut first, mut second) = (LegLinear::default(), LegLinear::default());
+    leg.linearize_into(&pose, &mut s, &mut first).unwrap();
+    assert!(leg.refresh(&pose, &mut s, &mut first).unwrap(), "its own factorisation");
+    leg.linearize_into(&moved, &mut s, &mut second).unwrap();
+    assert!(!leg.refresh(&pose, &mut s, &mut first).unwrap(), "another factorisation in the workspace");
+    assert!(leg.refresh(&moved, &mut s, &mut second).unwrap(), "the latest one");
+}

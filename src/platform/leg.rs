@@ -224,7 +224,7 @@ impl Leg {
     }
 
     /// Linearises the leg's equilibrium with the platform at `platform` (Newton on the whole manipulator),
-    /// into `lin`'s buffers (see `LegLinear::empty`).
+    /// into `lin`'s buffers (a `LegLinear::default()` the first time, then reused).
     pub fn linearize_into(
         &self,
         platform: &Frame,

@@ -49,8 +49,8 @@ impl Payload {
 pub struct ManipulatorState {
     /// One per leg.
     pub legs: Vec<LegState>,
-    /// The legs' linearised equilibria of the loaded Newton method, one per leg, their buffers reused
-    /// from one iteration and one point to the next.
+    /// The legs' linearised equilibria of the loaded Newton method, one per leg (sized by the method
+    /// itself), their buffers reused from one iteration and one point to the next.
     pub(super) linear: Vec<LegLinear>,
     /// The manipulator's tangent stiffness of the full linearisation the last loaded solve ended with,
     /// while the legs' linearisations and factorisations are still those: the next point starts with chord
@@ -170,7 +170,7 @@ impl Manipulator {
     pub fn new_state(&self) -> ManipulatorState {
         ManipulatorState {
             legs: self.legs.iter().map(Leg::new_state).collect(),
-            linear: self.legs.iter().map(|_| LegLinear::default()).collect(),
+            linear: Vec::new(),
             chord_stiffness: None,
         }
     }

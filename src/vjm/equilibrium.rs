@@ -493,9 +493,9 @@ impl LoadedChain<'_> {
         for r in 0..k {
             w.hessian.extend((0..k).map(|c| -0.5 * (a[c * size + 6 + r] + a[r * size + 6 + c])));
         }
-        let x = &w.x; // column-major b x f
-                      // H's basic columns gathered by rows (k x b), so that each sum over the basic coordinates runs
-                      // over two contiguous slices.
+        // X, column-major b x f; H's basic columns gathered by rows (k x b), so that each sum over the basic
+        // coordinates runs over two contiguous slices.
+        let x = &w.x;
         w.basic_columns.clear();
         for row in w.hessian.chunks_exact(k) {
             w.basic_columns.extend(basic.iter().map(|&bb| row[bb]));
