@@ -161,3 +161,19 @@ fn condition_column_is_the_condition_number_of_the_equilibrated_stiffness() {
         assert!((got - expected).abs() < 1e-9 * expected, "at {p:?}: {got} vs {expected}");
     }
 }
+
+/// A free rotation about the z axis through (0, -1e-9, 0) mm (a centre that round-off has moved off the
+/// axis by far less than the printed digits) is reported through (0.0000, 0.0000, 0.0000) mm: a coordinate
+/// that rounds to zero prints without a sign (Stewart-Gough A's centre once printed as (0.0000, -0.0000,
+/// 500.0000) mm after a change of round-off).
+#[test]
+fn a_coordinate_that_rounds_to_zero_is_printed_without_a_sign() {
+    // The reference point's velocity under a unit rotation about z through c is -z x c.
+    let c = Vec3::new(0.0, -1e-9, 0.0);
+    let v = -Vec3::z().cross(&c);
+    let twist = stiff::kinematics::frame::Vec6::new(v.x, v.y, v.z, 0.0, 0.0, 1.0);
+    let words = stiff::study::point::describe_free(&[twist], &Vec3::zeros(), 300.0);
+    assert_eq!(words.len(), 1);
+    assert!(words[0].contains("through (0.0000, 0.0000, 0.0000) mm"), "{}", words[0]);
+    assert!(!words[0].contains("-0.0000"), "{}", words[0]);
+}

@@ -179,6 +179,58 @@ impl DenseLu {
     }
 }
 
+/// Cholesky factorisation of a small symmetric matrix in place (its lower triangle read, L written there;
+/// the strict upper triangle left as it is): false where a pivot is not positive or not finite (not
+/// positive definite to round-off).
+pub fn small_cholesky<const D: usize>(a: &mut [[f64; D]; D]) -> bool {
+    for i in 0..D {
+        for j in 0..=i {
+            let v = a[i][j] - (0..j).map(|k| a[i][k] * a[j][k]).sum::<f64>();
+            if i == j {
+                if !(v.is_finite() && v > 0.0) {
+                    return false;
+                }
+                a[i][i] = v.sqrt();
+            } else {
+                a[i][j] = v / a[j][j];
+            }
+        }
+    }
+    true
+}
+
+/// Solves L x = b in place, L the lower triangle of a `small_cholesky` factor.
+pub fn small_forward<const D: usize>(l: &[[f64; D]; D], b: &mut [f64; D]) {
+    for i in 0..D {
+        b[i] = (b[i] - (0..i).map(|k| l[i][k] * b[k]).sum::<f64>()) / l[i][i];
+    }
+}
+
+/// The inverse of a symmetric positive definite 6x6 matrix from its Cholesky factor: `A^-1 = M^T M` with
+/// `M = L^-1`, symmetric by construction. None where A is not positive definite to round-off or the
+/// inverse is not finite.
+pub fn spd_inverse6(a: &nalgebra::Matrix6<f64>) -> Option<nalgebra::Matrix6<f64>> {
+    let mut l: [[f64; 6]; 6] = std::array::from_fn(|i| std::array::from_fn(|j| a[(i, j)]));
+    if !small_cholesky(&mut l) {
+        return None;
+    }
+    // Row j of M^T (column j of M) solves L x = e_j.
+    let mut m = [[0.0; 6]; 6];
+    for (j, column) in m.iter_mut().enumerate() {
+        column[j] = 1.0;
+        small_forward(&l, column);
+    }
+    let mut inverse = nalgebra::Matrix6::zeros();
+    for i in 0..6 {
+        for j in 0..=i {
+            let v: f64 = (i..6).map(|k| m[i][k] * m[j][k]).sum();
+            inverse[(i, j)] = v;
+            inverse[(j, i)] = v;
+        }
+    }
+    inverse.iter().all(|v| v.is_finite()).then_some(inverse)
+}
+
 /// A Cholesky factorisation A = L L^T made in the caller's buffer (MSA's reduced stiffness at every pose,
 /// factorised where it was assembled), with the envelope of A kept: row r of L is zero left of row r's
 /// first non-zero in A (no fill outside the envelope), so column j of L is worked only down to the last
@@ -283,6 +335,30 @@ impl EnvelopeCholesky {
 mod tests {
     use super::*;
     use nalgebra::{DMatrix, DVector};
+
+    /// The Cholesky inverse of SPD matrices Q D Q^T (Q orthogonal, condition 1 to 1e8) is exactly symmetric and
+    /// equals Q D^-1 Q^T to the condition times round-off; an indefinite or singular matrix is refused.
+    #[test]
+    fn spd_inverse_is_the_inverse_and_refuses_indefinite_matrices() {
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for spread in [1.0f64, 1e4, 1e8] {
+            let q = nalgebra::Matrix6::from_fn(|_, _| next()).qr().q();
+            let d = nalgebra::Vector6::from_fn(|i, _| spread.powf(i as f64 / 5.0));
+            let a = q * nalgebra::Matrix6::from_diagonal(&d) * q.transpose();
+            let exact = q * nalgebra::Matrix6::from_diagonal(&d.map(|v| 1.0 / v)) * q.transpose();
+            let inverse = spd_inverse6(&a).unwrap();
+            assert_eq!(inverse, inverse.transpose());
+            assert!((inverse - exact).amax() < 1e-14 * spread * exact.amax(), "{inverse}\n{exact}");
+        }
+        let indefinite = nalgebra::Matrix6::from_diagonal(&nalgebra::Vector6::new(1.0, 2.0, -1.0, 3.0, 1.0, 1.0));
+        assert!(spd_inverse6(&indefinite).is_none());
+        assert!(spd_inverse6(&nalgebra::Matrix6::zeros()).is_none());
+        assert!(spd_inverse6(&nalgebra::Matrix6::from_element(f64::NAN)).is_none());
+    }
 
     #[test]
     fn solves_like_nalgebra_with_pivoting() {

@@ -328,7 +328,11 @@ pub fn common_centre(free: &[Vec6], reference: &Vec3, length_scale: f64) -> Opti
 
 /// The free directions in words, one line each (or one line for rotations about a common point).
 pub fn describe_free(free: &[Vec6], reference: &Vec3, length_scale: f64) -> Vec<String> {
-    let fmt3 = |v: &Vec3| format!("({:.4}, {:.4}, {:.4})", v.x, v.y, v.z);
+    let fmt3 = |v: &Vec3| {
+        // A coordinate that rounds to zero in four decimals prints without its round-off's sign.
+        let t = |x: f64| if x.abs() < 0.5e-4 { 0.0 } else { x };
+        format!("({:.4}, {:.4}, {:.4})", t(v.x), t(v.y), t(v.z))
+    };
     let motions: Vec<FreeMotion> = free.iter().map(|t| free_motion(t, reference, length_scale)).collect();
     let all_rotations = motions.iter().all(|m| matches!(m, FreeMotion::Rotation { .. }));
     if all_rotations {

@@ -206,7 +206,7 @@ impl LoadedChain<'_> {
         jac.add_load_hessian(wrench, &self.gravity, n, h);
         a.view_mut((6, 0), (n + m, n + m)).copy_from(h);
         for s in self.springs {
-            let (stiffness, _) = s.at(&coords.passive);
+            let stiffness = s.stiffness_at(&coords.passive);
             for i in 0..s.dim {
                 for j in 0..s.dim {
                     a[(6 + n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
@@ -215,7 +215,7 @@ impl LoadedChain<'_> {
             // A spring whose stiffness depends on a passive coordinate q (paper 000 s. 6: "an equivalent
             // non-linear virtual spring whose stiffness depends on the internal variable"): its energy
             // 1/2 dtheta^T K(q) dtheta also pushes on q, and both statics rows depend on q.
-            if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive, &stiffness) {
+            if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive) {
                 let d = self.deflection(s, coords);
                 let dk_d = dk.view((0, 0), (s.dim, s.dim)) * &d;
                 a[(6 + q, q)] -= 0.5 * d.dot(&(ddk.view((0, 0), (s.dim, s.dim)) * &d));
@@ -254,13 +254,13 @@ impl LoadedChain<'_> {
             out[6 + k] = -g;
         }
         for s in self.springs {
-            let (stiffness, _) = s.at(&coords.passive);
+            let stiffness = s.stiffness_at(&coords.passive);
             let deflection = |j: usize| coords.virtual_[s.first + j] - self.preload[s.first + j];
             for i in 0..s.dim {
                 out[6 + n + s.first + i] += (0..s.dim).map(|j| stiffness[(i, j)] * deflection(j)).sum::<f64>();
             }
             // The posture-dependent spring's energy pushes on its passive coordinate (see `assemble`).
-            if let Some((q, dk, _)) = s.posture_derivatives(&coords.passive, &stiffness) {
+            if let Some((q, dk, _)) = s.posture_derivatives(&coords.passive) {
                 let d = self.deflection(s, coords);
                 out[6 + q] += 0.5 * d.dot(&(dk.view((0, 0), (s.dim, s.dim)) * &d));
             }

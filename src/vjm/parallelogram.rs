@@ -10,7 +10,7 @@ use super::spring::{push_six_dof, SpringGroup};
 use super::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 use crate::beam::{beam_compliance, BeamSection};
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates, Element, Joint, JointKind, Role};
-use crate::kinematics::frame::{block_rotation, rotation_about, shift_stiffness, Frame, Mat6, Vec3, Vec6};
+use crate::kinematics::frame::{block_rotation, rotation_about, shift_stiffness, Frame, Mat3, Mat6, Vec3, Vec6};
 
 /// A parallelogram whose bars turn about the local z axis by the angle of passive coordinate `angle`, bars
 /// along local x at angle 0, separated along local y.
@@ -27,16 +27,17 @@ pub struct Parallelogram {
     /// Factor on the compliance derived from the bars (1 as built; `SpringGroup::scale_compliance` changes
     /// it, so a scaling reaches every posture).
     pub compliance_factor: f64,
-    /// One bar pinned at both ends, its stiffness at its end pin (None: not finite), derived once.
-    pinned_bar: Option<Mat6>,
+    /// Both bars' stiffness at the middle of the end side as a polynomial in the angle's cosine c and
+    /// sine s, the coefficients of (1, c, s, c^2, s^2, c s) (None: not finite), derived once.
+    expansion: Option<[Mat6; 6]>,
 }
 
 impl Parallelogram {
     /// The parallelogram of two bars of this section and length, `separation` apart (mm), its angle the
     /// passive coordinate `angle`.
     pub fn new(bar: BeamSection, length: f64, separation: f64, angle: usize) -> Parallelogram {
-        let pinned_bar = pinned_bar(&bar, length);
-        let mut p = Parallelogram { bar, length, separation, angle, compliance_factor: 1.0, pinned_bar };
+        let expansion = pinned_bar(&bar, length).map(|k| expansion(&k, separation));
+        let mut p = Parallelogram { bar, length, separation, angle, compliance_factor: 1.0, expansion };
         // The turned bar checked once against the derivation from scratch: parameters at the edge of
         // doubles (a gap of 4e9 mm, a modulus of 5e-324) fail the derivation or disagree with it, and the
         // spring then has no stiffness (the description is refused).
@@ -45,7 +46,7 @@ impl Parallelogram {
             .zip(p.derived_at(0.0))
             .is_some_and(|(fast, derived)| (fast - derived).amax() <= AGREEMENT * derived.amax());
         if !agrees {
-            p.pinned_bar = None;
+            p.expansion = None;
         }
         p
     }
@@ -83,19 +84,52 @@ impl Parallelogram {
     ///
     /// Each bar with its two pins is the bar of `pinned_bar` turned by q about z (a rigid copy), its end pin
     /// at (0, +-separation/2, 0): its stiffness turned, then moved to the middle of the end side (paper 000
-    /// eq 54-55), and the two summed (paper 001 eq 22).
+    /// eq 54-55), and the two summed (paper 001 eq 22); `expansion` holds that sum as a polynomial in
+    /// cos q and sin q.
     pub fn stiffness(&self, q: f64) -> Option<Mat6> {
-        let r = block_rotation(&rotation_about(&Vec3::z(), q));
-        let turned = r * self.pinned_bar? * r.transpose();
-        let mut total = Mat6::zeros();
-        for side in [-0.5, 0.5] {
-            total += shift_stiffness(&turned, &Vec3::new(0.0, side * self.separation, 0.0));
-        }
-        // The parallelogram's own motion: the end side translating across the bars, without turning.
-        let motion = Vec6::new(-q.sin(), q.cos(), 0.0, 0.0, 0.0, 0.0);
-        let scale = total.trace() / 6.0;
-        total += motion * motion.transpose() * scale;
-        Some((total + total.transpose()) * (0.5 / self.compliance_factor)).filter(|k| k.iter().all(|v| v.is_finite()))
+        self.series::<1>(q).map(|[k]| k)
+    }
+
+    /// The stiffness at angle q and its first and second derivatives in q, exact: the polynomial in
+    /// (cos q, sin q) of `expansion` differentiated term by term, and the product rule on the stiffness
+    /// added along the parallelogram's own motion (its scale follows the bars' trace).
+    pub fn stiffness_derivatives(&self, q: f64) -> Option<[Mat6; 3]> {
+        self.series::<3>(q)
+    }
+
+    /// The stiffness and its first N - 1 derivatives in q (N at most 3).
+    fn series<const N: usize>(&self, q: f64) -> Option<[Mat6; N]> {
+        let (s, c) = q.sin_cos();
+        let terms = self.expansion.as_ref()?;
+        let factors = [
+            [1.0, c, s, c * c, s * s, c * s],
+            [0.0, -s, c, -2.0 * c * s, 2.0 * c * s, c * c - s * s],
+            [0.0, -c, -s, 2.0 * (s * s - c * c), 2.0 * (c * c - s * s), -4.0 * c * s],
+        ];
+        let bars: [Mat6; N] = std::array::from_fn(|order| {
+            let mut sum = Mat6::zeros();
+            for (term, factor) in terms.iter().zip(&factors[order]) {
+                sum += term * *factor;
+            }
+            sum
+        });
+        // The parallelogram's own motion m (the end side translating across the bars, without turning),
+        // stiffened by a scale of the bars' trace: dm/dq = m1, d2m/dq2 = -m.
+        let m = Vec6::new(-s, c, 0.0, 0.0, 0.0, 0.0);
+        let m1 = Vec6::new(-c, -s, 0.0, 0.0, 0.0, 0.0);
+        let scale: [f64; N] = std::array::from_fn(|order| bars[order].trace() / 6.0);
+        let mm = m * m.transpose();
+        let mixed = || m1 * m.transpose() + m * m1.transpose();
+        let out: [Mat6; N] = std::array::from_fn(|order| {
+            let motion = match order {
+                0 => mm * scale[0],
+                1 => mm * scale[1] + mixed() * scale[0],
+                _ => mm * scale[2] + mixed() * (2.0 * scale[1]) + (m1 * m1.transpose() - mm) * (2.0 * scale[0]),
+            };
+            let total = bars[order] + motion;
+            (total + total.transpose()) * (0.5 / self.compliance_factor)
+        });
+        out.iter().all(|k| k.iter().all(|v| v.is_finite())).then_some(out)
     }
 }
 
@@ -116,6 +150,27 @@ fn pinned_bar(bar: &BeamSection, length: f64) -> Option<Mat6> {
     push_six_dof(&mut elements, 0);
     elements.push(pin(1));
     chain_stiffness(elements, &spring, length)
+}
+
+/// The pinned bar turned by q about z and moved to both pins, summed, as a polynomial in c = cos q and
+/// s = sin q. The block rotation is `B(q) = B0 + c Bc + s Bs` (Rz(q) = z z^T + c (x x^T + y y^T) + s (y x^T -
+/// x y^T) in both blocks), so `B K B^T` is quadratic in (c, s), and moving a stiffness to a point
+/// (`A^T K A`) is linear: the coefficients of (1, c, s, c^2, s^2, c s) follow term by term.
+fn expansion(pinned: &Mat6, separation: f64) -> [Mat6; 6] {
+    let block = |m: [[f64; 3]; 3]| block_rotation(&Mat3::from_fn(|i, j| m[i][j]));
+    let b0 = block([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]]);
+    let bc = block([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]);
+    let bs = block([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]);
+    let product = |a: &Mat6, b: &Mat6| a * pinned * b.transpose();
+    let turned = [
+        product(&b0, &b0),
+        product(&bc, &b0) + product(&b0, &bc),
+        product(&bs, &b0) + product(&b0, &bs),
+        product(&bc, &bc),
+        product(&bs, &bs),
+        product(&bc, &bs) + product(&bs, &bc),
+    ];
+    turned.map(|t| [-0.5, 0.5].iter().map(|side| shift_stiffness(&t, &Vec3::new(0.0, side * separation, 0.0))).sum())
 }
 
 /// A bar's 6-dof spring from its compliance; None where it has no finite stiffness.
@@ -179,6 +234,26 @@ mod tests {
         for q in [-1.2, -0.4, 0.0, 0.25, 0.7, 1.4] {
             let (fast, derived) = (p.stiffness(q).unwrap(), p.derived_at(q).unwrap());
             assert!((fast - derived).amax() < 1e-10 * derived.amax(), "q = {q}\n{fast}\n{derived}");
+        }
+    }
+
+    /// The exact derivatives of the stiffness in the angle against central differences of the stiffness
+    /// itself: K' to 1e-9 (step 1e-5: truncation h^2/6 times the third derivative, ~1e-11 of K; round-off
+    /// eps/h ~ 2e-11), K'' to 2e-8 (second differences at steps 1e-3 and 5e-4, Richardson-extrapolated:
+    /// truncation O(h^4), round-off ~ eps/h^2 ~ 1e-9).
+    #[test]
+    fn stiffness_derivatives_match_differences() {
+        let p = sample();
+        for q in [-1.2, -0.4, 0.0, 0.25, 0.7, 1.4] {
+            let [k, k1, k2] = p.stiffness_derivatives(q).unwrap();
+            let at = |q: f64| p.stiffness(q).unwrap();
+            assert_eq!(k, at(q));
+            let h = 1e-5;
+            let d1 = (at(q + h) - at(q - h)) / (2.0 * h);
+            assert!((k1 - d1).amax() < 1e-9 * k.amax(), "q = {q}\n{k1}\n{d1}");
+            let second = |h: f64| (at(q + h) - k * 2.0 + at(q - h)) / (h * h);
+            let d2 = (second(5e-4) * 4.0 - second(1e-3)) / 3.0;
+            assert!((k2 - d2).amax() < 2e-8 * k.amax(), "q = {q}\n{k2}\n{d2}");
         }
     }
 

@@ -3,6 +3,7 @@
 
 use crate::kinematics::chain::{Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{Mat6, Vec3};
+use crate::linalg::spd_inverse6;
 
 /// A block of K_theta: `dim` consecutive virtual coordinates starting at `first`.
 #[derive(Clone, Debug, PartialEq)]
@@ -63,31 +64,37 @@ impl SpringGroup {
                 let q = passive.get(p.angle).copied().unwrap_or(0.0);
                 let not_finite = Mat6::from_element(f64::NAN);
                 let Some(k) = p.stiffness(q) else { return (not_finite, not_finite) };
-                let c = k.try_inverse().unwrap_or(not_finite);
-                (k, (c + c.transpose()) * 0.5)
+                // Positive definite as built (the regularised parallelogram); LU where round-off says not.
+                let c = spd_inverse6(&k).or_else(|| k.try_inverse().map(|c| (c + c.transpose()) * 0.5));
+                (k, c.unwrap_or(not_finite))
             }
         }
     }
 }
 
-/// Step (rad) of the central differences that give a posture-dependent spring's derivatives: the
-/// truncation error of K' is (h^2/6) K''' ~ 2e-9 relative and round-off in K'' eps/h^2 ~ 1e-8.
-const POSTURE_STEP: f64 = 1e-4;
-
 impl SpringGroup {
+    /// The stiffness alone at the given passive coordinates (`at` without the compliance).
+    pub fn stiffness_at(&self, passive: &[f64]) -> Mat6 {
+        match &self.posture {
+            None => self.stiffness,
+            Some(p) => {
+                let q = passive.get(p.angle).copied().unwrap_or(0.0);
+                p.stiffness(q).unwrap_or(Mat6::from_element(f64::NAN))
+            }
+        }
+    }
+
     /// For a spring whose stiffness depends on a passive coordinate q (a parallelogram's angle): that
-    /// coordinate's index and dK/dq, d2K/dq2 at the given posture, by central differences of the spring's own
-    /// derivation. The loaded equilibrium needs them: with the energy 1/2 dtheta^T K(q) dtheta, q feels
-    /// 1/2 dtheta^T K'(q) dtheta and the Newton matrix gains K'(q) dtheta and 1/2 dtheta^T K''(q) dtheta.
-    /// `mid` is the stiffness at the posture itself, as `at` gave it (not derived twice).
-    pub fn posture_derivatives(&self, passive: &[f64], mid: &Mat6) -> Option<(usize, Mat6, Mat6)> {
+    /// coordinate's index and dK/dq, d2K/dq2 at the given posture, exact
+    /// (`Parallelogram::stiffness_derivatives`). The loaded equilibrium needs them: with the energy
+    /// 1/2 dtheta^T K(q) dtheta, q feels 1/2 dtheta^T K'(q) dtheta and the Newton matrix gains K'(q) dtheta
+    /// and 1/2 dtheta^T K''(q) dtheta.
+    pub fn posture_derivatives(&self, passive: &[f64]) -> Option<(usize, Mat6, Mat6)> {
         let p = self.posture.as_ref()?;
         let q = passive.get(p.angle).copied().unwrap_or(0.0);
-        let h = POSTURE_STEP;
         let not_finite = Mat6::from_element(f64::NAN);
-        let at = |q: f64| p.stiffness(q).unwrap_or(not_finite);
-        let (minus, plus) = (at(q - h), at(q + h));
-        Some((p.angle, (plus - minus) / (2.0 * h), (plus - mid * 2.0 + minus) / (h * h)))
+        let [_, first, second] = p.stiffness_derivatives(q).unwrap_or([not_finite; 3]);
+        Some((p.angle, first, second))
     }
 }
 

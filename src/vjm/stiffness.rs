@@ -4,6 +4,7 @@ use nalgebra::{Matrix6xX, SMatrix};
 
 use super::spring::SpringGroup;
 use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec3, Vec6};
+use crate::linalg::{small_cholesky, small_forward};
 
 /// Relative pivot below which a passive-joint direction is taken as dependent on the others.
 pub const PASSIVE_RANK_TOLERANCE: f64 = 1e-9;
@@ -155,15 +156,23 @@ pub fn leg_stiffness(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
     }
 }
 
+/// `K = N M^-1 N^T` with `M = N^T S N = L L^T` (Cholesky): `K = Z Z^T`, `Z = N L^-T`, symmetric by
+/// construction. None where M is not positive definite.
 fn schur<const D: usize>(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
-    let n = SMatrix::<f64, 6, D>::from_fn(|i, j| range.transmitted[j][i]);
-    let m = n.transpose() * s * n;
-    let inv = m.cholesky()?.inverse();
-    let k = n * inv * n.transpose();
-    if !k.iter().all(|v| v.is_finite()) {
+    let n = &range.transmitted[..D];
+    let sn: [Vec6; D] = std::array::from_fn(|j| s * n[j]);
+    let mut l: [[f64; D]; D] = std::array::from_fn(|i| std::array::from_fn(|j| n[i].dot(&sn[j])));
+    if !small_cholesky(&mut l) {
         return None;
     }
-    Some((k + k.transpose()) * 0.5)
+    // Row r of Z solves L z = (row r of N).
+    let z: [[f64; D]; 6] = std::array::from_fn(|r| {
+        let mut row = std::array::from_fn(|i| n[i][r]);
+        small_forward(&l, &mut row);
+        row
+    });
+    let k = Mat6::from_fn(|a, b| (0..D).map(|i| z[a][i] * z[b][i]).sum());
+    k.iter().all(|v| v.is_finite()).then_some(k)
 }
 
 /// Paper 001 eq (9) as printed, a test oracle for `leg_stiffness`: the leg's stiffness is the upper-left 6x6 block of the inverse of the bordered matrix
