@@ -91,9 +91,13 @@ pub enum Encoded {
     Parquet(Box<ParquetTable<BufWriter<tempfile::NamedTempFile>>>),
 }
 
+/// Bytes buffered before a write to the file. A batch study hands over whole runs (a map's 256 rows are
+/// ~160 KB), which a buffer smaller than them passes straight to the file without copying them first.
+const WRITE_BUFFER: usize = 64 << 10;
+
 impl Encoded {
     fn new(temp: tempfile::NamedTempFile, path: &Path, columns: Option<&[Column]>) -> io::Result<Encoded> {
-        let file = BufWriter::with_capacity(1 << 20, temp);
+        let file = BufWriter::with_capacity(WRITE_BUFFER, temp);
         let name = path.to_string_lossy();
         Ok(if let Some(columns) = columns.filter(|_| is_parquet(path)) {
             #[cfg(feature = "parquet")]
@@ -170,7 +174,7 @@ impl Sink {
                     .write(true)
                     .open(p)
                     .map_err(|e| anyhow!("cannot write {}: {}", p.display(), e.kind()))?;
-                return Ok(Sink::Direct { file: BufWriter::with_capacity(1 << 20, file), path: p.to_path_buf() });
+                return Ok(Sink::Direct { file: BufWriter::with_capacity(WRITE_BUFFER, file), path: p.to_path_buf() });
             }
         }
         let dir = match p.parent() {
