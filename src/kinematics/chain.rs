@@ -5,7 +5,7 @@
 //! The Jacobian column of a coordinate is the twist of its joint seen at the chain's end point, in the base
 //! frame: a revolute joint of world axis w through o gives (w x (p_end - o), w), a prismatic one (w, 0).
 
-use super::frame::{rotation_about, Frame, Vec3, Vec6};
+use super::frame::{rotation_about, Frame, Mat3, Vec3, Vec6};
 
 /// An elementary joint's motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -419,6 +419,8 @@ impl Chain {
         let mut f = Frame::IDENTITY;
         for e in &self.elements {
             match e {
+                // Most fixed transforms are translations (link vectors): no rotation product for them.
+                Element::Fixed(t) if t.rot == Mat3::identity() => f.pos += f.rot * t.pos,
                 Element::Fixed(t) => f = f.compose(t),
                 Element::Mass { kg, centre } => out.masses.push(PlacedMass {
                     kg: *kg,
