@@ -84,6 +84,26 @@ struct Plan {
     /// The reduced system's column of each forest coordinate (an ordering with a small envelope; the
     /// end's six last).
     column: Vec<usize>,
+    /// Which entries each node's map has and where each comes from, in these columns.
+    layout: Layout,
+}
+
+/// Where an entry of a node's map comes from: a root's unit twist r, an entry of the parent's map (its
+/// index in `Layout::entries`) carried rigidly to the node, or the node's joint's own direction c (free
+/// directions first, then elastic ones).
+#[derive(Clone, Copy, Debug)]
+enum Source {
+    Unit(usize),
+    Parent(usize),
+    Own(usize),
+}
+
+/// Each node's map entries as the shape fixes them: (column, source), sorted by column within each node's
+/// span; the poses fill in the numbers (`Work::node_maps`).
+#[derive(Clone, Debug, Default)]
+struct Layout {
+    entries: Vec<(usize, Source)>,
+    spans: Vec<std::ops::Range<usize>>,
 }
 
 impl Plan {
@@ -177,29 +197,39 @@ impl Plan {
                 Some(k) => edges[*k].moving,
             };
         }
-        let mut plan = Plan { edges, tree_edge, order, first, n_y, end_is_root, column: (0..n_y + 6).collect() };
-        plan.column = plan.envelope_order(shapes, n, end);
+        let identity: Vec<usize> = (0..n_y + 6).collect();
+        let mut plan =
+            Plan { edges, tree_edge, order, first, n_y, end_is_root, column: Vec::new(), layout: Layout::default() };
+        plan.column = plan.envelope_order(shapes, &plan.layout(&identity, n, end));
+        plan.layout = plan.layout(&plan.column, n, end);
         Ok(plan)
     }
 
-    /// The coordinates each node moves with (by forest index, the end's six last), from the forest alone.
-    fn node_coordinates(&self, n: usize, end: usize) -> Vec<Vec<usize>> {
-        let mut moved: Vec<Vec<usize>> = vec![Vec::new(); n];
+    /// Each node's map entries along the forest, the coordinates given the columns `column`: a root's six
+    /// unit twists (the end node's are the prescribed coordinates), else the parent's entries carried and
+    /// the joint's own directions.
+    fn layout(&self, column: &[usize], n: usize, end: usize) -> Layout {
+        let mut layout = Layout { entries: Vec::new(), spans: vec![0..0; n] };
         for (slot, &(v, via)) in self.order.iter().enumerate() {
-            let c0 = self.first[slot];
-            moved[v] = match via {
-                None if v == end => (self.n_y..self.n_y + 6).collect(),
-                None => (c0..c0 + 6).collect(),
+            let (c0, start) = (self.first[slot], layout.entries.len());
+            match via {
+                None => {
+                    let first = if v == end { self.n_y } else { c0 };
+                    layout.entries.extend((0..6).map(|r| (column[first + r], Source::Unit(r))));
+                }
                 Some(k) => {
                     let e = &self.edges[k];
                     let parent = if e.b == v { e.a } else { Some(e.b) };
-                    let mut cols = parent.map(|p| moved[p].clone()).unwrap_or_default();
-                    cols.extend(c0..c0 + e.moving);
-                    cols
+                    for q in parent.map_or(0..0, |p| layout.spans[p].clone()) {
+                        layout.entries.push((layout.entries[q].0, Source::Parent(q)));
+                    }
+                    layout.entries.extend((0..e.moving).map(|c| (column[c0 + c], Source::Own(c))));
                 }
-            };
+            }
+            layout.entries[start..].sort_by_key(|(c, _)| *c);
+            layout.spans[v] = start..layout.entries.len();
         }
-        moved
+        layout
     }
 
     /// Columns for the forest's coordinates that keep the reduced stiffness' envelope small (the
@@ -208,9 +238,13 @@ impl Plan {
     /// own, a loop its ends'), and the ordering is the reverse Cuthill-McKee ordering of that graph from
     /// whichever start gives the smallest envelope (or the forest's own order, if smaller). The end's six
     /// coordinates stay last.
-    fn envelope_order(&self, shapes: &[Shape], n: usize, end: usize) -> Vec<usize> {
+    fn envelope_order(&self, shapes: &[Shape], by_index: &Layout) -> Vec<usize> {
         let n_y = self.n_y;
-        let moved = self.node_coordinates(n, end);
+        let moved: Vec<Vec<usize>> = by_index
+            .spans
+            .iter()
+            .map(|span| by_index.entries[span.clone()].iter().map(|(c, _)| *c).collect())
+            .collect();
         let mut adjacent = vec![vec![false; n_y]; n_y];
         let mut couple = |cols: &[usize]| {
             for &a in cols.iter().filter(|&&a| a < n_y) {
@@ -424,58 +458,60 @@ impl Work {
     /// Each node's twist as a linear map of the reduced coordinates, along the spanning forest; the tree
     /// joints' springs act on their own coordinates (energy 1/2 (s - s0)^T K (s - s0)).
     fn node_maps(&mut self, plan: &Plan, s: &Structure) {
-        let (n_y, nz) = (plan.n_y, plan.n_y + 6);
+        let layout = &plan.layout;
         let t = &mut self.maps;
-        t.entries.clear();
-        t.spans.clear();
-        t.spans.resize(s.nodes.len(), 0..0);
+        t.entries.resize(layout.entries.len(), (0, Vec6::zeros()));
+        t.spans.clone_from(&layout.spans);
         for (slot, &(v, via)) in plan.order.iter().enumerate() {
-            let c0 = plan.first[slot];
-            let start = t.entries.len();
-            match via {
-                None => {
-                    // A root: the end node's six prescribed coordinates, or a free root's own six.
-                    let first = if v == s.end { n_y } else { c0 };
-                    t.entries.extend(
-                        (0..6).map(|r| (plan.column[first + r], Vec6::from_fn(|k, _| if k == r { 1.0 } else { 0.0 }))),
-                    );
+            let span = layout.spans[v].clone();
+            let Some(k) = via else {
+                // A root: the end node's six prescribed coordinates, or a free root's own six.
+                for i in span {
+                    let (c, Source::Unit(r)) = layout.entries[i] else {
+                        unreachable!("a root's entries are unit twists")
+                    };
+                    t.entries[i] = (c, Vec6::from_fn(|k, _| if k == r { 1.0 } else { 0.0 }));
                 }
-                Some(k) => {
-                    let e = &plan.edges[k];
-                    let connection = e.connection(s);
-                    let parent_is_a = e.b == v;
-                    let parent = if parent_is_a { e.a } else { Some(e.b) };
-                    if let Some(p) = parent {
-                        // t_b = A_ab t_a + dt, or t_a = A_ba (t_b - dt): the parent's map carried to v.
-                        let d = s.nodes[v] - s.nodes[p];
-                        for q in t.spans[p].clone() {
-                            let (c, x) = t.entries[q];
-                            t.entries.push((c, carry(&d, &x)));
+                continue;
+            };
+            let e = &plan.edges[k];
+            let connection = e.connection(s);
+            let parent_is_a = e.b == v;
+            let parent = if parent_is_a { e.a } else { Some(e.b) };
+            // t_b = A_ab t_a + dt, or t_a = A_ba (t_b - dt): the parent's map carried to v.
+            let d = parent.map_or(Vec3::zeros(), |p| s.nodes[v] - s.nodes[p]);
+            let back = s.nodes[v] - s.nodes[e.b];
+            let n_free = connection.free.len();
+            for i in span {
+                let (c, source) = layout.entries[i];
+                let x = match source {
+                    Source::Parent(q) => carry(&d, &t.entries[q].1),
+                    Source::Own(j) => {
+                        let direction = if j < n_free { &connection.free[j] } else { &connection.elastic[j - n_free] };
+                        if parent_is_a {
+                            *direction
+                        } else {
+                            -carry(&back, direction)
                         }
                     }
-                    let back = s.nodes[v] - s.nodes[e.b];
-                    let moving = connection.free.iter().chain(&connection.elastic);
-                    for (c, d) in moving.enumerate() {
-                        let col = if parent_is_a { *d } else { -carry(&back, d) };
-                        t.entries.push((plan.column[c0 + c], col));
-                    }
-                    // Elastic coordinates follow the free ones: energy 1/2 (s - s0)^T K (s - s0).
-                    let ne = connection.elastic.len();
-                    let s0 = c0 + connection.free.len();
-                    let (k, preload) = (&connection.stiffness, &connection.preload);
-                    for c in 0..ne {
-                        for r in 0..ne {
-                            let (row, col) = (plan.column[s0 + r], plan.column[s0 + c]);
-                            self.kz[(row, col)] += k[(r, c)];
-                            self.f[row] += k[(r, c)] * preload[c];
-                        }
-                    }
+                    Source::Unit(_) => unreachable!("a joint's entries are carried or its own"),
+                };
+                t.entries[i] = (c, x);
+            }
+            // Elastic coordinates follow the free ones: energy 1/2 (s - s0)^T K (s - s0).
+            let c0 = plan.first[slot];
+            let ne = connection.elastic.len();
+            let s0 = c0 + n_free;
+            let (k, preload) = (&connection.stiffness, &connection.preload);
+            for c in 0..ne {
+                for r in 0..ne {
+                    let (row, col) = (plan.column[s0 + r], plan.column[s0 + c]);
+                    self.kz[(row, col)] += k[(r, c)];
+                    self.f[row] += k[(r, c)] * preload[c];
                 }
             }
-            t.entries[start..].sort_by_key(|(c, _)| *c);
-            t.spans[v] = start..t.entries.len();
         }
-        debug_assert!(t.entries.iter().all(|(c, _)| *c < nz));
+        debug_assert!(t.entries.iter().all(|(c, _)| *c < plan.n_y + 6));
     }
 
     /// Connections outside the forest close loops: their rigid directions become constraints, their
