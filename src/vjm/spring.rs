@@ -58,21 +58,15 @@ impl SpringGroup {
     /// finite value (`Parallelogram::stiffness`), both are NaN: the leg's answer is then not finite and
     /// its point is reported as `overflow` (statuses in README), never a panic.
     pub fn at(&self, passive: &[f64]) -> (Mat6, Mat6) {
-        match &self.posture {
-            None => (self.stiffness, self.compliance),
-            Some(p) => {
-                let q = passive.get(p.angle).copied().unwrap_or(0.0);
-                let not_finite = Mat6::from_element(f64::NAN);
-                let Some(k) = p.stiffness(q) else { return (not_finite, not_finite) };
-                // Positive definite as built (the regularised parallelogram); LU where round-off says not.
-                let c = spd_inverse6(&k).or_else(|| k.try_inverse().map(|c| (c + c.transpose()) * 0.5));
-                (k, c.unwrap_or(not_finite))
-            }
+        if self.posture.is_none() {
+            return (self.stiffness, self.compliance);
         }
+        let k = self.stiffness_at(passive);
+        // Positive definite as built (the regularised parallelogram); LU where round-off says not.
+        let c = spd_inverse6(&k).or_else(|| k.try_inverse().map(|c| (c + c.transpose()) * 0.5));
+        (k, c.unwrap_or(Mat6::from_element(f64::NAN)))
     }
-}
 
-impl SpringGroup {
     /// The stiffness alone at the given passive coordinates (`at` without the compliance).
     pub fn stiffness_at(&self, passive: &[f64]) -> Mat6 {
         match &self.posture {
