@@ -1,7 +1,8 @@
 //! Compensation latency along a finely sampled tool path, one target after the other as a controller would
 //! step (`stiff::study::compensate::Compensator`): the Orthoglide 3-PUU milling from Q2 to Q5 (paper 000
 //! s. 5.2) under the cutting wrench with the Case B leg errors. Prints targets per second on one core, the
-//! latency per target (median, 99th percentile, largest), Newton steps and loaded equilibria per target.
+//! latency per target (median, 99th percentile, largest), commands tried after the mirror command and loaded
+//! equilibria per target.
 //!
 //! `cargo bench --bench compensate [-- TARGETS]` (default 100,000 targets); `scripts/bench-compensate` runs
 //! it with the `dist` profile and adds the command line's thread scaling.
@@ -47,6 +48,10 @@ fn main() {
     println!("{targets} targets on the milling line (Case B, cutting wrench), one core:");
     println!("  {:.0} targets/s, {:.1} us per target", n / total, 1e6 * total / n);
     println!("  latency: median {:.1} us, 99th percentile {:.1} us, largest {:.1} us", at(0.5), at(0.99), at(1.0));
-    println!("  {:.2} Newton steps and {:.2} loaded equilibria per target", steps as f64 / n, equilibria as f64 / n);
+    println!(
+        "  {:.2} commands after the mirror and {:.2} loaded equilibria per target",
+        steps as f64 / n,
+        equilibria as f64 / n
+    );
     println!("  largest residual {worst_residual:.2e} mm");
 }

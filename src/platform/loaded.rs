@@ -54,6 +54,37 @@ pub struct Deflection {
     pub iterations: usize,
 }
 
+/// The platform's loaded equilibrium without its tangent (`Manipulator::settle`).
+#[derive(Clone, Copy, Debug)]
+pub struct Settled {
+    /// Where the platform settles.
+    pub pose: Frame,
+    /// Its displacement from the commanded pose (mm, base-frame rotation vector).
+    pub displacement: Vec6,
+    /// Newton iterations at the manipulator level (full and chord steps), over all load steps.
+    pub iterations: usize,
+}
+
+/// The factorisations the last loaded solve ended with, for the next solve's chord steps: the
+/// manipulator's tangent stiffness of that full linearisation (the legs keep theirs), and the chord
+/// iteration's last measured contraction with them (infinite where none was measured since).
+#[derive(Clone, Copy, Debug)]
+pub struct Chord {
+    stiffness: Mat6,
+    contraction: f64,
+}
+
+/// What a loaded solve must deliver besides the pose.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Finish {
+    /// The tangent stiffness at the equilibrium and the legs' stability: the solve ends on a full
+    /// linearisation within `TANGENT_TOLERANCE` of the equilibrium.
+    Tangent,
+    /// The pose alone: chord steps that have converged end the solve, and a full linearisation is made
+    /// only where they stop contracting.
+    Pose,
+}
+
 /// Why the platform's loaded equilibrium was not found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DeflectionFailure {
@@ -105,6 +136,11 @@ const TANGENT_TOLERANCE: f64 = 1e-12;
 const CHORD_RANGE: f64 = 1e-3;
 /// Largest platform step in one Newton iteration, in mm (rotations weighted by the length scale).
 const MAX_STEP_MM: f64 = 5.0;
+/// A chord step that shrinks the distance by less than this (its contraction) has matrices too far from
+/// the state's: a full linearisation follows.
+const CHORD_STALL: f64 = 0.1;
+/// How much a chord contraction measured by the last solve may have grown by the next (`newton`).
+const CARRIED_GROWTH: f64 = 2.0;
 
 impl Manipulator {
     /// The external wrench that holds the platform at `platform`, and the tangent stiffness there.
@@ -143,23 +179,31 @@ impl Manipulator {
     /// change of the matrices since, for the price of one evaluation per leg. When they have converged, a
     /// last full linearisation confirms the equilibrium and gives the tangent stiffness there; a chord step
     /// that fails to contract gives way to full steps.
+    ///
+    /// With `Finish::Pose` the solve ends on the chord step after which the distance left, estimated from
+    /// the contraction as `distance * contraction`, is within `TANGENT_TOLERANCE` (linear convergence: the
+    /// next step would be that small), or on a full step within `NEWTON_TOLERANCE` (quadratic: the error
+    /// left is of the order of its square); no `Held` is returned, as no tangent was made there.
     fn newton(
         &self,
         load: &Vec6,
         weight_share: f64,
         t: &mut Frame,
         state: &mut ManipulatorState,
-    ) -> Result<(Held, usize), DeflectionFailure> {
+        finish: Finish,
+    ) -> Result<(Option<Held>, usize), DeflectionFailure> {
         let leg_failure = |i: usize| move |failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure });
-        let ManipulatorState { legs: states, linear: lins, chord_stiffness } = state;
+        let ManipulatorState { legs: states, linear: lins, chord } = state;
         lins.resize_with(self.legs.len(), LegLinear::default);
         // Chord steps first where the last solve's factorisations are at hand (the neighbouring point's, or
         // the last load step's): from a warm start they contract by the small change of the matrices
         // between neighbours, and the one full linearisation the point needs is then the last.
-        let (mut stiffness, mut full) = match chord_stiffness.take() {
-            Some(k) => (k, false),
-            None => (Mat6::zeros(), true),
+        let (mut stiffness, mut full, mut chord_contraction) = match chord.take() {
+            Some(c) => (c.stiffness, false, c.contraction),
+            None => (Mat6::zeros(), true, f64::INFINITY),
         };
+        // A contraction measured in this solve (not carried): the next solve may start from it.
+        let mut measured = false;
         let mut last_distance = f64::INFINITY;
         for it in 0..MAX_NEWTON {
             let (weight, d_weight) = self.weight(t);
@@ -185,7 +229,39 @@ impl Manipulator {
             // square. The stiffness is the one linearised before the step, so its error is of the order of
             // the step itself: it is taken once the step is below `TANGENT_TOLERANCE`, or where the steps no
             // longer shrink (round-off).
-            let stalled = distance > 0.1 * last_distance;
+            let stalled = distance > CHORD_STALL * last_distance;
+            let contraction = if last_distance.is_finite() { distance / last_distance } else { 1.0 };
+            // The chord iteration's contraction with these factorisations: measured on this step, or for a
+            // first chord step twice the one the last solve measured with them (the matrices have moved on
+            // by one neighbouring point since, and the contraction grows in proportion to how far they
+            // are from the factorised ones: at most doubled by one more step of a path). Unknown after a
+            // full step.
+            chord_contraction = match (full, last_distance.is_finite()) {
+                (true, _) => f64::INFINITY,
+                (false, true) => contraction,
+                (false, false) => CARRIED_GROWTH * chord_contraction,
+            };
+            measured = match (full, last_distance.is_finite()) {
+                (true, _) => false,
+                (false, true) => true,
+                (false, false) => measured,
+            };
+            // A chord step within `TANGENT_TOLERANCE` leaves less than itself (a contracting iteration), and
+            // its contraction, a ratio of two steps at round-off, means nothing there.
+            let pose_converged = distance <= NEWTON_TOLERANCE
+                && (full
+                    || distance <= TANGENT_TOLERANCE
+                    || (chord_contraction <= CHORD_STALL && distance * chord_contraction <= TANGENT_TOLERANCE));
+            if finish == Finish::Pose && pose_converged {
+                for ((leg, l), s) in self.legs.iter().zip(lins.iter()).zip(states.iter_mut()) {
+                    leg.advance(l, &step, 1.0, s);
+                }
+                *t = apply_twist(t, &step);
+                // A contraction carried once is not carried again: the next solve measures its own.
+                let contraction = if measured { chord_contraction } else { f64::INFINITY };
+                *chord = Some(Chord { stiffness, contraction });
+                return Ok((None, it + 1));
+            }
             if full && distance <= NEWTON_TOLERANCE && (distance <= TANGENT_TOLERANCE || stalled) {
                 let unstable_legs = (self.legs.iter().zip(states.iter_mut()).enumerate())
                     .filter_map(|(i, (leg, s))| (!leg.stable(s)).then_some(i))
@@ -195,19 +271,18 @@ impl Manipulator {
                 }
                 *t = apply_twist(t, &step);
                 let magnitude: Vec6 = lins.iter().map(|l| l.magnitude).sum();
-                *chord_stiffness = Some(stiffness);
-                return Ok((
-                    Held { force: force + stiffness * step, stiffness, magnitude, unstable_legs, iterations: it + 1 },
-                    it + 1,
-                ));
+                *chord = Some(Chord { stiffness, contraction: chord_contraction });
+                let held =
+                    Held { force: force + stiffness * step, stiffness, magnitude, unstable_legs, iterations: it + 1 };
+                return Ok((Some(held), it + 1));
             }
             // The next step: chord steps while they contract, a full one to confirm their convergence once
             // the distance left after this step (contracting as the last one did) is within the tolerance.
             // (A first chord step, from the last solve's factorisations, has no contraction to go by yet.)
-            let contraction = if last_distance.is_finite() { distance / last_distance } else { 1.0 };
-            full = match full {
-                true => distance > CHORD_RANGE,
-                false => stalled || distance * contraction <= TANGENT_TOLERANCE,
+            full = match (full, finish) {
+                (true, _) => distance > CHORD_RANGE,
+                (false, Finish::Tangent) => stalled || distance * contraction <= TANGENT_TOLERANCE,
+                (false, Finish::Pose) => stalled,
             };
             last_distance = distance;
             let step_mm = step_size * self.length_scale;
@@ -235,8 +310,9 @@ impl Manipulator {
     }
 
     /// The deflection of the platform under `wrench` (N, N mm at the reference point), the legs placed for
-    /// `commanded` before (eq 73-75). Starts from `start` (a neighbouring solution) or the commanded pose,
-    /// and cuts the load into smaller steps where a direct Newton solve fails.
+    /// `commanded` before (eq 73-75), with the tangent stiffness and stability there. Starts from `start`
+    /// (a neighbouring solution) or the commanded pose, and cuts the load into smaller steps where a
+    /// direct Newton solve fails.
     pub fn deflect(
         &self,
         commanded: &Frame,
@@ -244,6 +320,37 @@ impl Manipulator {
         start: Option<&Frame>,
         state: &mut ManipulatorState,
     ) -> Result<Deflection, DeflectionFailure> {
+        let (t, held, iterations) = self.continuation(commanded, wrench, start, state, Finish::Tangent)?;
+        let held = held.expect("a tangent solve ends on a full linearisation");
+        let stable = held.legs_stable() && positive_definite(&held.stiffness, &held.magnitude, self.length_scale);
+        Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations })
+    }
+
+    /// Where the platform settles under `wrench`, as `deflect` finds it but without the tangent stiffness
+    /// and the stability test: the equilibrium's pose to the same tolerance, for the price of chord steps
+    /// where `deflect` must end on a full linearisation (a controller's model of the robot along a path,
+    /// which needs only where the tool goes).
+    pub fn settle(
+        &self,
+        commanded: &Frame,
+        wrench: &Vec6,
+        start: Option<&Frame>,
+        state: &mut ManipulatorState,
+    ) -> Result<Settled, DeflectionFailure> {
+        let (t, _, iterations) = self.continuation(commanded, wrench, start, state, Finish::Pose)?;
+        Ok(Settled { pose: t, displacement: commanded.error_to(&t), iterations })
+    }
+
+    /// Newton's method with load continuation: the platform's pose, the last load step's `Held` (with a
+    /// tangent finish) and the iterations over all load steps.
+    fn continuation(
+        &self,
+        commanded: &Frame,
+        wrench: &Vec6,
+        start: Option<&Frame>,
+        state: &mut ManipulatorState,
+        finish: Finish,
+    ) -> Result<(Frame, Option<Held>, usize), DeflectionFailure> {
         let mut t = match start {
             Some(s) => *s,
             None => self.linear_prediction(commanded, wrench, state).unwrap_or(*commanded),
@@ -255,10 +362,10 @@ impl Manipulator {
             let target = (done + step).min(1.0);
             let saved_t = t;
             state.legs.iter_mut().for_each(LegState::checkpoint);
-            match self.newton(&(wrench * target), target, &mut t, state) {
+            match self.newton(&(wrench * target), target, &mut t, state, finish) {
                 Ok((held, its)) => {
                     total_iterations += its;
-                    last = Some(held);
+                    last = held;
                     done = target;
                     step = (step * 2.0).min(1.0);
                 }
@@ -280,8 +387,6 @@ impl Manipulator {
                 }
             }
         }
-        let held = last.expect("the loop ran at least once");
-        let stable = held.legs_stable() && positive_definite(&held.stiffness, &held.magnitude, self.length_scale);
-        Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations: total_iterations })
+        Ok((t, last, total_iterations))
     }
 }

@@ -1,6 +1,7 @@
 //! A parallel manipulator: legs summed at the platform reference point (paper 001 s. 3.3, paper 000 eq 54).
 
 use super::leg::{Leg, LegFailure, LegLinear, LegResponse, LegState};
+use super::loaded::Chord;
 use crate::kinematics::frame::{Frame, Mat3, Mat6, Vec3, Vec6};
 
 /// A parallel manipulator: its legs, summed at the platform's reference point.
@@ -52,10 +53,9 @@ pub struct ManipulatorState {
     /// The legs' linearised equilibria of the loaded Newton method, one per leg (sized by the method
     /// itself), their buffers reused from one iteration and one point to the next.
     pub(super) linear: Vec<LegLinear>,
-    /// The manipulator's tangent stiffness of the full linearisation the last loaded solve ended with,
-    /// while the legs' linearisations and factorisations are still those: the next point starts with chord
-    /// steps on them.
-    pub(super) chord_stiffness: Option<Mat6>,
+    /// What the last loaded solve's full linearisation left, while the legs' linearisations and
+    /// factorisations are still those: the next point starts with chord steps on them.
+    pub(super) chord: Option<Chord>,
 }
 
 /// The sum over legs at one pose.
@@ -168,11 +168,7 @@ impl Manipulator {
 
     /// A fresh state (no warm starts).
     pub fn new_state(&self) -> ManipulatorState {
-        ManipulatorState {
-            legs: self.legs.iter().map(Leg::new_state).collect(),
-            linear: Vec::new(),
-            chord_stiffness: None,
-        }
+        ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect(), linear: Vec::new(), chord: None }
     }
 
     /// Places every leg for the commanded pose (inverse kinematics).

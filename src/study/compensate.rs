@@ -8,14 +8,17 @@
 //! errors) holds its actuators at a(c) and settles under the process wrench at P(c). For every target T
 //! the study finds the command with P(c) = T in the directions the actuators move the platform (the
 //! reference point for a translational robot, the whole pose for a Stewart platform): Newton's method on
-//! the command, started from the mirror command c = T - (P(T) - T) of [73], with the Jacobian dP/dc from
-//! differences of loaded equilibria where needed and Broyden's secant updates otherwise, carried from one
-//! target to the next along the path. The command found is checked by an independent forward solve: the
-//! command placed by its own inverse kinematics and the real robot's equilibrium with those actuator
-//! coordinates, from the last forward solve's equilibrium (as a controller stepping along the path would
-//! see it), never from Newton's evaluations.
+//! the command, started from the better of the mirror command c = T - (P(T) - T) of [73] and the command
+//! extrapolated from the targets before along a line, with the Jacobian dP/dc from differences of loaded
+//! equilibria where needed and Broyden's secant updates otherwise, carried from one target to the next
+//! along the path. Newton's evaluations need only the pose the robot settles at (`Manipulator::settle`).
+//! The command found is checked by an independent forward solve with the tangent stiffness and stability
+//! (`Manipulator::deflect`): the command placed by its own inverse kinematics and the real robot's
+//! equilibrium with those actuator coordinates, from the last forward solve's equilibrium (as a controller
+//! stepping along the path would see it), never from Newton's evaluations.
 
 use std::borrow::Cow;
+use std::collections::VecDeque;
 use std::io::Write;
 
 use anyhow::Result;
@@ -25,11 +28,12 @@ use nalgebra::{DMatrix, DVector};
 use super::assemble::{real_manipulator, LegErrors};
 use super::map::MapSummary;
 use super::point::Status;
+use super::warm_start::{equally_spaced, extrapolation_weights, LoadedHistory};
 use crate::batch::{stream, Study, Tally};
-use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec6};
+use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec3, Vec6};
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header_line, names, Column, Record, Row};
-use crate::platform::loaded::{Deflection, DeflectionFailure};
+use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 /// How the command is computed.
@@ -69,7 +73,7 @@ pub struct CompensateOptions {
 /// separates two solves of one loaded equilibrium from different starts (up to 4e-10 mm on the milling
 /// path of paper 000 s. 5.2 with Case A errors), so that the noise of the evaluations never stalls Newton.
 pub const COMMAND_TOLERANCE_MM: f64 = 1e-8;
-/// Most Newton steps on the command per target (from the mirror command a fine path needs one or two).
+/// Most commands tried per target after the mirror command (along a fine path one or two).
 pub const MAX_COMMAND_ITERATIONS: usize = 30;
 /// A Newton step that does not shrink the residual at least by this factor refreshes the Jacobian by
 /// differences (Broyden's updates have drifted, or the path jumped).
@@ -101,7 +105,8 @@ pub struct Compensation {
     pub actuators: Vec<Vec<f64>>,
     /// The error with the command, from an independent forward solve.
     pub residual: Option<Vec6>,
-    /// Newton steps on the command after the mirror command (None for the mirror method).
+    /// Commands evaluated after the mirror command: the extrapolated one and Newton's steps (None for the
+    /// mirror method).
     pub iterations: Option<usize>,
     /// Loaded equilibria solved for this target.
     pub equilibria: usize,
@@ -208,7 +213,7 @@ pub fn compensate_header(m: &Manipulator) -> String {
 pub struct CompensateSummary {
     /// Targets by status.
     pub statuses: MapSummary,
-    /// Newton steps on the command, over all targets.
+    /// Commands tried after the mirror command (the extrapolated one, Newton steps), over all targets.
     pub iterations: u64,
     /// Loaded equilibria solved, over all targets.
     pub equilibria: u64,
@@ -223,11 +228,11 @@ impl Tally for CompensateSummary {
 }
 
 impl CompensateSummary {
-    /// `N targets: a ok, ...; m Newton steps and e loaded equilibria per target`.
+    /// `N targets: a ok, ...; m commands after the mirror and e loaded equilibria per target`.
     pub fn line(&self) -> String {
         let targets = self.statuses.points.max(1) as f64;
         format!(
-            "{}; {:.2} Newton steps and {:.2} loaded equilibria per target",
+            "{}; {:.2} commands after the mirror and {:.2} loaded equilibria per target",
             self.statuses.line().replacen("points", "targets", 1),
             self.iterations as f64 / targets,
             self.equilibria as f64 / targets
@@ -299,9 +304,14 @@ impl<'a> Compensator<'a> {
         };
         let solver = Solver { nominal: self.robot.nominal, real: &real, target, wrench };
         let result = solver.compensate(self.o.method, st);
-        if result.status != Status::Ok {
-            // A failed target leaves no Jacobian to trust for the next one.
-            st.jacobian = None;
+        match (result.status, st.converged.take()) {
+            (Status::Ok, Some(offset)) => st.commands.push(target.pos, offset),
+            (Status::Ok, None) => {}
+            // A failed target leaves no Jacobian and no command to extrapolate from for the next one.
+            _ => {
+                st.jacobian = None;
+                st.commands.clear();
+            }
         }
         (wrench, result)
     }
@@ -311,41 +321,85 @@ impl<'a> Compensator<'a> {
         let m = self.robot.nominal;
         CompensateState {
             uncompensated: Commanded::new(m),
+            mirror: Commanded::new(m),
             compensated: Commanded::new(m),
             check: Commanded::new(m),
             jacobian: None,
+            commands: CommandHistory::default(),
+            converged: None,
         }
     }
 }
 
 /// A controller and a real robot commanded together: the nominal legs' placement (the controller's
-/// inverse kinematics) and the real legs' loaded equilibrium, with the last command and where it took the
-/// platform (the next solve's start).
+/// inverse kinematics) and the real legs' loaded equilibrium, with the last solutions (the next solve's
+/// start, extrapolated along the commands as a map's rows are).
 #[derive(Clone)]
 struct Commanded {
     nominal: ManipulatorState,
     real: ManipulatorState,
-    last: Option<(Frame, Frame)>,
+    history: LoadedHistory,
 }
 
 impl Commanded {
     fn new(m: &Manipulator) -> Self {
         let mut nominal = m.new_state();
         nominal.polish_placements();
-        Commanded { nominal, real: m.new_state(), last: None }
+        Commanded { nominal, real: m.new_state(), history: LoadedHistory::default() }
     }
 }
 
-/// What a worker carries from one target to the next.
+/// What a worker carries from one target to the next. Each sequence of commands has its own pair, so that
+/// every solve starts from its predecessor along the path (a neighbouring command).
 pub struct CompensateState {
     /// Commanded with the targets themselves.
     uncompensated: Commanded,
-    /// Commanded with the mirror and Newton commands.
+    /// Commanded with the mirror commands.
+    mirror: Commanded,
+    /// Commanded with Newton's commands.
     compensated: Commanded,
     /// Commanded with the command found: the independent forward solve.
     check: Commanded,
     /// The Jacobian of the reached pose by the command (weighted coordinates), from the last target.
     jacobian: Option<Mat6>,
+    /// The last targets' commands.
+    commands: CommandHistory,
+    /// The offset of the command Newton's method converged to for this target, refined by the step its
+    /// last residual asks (see `Solver::newton`).
+    converged: Option<Vec6>,
+}
+
+/// The commands found for the last targets, as the command's offset from its target (weighted
+/// coordinates), for the next target's prediction.
+#[derive(Default)]
+struct CommandHistory {
+    /// (target position, offset), oldest first.
+    last: VecDeque<(Vec3, Vec6)>,
+}
+
+/// Commands a history keeps: three, for a quadratic extrapolation.
+const COMMANDS_KEPT: usize = 3;
+
+impl CommandHistory {
+    fn push(&mut self, target: Vec3, offset: Vec6) {
+        if self.last.len() == COMMANDS_KEPT {
+            self.last.pop_front();
+        }
+        self.last.push_back((target, offset));
+    }
+
+    fn clear(&mut self) {
+        self.last.clear();
+    }
+
+    /// The offset extrapolated to `target` through the last offsets when their targets and `target` are
+    /// equally spaced on a line (the compensation is a smooth function of the target along a path), else
+    /// the last offset; None without history.
+    fn predict(&self, target: &Frame) -> Option<Vec6> {
+        let count = equally_spaced(self.last.iter().rev().map(|(p, _)| p), &target.pos);
+        let weights = extrapolation_weights(count);
+        (count > 0).then(|| self.last.iter().rev().zip(weights).map(|((_, o), w)| o * *w).sum())
+    }
 }
 
 impl Study for Compensator<'_> {
@@ -444,23 +498,49 @@ struct Solver<'a> {
     wrench: Vec6,
 }
 
+/// Where the real robot settled under a command; with a tangent solve, whether it is stable there.
+struct Reached {
+    pose: Frame,
+    stable: Option<bool>,
+}
+
 impl Solver<'_> {
     /// Commands the real robot with `command` through the controller's nominal inverse kinematics and
-    /// solves its loaded equilibrium, starting from the pair's last one.
-    fn reach(&self, command: &Frame, pair: &mut Commanded) -> Result<Deflection, Status> {
+    /// solves its loaded equilibrium, starting from the pair's last one: the pose alone (`settle`), or with
+    /// `tangent` the stability there too (`deflect`).
+    fn reach(&self, command: &Frame, pair: &mut Commanded, tangent: bool) -> Result<Reached, Status> {
         self.nominal.place(command, &mut pair.nominal).map_err(|e| Status::of(&e))?;
-        self.real.take_command(&pair.nominal, &mut pair.real, pair.last.is_some());
-        let start = match &pair.last {
-            Some((c, p)) => apply_twist(p, &c.error_to(command)),
-            None => *command,
+        self.real.take_command(&pair.nominal, &mut pair.real, false);
+        // Keyed by the target: every pair's command is a smooth function of it, equally spaced along a path
+        // as the commands themselves are not.
+        let predicted = pair.history.predict(&self.target.pos).map(|(displacement, offsets)| {
+            for (s, o) in pair.real.legs.iter_mut().zip(&offsets) {
+                s.apply_loaded_offsets(o);
+            }
+            apply_twist(command, &displacement)
+        });
+        // Always a start: without one the solve would place the real legs by their own inverse kinematics,
+        // where the controller's placement must hold them.
+        let solve = |start: &Frame, real: &mut ManipulatorState| match tangent {
+            true => (self.real.deflect(command, &self.wrench, Some(start), real))
+                .map(|d| Reached { pose: d.pose, stable: Some(d.stable) }),
+            false => (self.real.settle(command, &self.wrench, Some(start), real))
+                .map(|d| Reached { pose: d.pose, stable: None }),
         };
-        match self.real.deflect(command, &self.wrench, Some(&start), &mut pair.real) {
-            Ok(d) => {
-                pair.last = Some((*command, d.pose));
-                Ok(d)
+        let mut reached = solve(predicted.as_ref().unwrap_or(command), &mut pair.real);
+        // An extrapolation can start too far (a path where the deflection grows fast): from the placement.
+        if reached.is_err() && predicted.is_some() {
+            self.real.take_command(&pair.nominal, &mut pair.real, false);
+            reached = solve(command, &mut pair.real);
+        }
+        match reached {
+            Ok(r) => {
+                let offsets = pair.real.legs.iter().map(|s| s.loaded_offsets()).collect();
+                pair.history.push(self.target.pos, command.error_to(&r.pose), offsets);
+                Ok(r)
             }
             Err(e) => {
-                pair.last = None;
+                pair.history.clear();
                 Err(deflection_status(&e))
             }
         }
@@ -470,7 +550,7 @@ impl Solver<'_> {
         let mut out = Compensation::failed(Status::Ok);
         // The target as the command: the error compensation has to remove.
         out.equilibria += 1;
-        let reached = match self.reach(&self.target, &mut st.uncompensated) {
+        let reached = match self.reach(&self.target, &mut st.uncompensated, false) {
             Ok(d) => d,
             Err(s) => return Compensation { status: s, ..out },
         };
@@ -488,13 +568,14 @@ impl Solver<'_> {
         // The mirror command of [73]: the target minus the error predicted there, in the directions the
         // actuators move.
         let y_mirror = -&start.task;
-        let mirror = self.evaluate(&task, &y_mirror, st, &mut out.equilibria);
+        let mirror = self.evaluate(&task, &y_mirror, &mut st.mirror, &mut out.equilibria);
         out.mirror = mirror.as_ref().ok().map(|t| task.unweighted(&t.error_w));
         let found = match method {
             Method::Mirror => mirror,
             Method::Newton => {
                 let mut iterations = 0;
-                let found = self.newton(&task, start, mirror.ok(), st, &mut iterations, &mut out.equilibria);
+                let predicted = st.commands.predict(&self.target).map(|offset| task.along(&offset));
+                let found = self.newton(&task, start, mirror.ok(), predicted, st, &mut iterations, &mut out.equilibria);
                 out.iterations = Some(iterations);
                 found
             }
@@ -508,7 +589,7 @@ impl Solver<'_> {
         // The independent forward solve: the command placed by its own inverse kinematics, the real legs'
         // equilibrium from the last forward solve's (nothing carried from Newton's evaluations).
         out.equilibria += 1;
-        let checked = self.reach(&command, &mut st.check);
+        let checked = self.reach(&command, &mut st.check, true);
         out.actuators = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
         let checked = match checked {
             Ok(d) => d,
@@ -517,7 +598,7 @@ impl Solver<'_> {
         let residual = self.target.error_to(&checked.pose);
         out.residual = Some(residual);
         let agrees = task.along(&(task.weighted(&residual) - found.error_w)).norm() <= CHECK_AGREEMENT_MM;
-        out.status = if !checked.stable {
+        out.status = if checked.stable != Some(true) {
             Status::Unstable
         } else if !agrees {
             Status::NotConverged
@@ -543,28 +624,31 @@ impl Solver<'_> {
         }
     }
 
-    /// The real robot under the command at `y`.
+    /// Where the real robot settles under the command at `y`, commanded through `pair`.
     fn evaluate(
         &self,
         task: &Task,
         y: &DVector<f64>,
-        st: &mut CompensateState,
+        pair: &mut Commanded,
         equilibria: &mut usize,
     ) -> Result<Trial, Status> {
         *equilibria += 1;
         let command = task.command(&self.target, y);
-        let d = self.reach(&command, &mut st.compensated)?;
+        let d = self.reach(&command, pair, false)?;
         let error_w = task.weighted(&self.target.error_to(&d.pose));
         Ok(Trial { y: y.clone(), task: task.along(&error_w), error_w })
     }
 
-    /// Newton's method on the command from the target (`start`) and the mirror command (`mirror`, its
-    /// first step with the nominal Jacobian, the identity).
+    /// Newton's method on the command from the target (`start`), the mirror command (`mirror`, its first
+    /// step with the nominal Jacobian, the identity) and the command extrapolated from the targets before
+    /// (`predicted`, coordinates along the task basis), whichever comes closer.
+    #[allow(clippy::too_many_arguments)]
     fn newton(
         &self,
         task: &Task,
         start: Trial,
         mirror: Option<Trial>,
+        predicted: Option<DVector<f64>>,
         st: &mut CompensateState,
         iterations: &mut usize,
         equilibria: &mut usize,
@@ -577,6 +661,17 @@ impl Solver<'_> {
                 broyden(&mut jacobian, task, &best, &m);
                 if m.task.norm() < best.task.norm() {
                     best = m;
+                }
+            }
+        }
+        // Along a path the command's offset from its target changes smoothly: its extrapolation is
+        // usually within the tolerance already, a far better start than the mirror command.
+        if let Some(y) = predicted.filter(|_| best.task.norm() > COMMAND_TOLERANCE_MM) {
+            *iterations += 1;
+            if let Ok(p) = self.evaluate(task, &y, &mut st.compensated, equilibria) {
+                broyden(&mut jacobian, task, &best, &p);
+                if p.task.norm() < best.task.norm() {
+                    best = p;
                 }
             }
         }
@@ -609,7 +704,7 @@ impl Solver<'_> {
             let mut fraction = 1.0;
             let mut trial = Err(Status::NotConverged);
             for _ in 0..MAX_HALVINGS {
-                trial = self.evaluate(task, &(&best.y + &step * fraction), st, equilibria);
+                trial = self.evaluate(task, &(&best.y + &step * fraction), &mut st.compensated, equilibria);
                 match &trial {
                     Ok(_) => break,
                     Err(s) => outside |= matches!(s, Status::Unreachable | Status::IllConditioned),
@@ -632,6 +727,14 @@ impl Solver<'_> {
                 refreshed = true;
             }
         }
+        // The command meets the tolerance; the step its residual still asks (second order small with the
+        // Jacobian Newton ends with) gives the next target's extrapolation a start far inside it, where
+        // the command itself carries up to the tolerance, which extrapolation would amplify.
+        let refined = match task.project(&jacobian).lu().solve(&best.task) {
+            Some(step) if step.iter().all(|v| v.is_finite()) => &best.y - step,
+            _ => best.y.clone(),
+        };
+        st.converged = Some(Vec6::from_column_slice((&task.basis * refined).as_slice()));
         st.jacobian = Some(jacobian);
         Ok(best)
     }
@@ -648,7 +751,7 @@ impl Solver<'_> {
         for k in 0..task.basis.ncols() {
             let mut y = at.y.clone();
             y[k] += DIFFERENCE_STEP_MM;
-            let t = self.evaluate(task, &y, st, equilibria)?;
+            let t = self.evaluate(task, &y, &mut st.compensated, equilibria)?;
             let q = task.column(k);
             let column = (t.error_w - at.error_w) / DIFFERENCE_STEP_MM;
             jacobian += (column - jacobian * q) * q.transpose();

@@ -5,6 +5,33 @@
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::platform::leg::LoadedOffsets;
 
+/// How many of the last points (`newest_first`) lie with `position` equally spaced on a line: 0 without
+/// points, else at least 1.
+pub fn equally_spaced<'a>(mut newest_first: impl Iterator<Item = &'a Vec3>, position: &Vec3) -> usize {
+    let Some(mut newer) = newest_first.next() else { return 0 };
+    let step = position - newer;
+    let mut count = 1;
+    for older in newest_first {
+        if ((newer - older) - step).norm() > 1e-9 * step.norm().max(1e-9) {
+            break;
+        }
+        count += 1;
+        newer = older;
+    }
+    count
+}
+
+/// The weights, newest first, of the polynomial extrapolation one step beyond `count` equally spaced
+/// values (at least 1): the value itself, linear (2, -1), quadratic (3, -3, 1) from three or more. The
+/// quadratic prediction is O(h^3) from a smooth function of the position, the linear one O(h^2).
+pub fn extrapolation_weights(count: usize) -> &'static [f64] {
+    match count {
+        0 | 1 => &[1.0],
+        2 => &[2.0, -1.0],
+        _ => &[3.0, -3.0, 1.0],
+    }
+}
+
 /// One loaded solution: commanded position, platform displacement, each leg's departure from its placement.
 #[derive(Clone, Debug)]
 struct Solution {
@@ -29,11 +56,7 @@ impl Sequence {
     /// Newton's method then confirms it with one linearisation fewer.
     fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
         let newest = self.solutions.last()?;
-        let weights: &[f64] = match self.equally_spaced(position) {
-            1 => &[1.0],
-            2 => &[2.0, -1.0],
-            _ => &[3.0, -3.0, 1.0],
-        };
+        let weights = extrapolation_weights(self.equally_spaced(position));
         let used: Vec<&Solution> = self.solutions.iter().rev().zip(weights).map(|(s, _)| s).collect();
         let displacement = used.iter().zip(weights).map(|(s, w)| s.displacement * *w).sum();
         let offsets = (0..newest.offsets.len())
@@ -48,17 +71,7 @@ impl Sequence {
 
     /// How many of the last solutions lie with `position` equally spaced on a line (at least 1).
     fn equally_spaced(&self, position: &Vec3) -> usize {
-        let Some(newest) = self.solutions.last() else { return 0 };
-        let step = position - newest.position;
-        let mut count = 1;
-        for pair in self.solutions.windows(2).rev() {
-            let spacing = pair[1].position - pair[0].position;
-            if (spacing - step).norm() > 1e-9 * step.norm().max(1e-9) {
-                break;
-            }
-            count += 1;
-        }
-        count
+        equally_spaced(self.solutions.iter().rev().map(|s| &s.position), position)
     }
 
     fn push(&mut self, solution: Solution) {
