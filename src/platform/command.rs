@@ -11,14 +11,13 @@ use crate::kinematics::frame::{Frame, Mat6, Vec6};
 
 impl Manipulator {
     /// After the nominal manipulator placed `nominal` for a command: sets this (real) manipulator's
-    /// actuators where that placement put them. With `keep_loaded` the legs start their loaded equilibrium
-    /// from the new placement plus their last equilibrium's departure from its own placement (a
-    /// neighbouring command: two or three Newton iterations); without it from the nominal placement,
-    /// independently of any earlier solve. The real legs must have the nominal legs'
-    /// coordinates (errors built in by fixed transforms and parameter values, `Leg::with_errors`).
-    pub fn take_command(&self, nominal: &ManipulatorState, state: &mut ManipulatorState, keep_loaded: bool) {
+    /// actuators where that placement put them, every leg starting its loaded equilibrium from the nominal
+    /// placement (a caller with earlier solutions then applies their extrapolated departures from it,
+    /// `LegState::apply_loaded_offsets`). The real legs must have the nominal legs' coordinates (errors built
+    /// in by fixed transforms and parameter values, `Leg::with_errors`).
+    pub fn take_command(&self, nominal: &ManipulatorState, state: &mut ManipulatorState) {
         for (real, placed) in state.legs.iter_mut().zip(&nominal.legs) {
-            real.take_command(placed, keep_loaded);
+            real.take_command(placed);
         }
     }
 
@@ -85,26 +84,13 @@ impl ManipulatorState {
 }
 
 impl LegState {
-    /// The actuators as the nominal leg's placement `nominal` set them (`Manipulator::take_command`).
-    fn take_command(&mut self, nominal: &LegState, keep_loaded: bool) {
-        let same = self.coords.passive.len() == nominal.coords.passive.len()
-            && self.placed.passive.len() == nominal.coords.passive.len();
-        if keep_loaded && self.warm && same {
-            // The last equilibrium's departure from its placement, carried onto the new placement (as a
-            // map carries `LoadedOffsets`): right for a neighbouring command, and still a start from the
-            // new placement when the command jumps.
-            for ((q, placed), now) in
-                self.coords.passive.iter_mut().zip(&self.placed.passive).zip(&nominal.coords.passive)
-            {
-                *q = now + (*q - placed);
-            }
-            self.coords.actuated.copy_from_slice(&nominal.coords.actuated);
-        } else {
-            self.coords.clone_from(&nominal.coords);
-            self.end_wrench = Vec6::zeros();
-            self.last_target = nominal.last_target;
-            self.warm = true;
-        }
+    /// The actuators as the nominal leg's placement `nominal` set them, and the placement as the start of
+    /// the loaded equilibrium (`Manipulator::take_command`).
+    fn take_command(&mut self, nominal: &LegState) {
+        self.coords.clone_from(&nominal.coords);
+        self.end_wrench = Vec6::zeros();
+        self.last_target = nominal.last_target;
+        self.warm = true;
         self.placed.clone_from(&nominal.placed);
         self.ik.invalidate();
         self.msa.clone_from(&nominal.msa);

@@ -510,7 +510,7 @@ impl Solver<'_> {
     /// `tangent` the stability there too (`deflect`).
     fn reach(&self, command: &Frame, pair: &mut Commanded, tangent: bool) -> Result<Reached, Status> {
         self.nominal.place(command, &mut pair.nominal).map_err(|e| Status::of(&e))?;
-        self.real.take_command(&pair.nominal, &mut pair.real, false);
+        self.real.take_command(&pair.nominal, &mut pair.real);
         // Keyed by the target: every pair's command is a smooth function of it, equally spaced along a path
         // as the commands themselves are not.
         let predicted = pair.history.predict(&self.target.pos).map(|(displacement, offsets)| {
@@ -530,7 +530,7 @@ impl Solver<'_> {
         let mut reached = solve(predicted.as_ref().unwrap_or(command), &mut pair.real);
         // An extrapolation can start too far (a path where the deflection grows fast): from the placement.
         if reached.is_err() && predicted.is_some() {
-            self.real.take_command(&pair.nominal, &mut pair.real, false);
+            self.real.take_command(&pair.nominal, &mut pair.real);
             reached = solve(command, &mut pair.real);
         }
         match reached {
