@@ -236,15 +236,10 @@ impl Manipulator {
             // by one neighbouring point since, and the contraction grows in proportion to how far they
             // are from the factorised ones: at most doubled by one more step of a path). Unknown after a
             // full step.
-            chord_contraction = match (full, last_distance.is_finite()) {
-                (true, _) => f64::INFINITY,
-                (false, true) => contraction,
-                (false, false) => CARRIED_GROWTH * chord_contraction,
-            };
-            measured = match (full, last_distance.is_finite()) {
-                (true, _) => false,
-                (false, true) => true,
-                (false, false) => measured,
+            (chord_contraction, measured) = match (full, last_distance.is_finite()) {
+                (true, _) => (f64::INFINITY, false),
+                (false, true) => (contraction, true),
+                (false, false) => (CARRIED_GROWTH * chord_contraction, measured),
             };
             // A chord step within `TANGENT_TOLERANCE` leaves less than itself (a contracting iteration), and
             // its contraction, a ratio of two steps at round-off, means nothing there.

@@ -332,8 +332,8 @@ impl<'a> Compensator<'a> {
 }
 
 /// A controller and a real robot commanded together: the nominal legs' placement (the controller's
-/// inverse kinematics) and the real legs' loaded equilibrium, with the last solutions (the next solve's
-/// start, extrapolated along the commands as a map's rows are).
+/// inverse kinematics) and the real legs' loaded equilibrium, with the last solutions keyed by their
+/// targets (the next solve's start, extrapolated along the path as a map's rows are).
 #[derive(Clone)]
 struct Commanded {
     nominal: ManipulatorState,
