@@ -199,6 +199,52 @@ chain = [
     assert!(d.stable);
 }
 
+/// A leg that buckles with its end held (paper 000 eq 14: the energy's Hessian on the motions that keep the
+/// end fixed): two rigid bars of length L pinned at the base and at the platform, joined by a spring whose
+/// axial stiffness is k_a and whose hinge stiffness in the plane is k_r (every other direction stiff).
+/// Pushed along its line by e, it carries P = k_a e; with its end held, the hinge can still move sideways by
+/// an angle a per bar while the axial spring stretches by about a^2 (L - e/2), so the energy changes by
+/// (2 k_r - P (L - e/2)) a^2: the leg is unstable exactly when P > 2 k_r / (L - e/2). The stability test
+/// must say so on both sides of that load.
+#[test]
+fn a_leg_buckles_with_its_end_held_at_twice_its_hinge_stiffness_over_its_length() {
+    let (l, k_a, k_r) = (200.0, 1.0e5, 1.0e6);
+    let m = model(&format!(
+        r#"
+name = "hinged column"
+[[leg]]
+name = "column"
+chain = [
+  {{ type = "revolute", axis = "z", role = "passive" }},
+  {{ type = "fixed", translation = [{l}, 0, 0] }},
+  {{ type = "spring6", stiffness_matrix = [[{k_a},0,0,0,0,0],[0,1e9,0,0,0,0],[0,0,1e9,0,0,0],[0,0,0,1e10,0,0],[0,0,0,0,1e10,0],[0,0,0,0,0,{k_r}]] }},
+  {{ type = "fixed", translation = [{l}, 0, 0] }},
+  {{ type = "revolute", axis = "z", role = "passive" }},
+]
+"#
+    ));
+    let commanded = Frame::translation(Vec3::new(2.0 * l, 0.0, 0.0));
+    for ratio in [0.5, 0.99, 1.01, 1.5] {
+        // P = k_a e = ratio * 2 k_r / (L - e/2), solved for e.
+        let e = {
+            let target = ratio * 2.0 * k_r / k_a;
+            // e (L - e/2) = target: the smaller root.
+            l - (l * l - 2.0 * target).sqrt()
+        };
+        let mut s = m.new_state();
+        m.place(&commanded, &mut s).unwrap();
+        let h = m.hold(&Frame::translation(Vec3::new(2.0 * l - e, 0.0, 0.0)), &mut s).unwrap();
+        let p = -h.force[0];
+        assert!((p - k_a * e).abs() < 1e-6 * k_a * e, "P {p} vs k_a e {}", k_a * e);
+        assert_eq!(
+            h.legs_stable(),
+            ratio < 1.0,
+            "P / P_cr = {ratio}: unstable legs {:?}",
+            h.unstable_legs().collect::<Vec<_>>()
+        );
+    }
+}
+
 /// Two axial springs in parallel between the base and the platform, one preloaded (rest length shifted by
 /// p): the platform settles at x = k1 p / (k1 + k2), and the springs carry k2 x each way.
 #[test]
