@@ -119,7 +119,7 @@ impl Leg {
         let target = l.target(platform);
         let lin = l.loaded_chain().linearize(&target, &state.coords, &Vec6::zeros(), &mut state.equilibrium)?;
         let twist = point_shift(&(lin.end - platform.pos)) * dt;
-        let delta = &lin.sensitivity * nalgebra::DVector::from_column_slice(twist.as_slice());
+        let delta = lin.response(&twist);
         let n_q = state.coords.passive.len();
         let mut out =
             super::assembly::JointDeflections { passive_max: delta.rows(0, n_q).amax(), ..Default::default() };

@@ -340,7 +340,7 @@ impl Leg {
 /// The wrench the platform applies to a leg once the leg's own Newton correction is made, at the
 /// reference point.
 fn corrected_force(lin: &Linearization, platform: &Frame) -> Vec6 {
-    let corrected = lin.wrench + Vec6::from_fn(|r, _| lin.correction[lin.correction.len() - 6 + r]);
+    let corrected = lin.corrected_wrench();
     at_reference_point(&corrected, &Mat6::zeros(), &(lin.end - platform.pos)).wrench
 }
 

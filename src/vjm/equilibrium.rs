@@ -87,18 +87,18 @@ pub struct EquilibriumWorkspace {
 /// Buffers of the stability test (`LoadedChain::stable`), reused so that the test allocates nothing.
 #[derive(Clone, Debug, Default)]
 struct StabilityWork {
-    /// The constraint Jacobian J under elimination (6 x k, column-major).
+    /// The constraint Jacobian J (6 x k, column-major), reduced in place to its row echelon form.
     jacobian: Vec<f64>,
+    /// Whether each coordinate is basic (a pivot column of J), the basic ones in pivot order, the free ones.
+    is_basic: Vec<bool>,
     basic: Vec<usize>,
     free: Vec<usize>,
-    /// The basic columns' square block B of J (column-major) and its factorisation.
-    block: Vec<f64>,
-    lu: DenseLu,
-    /// X = B^-1 N (basic x free, column-major).
-    x: Vec<f64>,
-    /// The symmetrised energy Hessian (k x k, row-major), one column of H Z, and Z^T H Z (f x f).
+    /// X = B^-1 N (f x b: per free coordinate, its entries in the basic rows).
+    x: Vec<[f64; 6]>,
+    /// The symmetrised energy Hessian H (k x k, row-major), its basic columns gathered by rows (k x b),
+    /// one column of H Z, and Z^T H Z (f x f).
     hessian: Vec<f64>,
-    basic_columns: Vec<f64>,
+    basic_columns: Vec<[f64; 6]>,
     hz: Vec<f64>,
     reduced: Vec<f64>,
     cholesky: EnvelopeCholesky,
@@ -109,10 +109,11 @@ struct StabilityWork {
 #[derive(Clone, Debug)]
 pub struct Linearization {
     /// `M^-1 [e; -r]`: the change of (q, theta, F) that restores equilibrium with the end where it is asked.
-    pub correction: DVector<f64>,
-    /// `M^-1 [I6; 0]`: the change of (q, theta, F) per unit displacement of the end (N x 6). Its F rows are
-    /// the tangent stiffness K_C, its q and theta rows K_Cq and K_Ctheta (eq 46).
-    pub sensitivity: DMatrix<f64>,
+    correction: Vec<f64>,
+    /// `M^-1 [I6; 0]`: the change of (q, theta, F) per unit displacement of the end (N x 6, by rows: each
+    /// coordinate's response is one contiguous dot product). Its F rows are the tangent stiffness K_C, its
+    /// q and theta rows K_Cq and K_Ctheta (eq 46).
+    sensitivity: Vec<[f64; 6]>,
     /// End point (base frame) and wrench at the configuration linearised.
     pub end: Vec3,
     /// The wrench at the end.
@@ -127,8 +128,8 @@ impl Linearization {
     /// An empty linearisation, for `LoadedChain::linearize_into` to fill.
     pub fn empty() -> Self {
         Linearization {
-            correction: DVector::zeros(0),
-            sensitivity: DMatrix::zeros(0, 6),
+            correction: Vec::new(),
+            sensitivity: Vec::new(),
             end: Vec3::zeros(),
             wrench: Vec6::zeros(),
             end_error: Vec6::zeros(),
@@ -139,14 +140,29 @@ impl Linearization {
     /// The change of coordinate `k` (in unknown order q, theta, F) for the end moved by `end_twist`:
     /// the correction plus the sensitivities' response.
     fn delta(&self, k: usize, end_twist: &Vec6) -> f64 {
-        let response = (0..6).fold(0.0, |sum, j| sum + self.sensitivity[(k, j)] * end_twist[j]);
+        let response = self.sensitivity[k].iter().zip(end_twist.iter()).fold(0.0, |sum, (s, t)| sum + s * t);
         self.correction[k] + response
+    }
+
+    /// The change of (q, theta, F) per end displacement `end_twist` with the equilibrium kept (eq 46's
+    /// K_Cq, K_Ctheta and K_C times it), without the correction.
+    pub fn response(&self, end_twist: &Vec6) -> DVector<f64> {
+        DVector::from_iterator(
+            self.sensitivity.len(),
+            self.sensitivity.iter().map(|s| s.iter().zip(end_twist.iter()).fold(0.0, |sum, (s, t)| sum + s * t)),
+        )
+    }
+
+    /// The wrench at the end once the correction is made.
+    pub fn corrected_wrench(&self) -> Vec6 {
+        let o = self.correction.len() - 6;
+        self.wrench + Vec6::from_column_slice(&self.correction[o..])
     }
 
     /// The tangent stiffness at the end (the last six rows of the sensitivities).
     pub fn stiffness(&self) -> Mat6 {
-        let o = self.sensitivity.nrows() - 6;
-        Mat6::from_fn(|r, c| self.sensitivity[(o + r, c)])
+        let o = self.sensitivity.len() - 6;
+        Mat6::from_fn(|r, c| self.sensitivity[o + r][c])
     }
 
     /// How far the configuration linearised is from equilibrium: the larger of the largest coordinate
@@ -160,7 +176,7 @@ impl Linearization {
     /// Largest change of a coordinate (rad or mm) in the correction.
     fn coordinate_correction(&self) -> f64 {
         let o = self.correction.len() - 6;
-        self.correction.rows(0, o).amax()
+        self.correction[..o].iter().fold(0.0f64, |m, v| m.max(v.abs()))
     }
 }
 
@@ -286,7 +302,7 @@ impl LoadedChain<'_> {
         }
         self.chain.evaluate(coords, &mut ws.jac);
         ws.jac.fill_virtual();
-        let correction = lin.correction.as_mut_slice();
+        let correction = &mut lin.correction[..];
         self.residual(coords, wrench, target, &ws.jac, &mut ws.generalised, correction);
         ws.lu.solve_in_place(correction);
         lin.end = ws.jac.end.pos;
@@ -329,16 +345,10 @@ impl LoadedChain<'_> {
         if !ws.rhs.iter().flatten().all(|v| v.is_finite()) {
             return false;
         }
-        if lin.correction.len() != size {
-            lin.correction = DVector::zeros(size);
-            lin.sensitivity = DMatrix::zeros(size, 6);
-        }
-        for (k, row) in ws.rhs.iter().enumerate() {
-            lin.correction[k] = row[0];
-            for c in 0..6 {
-                lin.sensitivity[(k, c)] = row[1 + c];
-            }
-        }
+        lin.correction.clear();
+        lin.correction.extend(ws.rhs.iter().map(|row| row[0]));
+        lin.sensitivity.clear();
+        lin.sensitivity.extend(ws.rhs.iter().map(|row| std::array::from_fn(|c| row[1 + c])));
         lin.end = ws.jac.end.pos;
         lin.wrench = *wrench;
         lin.end_error = target.error_to(&ws.jac.end);
@@ -415,9 +425,11 @@ impl LoadedChain<'_> {
 
     /// Stability with the end held, at the last linearisation in `ws`: the Hessian of the energy (minus
     /// the load block of eq 45, spring stiffness included) positive definite on the null space of the
-    /// constraint Jacobian J = [J_q J_theta]. The null space is spanned by Z = [I; -B^-1 N] over six basic
-    /// columns B of J chosen by complete pivoting (any basis serves a definiteness test); definiteness by a
-    /// Cholesky factorisation of Z^T H Z.
+    /// constraint Jacobian J = [J_q J_theta]. J is reduced to its row echelon form by Gauss-Jordan
+    /// elimination with complete pivoting; its pivot columns are the basic coordinates b, the others the free
+    /// ones f, and the null space is spanned by Z = [I; -X] on (f; b), X the free columns of the reduced rows
+    /// (B^-1 N, any basis serves a definiteness test; rows of J that vanish, where the chain cannot move
+    /// the end in some direction at all, drop out). Definiteness by a Cholesky factorisation of Z^T H Z.
     pub fn stable(&self, ws: &mut EquilibriumWorkspace) -> bool {
         let (n, m) = self.sizes();
         let k = n + m;
@@ -425,19 +437,25 @@ impl LoadedChain<'_> {
         let size = a.nrows();
         // Column-major: a[(r, c)] = a[c * size + r].
         let a = a.as_slice();
-        // Basic columns by Gaussian elimination with complete pivoting on a copy of J (column-major 6 x k).
         w.jacobian.clear();
         (0..k).for_each(|c| w.jacobian.extend_from_slice(&a[c * size..c * size + 6]));
         let j = &mut w.jacobian;
         let largest = j.iter().fold(0.0f64, |l, v| l.max(v.abs()));
+        w.is_basic.clear();
+        w.is_basic.resize(k, false);
         w.basic.clear();
-        let mut rows_left = [true; 6];
-        for _ in 0..6 {
+        // The row of each basic coordinate's pivot, in pivot order.
+        let mut pivot_rows = [0usize; 6];
+        // 1 for the rows without a pivot yet, 0 for the others. A basic column is zero outside its pivot's
+        // row (cleared below), so searching the rows left skips the basic columns too.
+        let mut rows_left = [1.0f64; 6];
+        while w.basic.len() < 6 {
             let mut best = (0usize, 0usize, 0.0f64);
-            for r in (0..6).filter(|&r| rows_left[r]) {
-                for c in (0..k).filter(|c| !w.basic.contains(c)) {
-                    if j[c * 6 + r].abs() > best.2 {
-                        best = (r, c, j[c * 6 + r].abs());
+            for (c, column) in j.chunks_exact(6).enumerate() {
+                for (r, (v, left)) in column.iter().zip(&rows_left).enumerate() {
+                    let size = v.abs() * left;
+                    if size > best.2 {
+                        best = (r, c, size);
                     }
                 }
             }
@@ -445,77 +463,64 @@ impl LoadedChain<'_> {
                 break;
             }
             let (pr, pc, _) = best;
-            for r in (0..6).filter(|&r| rows_left[r] && r != pr) {
-                let f = j[pc * 6 + r] / j[pc * 6 + pr];
-                for c in 0..k {
-                    let v = j[c * 6 + pr];
-                    j[c * 6 + r] -= f * v;
+            // The pivot row scaled to a unit pivot, then the pivot column cleared from every other row.
+            let inverse = 1.0 / j[pc * 6 + pr];
+            let mut factors: [f64; 6] = j[pc * 6..pc * 6 + 6].try_into().expect("six rows");
+            factors[pr] = 0.0;
+            for column in j.chunks_exact_mut(6) {
+                let p = column[pr] * inverse;
+                column[pr] = p;
+                for (v, f) in column.iter_mut().zip(&factors) {
+                    *v -= f * p;
                 }
             }
-            rows_left[pr] = false;
+            // Exactly a unit column (p above is 1 to round-off only), so that the search skips it.
+            j[pc * 6..pc * 6 + 6].iter_mut().enumerate().for_each(|(r, v)| *v = if r == pr { 1.0 } else { 0.0 });
+            rows_left[pr] = 0.0;
+            w.is_basic[pc] = true;
+            pivot_rows[w.basic.len()] = pr;
             w.basic.push(pc);
         }
         w.free.clear();
-        w.free.extend((0..k).filter(|c| !w.basic.contains(c)));
+        w.free.extend((0..k).filter(|&c| !w.is_basic[c]));
         let (basic, free) = (&w.basic, &w.free);
         if free.is_empty() {
             return true;
         }
         let (f, b) = (free.len(), basic.len());
-        // X = B^-1 N, B and N the basic and free columns of J. With six basic columns B is square and
-        // regular; with fewer (J of rank below 6: directions the chain cannot move at all) least squares
-        // gives the same null space.
+        // X = B^-1 N: the free columns of the reduced rows, per free coordinate its entry in each basic row
+        // (at most six: padded with zeros, so that every sum over the basic coordinates has six terms).
         w.x.clear();
-        if b == 6 {
-            w.block.clear();
-            basic.iter().for_each(|&c| w.block.extend_from_slice(&a[c * size..c * size + 6]));
-            if !w.lu.factor(&w.block, 6) {
-                return false;
-            }
-            for &c in free {
-                let start = w.x.len();
-                w.x.extend_from_slice(&a[c * size..c * size + 6]);
-                w.lu.solve_in_place(&mut w.x[start..]);
-            }
-        } else {
-            let jb = DMatrix::from_fn(6, b, |r, c| a[basic[c] * size + r]);
-            let jn = DMatrix::from_fn(6, f, |r, c| a[free[c] * size + r]);
-            match crate::linalg::capped_svd(jb, true, true).map(|svd| svd.solve(&jn, 1e-12)) {
-                Some(Ok(x)) => w.x.extend_from_slice(x.as_slice()),
-                _ => return false,
-            }
-        }
-        // Z = [I; -X] on (free; basic) coordinates, so Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X, with
-        // H the energy Hessian, minus the symmetrised load block of eq (45). Column by column of Z,
-        // z_c = e_free[c] - sum_b X[b, c] e_basic[b]: reduced[r, c] = z_r^T (H z_c).
-        // H, row-major: the symmetrised energy Hessian.
+        w.x.extend(free.iter().map(|&c| std::array::from_fn(|i| if i < b { j[c * 6 + pivot_rows[i]] } else { 0.0 })));
+        // H, row-major: minus the symmetrised lower block of eq (45) (its columns copied as H's rows, then
+        // each pair of entries averaged).
         w.hessian.clear();
+        (0..k).for_each(|c| w.hessian.extend(a[c * size + 6..c * size + 6 + k].iter().map(|v| -v)));
+        let h = &mut w.hessian;
         for r in 0..k {
-            w.hessian.extend((0..k).map(|c| -0.5 * (a[c * size + 6 + r] + a[r * size + 6 + c])));
+            for c in r + 1..k {
+                let v = 0.5 * (h[r * k + c] + h[c * k + r]);
+                h[r * k + c] = v;
+                h[c * k + r] = v;
+            }
         }
-        // X, column-major b x f; H's basic columns gathered by rows (k x b), so that each sum over the basic
-        // coordinates runs over two contiguous slices.
-        let x = &w.x;
+        // Z = [I; -X] on (free; basic) coordinates, so Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X.
+        // Column by column of Z, z_c = e_free[c] - sum_b X[c, b] e_basic[b]: reduced[r, c] = z_r^T (H z_c),
+        // with H's basic columns gathered by rows.
         w.basic_columns.clear();
-        for row in w.hessian.chunks_exact(k) {
-            w.basic_columns.extend(basic.iter().map(|&bb| row[bb]));
-        }
+        w.basic_columns
+            .extend(h.chunks_exact(k).map(|row| std::array::from_fn(|i| if i < b { row[basic[i]] } else { 0.0 })));
         w.hz.resize(k, 0.0);
         w.reduced.clear();
         w.reduced.resize(f * f, 0.0);
-        let mut hz_basic = [0.0; 6];
-        for c in 0..f {
-            let xc = &x[c * b..(c + 1) * b];
-            let rows = w.hessian.chunks_exact(k).zip(w.basic_columns.chunks_exact(b));
+        for (c, xc) in w.x.iter().enumerate() {
+            let rows = h.chunks_exact(k).zip(&w.basic_columns);
             for (value, (row, row_basic)) in w.hz.iter_mut().zip(rows) {
-                *value = row[free[c]] - row_basic.iter().zip(xc).map(|(h, xb)| h * xb).sum::<f64>();
+                *value = row[free[c]] - dot6(row_basic, xc);
             }
-            for (h, &bb) in hz_basic.iter_mut().zip(basic) {
-                *h = w.hz[bb];
-            }
-            for r in 0..f {
-                let xr = &x[r * b..(r + 1) * b];
-                w.reduced[c * f + r] = w.hz[free[r]] - xr.iter().zip(&hz_basic).map(|(xb, h)| xb * h).sum::<f64>();
+            let hz_basic: [f64; 6] = std::array::from_fn(|i| if i < b { w.hz[basic[i]] } else { 0.0 });
+            for (r, xr) in w.x.iter().enumerate() {
+                w.reduced[c * f + r] = w.hz[free[r]] - dot6(xr, &hz_basic);
             }
         }
         let tol = 1e-12 * w.reduced.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
@@ -524,6 +529,10 @@ impl LoadedChain<'_> {
         }
         w.cholesky.factor(&mut w.reduced, f, f).is_some()
     }
+}
+
+fn dot6(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| a * b).sum()
 }
 
 fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
