@@ -6,6 +6,7 @@
 //! frame: a revolute joint of world axis w through o gives (w x (p_end - o), w), a prismatic one (w, 0).
 
 use super::frame::{rotation_about, Frame, Mat3, Vec3, Vec6};
+use std::ops::IndexMut;
 
 /// An elementary joint's motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -222,8 +223,15 @@ impl ChainJacobians {
     /// The derivative of `add_generalised_forces` with respect to the unknowns, the loads held fixed in the
     /// base frame: the Hessians H_qq, H_q theta, H_theta q, H_theta theta of paper 000 eq (41)-(44), exact
     /// for twist Jacobians (a joint moves the axes, origins and load points downstream of it). Added into
-    /// `out` (rows: generalised force, columns: coordinate).
-    pub fn add_load_hessian(&mut self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
+    /// `out` (rows: generalised force, columns: coordinate): a matrix of its own, or a block of a larger one
+    /// (the Newton matrix of eq 45 takes them in place).
+    pub fn add_load_hessian(
+        &mut self,
+        w: &Vec6,
+        gravity: &Vec3,
+        n_passive: usize,
+        out: &mut impl IndexMut<(usize, usize), Output = f64>,
+    ) {
         let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
         self.add_point_hessian(&self.end.pos.clone(), &f, &m, self.placed.len(), n_passive, out);
         if *gravity != Vec3::zeros() {
@@ -241,7 +249,7 @@ impl ChainJacobians {
         m: &Vec3,
         upto: usize,
         n_passive: usize,
-        out: &mut nalgebra::DMatrix<f64>,
+        out: &mut impl IndexMut<(usize, usize), Output = f64>,
     ) {
         // For a joint k, phi_k = w_k . (m + (x - o_k) x f) (revolute) or w_k . f (prismatic). A unit motion of
         // joint l moves x by dx_l = w_l x (x - o_l) (revolute) or w_l (prismatic); if l comes before k it also

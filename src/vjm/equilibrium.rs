@@ -73,10 +73,9 @@ pub struct EquilibriumWorkspace {
     residual: Vec<f64>,
     /// The matrix of eq (45) at the last linearisation (kept for the stability test), its right-hand
     /// sides by rows (the residuals, then a unit end displacement along each axis: solved together by
-    /// `DenseLu::solve_rows`), the load Hessian, and the factorisation.
+    /// `DenseLu::solve_rows`), and the factorisation.
     matrix: DMatrix<f64>,
     rhs: Vec<[f64; 7]>,
-    hessian: DMatrix<f64>,
     lu: DenseLu,
     /// Factorisations made in `lu` so far: a linearisation records the number of its own, so that a chord
     /// step knows whether `lu` still holds it.
@@ -198,9 +197,8 @@ impl LoadedChain<'_> {
     fn assemble(&self, coords: &Coordinates, wrench: &Vec6, target: &Frame, ws: &mut EquilibriumWorkspace) {
         let (n, m) = self.sizes();
         let size = n + m + 6;
-        let EquilibriumWorkspace { jac, generalised, residual, matrix: a, rhs, hessian: h, .. } = ws;
+        let EquilibriumWorkspace { jac, generalised, residual, matrix: a, rhs, .. } = ws;
         resize_zeroed(a, size, size);
-        resize_zeroed(h, n + m, n + m);
         rhs.clear();
         rhs.resize(size, [0.0; 7]);
         residual.resize(size, 0.0);
@@ -219,8 +217,7 @@ impl LoadedChain<'_> {
                 a[(6 + n + k, n + m + r)] = c[r];
             }
         }
-        jac.add_load_hessian(wrench, &self.gravity, n, h);
-        a.view_mut((6, 0), (n + m, n + m)).copy_from(h);
+        jac.add_load_hessian(wrench, &self.gravity, n, &mut a.view_mut((6, 0), (n + m, n + m)));
         for s in self.springs {
             let stiffness = s.stiffness_at(&coords.passive);
             for i in 0..s.dim {
