@@ -340,8 +340,16 @@ impl Leg {
 /// The wrench the platform applies to a leg once the leg's own Newton correction is made, at the
 /// reference point.
 fn corrected_force(lin: &Linearization, platform: &Frame) -> Vec6 {
-    let corrected = lin.corrected_wrench();
-    at_reference_point(&corrected, &Mat6::zeros(), &(lin.end - platform.pos)).wrench
+    wrench_at_reference_point(&lin.corrected_wrench(), &(lin.end - platform.pos))
+}
+
+/// A wrench the platform applies at a leg's end point seen at the reference point, `v = EP - RP`: the force
+/// is unchanged, the moment gains v x F.
+fn wrench_at_reference_point(wrench: &Vec6, v: &Vec3) -> Vec6 {
+    let f: Vec3 = wrench.fixed_rows::<3>(0).into();
+    let m: Vec3 = wrench.fixed_rows::<3>(3).into();
+    let m_rp = m + v.cross(&f);
+    Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z)
 }
 
 /// A wrench the platform applies at a leg's end point, and the leg's tangent stiffness there, seen at the
@@ -350,8 +358,6 @@ fn corrected_force(lin: &Linearization, platform: &Frame) -> Vec6 {
 /// with the platform.
 pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> AtReferencePoint {
     let f: Vec3 = wrench.fixed_rows::<3>(0).into();
-    let m: Vec3 = wrench.fixed_rows::<3>(3).into();
-    let m_rp = m + v.cross(&f);
     let mut stiffness = shift_stiffness(k_end, v);
     let mut magnitude = shift_magnitude(k_end, v);
     let geometric: Mat3 = skew(&f) * skew(v);
@@ -361,7 +367,7 @@ pub fn at_reference_point(wrench: &Vec6, k_end: &Mat6, v: &Vec3) -> AtReferenceP
     for i in 0..3 {
         magnitude[3 + i] += geometric_size[(i, i)];
     }
-    AtReferencePoint { wrench: Vec6::new(f.x, f.y, f.z, m_rp.x, m_rp.y, m_rp.z), stiffness, magnitude }
+    AtReferencePoint { wrench: wrench_at_reference_point(wrench, v), stiffness, magnitude }
 }
 
 /// A leg's wrench and tangent stiffness moved to the reference point, with the size of the stiffness'

@@ -24,9 +24,7 @@ pub fn equally_spaced<'a>(mut newest_first: impl Iterator<Item = &'a Vec3>, posi
 /// The weights, newest first, of the polynomial extrapolation one step beyond `count` equally spaced
 /// values (at least 1): the value itself, linear (2, -1), quadratic (3, -3, 1), cubic (4, -6, 4, -1), and
 /// quartic (5, -10, 10, -5, 1) from five or more: (-1)^i C(d + 1, i + 1) for degree d, whose prediction is
-/// O(h^(d+1)) from a smooth function of the position. (Along the loaded 3-PUU's rows, 5.7 mm apart, the
-/// displacement's third differences are 2e-4 mm, its fifth 3e-6 mm: each degree gains about a digit of
-/// start, and the chord steps from there two digits each.)
+/// O(h^(d+1)) from a smooth function of the position.
 pub fn extrapolation_weights(count: usize) -> &'static [f64] {
     match count {
         0 | 1 => &[1.0],
@@ -35,6 +33,33 @@ pub fn extrapolation_weights(count: usize) -> &'static [f64] {
         4 => &[4.0, -6.0, 4.0, -1.0],
         _ => &[5.0, -10.0, 10.0, -5.0, 1.0],
     }
+}
+
+/// The degree of the extrapolation through equally spaced values (newest first) that predicts the next
+/// best: linear from two values, quadratic from three, and beyond that each degree k whose backward
+/// difference the next one shows to be the curve's (|nabla^(k+1)| < |nabla^k|), at most quartic. The
+/// degree-k prediction is the sum of the newest value's backward differences up to nabla^k, its error
+/// about nabla^(k+1): on a coarse grid the differences fall with each order (along the loaded 3-PUU's rows,
+/// 5.7 mm apart, the displacement's third difference is 2e-4 mm, its fifth 3e-6 mm), but on a finely
+/// sampled path they reach the solutions' own round-off after the second, and a higher degree would only
+/// amplify it (the weights' sizes add up to 2^(d+1) - 1).
+pub fn extrapolation_degree(newest_first: &[Vec6]) -> usize {
+    let count = newest_first.len().min(6);
+    let mut differences: [Vec6; 6] = [Vec6::zeros(); 6];
+    differences[..count].copy_from_slice(&newest_first[..count]);
+    // sizes[k] = |nabla^k| at the newest value.
+    let mut sizes = [0.0; 6];
+    for k in 1..count {
+        for i in 0..count - k {
+            differences[i] = differences[i] - differences[i + 1];
+        }
+        sizes[k] = differences[0].norm();
+    }
+    let mut degree = count.saturating_sub(1).min(2);
+    while degree + 2 < count && degree < 4 && sizes[degree + 2] < sizes[degree + 1] {
+        degree += 1;
+    }
+    degree
 }
 
 /// One loaded solution: commanded position, platform displacement, each leg's departure from its placement.
@@ -51,17 +76,23 @@ struct Sequence {
     solutions: Vec<Solution>,
 }
 
-/// Solutions a sequence keeps: five, for a quartic extrapolation.
-const KEPT: usize = 5;
+/// Solutions a sequence keeps: six, for a quartic extrapolation whose last difference is judged by the
+/// next (`extrapolation_degree`).
+const KEPT: usize = 6;
 
 impl Sequence {
-    /// The polynomial extrapolation to `position` through as many of the last solutions (up to five,
-    /// quartic) as lie with `position` equally spaced on a line, else the last solution as it is
-    /// (`extrapolation_weights`): along a grid's rows the start is O(h^5) from the equilibrium, and Newton's
-    /// method confirms it with fewer chord steps.
+    /// The polynomial extrapolation to `position` through the last solutions that lie with `position`
+    /// equally spaced on a line, of the degree their displacements' differences support
+    /// (`extrapolation_degree`), else the last solution as it is: along a grid's rows the start is up to
+    /// O(h^5) from the equilibrium, and Newton's method confirms it with fewer chord steps.
     fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
         let newest = self.solutions.last()?;
-        let weights = extrapolation_weights(self.equally_spaced(position));
+        let count = self.equally_spaced(position);
+        let mut displacements = [Vec6::zeros(); KEPT];
+        for (d, s) in displacements.iter_mut().zip(self.solutions.iter().rev().take(count)) {
+            *d = s.displacement;
+        }
+        let weights = extrapolation_weights(extrapolation_degree(&displacements[..count]) + 1);
         let used: Vec<&Solution> = self.solutions.iter().rev().zip(weights).map(|(s, _)| s).collect();
         let displacement = used.iter().zip(weights).map(|(s, w)| s.displacement * *w).sum();
         let offsets = (0..newest.offsets.len())
