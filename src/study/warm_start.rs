@@ -49,11 +49,12 @@ pub fn extrapolation_degree(newest_first: &[Vec6]) -> usize {
     differences[..count].copy_from_slice(&newest_first[..count]);
     // sizes[k] = |nabla^k| at the newest value.
     let mut sizes = [0.0; 6];
-    for k in 1..count {
+    for (k, size) in sizes.iter_mut().enumerate().take(count).skip(1) {
         for i in 0..count - k {
-            differences[i] = differences[i] - differences[i + 1];
+            let newer = differences[i + 1];
+            differences[i] -= newer;
         }
-        sizes[k] = differences[0].norm();
+        *size = differences[0].norm();
     }
     let mut degree = count.saturating_sub(1).min(2);
     while degree + 2 < count && degree < 4 && sizes[degree + 2] < sizes[degree + 1] {
