@@ -179,6 +179,243 @@ impl DenseLu {
     }
 }
 
+/// Rows of the constraint block of a `SaddlePointLu` system: the six components of a pose.
+pub const CONSTRAINTS: usize = 6;
+
+/// A saddle-point system [[J, 0], [W, J^T]] [x; F] = [b; a], J (6 x k) of full row rank, W (k x k) any
+/// matrix, factorised through the null space of J (the range-and-null-space method): J's rows are reduced by
+/// Gauss-Jordan elimination with complete pivoting to the identity on six basic coordinates and X = B^-1 N
+/// on the f = k - 6 free ones, so that Z = [-X; I] (on basic; free) spans J's null space, and the reduced
+/// matrix Z^T W Z (f x f) is LU-factorised. A solve takes x = x_p + Z y with J x_p = b (x_p zero on the
+/// free coordinates), (Z^T W Z) y = Z^T (a - W x_p), then F from the basic rows, B^T F = (a - W x)_b (the
+/// free rows then hold too: Z^T (a - W x) = 0).
+///
+/// Where W is minus the Hessian of an energy and J the Jacobian of the constraints (the loaded equilibrium,
+/// paper 000 eq 45), -sym(Z^T W Z) is the energy's Hessian on the motions the constraints allow: the
+/// stability test (`reduced_negative_definite`) comes with the factorisation. With the reduced system only
+/// f square, the factorisation costs a fraction of a dense LU of the whole (k + 6)-square matrix.
+#[derive(Clone, Debug, Default)]
+pub struct SaddlePointLu {
+    k: usize,
+    /// [J | I6] reduced in place (k + 6 columns of six rows): J's columns become unit columns on the basic
+    /// coordinates and X's on the free ones, the identity's the row operations T (T J = the reduced rows).
+    reduced_rows: Vec<[f64; CONSTRAINTS]>,
+    /// The basic coordinates in pivot order, the free ones in order.
+    basic: [usize; CONSTRAINTS],
+    free: Vec<usize>,
+    /// B^-1 by rows: row i is the row of T at the i-th basic coordinate's pivot row.
+    basic_inverse: [[f64; CONSTRAINTS]; CONSTRAINTS],
+    /// Per free coordinate: X's column, its entries on the basic coordinates.
+    x: Vec<[f64; CONSTRAINTS]>,
+    /// Per coordinate j: W's entries in row j on the basic columns, and in column j on the basic rows.
+    w_basic_columns: Vec<[f64; CONSTRAINTS]>,
+    w_basic_rows: Vec<[f64; CONSTRAINTS]>,
+    /// W's entries on the free columns, column-major (k x f), then W Z.
+    wz: Vec<f64>,
+    /// Z^T W Z (f x f, column-major), kept for the definiteness test, and its LU factorisation.
+    reduced: Vec<f64>,
+    lu: DenseLu,
+    /// Scratch of the solves and of the definiteness test.
+    residual: Vec<f64>,
+    free_part: Vec<f64>,
+    symmetric: Vec<f64>,
+    cholesky: EnvelopeCholesky,
+}
+
+impl SaddlePointLu {
+    /// Factorises the system with J given by its k columns and W column-major (k x k). False where an entry
+    /// is not finite, J's rank is below six (no pivot above 1e-12 of its largest entry is left: the
+    /// constraints cannot all be met, the system is singular), or the reduced matrix has an exactly zero
+    /// pivot.
+    pub fn factor(&mut self, j_columns: impl IntoIterator<Item = [f64; CONSTRAINTS]>, w: &[f64], k: usize) -> bool {
+        self.k = k;
+        self.reduced_rows.clear();
+        self.reduced_rows.extend(j_columns);
+        assert_eq!(self.reduced_rows.len(), k, "one column of J per coordinate");
+        assert_eq!(w.len(), k * k, "W is k x k");
+        if k < CONSTRAINTS
+            || !self.reduced_rows.iter().flatten().all(|v| v.is_finite())
+            || !w.iter().all(|v| v.is_finite())
+        {
+            return false;
+        }
+        let largest = self.reduced_rows.iter().flatten().fold(0.0f64, |l, v| l.max(v.abs()));
+        self.reduced_rows.extend((0..CONSTRAINTS).map(|c| std::array::from_fn(|r| if r == c { 1.0 } else { 0.0 })));
+        // The row of each basic coordinate's pivot, in pivot order; 1 for the rows without a pivot yet, 0 for
+        // the others. A basic column is zero outside its pivot's row (cleared below), so searching the rows
+        // left skips the basic columns too.
+        let mut pivot_rows = [0usize; CONSTRAINTS];
+        let mut rows_left = [1.0f64; CONSTRAINTS];
+        for (pivot_row, basic) in pivot_rows.iter_mut().zip(self.basic.iter_mut()) {
+            let mut best = (0usize, 0usize, 0.0f64);
+            for (c, column) in self.reduced_rows[..k].iter().enumerate() {
+                for (r, (v, left)) in column.iter().zip(&rows_left).enumerate() {
+                    let size = v.abs() * left;
+                    if size > best.2 {
+                        best = (r, c, size);
+                    }
+                }
+            }
+            if best.2 <= 1e-12 * largest {
+                return false;
+            }
+            let (pr, pc, _) = best;
+            // The pivot row scaled to a unit pivot, then the pivot column cleared from every other row.
+            let inverse = 1.0 / self.reduced_rows[pc][pr];
+            let mut factors = self.reduced_rows[pc];
+            factors[pr] = 0.0;
+            for column in self.reduced_rows.iter_mut() {
+                let p = column[pr] * inverse;
+                column[pr] = p;
+                for (v, f) in column.iter_mut().zip(&factors) {
+                    *v -= f * p;
+                }
+            }
+            // Exactly a unit column (p above is 1 to round-off only), so that the search skips it.
+            self.reduced_rows[pc] = std::array::from_fn(|r| if r == pr { 1.0 } else { 0.0 });
+            rows_left[pr] = 0.0;
+            *pivot_row = pr;
+            *basic = pc;
+        }
+        let t = &self.reduced_rows[k..];
+        self.basic_inverse = std::array::from_fn(|i| std::array::from_fn(|c| t[c][pivot_rows[i]]));
+        let basic = self.basic;
+        self.free.clear();
+        self.free.extend((0..k).filter(|c| !basic.contains(c)));
+        let f = self.free.len();
+        self.x.clear();
+        self.x.extend(self.free.iter().map(|&c| std::array::from_fn(|i| self.reduced_rows[c][pivot_rows[i]])));
+        self.w_basic_columns.clear();
+        self.w_basic_columns.extend((0..k).map(|r| std::array::from_fn(|i| w[basic[i] * k + r])));
+        self.w_basic_rows.clear();
+        self.w_basic_rows.extend((0..k).map(|c| std::array::from_fn(|i| w[c * k + basic[i]])));
+        // W Z, column by column of Z: z_c = e_free[c] - sum_i X[c, i] e_basic[i].
+        self.wz.clear();
+        for (&fc, xc) in self.free.iter().zip(&self.x) {
+            let column = &w[fc * k..fc * k + k];
+            self.wz.extend(column.iter().zip(&self.w_basic_columns).map(|(v, wb)| v - dot(wb, xc)));
+        }
+        // Z^T (W Z): entry (r, c) = (W Z)[free[r], c] - sum_i X[r, i] (W Z)[basic[i], c].
+        self.reduced.clear();
+        for wz_c in self.wz.chunks_exact(k) {
+            let on_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| wz_c[basic[i]]);
+            self.reduced.extend(self.free.iter().zip(&self.x).map(|(&fr, xr)| wz_c[fr] - dot(xr, &on_basic)));
+        }
+        f == 0 || self.lu.factor(&self.reduced, f)
+    }
+
+    /// Solves in place for R right-hand sides at once, stored by rows in equation order (b's six rows, then
+    /// a's k); on return the rows hold the unknowns in their order (x's k, then F's six).
+    pub fn solve_rows<const R: usize>(&mut self, rows: &mut [[f64; R]]) {
+        let k = self.k;
+        let rows = &mut rows[..k + CONSTRAINTS];
+        let (b, a) = rows.split_at(CONSTRAINTS);
+        // x_p on the basic coordinates: B^-1 b.
+        let mut x_basic = [[0.0; R]; CONSTRAINTS];
+        for (xi, bi) in x_basic.iter_mut().zip(&self.basic_inverse) {
+            for (bc, t) in b.iter().zip(bi) {
+                for (x, v) in xi.iter_mut().zip(bc) {
+                    *x += t * v;
+                }
+            }
+        }
+        // The residual a - W x_p.
+        self.residual.clear();
+        self.residual.resize(k * R, 0.0);
+        let (residual, _) = self.residual.as_chunks_mut::<R>();
+        for ((r, aj), wb) in residual.iter_mut().zip(a).zip(&self.w_basic_columns) {
+            *r = *aj;
+            for (w, xi) in wb.iter().zip(&x_basic) {
+                for (v, x) in r.iter_mut().zip(xi) {
+                    *v -= w * x;
+                }
+            }
+        }
+        // y = (Z^T W Z)^-1 Z^T (a - W x_p).
+        let f = self.free.len();
+        self.free_part.clear();
+        self.free_part.resize(f * R, 0.0);
+        let (y, _) = self.free_part.as_chunks_mut::<R>();
+        for ((yc, &fc), xc) in y.iter_mut().zip(&self.free).zip(&self.x) {
+            *yc = residual[fc];
+            for (xi, &bi) in xc.iter().zip(&self.basic) {
+                for (v, r) in yc.iter_mut().zip(&residual[bi]) {
+                    *v -= xi * r;
+                }
+            }
+        }
+        if f > 0 {
+            self.lu.solve_rows(y);
+        }
+        // x = x_p + Z y on the basic coordinates.
+        for (xc, yc) in self.x.iter().zip(y.iter()) {
+            for (xb, xi) in x_basic.iter_mut().zip(xc) {
+                for (v, yv) in xb.iter_mut().zip(yc) {
+                    *v -= xi * yv;
+                }
+            }
+        }
+        // The basic rows' (a - W x)_b, then F = B^-T (a - W x)_b.
+        let mut statics = [[0.0; R]; CONSTRAINTS];
+        for (s, &bi) in statics.iter_mut().zip(&self.basic) {
+            *s = a[bi];
+        }
+        let w_rows = &self.w_basic_rows;
+        let by_free = self.free.iter().zip(y.iter()).map(|(&fc, yc)| (&w_rows[fc], yc));
+        let by_basic = self.basic.iter().zip(&x_basic).map(|(&bc, xb)| (&w_rows[bc], xb));
+        for (wr, xv) in by_free.chain(by_basic) {
+            for (s, w) in statics.iter_mut().zip(wr) {
+                for (v, x) in s.iter_mut().zip(xv) {
+                    *v -= w * x;
+                }
+            }
+        }
+        let mut multipliers = [[0.0; R]; CONSTRAINTS];
+        for (si, bi) in statics.iter().zip(&self.basic_inverse) {
+            for (m, t) in multipliers.iter_mut().zip(bi) {
+                for (v, s) in m.iter_mut().zip(si) {
+                    *v += t * s;
+                }
+            }
+        }
+        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+            rows[fc] = *yc;
+        }
+        for (&bc, xb) in self.basic.iter().zip(&x_basic) {
+            rows[bc] = *xb;
+        }
+        rows[k..].copy_from_slice(&multipliers);
+    }
+
+    /// Solves in place for one right-hand side (as `solve_rows`).
+    pub fn solve_in_place(&mut self, b: &mut [f64]) {
+        let (rows, _) = b.as_chunks_mut::<1>();
+        self.solve_rows(rows);
+    }
+
+    /// The symmetric part of the reduced matrix Z^T W Z is negative definite, to a margin of 1e-12 of its
+    /// largest entry (true where J leaves no free coordinate). Any basis of J's null space gives the same
+    /// answer (Sylvester's law of inertia), so the one of the factorisation serves.
+    pub fn reduced_negative_definite(&mut self) -> bool {
+        let f = self.free.len();
+        if f == 0 {
+            return true;
+        }
+        let r = &self.reduced;
+        self.symmetric.clear();
+        self.symmetric.extend((0..f * f).map(|e| -0.5 * (r[e] + r[(e % f) * f + e / f])));
+        let margin = 1e-12 * self.symmetric.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
+        for d in 0..f {
+            self.symmetric[d * f + d] -= margin;
+        }
+        self.cholesky.factor(&mut self.symmetric, f, f).is_some()
+    }
+}
+
+fn dot(a: &[f64; CONSTRAINTS], b: &[f64; CONSTRAINTS]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| a * b).sum()
+}
+
 /// Cholesky factorisation of a small symmetric matrix in place (its lower triangle read, L written there;
 /// the strict upper triangle left as it is): false where a pivot is not positive or not finite (not
 /// positive definite to round-off).
@@ -399,6 +636,116 @@ mod tests {
             let residual = &m * DVector::from_vec(x) - DVector::from_fn(n, |i, _| rhs(c, i));
             assert!(residual.amax() < 1e-12, "right-hand side {c}: residual {}", residual.amax());
         }
+    }
+
+    /// A pseudo-random stream in [-0.5, 0.5) (a linear congruential generator: the tests need no crate).
+    fn stream(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
+    /// The whole saddle-point matrix [[J, 0], [W, J^T]] of `SaddlePointLu`, dense.
+    fn saddle_matrix(j: &DMatrix<f64>, w: &DMatrix<f64>) -> DMatrix<f64> {
+        let k = w.nrows();
+        let mut m = DMatrix::zeros(k + 6, k + 6);
+        m.view_mut((0, 0), (6, k)).copy_from(j);
+        m.view_mut((6, 0), (k, k)).copy_from(w);
+        m.view_mut((6, k), (k, 6)).copy_from(&j.transpose());
+        m
+    }
+
+    /// The null-space factorisation solves the saddle-point system as a dense LU of the whole matrix does
+    /// (nalgebra's, to 1e-10 of the solution), for constraint Jacobians with entries of mixed scales (lever
+    /// arms in mm beside unit columns, as a chain's twist Jacobian has), W non-symmetric and spanning eight
+    /// orders of magnitude (stiff springs beside soft load terms), no free coordinate, and several
+    /// right-hand sides solved by rows or one at a time.
+    #[test]
+    fn saddle_point_solves_like_a_dense_lu_of_the_whole_matrix() {
+        let mut next = stream(11);
+        for (case, k) in [6usize, 7, 9, 17, 17, 23].into_iter().enumerate() {
+            let j = DMatrix::from_fn(6, k, |r, c| next() * if r < 3 && c % 2 == 0 { 300.0 } else { 1.0 });
+            let spread = if case % 2 == 0 { 1.0 } else { 1e8 };
+            let w = DMatrix::from_fn(k, k, |r, c| next() + if r == c { spread * (0.5 + next()) } else { 0.0 });
+            let dense = saddle_matrix(&j, &w);
+            let mut saddle = SaddlePointLu::default();
+            let columns = j.column_iter().map(|c| std::array::from_fn(|r| c[r]));
+            assert!(saddle.factor(columns, w.as_slice(), k), "k = {k}");
+            let rhs = DMatrix::from_fn(k + 6, 3, |_, _| next());
+            let expected = dense.clone().lu().solve(&rhs).unwrap();
+            let mut rows: Vec<[f64; 3]> = (0..k + 6).map(|r| std::array::from_fn(|c| rhs[(r, c)])).collect();
+            saddle.solve_rows(&mut rows);
+            for c in 0..3 {
+                let column = expected.column(c);
+                let error = (0..k + 6).fold(0.0f64, |e, r| e.max((rows[r][c] - column[r]).abs()));
+                assert!(error <= 1e-10 * column.amax(), "k = {k}, right-hand side {c}: error {error}");
+                let mut one: Vec<f64> = rhs.column(c).iter().copied().collect();
+                saddle.solve_in_place(&mut one);
+                assert!(one.iter().zip(&rows).all(|(a, b)| *a == b[c]), "one at a time as by rows");
+            }
+        }
+    }
+
+    /// Constraints that cannot all be met (J of rank five: two rows equal) make the system singular, and the
+    /// factorisation says so rather than dividing by round-off; so do non-finite entries and fewer
+    /// coordinates than constraints.
+    #[test]
+    fn saddle_point_refuses_rank_deficient_constraints() {
+        let mut next = stream(5);
+        let k = 10;
+        let mut j = DMatrix::from_fn(6, k, |_, _| next());
+        let row = j.row(1).into_owned();
+        j.row_mut(4).copy_from(&row);
+        let w = DMatrix::from_fn(k, k, |r, c| next() + if r == c { 3.0 } else { 0.0 });
+        let columns = |j: &DMatrix<f64>| j.column_iter().map(|c| std::array::from_fn(|r| c[r])).collect::<Vec<_>>();
+        let mut saddle = SaddlePointLu::default();
+        assert!(!saddle.factor(columns(&j), w.as_slice(), k));
+        j.row_mut(4).copy_from(&DMatrix::from_fn(1, k, |_, _| next()));
+        assert!(saddle.factor(columns(&j), w.as_slice(), k));
+        let mut not_finite = w.clone();
+        not_finite[(3, 2)] = f64::NAN;
+        assert!(!saddle.factor(columns(&j), not_finite.as_slice(), k));
+        let short = j.columns(0, 5).into_owned();
+        assert!(!saddle.factor(columns(&short), DMatrix::<f64>::identity(5, 5).as_slice(), 5));
+    }
+
+    /// The definiteness test against an independent route: the eigenvalues of N^T H N, N an orthonormal basis
+    /// of J's null space from the eigenvectors of J^T J, H = -sym(W). W = -(H + A) with H symmetric of random spectrum shifted
+    /// so that some cases are definite on the null space and others not, and A antisymmetric (a
+    /// non-conservative part, which the test must ignore). Cases within 1e-6 of the boundary are skipped.
+    #[test]
+    fn saddle_point_definiteness_follows_the_null_space_eigenvalues() {
+        let mut next = stream(23);
+        let (mut definite, mut indefinite) = (0, 0);
+        for case in 0..60 {
+            let k = 8 + case % 10;
+            let j = DMatrix::from_fn(6, k, |_, _| next());
+            let m = DMatrix::from_fn(k, k, |_, _| next());
+            let shift = 0.6 * (case % 5) as f64 / 4.0 * k as f64 / 8.0;
+            let h = &m * m.transpose() - DMatrix::identity(k, k) * shift;
+            let a = DMatrix::from_fn(k, k, |_, _| next());
+            let w = -(&h + (&a - a.transpose()));
+            // J^T J's eigenvectors of eigenvalue zero span J's null space (J has full row rank).
+            let gram = (j.transpose() * &j).symmetric_eigen();
+            let top = gram.eigenvalues.amax();
+            let kept: Vec<usize> = (0..k).filter(|&i| gram.eigenvalues[i] < 1e-10 * top).collect();
+            assert_eq!(kept.len(), k - 6);
+            let null = gram.eigenvectors.select_columns(&kept);
+            let smallest = (null.transpose() * &h * &null).symmetric_eigen().eigenvalues.min();
+            if smallest.abs() < 1e-6 * h.amax() {
+                continue;
+            }
+            let mut saddle = SaddlePointLu::default();
+            assert!(saddle.factor(j.column_iter().map(|c| std::array::from_fn(|r| c[r])), w.as_slice(), k));
+            assert_eq!(saddle.reduced_negative_definite(), smallest > 0.0, "case {case}: smallest {smallest}");
+            if smallest > 0.0 {
+                definite += 1;
+            } else {
+                indefinite += 1;
+            }
+        }
+        assert!(definite >= 10 && indefinite >= 10, "both kinds tested: {definite} and {indefinite}");
     }
 
     /// A symmetric positive definite system solved as nalgebra's Cholesky solves it, dense and with an

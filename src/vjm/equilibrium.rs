@@ -16,7 +16,7 @@ use nalgebra::{DMatrix, DVector};
 use super::spring::SpringGroup;
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec3, Vec6};
-use crate::linalg::{DenseLu, EnvelopeCholesky};
+use crate::linalg::SaddlePointLu;
 
 /// What a loaded chain needs besides its kinematics.
 pub struct LoadedChain<'a> {
@@ -71,36 +71,17 @@ pub struct EquilibriumWorkspace {
     jac: ChainJacobians,
     generalised: Vec<f64>,
     residual: Vec<f64>,
-    /// The matrix of eq (45) at the last linearisation (kept for the stability test), its right-hand
-    /// sides by rows (the residuals, then a unit end displacement along each axis: solved together by
-    /// `DenseLu::solve_rows`), and the factorisation.
-    matrix: DMatrix<f64>,
+    /// The statics block W of eq (45)'s matrix [[J, 0], [W, J^T]] at the last linearisation (k x k, k = n +
+    /// m: the load Hessian less the springs' stiffness, minus the energy's Hessian), the right-hand sides by
+    /// rows (the residuals, then a unit end displacement along each axis: solved together), and the
+    /// matrix's factorisation through the null space of J (`SaddlePointLu`), which the stability test
+    /// reads too.
+    statics: DMatrix<f64>,
     rhs: Vec<[f64; 7]>,
-    lu: DenseLu,
-    /// Factorisations made in `lu` so far: a linearisation records the number of its own, so that a chord
-    /// step knows whether `lu` still holds it.
+    factors: SaddlePointLu,
+    /// Factorisations made in `factors` so far: a linearisation records the number of its own, so that a
+    /// chord step knows whether `factors` still holds it.
     factorizations: u64,
-    stability: StabilityWork,
-}
-
-/// Buffers of the stability test (`LoadedChain::stable`), reused so that the test allocates nothing.
-#[derive(Clone, Debug, Default)]
-struct StabilityWork {
-    /// The constraint Jacobian J (6 x k, column-major), reduced in place to its row echelon form.
-    jacobian: Vec<f64>,
-    /// Whether each coordinate is basic (a pivot column of J), the basic ones in pivot order, the free ones.
-    is_basic: Vec<bool>,
-    basic: Vec<usize>,
-    free: Vec<usize>,
-    /// X = B^-1 N (f x b: per free coordinate, its entries in the basic rows).
-    x: Vec<[f64; 6]>,
-    /// The symmetrised energy Hessian H (k x k, row-major), its basic columns gathered by rows (k x b),
-    /// one column of H Z, and Z^T H Z (f x f).
-    hessian: Vec<f64>,
-    basic_columns: Vec<[f64; 6]>,
-    hz: Vec<f64>,
-    reduced: Vec<f64>,
-    cholesky: EnvelopeCholesky,
 }
 
 /// The linearised equilibrium of eq (45) at the current configuration: one factorisation serves the Newton
@@ -192,13 +173,14 @@ impl LoadedChain<'_> {
     }
 
     /// Builds the Newton matrix of eq (45) at the current evaluation, and the residuals, into the
-    /// workspace. Unknown order: (q, theta, F); equation order: (kinematics, q-statics, theta-statics).
-    /// Right-hand sides: the residuals, then a unit displacement of the end along each axis.
+    /// workspace: its statics block W (the kinematic blocks are J and J^T, the chain's Jacobian).
+    /// Unknown order: (q, theta, F); equation order: (kinematics, q-statics, theta-statics). Right-hand
+    /// sides: the residuals, then a unit displacement of the end along each axis.
     fn assemble(&self, coords: &Coordinates, wrench: &Vec6, target: &Frame, ws: &mut EquilibriumWorkspace) {
         let (n, m) = self.sizes();
         let size = n + m + 6;
-        let EquilibriumWorkspace { jac, generalised, residual, matrix: a, rhs, .. } = ws;
-        resize_zeroed(a, size, size);
+        let EquilibriumWorkspace { jac, generalised, residual, statics: w, rhs, .. } = ws;
+        resize_zeroed(w, n + m, n + m);
         rhs.clear();
         rhs.resize(size, [0.0; 7]);
         residual.resize(size, 0.0);
@@ -206,23 +188,15 @@ impl LoadedChain<'_> {
         for (row, value) in rhs.iter_mut().zip(residual.iter()) {
             row[0] = *value;
         }
-        for r in 0..6 {
-            rhs[r][1 + r] = 1.0;
-            for (k, c) in jac.passive.iter().enumerate() {
-                a[(r, k)] = c[r];
-                a[(6 + k, n + m + r)] = c[r];
-            }
-            for (k, c) in jac.virtual_.iter().enumerate() {
-                a[(r, n + k)] = c[r];
-                a[(6 + n + k, n + m + r)] = c[r];
-            }
+        for (r, row) in rhs.iter_mut().take(6).enumerate() {
+            row[1 + r] = 1.0;
         }
-        jac.add_load_hessian(wrench, &self.gravity, n, &mut a.view_mut((6, 0), (n + m, n + m)));
+        jac.add_load_hessian(wrench, &self.gravity, n, w);
         for s in self.springs {
             let stiffness = s.stiffness_at(&coords.passive);
             for i in 0..s.dim {
                 for j in 0..s.dim {
-                    a[(6 + n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
+                    w[(n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
                 }
             }
             // A spring whose stiffness depends on a passive coordinate q (paper 000 s. 6: "an equivalent
@@ -231,10 +205,10 @@ impl LoadedChain<'_> {
             if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive) {
                 let d = self.deflection(s, coords);
                 let dk_d = dk.view((0, 0), (s.dim, s.dim)) * &d;
-                a[(6 + q, q)] -= 0.5 * d.dot(&(ddk.view((0, 0), (s.dim, s.dim)) * &d));
+                w[(q, q)] -= 0.5 * d.dot(&(ddk.view((0, 0), (s.dim, s.dim)) * &d));
                 for i in 0..s.dim {
-                    a[(6 + n + s.first + i, q)] -= dk_d[i];
-                    a[(6 + q, n + s.first + i)] -= dk_d[i];
+                    w[(n + s.first + i, q)] -= dk_d[i];
+                    w[(q, n + s.first + i)] -= dk_d[i];
                 }
             }
         }
@@ -301,7 +275,7 @@ impl LoadedChain<'_> {
         ws.jac.fill_virtual();
         let correction = &mut lin.correction[..];
         self.residual(coords, wrench, target, &ws.jac, &mut ws.generalised, correction);
-        ws.lu.solve_in_place(correction);
+        ws.factors.solve_in_place(correction);
         lin.end = ws.jac.end.pos;
         lin.wrench = *wrench;
         lin.end_error = target.error_to(&ws.jac.end);
@@ -333,12 +307,12 @@ impl LoadedChain<'_> {
         self.chain.evaluate(coords, &mut ws.jac);
         ws.jac.fill_virtual();
         self.assemble(coords, wrench, target, ws);
-        let size = ws.matrix.nrows();
         ws.factorizations += 1;
-        if !ws.lu.factor(ws.matrix.as_slice(), size) {
+        let jacobian = ws.jac.passive.iter().chain(&ws.jac.virtual_).map(|c| (*c).into());
+        if !ws.factors.factor(jacobian, ws.statics.as_slice(), ws.statics.nrows()) {
             return false;
         }
-        ws.lu.solve_rows(&mut ws.rhs);
+        ws.factors.solve_rows(&mut ws.rhs);
         if !ws.rhs.iter().flatten().all(|v| v.is_finite()) {
             return false;
         }
@@ -421,115 +395,13 @@ impl LoadedChain<'_> {
     }
 
     /// Stability with the end held, at the last linearisation in `ws`: the Hessian of the energy (minus
-    /// the load block of eq 45, spring stiffness included) positive definite on the null space of the
-    /// constraint Jacobian J = [J_q J_theta]. J is reduced to its row echelon form by Gauss-Jordan
-    /// elimination with complete pivoting; its pivot columns are the basic coordinates b, the others the free
-    /// ones f, and the null space is spanned by Z = [I; -X] on (f; b), X the free columns of the reduced rows
-    /// (B^-1 N, any basis serves a definiteness test; rows of J that vanish, where the chain cannot move
-    /// the end in some direction at all, drop out). Definiteness by a Cholesky factorisation of Z^T H Z.
+    /// the statics block W of eq 45, spring stiffness included) positive definite on the null space of the
+    /// constraint Jacobian J = [J_q J_theta], the motions that keep the end fixed (paper 000 eq 14, reduced
+    /// form). The linearisation's factorisation has reduced W to that null space already
+    /// (`SaddlePointLu::reduced_negative_definite`).
     pub fn stable(&self, ws: &mut EquilibriumWorkspace) -> bool {
-        let (n, m) = self.sizes();
-        let k = n + m;
-        let EquilibriumWorkspace { matrix: a, stability: w, .. } = ws;
-        let size = a.nrows();
-        // Column-major: a[(r, c)] = a[c * size + r].
-        let a = a.as_slice();
-        w.jacobian.clear();
-        (0..k).for_each(|c| w.jacobian.extend_from_slice(&a[c * size..c * size + 6]));
-        let j = &mut w.jacobian;
-        let largest = j.iter().fold(0.0f64, |l, v| l.max(v.abs()));
-        w.is_basic.clear();
-        w.is_basic.resize(k, false);
-        w.basic.clear();
-        // The row of each basic coordinate's pivot, in pivot order.
-        let mut pivot_rows = [0usize; 6];
-        // 1 for the rows without a pivot yet, 0 for the others. A basic column is zero outside its pivot's
-        // row (cleared below), so searching the rows left skips the basic columns too.
-        let mut rows_left = [1.0f64; 6];
-        while w.basic.len() < 6 {
-            let mut best = (0usize, 0usize, 0.0f64);
-            for (c, column) in j.chunks_exact(6).enumerate() {
-                for (r, (v, left)) in column.iter().zip(&rows_left).enumerate() {
-                    let size = v.abs() * left;
-                    if size > best.2 {
-                        best = (r, c, size);
-                    }
-                }
-            }
-            if best.2 <= 1e-12 * largest {
-                break;
-            }
-            let (pr, pc, _) = best;
-            // The pivot row scaled to a unit pivot, then the pivot column cleared from every other row.
-            let inverse = 1.0 / j[pc * 6 + pr];
-            let mut factors: [f64; 6] = j[pc * 6..pc * 6 + 6].try_into().expect("six rows");
-            factors[pr] = 0.0;
-            for column in j.chunks_exact_mut(6) {
-                let p = column[pr] * inverse;
-                column[pr] = p;
-                for (v, f) in column.iter_mut().zip(&factors) {
-                    *v -= f * p;
-                }
-            }
-            // Exactly a unit column (p above is 1 to round-off only), so that the search skips it.
-            j[pc * 6..pc * 6 + 6].iter_mut().enumerate().for_each(|(r, v)| *v = if r == pr { 1.0 } else { 0.0 });
-            rows_left[pr] = 0.0;
-            w.is_basic[pc] = true;
-            pivot_rows[w.basic.len()] = pr;
-            w.basic.push(pc);
-        }
-        w.free.clear();
-        w.free.extend((0..k).filter(|&c| !w.is_basic[c]));
-        let (basic, free) = (&w.basic, &w.free);
-        if free.is_empty() {
-            return true;
-        }
-        let (f, b) = (free.len(), basic.len());
-        // X = B^-1 N: the free columns of the reduced rows, per free coordinate its entry in each basic row
-        // (at most six: padded with zeros, so that every sum over the basic coordinates has six terms).
-        w.x.clear();
-        w.x.extend(free.iter().map(|&c| std::array::from_fn(|i| if i < b { j[c * 6 + pivot_rows[i]] } else { 0.0 })));
-        // H, row-major: minus the symmetrised lower block of eq (45) (its columns copied as H's rows, then
-        // each pair of entries averaged).
-        w.hessian.clear();
-        (0..k).for_each(|c| w.hessian.extend(a[c * size + 6..c * size + 6 + k].iter().map(|v| -v)));
-        let h = &mut w.hessian;
-        for r in 0..k {
-            for c in r + 1..k {
-                let v = 0.5 * (h[r * k + c] + h[c * k + r]);
-                h[r * k + c] = v;
-                h[c * k + r] = v;
-            }
-        }
-        // Z = [I; -X] on (free; basic) coordinates, so Z^T H Z = H_ff - H_fb X - X^T H_bf + X^T H_bb X.
-        // Column by column of Z, z_c = e_free[c] - sum_b X[c, b] e_basic[b]: reduced[r, c] = z_r^T (H z_c),
-        // with H's basic columns gathered by rows.
-        w.basic_columns.clear();
-        w.basic_columns
-            .extend(h.chunks_exact(k).map(|row| std::array::from_fn(|i| if i < b { row[basic[i]] } else { 0.0 })));
-        w.hz.resize(k, 0.0);
-        w.reduced.clear();
-        w.reduced.resize(f * f, 0.0);
-        for (c, xc) in w.x.iter().enumerate() {
-            let rows = h.chunks_exact(k).zip(&w.basic_columns);
-            for (value, (row, row_basic)) in w.hz.iter_mut().zip(rows) {
-                *value = row[free[c]] - dot6(row_basic, xc);
-            }
-            let hz_basic: [f64; 6] = std::array::from_fn(|i| if i < b { w.hz[basic[i]] } else { 0.0 });
-            for (r, xr) in w.x.iter().enumerate() {
-                w.reduced[c * f + r] = w.hz[free[r]] - dot6(xr, &hz_basic);
-            }
-        }
-        let tol = 1e-12 * w.reduced.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
-        for d in 0..f {
-            w.reduced[d * f + d] -= tol;
-        }
-        w.cholesky.factor(&mut w.reduced, f, f).is_some()
+        ws.factors.reduced_negative_definite()
     }
-}
-
-fn dot6(a: &[f64; 6], b: &[f64; 6]) -> f64 {
-    a.iter().zip(b).map(|(a, b)| a * b).sum()
 }
 
 fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
