@@ -219,7 +219,6 @@ pub struct SaddlePointLu {
     residual: Vec<f64>,
     free_part: Vec<f64>,
     symmetric: Vec<f64>,
-    cholesky: EnvelopeCholesky,
 }
 
 impl SaddlePointLu {
@@ -403,13 +402,40 @@ impl SaddlePointLu {
         }
         let r = &self.reduced;
         self.symmetric.clear();
-        self.symmetric.extend((0..f * f).map(|e| -0.5 * (r[e] + r[(e % f) * f + e / f])));
+        for c in 0..f {
+            self.symmetric.extend((0..f).map(|row| -0.5 * (r[c * f + row] + r[row * f + c])));
+        }
         let margin = 1e-12 * self.symmetric.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
         for d in 0..f {
             self.symmetric[d * f + d] -= margin;
         }
-        self.cholesky.factor(&mut self.symmetric, f, f).is_some()
+        dense_cholesky(&mut self.symmetric, f)
     }
+}
+
+/// Cholesky factorisation in place of a dense n x n symmetric matrix (column-major; its lower triangle
+/// read and overwritten by L, right-looking: each column, once scaled, is subtracted from the columns after
+/// it). False where a pivot is not positive or not finite (not positive definite to round-off).
+fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let (done, rest) = a.split_at_mut((j + 1) * n);
+        let column = &mut done[j * n + j..];
+        let d = column[0];
+        if !(d > 0.0 && d.is_finite()) {
+            return false;
+        }
+        let root = d.sqrt();
+        column.iter_mut().for_each(|v| *v /= root);
+        // Column c = j + 1 + t loses L[c.., j] L[c, j] on and below its diagonal.
+        for (t, later) in rest.chunks_exact_mut(n).enumerate() {
+            let below = &column[1 + t..];
+            let l_cj = below[0];
+            for (v, l) in later[j + 1 + t..].iter_mut().zip(below) {
+                *v -= l * l_cj;
+            }
+        }
+    }
+    true
 }
 
 fn dot(a: &[f64; CONSTRAINTS], b: &[f64; CONSTRAINTS]) -> f64 {
