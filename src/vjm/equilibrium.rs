@@ -120,17 +120,13 @@ impl Linearization {
     /// The change of coordinate `k` (in unknown order q, theta, F) for the end moved by `end_twist`:
     /// the correction plus the sensitivities' response.
     fn delta(&self, k: usize, end_twist: &Vec6) -> f64 {
-        let response = self.sensitivity[k].iter().zip(end_twist.iter()).fold(0.0, |sum, (s, t)| sum + s * t);
-        self.correction[k] + response
+        self.correction[k] + along(&self.sensitivity[k], end_twist)
     }
 
     /// The change of (q, theta, F) per end displacement `end_twist` with the equilibrium kept (eq 46's
     /// K_Cq, K_Ctheta and K_C times it), without the correction.
     pub fn response(&self, end_twist: &Vec6) -> DVector<f64> {
-        DVector::from_iterator(
-            self.sensitivity.len(),
-            self.sensitivity.iter().map(|s| s.iter().zip(end_twist.iter()).fold(0.0, |sum, (s, t)| sum + s * t)),
-        )
+        DVector::from_iterator(self.sensitivity.len(), self.sensitivity.iter().map(|s| along(s, end_twist)))
     }
 
     /// The wrench at the end once the correction is made.
@@ -402,6 +398,11 @@ impl LoadedChain<'_> {
     pub fn stable(&self, ws: &mut EquilibriumWorkspace) -> bool {
         ws.factors.reduced_negative_definite()
     }
+}
+
+/// One coordinate's response to an end displacement: its sensitivity row times the twist.
+fn along(sensitivity: &[f64; 6], end_twist: &Vec6) -> f64 {
+    sensitivity.iter().zip(end_twist.iter()).fold(0.0, |sum, (s, t)| sum + s * t)
 }
 
 fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
