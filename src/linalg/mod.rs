@@ -1,6 +1,7 @@
-//! Small dense linear algebra the hot paths need beyond nalgebra's fixed-size types: an in-place LU
-//! factorisation with partial pivoting on a reused buffer (the loaded equilibrium factorises a
-//! (n + m + 6)-square matrix several times per point, and allocating or going through generic dynamic
+//! Small dense linear algebra the hot paths need beyond nalgebra's fixed-size types: the saddle-point
+//! factorisation of the loaded equilibrium's (n + m + 6)-square matrix through the null space of its
+//! constraints, and an in-place LU factorisation with partial pivoting, on reused buffers (the loaded
+//! equilibrium factorises several times per point, and allocating or going through generic dynamic
 //! dimensions there costs more than the arithmetic).
 
 /// Largest entry magnitude a decomposition is asked to handle: beyond it squares and products overflow.
@@ -56,9 +57,9 @@ pub struct DenseLu {
 
 impl DenseLu {
     /// Factorises the n x n column-major matrix `m` (copied into the buffer). False where a pivot is
-    /// exactly zero or an entry is not finite. No relative threshold: in the equilibrium's matrix the
-    /// multiplier columns' pivots are compliances, legitimately 1e-15 of their column's entries with stiff
-    /// springs; callers judge the result (a near-singular system shows as a Newton method that fails).
+    /// exactly zero or an entry is not finite. No relative threshold: callers judge the result (in the
+    /// loaded equilibrium's reduced system, stiff springs beside soft load terms span many orders of
+    /// magnitude, and a near-singular system shows as a Newton method that fails).
     pub fn factor(&mut self, m: &[f64], n: usize) -> bool {
         assert_eq!(m.len(), n * n);
         self.n = n;

@@ -72,8 +72,8 @@ pub struct EquilibriumWorkspace {
     generalised: Vec<f64>,
     residual: Vec<f64>,
     /// The statics block W of eq (45)'s matrix [[J, 0], [W, J^T]] at the last linearisation (k x k, k = n +
-    /// m: the load Hessian less the springs' stiffness, minus the energy's Hessian), the right-hand sides by
-    /// rows (the residuals, then a unit end displacement along each axis: solved together), and the
+    /// m: the load Hessian less the springs' stiffness, that is minus the energy's Hessian), the right-hand
+    /// sides by rows (the residuals, then a unit end displacement along each axis: solved together), and the
     /// matrix's factorisation through the null space of J (`SaddlePointLu`), which the stability test
     /// reads too.
     statics: DMatrix<f64>,
