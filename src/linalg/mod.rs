@@ -247,19 +247,21 @@ impl SaddlePointLu {
         let mut pivot_rows = [0usize; CONSTRAINTS];
         let mut rows_left = [1.0f64; CONSTRAINTS];
         for (pivot_row, basic) in pivot_rows.iter_mut().zip(self.basic.iter_mut()) {
-            let mut best = (0usize, 0usize, 0.0f64);
+            // The largest entry left (the first in column-major order among equals): each column's largest,
+            // without a branch per entry, then the first column holding the largest and its first row there.
+            let size = |column: &[f64; CONSTRAINTS], r: usize| column[r].abs() * rows_left[r];
+            let mut best = (0usize, 0.0f64);
             for (c, column) in self.reduced_rows[..k].iter().enumerate() {
-                for (r, (v, left)) in column.iter().zip(&rows_left).enumerate() {
-                    let size = v.abs() * left;
-                    if size > best.2 {
-                        best = (r, c, size);
-                    }
+                let largest_left = (0..CONSTRAINTS).fold(0.0f64, |m, r| m.max(size(column, r)));
+                if largest_left > best.1 {
+                    best = (c, largest_left);
                 }
             }
-            if best.2 <= 1e-12 * largest {
+            if best.1 <= 1e-12 * largest {
                 return false;
             }
-            let (pr, pc, _) = best;
+            let pc = best.0;
+            let pr = (0..CONSTRAINTS).find(|&r| size(&self.reduced_rows[pc], r) == best.1).expect("the largest's row");
             // The pivot row scaled to a unit pivot, then the pivot column cleared from every other row.
             let inverse = 1.0 / self.reduced_rows[pc][pr];
             let mut factors = self.reduced_rows[pc];
