@@ -416,27 +416,25 @@ impl SaddlePointLu {
     }
 }
 
-/// Cholesky factorisation in place of a dense n x n symmetric matrix (column-major; its lower triangle
-/// read and overwritten by L, right-looking: each column, once scaled, is subtracted from the columns after
-/// it). False where a pivot is not positive or not finite (not positive definite to round-off).
+/// Cholesky factorisation in place of a dense n x n symmetric matrix (row-major, or column-major: the same
+/// for a symmetric one): its lower triangle is read and overwritten by L row by row, each entry one dot
+/// product of two rows' leading parts (L_ij = (a_ij - sum_k<j L_ik L_jk) / L_jj), a scalar loop: the
+/// matrices here are a dozen rows, where a vectorised loop's set-up costs more than its work. False where a
+/// pivot is not positive or not finite (not positive definite to round-off).
 fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
-    for j in 0..n {
-        let (done, rest) = a.split_at_mut((j + 1) * n);
-        let column = &mut done[j * n + j..];
-        let d = column[0];
+    for i in 0..n {
+        let (above, rest) = a.split_at_mut(i * n);
+        let row = &mut rest[..=i];
+        for j in 0..i {
+            let row_j = &above[j * n..j * n + j + 1];
+            let dot: f64 = row[..j].iter().zip(&row_j[..j]).map(|(x, y)| x * y).sum();
+            row[j] = (row[j] - dot) / row_j[j];
+        }
+        let d = row[i] - row[..i].iter().map(|x| x * x).sum::<f64>();
         if !(d > 0.0 && d.is_finite()) {
             return false;
         }
-        let root = d.sqrt();
-        column.iter_mut().for_each(|v| *v /= root);
-        // Column c = j + 1 + t loses L[c.., j] L[c, j] on and below its diagonal.
-        for (t, later) in rest.chunks_exact_mut(n).enumerate() {
-            let below = &column[1 + t..];
-            let l_cj = below[0];
-            for (v, l) in later[j + 1 + t..].iter_mut().zip(below) {
-                *v -= l * l_cj;
-            }
-        }
+        row[i] = d.sqrt();
     }
     true
 }
