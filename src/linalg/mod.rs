@@ -211,7 +211,7 @@ pub struct SaddlePointLu {
     /// Per coordinate j: W's entries in row j on the basic columns, and in column j on the basic rows.
     w_basic_columns: Vec<[f64; CONSTRAINTS]>,
     w_basic_rows: Vec<[f64; CONSTRAINTS]>,
-    /// W's entries on the free columns, column-major (k x f), then W Z.
+    /// W Z, column-major (k x f): per free coordinate, W times its null-space direction.
     wz: Vec<f64>,
     /// Z^T W Z (f x f, column-major), kept for the definiteness test, and its LU factorisation.
     reduced: Vec<f64>,

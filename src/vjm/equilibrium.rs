@@ -8,8 +8,9 @@
 //!   J_q^T F + sum_j J_qj^T G_j = 0                             (n)
 //!   J_theta^T F + sum_j J_thetaj^T G_j = K_theta (theta - theta0)   (m)
 //! solved by a full Newton method using the exact Hessians (tests/reference/README.md: the frozen-Jacobian fixed point of
-//! paper 001 eq 15 stalls at some workspace points; Newton converges in a few iterations). The same matrix
-//! at the solution gives the tangent stiffness (eq 45), so the stiffness costs one more factorisation only.
+//! paper 001 eq 15 stalls at some workspace points; Newton converges in a few iterations). The same
+//! factorisation at the solution gives the tangent stiffness (eq 45: six more right-hand sides) and the
+//! stability test (its reduced matrix, `linalg::SaddlePointLu`).
 
 use nalgebra::{DMatrix, DVector};
 
