@@ -314,8 +314,18 @@ pub fn push_number(out: &mut String, v: f64) {
         // Also -0.0 (a zero load times a negative direction): a zero has no sign worth printing.
         out.push_str("0.0");
     } else if v.is_finite() {
-        let mut b = ryu::Buffer::new();
-        out.push_str(b.format_finite(v));
+        let mut b = zmij::Buffer::new();
+        let s = b.format_finite(v);
+        // zmij writes a positive exponent, which only numbers from 1e16 up have, with a sign (1e+16); the
+        // tables have always had none.
+        match (v.abs() >= 1e16).then(|| s.split_once("e+")).flatten() {
+            Some((mantissa, exponent)) => {
+                out.push_str(mantissa);
+                out.push('e');
+                out.push_str(exponent);
+            }
+            None => out.push_str(s),
+        }
     }
 }
 
@@ -349,7 +359,50 @@ pub fn push_text(out: &mut String, t: &str) {
 
 #[cfg(test)]
 mod tests {
-    use super::unit_of;
+    use super::{push_number, unit_of};
+
+    /// The numbers of every table are written as the files written before (and the golden files) have
+    /// them: the fewest significant digits that read back to the same double, in plain decimals from 1e-5
+    /// up to 1e16 (with `.0` on an integer) and in scientific form outside, with no `+` in a positive
+    /// exponent. The digit count is checked against the standard library's shortest form (`{:e}`), an
+    /// independent route (the two may break an exact tie between two shortest forms differently), over
+    /// every decade a table can hold and across both ends of the plain range.
+    #[test]
+    fn numbers_are_written_shortest_plain_between_1e_minus_5_and_1e16() {
+        let significant = |s: &str| {
+            let mantissa = s.split('e').next().unwrap().trim_start_matches('-').replace('.', "");
+            mantissa.trim_start_matches('0').trim_end_matches('0').len()
+        };
+        let mut seed: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut values = vec![1.0, -1.0, 0.5, 1e-5, 9.999999999999999e-6, 1e16, 9999999999999998.0, 1.5e16, 5e-324];
+        // The last: ...651.25 exactly, a tie between two shortest forms (...651.2 and ...651.3).
+        values.extend([f64::MAX, f64::MIN_POSITIVE, 123456.789, 0.1 + 0.2, -1_283_359_694_162_651.0 - 0.25]);
+        for _ in 0..200_000 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            let mantissa = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            let decade = (seed % 64) as i32 - 32;
+            values.push(mantissa * 10f64.powi(decade));
+            values.push(f64::from_bits(seed)); // any bit pattern, subnormals and huge exponents included
+        }
+        for v in values.into_iter().filter(|v| v.is_finite() && *v != 0.0) {
+            let mut written = String::new();
+            push_number(&mut written, v);
+            assert_eq!(written.parse::<f64>().unwrap(), v, "{written} reads back");
+            assert_eq!(significant(&written), significant(&format!("{v:e}")), "{written}: shortest digits");
+            assert!(!written.contains('+'), "{written}");
+            if (1e-5..1e16).contains(&v.abs()) {
+                assert!(!written.contains('e') && written.contains('.'), "{written}: plain");
+            } else {
+                let scientific = format!("{v:e}");
+                assert_eq!(written.split_once('e').unwrap().1, scientific.split_once('e').unwrap().1, "{written}");
+            }
+        }
+        let mut zero = String::new();
+        push_number(&mut zero, -0.0);
+        assert_eq!(zero, "0.0");
+    }
 
     /// A column's unit is the suffix of its name: a plain unit, or `A_per_B` for a ratio; a name without
     /// one (`status`, `load_factor`, a quantity whose last word is not a unit) has none.
