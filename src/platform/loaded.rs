@@ -205,6 +205,8 @@ impl Manipulator {
         // A contraction measured in this solve (not carried): the next solve may start from it.
         let mut measured = false;
         let mut last_distance = f64::INFINITY;
+        // The manipulator's stiffness factorised once per linearisation: chord steps reuse it.
+        let mut stiffness_lu = stiffness.lu();
         for it in 0..MAX_NEWTON {
             let (weight, d_weight) = self.weight(t);
             if !full {
@@ -217,10 +219,11 @@ impl Manipulator {
                     leg.linearize_into(t, s, l).map_err(leg_failure(i))?;
                 }
                 stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
+                stiffness_lu = stiffness.lu();
             }
             // The payload's weight (a share of it under load continuation) is a load the legs carry.
             let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - weight * weight_share;
-            let Some(step) = stiffness.lu().solve(&(load - force)) else {
+            let Some(step) = stiffness_lu.solve(&(load - force)) else {
                 return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
             let step_size = weigh_rotations(&step, self.length_scale).norm() / self.length_scale;
