@@ -304,14 +304,10 @@ impl<'a> Compensator<'a> {
         };
         let solver = Solver { nominal: self.robot.nominal, real: &real, target, wrench };
         let result = solver.compensate(self.o.method, st);
-        match (result.status, st.converged.take()) {
-            (Status::Ok, Some(offset)) => st.commands.push(target.pos, offset),
-            (Status::Ok, None) => {}
-            // A failed target leaves no Jacobian and no command to extrapolate from for the next one.
-            _ => {
-                st.jacobian = None;
-                st.commands.clear();
-            }
+        // A failed target leaves no Jacobian and no command to extrapolate from for the next one.
+        if result.status != Status::Ok {
+            st.jacobian = None;
+            st.commands.clear();
         }
         (wrench, result)
     }
@@ -326,7 +322,6 @@ impl<'a> Compensator<'a> {
             check: Commanded::new(m),
             jacobian: None,
             commands: CommandHistory::default(),
-            converged: None,
         }
     }
 }
@@ -364,9 +359,6 @@ pub struct CompensateState {
     jacobian: Option<Mat6>,
     /// The last targets' commands.
     commands: CommandHistory,
-    /// The offset of the command Newton's method converged to for this target, refined by the step its
-    /// last residual asks (see `Solver::newton`).
-    converged: Option<Vec6>,
 }
 
 /// The commands found for the last targets, as the command's offset from its target (weighted
@@ -570,17 +562,18 @@ impl Solver<'_> {
         let y_mirror = -&start.task;
         let mirror = self.evaluate(&task, &y_mirror, &mut st.mirror, &mut out.equilibria);
         out.mirror = mirror.as_ref().ok().map(|t| task.unweighted(&t.error_w));
+        // With Newton's method, also the converged command's offset refined for the next target's start.
         let found = match method {
-            Method::Mirror => mirror,
+            Method::Mirror => mirror.map(|t| (t, None)),
             Method::Newton => {
                 let mut iterations = 0;
                 let predicted = st.commands.predict(&self.target).map(|offset| task.along(&offset));
                 let found = self.newton(&task, start, mirror.ok(), predicted, st, &mut iterations, &mut out.equilibria);
                 out.iterations = Some(iterations);
-                found
+                found.map(|(t, refined)| (t, Some(refined)))
             }
         };
-        let found = match found {
+        let (found, refined) = match found {
             Ok(t) => t,
             Err(s) => return Compensation { status: s, ..out },
         };
@@ -605,6 +598,11 @@ impl Solver<'_> {
         } else {
             Status::Ok
         };
+        // Only a target that ends `ok` starts the next one (`Compensator::next` forgets the history on
+        // any other status).
+        if let (Status::Ok, Some(offset)) = (out.status, refined) {
+            st.commands.push(self.target.pos, offset);
+        }
         out
     }
 
@@ -641,7 +639,9 @@ impl Solver<'_> {
 
     /// Newton's method on the command from the target (`start`), the mirror command (`mirror`, its first
     /// step with the nominal Jacobian, the identity) and the command extrapolated from the targets before
-    /// (`predicted`, coordinates along the task basis), whichever comes closer.
+    /// (`predicted`, coordinates along the task basis), whichever comes closer. Returns the converged
+    /// trial and its command's offset from the target (weighted coordinates) refined by the step its last
+    /// residual asks: the next target's extrapolation starts from that.
     #[allow(clippy::too_many_arguments)]
     fn newton(
         &self,
@@ -652,7 +652,7 @@ impl Solver<'_> {
         st: &mut CompensateState,
         iterations: &mut usize,
         equilibria: &mut usize,
-    ) -> Result<Trial, Status> {
+    ) -> Result<(Trial, Vec6), Status> {
         let carried = st.jacobian.take();
         let mut jacobian = carried.unwrap_or_else(Mat6::identity);
         let mut best = start;
@@ -734,9 +734,8 @@ impl Solver<'_> {
             Some(step) if step.iter().all(|v| v.is_finite()) => &best.y - step,
             _ => best.y.clone(),
         };
-        st.converged = Some(Vec6::from_column_slice((&task.basis * refined).as_slice()));
         st.jacobian = Some(jacobian);
-        Ok(best)
+        Ok((best, Vec6::from_column_slice((&task.basis * refined).as_slice())))
     }
 
     /// The Jacobian with its columns along the task basis replaced by one-sided differences at `at`.
