@@ -445,22 +445,9 @@ fn dot(a: &[f64; CONSTRAINTS], b: &[f64; CONSTRAINTS]) -> f64 {
 
 /// Cholesky factorisation of a small symmetric matrix in place (its lower triangle read, L written there;
 /// the strict upper triangle left as it is): false where a pivot is not positive or not finite (not
-/// positive definite to round-off).
+/// positive definite to round-off). The fixed-size face of `dense_cholesky` (the rows laid end to end).
 pub fn small_cholesky<const D: usize>(a: &mut [[f64; D]; D]) -> bool {
-    for i in 0..D {
-        for j in 0..=i {
-            let v = a[i][j] - (0..j).map(|k| a[i][k] * a[j][k]).sum::<f64>();
-            if i == j {
-                if !(v.is_finite() && v > 0.0) {
-                    return false;
-                }
-                a[i][i] = v.sqrt();
-            } else {
-                a[i][j] = v / a[j][j];
-            }
-        }
-    }
-    true
+    dense_cholesky(a.as_flattened_mut(), D)
 }
 
 /// Solves L x = b in place, L the lower triangle of a `small_cholesky` factor.
