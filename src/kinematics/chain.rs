@@ -48,7 +48,7 @@ pub struct Joint {
 impl Joint {
     /// `f * motion(value)`: the frame after this joint moves by `value` (rad or mm) about or along its axis.
     /// Rotations about a principal axis only mix two columns, the common case on the hot path.
-    #[inline]
+    #[inline(always)]
     fn apply(&self, f: &Frame, value: f64) -> Frame {
         match self.kind {
             JointKind::Prismatic => Frame { rot: f.rot, pos: f.pos + f.rot * (self.axis * value) },

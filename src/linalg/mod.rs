@@ -268,10 +268,12 @@ impl SaddlePointLu {
             factors[pr] = 0.0;
             for column in self.reduced_rows.iter_mut() {
                 let p = column[pr] * inverse;
-                column[pr] = p;
                 for (v, f) in column.iter_mut().zip(&factors) {
                     *v -= f * p;
                 }
+                // The pivot row's entry after the loop (p less 0 p, the same bits as clearing p itself): storing
+                // p before the loop made its vector loads wait on the store (a failed store forwarding).
+                column[pr] = p - factors[pr] * p;
             }
             // Exactly a unit column (p above is 1 to round-off only), so that the search skips it.
             self.reduced_rows[pc] = std::array::from_fn(|r| if r == pr { 1.0 } else { 0.0 });
