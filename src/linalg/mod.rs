@@ -271,8 +271,9 @@ impl SaddlePointLu {
                 for (v, f) in column.iter_mut().zip(&factors) {
                     *v -= f * p;
                 }
-                // The pivot row's entry after the loop (p less 0 p, the same bits as clearing p itself): storing
-                // p before the loop made its vector loads wait on the store (a failed store forwarding).
+                // The pivot row's entry is written after the loop, as the loop would have updated it had p been
+                // stored first (p - 0 p: the same bits); storing p first made the loop's vector loads wait on
+                // that store (a failed store forwarding).
                 column[pr] = p - factors[pr] * p;
             }
             // Exactly a unit column (p above is 1 to round-off only), so that the search skips it.
