@@ -368,36 +368,44 @@ chain = [
     }
 }
 
-/// Two Stewart-Gough legs (universal joint at the base, axial spring k, spherical joint at the platform)
-/// from (-a, 0, 0) and (a, 0, 0) to the apex (0, 0, h), loaded by a vertical force P: each leg, compressed
-/// by N, loses lateral stiffness N / L as a pinned strut does (Euler-like), so the apex' stiffness along x,
-/// 2 (k sin^2(alpha) - (N / L) cos^2(alpha)), vanishes at a load found in closed form on the deformed
-/// geometry (apex lowered by w: L = sqrt(a^2 + (h - w)^2), N = k (L0 - L), P = 2 N cos(alpha)). A guide holds
-/// y and the rotations. Force control must find the buckling there, every row's smallest translational
-/// eigenvalue must follow the closed form, and `stable` must follow it.
-#[test]
-fn stewart_leg_pair_loses_lateral_stiffness_under_axial_load() {
-    let (a, h, k) = (100.0f64, 300.0f64, 1.0e5f64);
-    let l0 = (a * a + h * h).sqrt();
-    let geometry = |w: f64| {
+/// The Stewart-Gough leg pair of `stewart_leg_pair_loses_lateral_stiffness_under_axial_load`: half-span a,
+/// height h, axial stiffness k.
+struct LegPair {
+    a: f64,
+    h: f64,
+    k: f64,
+}
+
+impl LegPair {
+    /// The vertical load and the apex' lateral stiffness with the apex lowered by w (closed form on the
+    /// deformed geometry).
+    fn geometry(&self, w: f64) -> (f64, f64) {
+        let (a, h, k) = (self.a, self.h, self.k);
+        let l0 = (a * a + h * h).sqrt();
         let l = (a * a + (h - w) * (h - w)).sqrt();
         let (sin, cos) = (a / l, (h - w) / l);
         let n = k * (l0 - l);
         (2.0 * n * cos, 2.0 * (k * sin * sin - n / l * cos * cos))
-    };
-    // The closed-form critical apex drop and load, by bisection on w.
-    let (mut lo, mut hi) = (0.0, 0.5 * h);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if geometry(mid).1 > 0.0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
     }
-    let p_cr = geometry(lo).0;
-    let m = model(&format!(
-        r#"
+
+    /// The load at which the lateral stiffness vanishes, by bisection on the apex drop.
+    fn critical_load(&self) -> f64 {
+        let (mut lo, mut hi) = (0.0, 0.5 * self.h);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if self.geometry(mid).1 > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        self.geometry(lo).0
+    }
+
+    fn model(&self) -> Manipulator {
+        let (a, h, k) = (self.a, self.h, self.k);
+        model(&format!(
+            r#"
 name = "Stewart-Gough leg pair"
 [parameters]
 a = {a}
@@ -421,7 +429,62 @@ chain = [
   {{ type = "spring6", stiffness_matrix = [[1,0,0,0,0,0],[0,1e5,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1e9,0,0],[0,0,0,0,1e9,0],[0,0,0,0,0,1e9]] }},
 ]
 "#
-    ));
+        ))
+    }
+}
+
+/// The leg pair under a vertical load P is stable under force control below the closed-form critical load
+/// and unstable above it (its lateral stiffness changes sign there). `settle_stable`, which decides
+/// stability on a linearisation within the Newton tolerance of the equilibrium (compensation's check),
+/// must settle where `deflect` does and decide as it does on both sides, from a fresh state and from the
+/// state of a load 1% smaller (chord steps first).
+#[test]
+fn settling_with_stability_decides_as_the_tangent_solve_on_both_sides_of_buckling() {
+    let pair = LegPair { a: 100.0, h: 300.0, k: 1.0e5 };
+    let p_cr = pair.critical_load();
+    let m = pair.model();
+    let at = Frame::translation(Vec3::new(0.0, 0.0, pair.h));
+    let wrench = |ratio: f64| Vec6::new(0.0, 0.0, -ratio * p_cr, 0.0, 0.0, 0.0);
+    let placed = || {
+        let mut s = m.new_state();
+        m.place(&at, &mut s).unwrap();
+        s
+    };
+    for ratio in [0.5, 0.9, 0.95, 1.05, 1.1, 1.3] {
+        let tangent = m.deflect(&at, &wrench(ratio), None, &mut placed()).unwrap();
+        let (fresh, fresh_stable) = m.settle_stable(&at, &wrench(ratio), None, &mut placed()).unwrap();
+        // The neighbour: 1% less load, solved first in the same state.
+        let mut neighbour = placed();
+        let (before, _) = m.settle_stable(&at, &wrench(0.99 * ratio), None, &mut neighbour).unwrap();
+        let (carried, carried_stable) =
+            m.settle_stable(&at, &wrench(ratio), Some(&before.pose), &mut neighbour).unwrap();
+        assert_eq!(tangent.stable, ratio < 1.0, "P / P_cr = {ratio}");
+        assert_eq!(fresh_stable, tangent.stable, "P / P_cr = {ratio}, fresh");
+        assert_eq!(carried_stable, tangent.stable, "P / P_cr = {ratio}, from the neighbour");
+        for (name, d) in [("fresh", fresh.displacement), ("from the neighbour", carried.displacement)] {
+            let gap = (d - tangent.displacement).norm();
+            assert!(gap < 1e-9 * pair.h, "P / P_cr = {ratio}, {name}: {gap:e} mm from the tangent solve's pose");
+        }
+        // And the pose is the closed form's: the load carried at that drop.
+        let w = -tangent.displacement[2];
+        assert!((pair.geometry(w).0 - ratio * p_cr).abs() < 1e-6 * p_cr, "P / P_cr = {ratio}: drop {w}");
+    }
+}
+
+/// Two Stewart-Gough legs (universal joint at the base, axial spring k, spherical joint at the platform)
+/// from (-a, 0, 0) and (a, 0, 0) to the apex (0, 0, h), loaded by a vertical force P: each leg, compressed
+/// by N, loses lateral stiffness N / L as a pinned strut does (Euler-like), so the apex' stiffness along x,
+/// 2 (k sin^2(alpha) - (N / L) cos^2(alpha)), vanishes at a load found in closed form on the deformed
+/// geometry (apex lowered by w: L = sqrt(a^2 + (h - w)^2), N = k (L0 - L), P = 2 N cos(alpha)). A guide holds
+/// y and the rotations. Force control must find the buckling there, every row's smallest translational
+/// eigenvalue must follow the closed form, and `stable` must follow it.
+#[test]
+fn stewart_leg_pair_loses_lateral_stiffness_under_axial_load() {
+    let pair = LegPair { a: 100.0, h: 300.0, k: 1.0e5 };
+    let (h, k) = (pair.h, pair.k);
+    let geometry = |w: f64| pair.geometry(w);
+    let p_cr = pair.critical_load();
+    let m = pair.model();
     let at = Frame::translation(Vec3::new(0.0, 0.0, h));
     let rows = run_curve(&m, &at, Control::Force(Vec6::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0)), 1.4 * p_cr, 28).unwrap();
     let found = critical_load_factor(&rows).expect("the lateral stiffness vanishes");

@@ -117,10 +117,13 @@ pub fn solve(
         let Some(y) = cholesky_solve(&a, &err) else {
             return finish(converged, iteration, norm, ws);
         };
-        // Back-tracking: halve the step until the error decreases.
+        // Back-tracking: halve the step until the error decreases. A polishing step is tried whole only:
+        // from within the tolerance the full step lowers the error unless round-off already dominates it,
+        // where halving it would only spend evaluations.
         let mut step = 1.0;
         let mut accepted = false;
-        for _ in 0..30 {
+        let tries = if converged { 1 } else { 30 };
+        for _ in 0..tries {
             let t = &mut ws.trial_coords;
             for (k, j) in ws.current.actuated.iter().enumerate() {
                 t.actuated[k] = coords.actuated[k] + step * jw(j).dot(&y);

@@ -83,6 +83,11 @@ enum Finish {
     /// The pose alone: chord steps that have converged end the solve, and a full linearisation is made
     /// only where they stop contracting.
     Pose,
+    /// The pose and the stability there: chord steps until the next would be within `NEWTON_TOLERANCE`,
+    /// then one full linearisation, which ends the solve once its step is within `NEWTON_TOLERANCE` (the
+    /// pose's error is then of the order of its square). Its tangent is that close to the equilibrium's:
+    /// enough to decide stability, not to report the stiffness to `TANGENT_TOLERANCE`.
+    Stability,
 }
 
 /// Why the platform's loaded equilibrium was not found.
@@ -183,7 +188,9 @@ impl Manipulator {
     /// With `Finish::Pose` the solve ends on the chord step after which the distance left, estimated from
     /// the contraction as `distance * contraction`, is within `TANGENT_TOLERANCE` (linear convergence: the
     /// next step would be that small), or on a full step within `NEWTON_TOLERANCE` (quadratic: the error
-    /// left is of the order of its square); no `Held` is returned, as no tangent was made there.
+    /// left is of the order of its square); no `Held` is returned, as no tangent was made there. With
+    /// `Finish::Stability` it ends on the first full step within `NEWTON_TOLERANCE`, made once the chord
+    /// steps would be within it.
     fn newton(
         &self,
         load: &Vec6,
@@ -260,7 +267,8 @@ impl Manipulator {
                 *chord = Some(Chord { stiffness, contraction });
                 return Ok((None, it + 1));
             }
-            if full && distance <= NEWTON_TOLERANCE && (distance <= TANGENT_TOLERANCE || stalled) {
+            let tangent_close = finish == Finish::Stability || distance <= TANGENT_TOLERANCE || stalled;
+            if full && distance <= NEWTON_TOLERANCE && tangent_close {
                 let unstable_legs = (self.legs.iter().zip(states.iter_mut()).enumerate())
                     .filter_map(|(i, (leg, s))| (!leg.stable(s)).then_some(i))
                     .fold(0, |bits, i| bits | leg_bit(i));
@@ -281,6 +289,9 @@ impl Manipulator {
                 (true, _) => distance > CHORD_RANGE,
                 (false, Finish::Tangent) => stalled || distance * contraction <= TANGENT_TOLERANCE,
                 (false, Finish::Pose) => stalled,
+                // The carried contraction where the first chord step has none of its own (at most 1: an
+                // unknown one, infinite or NaN, asks for the step itself within the tolerance).
+                (false, Finish::Stability) => stalled || distance * chord_contraction.min(1.0) <= NEWTON_TOLERANCE,
             };
             last_distance = distance;
             let step_mm = step_size * self.length_scale;
@@ -320,8 +331,29 @@ impl Manipulator {
     ) -> Result<Deflection, DeflectionFailure> {
         let (t, held, iterations) = self.continuation(commanded, wrench, start, state, Finish::Tangent)?;
         let held = held.expect("a tangent solve ends on a full linearisation");
-        let stable = held.legs_stable() && positive_definite(&held.stiffness, &held.magnitude, self.length_scale);
+        let stable = self.stable(&held);
         Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations })
+    }
+
+    /// Stable under force control: the tangent stiffness positive definite and every leg stable.
+    fn stable(&self, held: &Held) -> bool {
+        held.legs_stable() && positive_definite(&held.stiffness, &held.magnitude, self.length_scale)
+    }
+
+    /// Where the platform settles under `wrench`, as `settle` finds it, and whether it is stable there
+    /// (as `deflect` decides it): the solve ends on one full linearisation within `NEWTON_TOLERANCE` of
+    /// the equilibrium rather than `TANGENT_TOLERANCE`, which decides stability but is not reported as a
+    /// stiffness (a forward solve that checks a command, for the price of `settle` and one linearisation).
+    pub fn settle_stable(
+        &self,
+        commanded: &Frame,
+        wrench: &Vec6,
+        start: Option<&Frame>,
+        state: &mut ManipulatorState,
+    ) -> Result<(Settled, bool), DeflectionFailure> {
+        let (t, held, iterations) = self.continuation(commanded, wrench, start, state, Finish::Stability)?;
+        let held = held.expect("a stability solve ends on a full linearisation");
+        Ok((Settled { pose: t, displacement: commanded.error_to(&t), iterations }, self.stable(&held)))
     }
 
     /// Where the platform settles under `wrench`, as `deflect` finds it but without the tangent stiffness

@@ -12,10 +12,12 @@
 //! extrapolated from the targets before along a line, with the Jacobian dP/dc from differences of loaded
 //! equilibria where needed and Broyden's secant updates otherwise, carried from one target to the next
 //! along the path. Newton's evaluations need only the pose the robot settles at (`Manipulator::settle`).
-//! The command found is checked by an independent forward solve with the tangent stiffness and stability
-//! (`Manipulator::deflect`): the command placed by its own inverse kinematics and the real robot's
+//! The command found is checked by an independent forward solve with stability
+//! (`Manipulator::settle_stable`): the command placed by its own inverse kinematics and the real robot's
 //! equilibrium with those actuator coordinates, from the last forward solve's equilibrium (as a controller
-//! stepping along the path would see it), never from Newton's evaluations.
+//! stepping along the path would see it), never from Newton's evaluations. The extrapolated command, Newton's
+//! first, is evaluated by that forward solve: where it meets the tolerance (along a fine path, nearly every
+//! target) it is the check, and the target costs three loaded equilibria instead of four.
 
 use std::borrow::Cow;
 use std::collections::VecDeque;
@@ -480,6 +482,9 @@ struct Trial {
     y: DVector<f64>,
     error_w: Vec6,
     task: DVector<f64>,
+    /// The forward solve's answer where the check pair evaluated this command (the extrapolated one):
+    /// its check is made.
+    checked: Option<Reached>,
 }
 
 /// One target's compensation.
@@ -490,7 +495,8 @@ struct Solver<'a> {
     wrench: Vec6,
 }
 
-/// Where the real robot settled under a command; with a tangent solve, whether it is stable there.
+/// Where the real robot settled under a command; with a stability solve, whether it is stable there.
+#[derive(Clone, Copy)]
 struct Reached {
     pose: Frame,
     stable: Option<bool>,
@@ -499,8 +505,8 @@ struct Reached {
 impl Solver<'_> {
     /// Commands the real robot with `command` through the controller's nominal inverse kinematics and
     /// solves its loaded equilibrium, starting from the pair's last one: the pose alone (`settle`), or with
-    /// `tangent` the stability there too (`deflect`).
-    fn reach(&self, command: &Frame, pair: &mut Commanded, tangent: bool) -> Result<Reached, Status> {
+    /// `stability` the stability there too (`settle_stable`).
+    fn reach(&self, command: &Frame, pair: &mut Commanded, stability: bool) -> Result<Reached, Status> {
         self.nominal.place(command, &mut pair.nominal).map_err(|e| Status::of(&e))?;
         self.real.take_command(&pair.nominal, &mut pair.real);
         // Keyed by the target: every pair's command is a smooth function of it, equally spaced along a path
@@ -513,9 +519,9 @@ impl Solver<'_> {
         });
         // Always a start: without one the solve would place the real legs by their own inverse kinematics,
         // where the controller's placement must hold them.
-        let solve = |start: &Frame, real: &mut ManipulatorState| match tangent {
-            true => (self.real.deflect(command, &self.wrench, Some(start), real))
-                .map(|d| Reached { pose: d.pose, stable: Some(d.stable) }),
+        let solve = |start: &Frame, real: &mut ManipulatorState| match stability {
+            true => (self.real.settle_stable(command, &self.wrench, Some(start), real))
+                .map(|(d, stable)| Reached { pose: d.pose, stable: Some(stable) }),
             false => (self.real.settle(command, &self.wrench, Some(start), real))
                 .map(|d| Reached { pose: d.pose, stable: None }),
         };
@@ -528,7 +534,7 @@ impl Solver<'_> {
         match reached {
             Ok(r) => {
                 let offsets = pair.real.legs.iter().map(|s| s.loaded_offsets()).collect();
-                pair.history.push(self.target.pos, command.error_to(&r.pose), offsets);
+                pair.history.supersede(self.target.pos, command.error_to(&r.pose), offsets);
                 Ok(r)
             }
             Err(e) => {
@@ -556,11 +562,12 @@ impl Solver<'_> {
             y: DVector::zeros(task.basis.ncols()),
             error_w: task.weighted(&uncompensated),
             task: task.along(&task.weighted(&uncompensated)),
+            checked: None,
         };
         // The mirror command of [73]: the target minus the error predicted there, in the directions the
         // actuators move.
         let y_mirror = -&start.task;
-        let mirror = self.evaluate(&task, &y_mirror, &mut st.mirror, &mut out.equilibria);
+        let mirror = self.evaluate(&task, &y_mirror, &mut st.mirror, false, &mut out.equilibria);
         out.mirror = mirror.as_ref().ok().map(|t| task.unweighted(&t.error_w));
         // With Newton's method, also the converged command's offset refined for the next target's start.
         let found = match method {
@@ -580,9 +587,16 @@ impl Solver<'_> {
         let command = task.command(&self.target, &found.y);
         out.command = Some(command);
         // The independent forward solve: the command placed by its own inverse kinematics, the real legs'
-        // equilibrium from the last forward solve's (nothing carried from Newton's evaluations).
-        out.equilibria += 1;
-        let checked = self.reach(&command, &mut st.check, true);
+        // equilibrium from the last forward solve's (nothing carried from Newton's evaluations). Made
+        // already where Newton's first evaluation, the extrapolated command, was that solve and met the
+        // tolerance (along a path, most targets).
+        let checked = match found.checked {
+            Some(r) => Ok(r),
+            None => {
+                out.equilibria += 1;
+                self.reach(&command, &mut st.check, true)
+            }
+        };
         out.actuators = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
         let checked = match checked {
             Ok(d) => d,
@@ -622,19 +636,21 @@ impl Solver<'_> {
         }
     }
 
-    /// Where the real robot settles under the command at `y`, commanded through `pair`.
+    /// Where the real robot settles under the command at `y`, commanded through `pair`; with `check`, the
+    /// stability there too, and the trial keeps the answer as its check.
     fn evaluate(
         &self,
         task: &Task,
         y: &DVector<f64>,
         pair: &mut Commanded,
+        check: bool,
         equilibria: &mut usize,
     ) -> Result<Trial, Status> {
         *equilibria += 1;
         let command = task.command(&self.target, y);
-        let d = self.reach(&command, pair, false)?;
+        let d = self.reach(&command, pair, check)?;
         let error_w = task.weighted(&self.target.error_to(&d.pose));
-        Ok(Trial { y: y.clone(), task: task.along(&error_w), error_w })
+        Ok(Trial { y: y.clone(), task: task.along(&error_w), error_w, checked: check.then_some(d) })
     }
 
     /// Newton's method on the command from the target (`start`), the mirror command (`mirror`, its first
@@ -665,11 +681,16 @@ impl Solver<'_> {
             }
         }
         // Along a path the command's offset from its target changes smoothly: its extrapolation is
-        // usually within the tolerance already, a far better start than the mirror command.
+        // usually within the tolerance already, a far better start than the mirror command. It is
+        // evaluated by the check's forward solve, which then is the check of the command found; where it
+        // misses, Newton's evaluations go on from that equilibrium.
         if let Some(y) = predicted.filter(|_| best.task.norm() > COMMAND_TOLERANCE_MM) {
             *iterations += 1;
-            if let Ok(p) = self.evaluate(task, &y, &mut st.compensated, equilibria) {
+            if let Ok(p) = self.evaluate(task, &y, &mut st.check, true, equilibria) {
                 broyden(&mut jacobian, task, &best, &p);
+                if p.task.norm() > COMMAND_TOLERANCE_MM {
+                    st.compensated.clone_from(&st.check);
+                }
                 if p.task.norm() < best.task.norm() {
                     best = p;
                 }
@@ -704,7 +725,7 @@ impl Solver<'_> {
             let mut fraction = 1.0;
             let mut trial = Err(Status::NotConverged);
             for _ in 0..MAX_HALVINGS {
-                trial = self.evaluate(task, &(&best.y + &step * fraction), &mut st.compensated, equilibria);
+                trial = self.evaluate(task, &(&best.y + &step * fraction), &mut st.compensated, false, equilibria);
                 match &trial {
                     Ok(_) => break,
                     Err(s) => outside |= matches!(s, Status::Unreachable | Status::IllConditioned),
@@ -750,7 +771,7 @@ impl Solver<'_> {
         for k in 0..task.basis.ncols() {
             let mut y = at.y.clone();
             y[k] += DIFFERENCE_STEP_MM;
-            let t = self.evaluate(task, &y, &mut st.compensated, equilibria)?;
+            let t = self.evaluate(task, &y, &mut st.compensated, false, equilibria)?;
             let q = task.column(k);
             let column = (t.error_w - at.error_w) / DIFFERENCE_STEP_MM;
             jacobian += (column - jacobian * q) * q.transpose();

@@ -158,8 +158,41 @@ impl LoadedHistory {
         }
     }
 
+    /// Records the solution at `position` in place of the newest where that was solved at the same
+    /// position (another command tried for one target of a compensation): a line's points stay equally
+    /// spaced, and the latest solve, the one the next starts nearest to, is the one kept.
+    pub fn supersede(&mut self, position: Vec3, displacement: Vec6, offsets: Vec<LoadedOffsets>) {
+        if self.recent.solutions.last().is_some_and(|s| s.position == position) {
+            self.recent.solutions.pop();
+        }
+        self.push(position, displacement, offsets);
+    }
+
     /// Forgets every solution (after a point that failed: its neighbours' starts are no longer trusted).
     pub fn clear(&mut self) {
         *self = Self::default();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A displacement quadratic in the position along a line is predicted exactly by the quadratic
+    /// extrapolation through three equally spaced points. Compensation solves a target more than once (a
+    /// command tried, then a better one): the second solution at the newest position must replace the
+    /// first, not stand beside it at zero spacing, which would break the line and leave only the last value
+    /// as the next prediction.
+    #[test]
+    fn a_second_solution_at_one_position_replaces_the_first() {
+        let position = |x: f64| Vec3::new(x, 2.0 * x, -x);
+        let displacement = |x: f64| Vec6::new(x * x, 1.0 - x, 0.5 * x * x, 0.0, 0.0, 0.0);
+        let mut history = LoadedHistory::default();
+        history.supersede(position(0.0), displacement(0.0), Vec::new());
+        history.supersede(position(1.0), displacement(1.0), Vec::new());
+        history.supersede(position(2.0), Vec6::repeat(7.0), Vec::new());
+        history.supersede(position(2.0), displacement(2.0), Vec::new());
+        let (predicted, _) = history.predict(&position(3.0)).unwrap();
+        assert!((predicted - displacement(3.0)).norm() < 1e-12, "{predicted} vs {}", displacement(3.0));
     }
 }
