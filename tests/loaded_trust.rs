@@ -309,14 +309,9 @@ fn a_settled_pose_is_the_deflected_pose() {
     for k in 0..points {
         let commanded = Frame::translation(Vec3::new(-73.65, -73.65 + 0.005 * k as f64, -73.65));
         m.place(&commanded, &mut s).unwrap();
-        let start = history.predict(&commanded.pos).map(|(d, offsets)| {
-            for (leg, o) in s.legs.iter_mut().zip(&offsets) {
-                leg.apply_loaded_offsets(o);
-            }
-            stiff::kinematics::frame::apply_twist(&commanded, &d)
-        });
+        let start = history.start(&commanded.pos, &commanded, &mut s.legs);
         let settled = m.settle(&commanded, &wrench, start.as_ref(), &mut s).unwrap();
-        history.push(commanded.pos, settled.displacement, s.legs.iter().map(|l| l.loaded_offsets()).collect());
+        history.push(commanded.pos, settled.displacement, &s.legs);
         single_steps += usize::from(settled.iterations == 1);
         let mut fresh = m.new_state();
         fresh.polish_placements();

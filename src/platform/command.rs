@@ -93,6 +93,10 @@ impl LegState {
         self.warm = true;
         self.placed.clone_from(&nominal.placed);
         self.ik.invalidate();
-        self.msa.clone_from(&nominal.msa);
+        // An MSA leg's placement (its answer there, the structure's buffers) lives in its MSA state; a VJM
+        // leg has none, and copying the empty one would still move its whole size.
+        if nominal.msa.placed.is_some() {
+            self.msa.clone_from(&nominal.msa);
+        }
     }
 }

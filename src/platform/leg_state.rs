@@ -42,29 +42,6 @@ pub struct LoadedOffsets {
     pub(super) wrench: Vec6,
 }
 
-impl LoadedOffsets {
-    /// The weighted sum `sum w_k o_k` of offsets at earlier points: with the weights of a polynomial
-    /// extrapolation (`2, -1` linear; `3, -3, 1` quadratic) the prediction at the next of equally spaced points.
-    pub fn combine(weighted: &[(f64, &LoadedOffsets)]) -> LoadedOffsets {
-        let first = weighted[0].1;
-        let mut sum = LoadedOffsets {
-            passive: vec![0.0; first.passive.len()],
-            virtual_: vec![0.0; first.virtual_.len()],
-            wrench: Vec6::zeros(),
-        };
-        for (w, o) in weighted {
-            for (s, x) in sum.passive.iter_mut().zip(&o.passive) {
-                *s += w * x;
-            }
-            for (s, x) in sum.virtual_.iter_mut().zip(&o.virtual_) {
-                *s += w * x;
-            }
-            sum.wrench += o.wrench * *w;
-        }
-        sum
-    }
-}
-
 impl LegState {
     /// Keeps what a loaded Newton attempt changes (configuration, end wrench), for `rollback` (no
     /// allocation once the buffers have their size, unlike a clone of the whole state).
@@ -80,25 +57,30 @@ impl LegState {
         self.ik.invalidate();
     }
 
-    /// After a loaded answer: its departure from the placement.
-    pub fn loaded_offsets(&self) -> LoadedOffsets {
-        LoadedOffsets {
-            passive: self.coords.passive.iter().zip(&self.placed.passive).map(|(a, b)| a - b).collect(),
-            virtual_: self.coords.virtual_.clone(),
-            wrench: self.end_wrench,
-        }
+    /// After a loaded answer: its departure from the placement, into `offsets` (its buffers reused).
+    pub fn loaded_offsets_into(&self, offsets: &mut LoadedOffsets) {
+        offsets.passive.clear();
+        offsets.passive.extend(self.coords.passive.iter().zip(&self.placed.passive).map(|(a, b)| a - b));
+        offsets.virtual_.clone_from(&self.coords.virtual_);
+        offsets.wrench = self.end_wrench;
     }
 
-    /// After `place`: start the loaded equilibrium from the placement plus `offsets`.
-    pub fn apply_loaded_offsets(&mut self, offsets: &LoadedOffsets) {
-        if offsets.passive.len() != self.coords.passive.len() || offsets.virtual_.len() != self.coords.virtual_.len() {
+    /// After `place`: start the loaded equilibrium from the placement plus the weighted sum `sum w_k o_k`
+    /// of offsets at earlier points (with the weights of a polynomial extrapolation, `2, -1` linear,
+    /// `3, -3, 1` quadratic, the prediction at the next of equally spaced points), each entry summed from
+    /// zero in the terms' order. Offsets of another shape (another leg) are ignored.
+    pub fn apply_combined_offsets<'a>(&mut self, terms: impl Iterator<Item = (f64, &'a LoadedOffsets)> + Clone) {
+        let (n, m) = (self.coords.passive.len(), self.coords.virtual_.len());
+        if !terms.clone().all(|(_, o)| o.passive.len() == n && o.virtual_.len() == m) {
             return;
         }
-        for (q, d) in self.coords.passive.iter_mut().zip(&offsets.passive) {
-            *q += d;
+        for (k, q) in self.coords.passive.iter_mut().enumerate() {
+            *q += terms.clone().fold(0.0, |sum, (w, o)| sum + w * o.passive[k]);
         }
-        self.coords.virtual_.copy_from_slice(&offsets.virtual_);
-        self.end_wrench = offsets.wrench;
+        for (k, theta) in self.coords.virtual_.iter_mut().enumerate() {
+            *theta = terms.clone().fold(0.0, |sum, (w, o)| sum + w * o.virtual_[k]);
+        }
+        self.end_wrench = terms.fold(Vec6::zeros(), |sum, (w, o)| sum + o.wrench * w);
         self.ik.invalidate();
     }
 }

@@ -511,12 +511,7 @@ impl Solver<'_> {
         self.real.take_command(&pair.nominal, &mut pair.real);
         // Keyed by the target: every pair's command is a smooth function of it, equally spaced along a path
         // as the commands themselves are not.
-        let predicted = pair.history.predict(&self.target.pos).map(|(displacement, offsets)| {
-            for (s, o) in pair.real.legs.iter_mut().zip(&offsets) {
-                s.apply_loaded_offsets(o);
-            }
-            apply_twist(command, &displacement)
-        });
+        let predicted = pair.history.start(&self.target.pos, command, &mut pair.real.legs);
         // Always a start: without one the solve would place the real legs by their own inverse kinematics,
         // where the controller's placement must hold them.
         let solve = |start: &Frame, real: &mut ManipulatorState| match stability {
@@ -533,8 +528,7 @@ impl Solver<'_> {
         }
         match reached {
             Ok(r) => {
-                let offsets = pair.real.legs.iter().map(|s| s.loaded_offsets()).collect();
-                pair.history.supersede(self.target.pos, command.error_to(&r.pose), offsets);
+                pair.history.supersede(self.target.pos, command.error_to(&r.pose), &pair.real.legs);
                 Ok(r)
             }
             Err(e) => {

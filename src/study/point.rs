@@ -4,7 +4,6 @@
 use std::fmt::Write;
 
 pub use super::warm_start::LoadedHistory;
-use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{Mat6, Vec3, Vec6};
 use crate::model::grid::PosePoint;
 use crate::output::report::{fmt6, matrix, TWIST, WRENCH};
@@ -213,12 +212,7 @@ pub fn loaded_point(
         history.clear();
         return PointResult::failed_at(e);
     }
-    let start = history.predict(&p.position).map(|(d, offsets)| {
-        for (s, o) in state.legs.iter_mut().zip(&offsets) {
-            s.apply_loaded_offsets(o);
-        }
-        apply_twist(&commanded, &d)
-    });
+    let start = history.start(&p.position, &commanded, &mut state.legs);
     let mut attempt = m.deflect(&commanded, wrench, start.as_ref(), state);
     if attempt.is_err() && start.is_some() {
         m.place(&commanded, state).ok();
@@ -226,7 +220,7 @@ pub fn loaded_point(
     }
     match attempt {
         Ok(d) => {
-            history.push(p.position, d.displacement, state.legs.iter().map(|s| s.loaded_offsets()).collect());
+            history.push(p.position, d.displacement, &state.legs);
             let mut r = PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true);
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;

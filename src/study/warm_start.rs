@@ -2,8 +2,8 @@
 //! the points solved before it in the same run (paper 000 s. 6: from the previous solution the equilibrium
 //! "converges in 1-2 iterations" for small increments).
 
-use crate::kinematics::frame::{Vec3, Vec6};
-use crate::platform::leg::LoadedOffsets;
+use crate::kinematics::frame::{apply_twist, Frame, Vec3, Vec6};
+use crate::platform::leg::{LegState, LoadedOffsets};
 
 /// How many of the last points (`newest_first`) lie with `position` equally spaced on a line: 0 without
 /// points, else at least 1.
@@ -64,7 +64,7 @@ pub fn extrapolation_degree(newest_first: &[Vec6]) -> usize {
 }
 
 /// One loaded solution: commanded position, platform displacement, each leg's departure from its placement.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 struct Solution {
     position: Vec3,
     displacement: Vec6,
@@ -86,24 +86,16 @@ impl Sequence {
     /// equally spaced on a line, of the degree their displacements' differences support
     /// (`extrapolation_degree`), else the last solution as it is: along a grid's rows the start is up to
     /// O(h^5) from the equilibrium, and Newton's method confirms it with fewer chord steps.
-    fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
-        let newest = self.solutions.last()?;
+    fn predict(&self, position: &Vec3) -> Option<Prediction<'_>> {
+        self.solutions.last()?;
         let count = self.equally_spaced(position);
         let mut displacements = [Vec6::zeros(); KEPT];
         for (d, s) in displacements.iter_mut().zip(self.solutions.iter().rev().take(count)) {
             *d = s.displacement;
         }
         let weights = extrapolation_weights(extrapolation_degree(&displacements[..count]) + 1);
-        let used: Vec<&Solution> = self.solutions.iter().rev().zip(weights).map(|(s, _)| s).collect();
-        let displacement = used.iter().zip(weights).map(|(s, w)| s.displacement * *w).sum();
-        let offsets = (0..newest.offsets.len())
-            .map(|leg| {
-                let weighted: Vec<(f64, &LoadedOffsets)> =
-                    used.iter().zip(weights).map(|(s, w)| (*w, &s.offsets[leg])).collect();
-                LoadedOffsets::combine(&weighted)
-            })
-            .collect();
-        Some((displacement, offsets))
+        let prediction = Prediction { solutions: &self.solutions, weights };
+        Some(prediction)
     }
 
     /// How many of the last solutions lie with `position` equally spaced on a line (at least 1).
@@ -118,8 +110,52 @@ impl Sequence {
         self.solutions.push(solution);
     }
 
+    /// Records a solution in the buffers of the one it evicts (no allocation once the sequence is full).
+    fn record(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
+        if self.solutions.len() == KEPT {
+            self.solutions.rotate_left(1);
+        } else {
+            self.solutions.push(Solution::default());
+        }
+        let newest = self.solutions.last_mut().expect("a solution was just made room for");
+        newest.position = position;
+        newest.displacement = displacement;
+        newest.offsets.resize_with(legs.len(), LoadedOffsets::default);
+        for (o, leg) in newest.offsets.iter_mut().zip(legs) {
+            leg.loaded_offsets_into(o);
+        }
+    }
+
     fn distance(&self, position: &Vec3) -> f64 {
         self.solutions.last().map_or(f64::INFINITY, |s| (position - s.position).norm())
+    }
+}
+
+/// An extrapolation: the newest solutions (the last `weights.len()` of `solutions`, oldest first) and
+/// their weights, newest first.
+struct Prediction<'a> {
+    solutions: &'a [Solution],
+    weights: &'static [f64],
+}
+
+impl Prediction<'_> {
+    /// The solutions used, newest first, with their weights.
+    fn terms(&self) -> impl Iterator<Item = (f64, &Solution)> + Clone {
+        self.solutions.iter().rev().zip(self.weights).map(|(s, w)| (*w, s))
+    }
+
+    /// The platform's displacement predicted.
+    fn displacement(&self) -> Vec6 {
+        self.terms().map(|(w, s)| s.displacement * w).sum()
+    }
+
+    /// Each leg placed in `legs` moved by its predicted offsets (`LoadedOffsets::combine`, summed in place).
+    fn apply(&self, legs: &mut [LegState]) {
+        for (k, leg) in legs.iter_mut().enumerate() {
+            if self.terms().all(|(_, s)| k < s.offsets.len()) {
+                leg.apply_combined_offsets(self.terms().map(|(w, s)| (w, &s.offsets[k])));
+            }
+        }
     }
 }
 
@@ -135,8 +171,8 @@ pub struct LoadedHistory {
 }
 
 impl LoadedHistory {
-    /// The start for the equilibrium at `position`: the platform's displacement and each leg's offsets.
-    pub fn predict(&self, position: &Vec3) -> Option<(Vec6, Vec<LoadedOffsets>)> {
+    /// The extrapolation to `position` from the solutions before.
+    fn predict(&self, position: &Vec3) -> Option<Prediction<'_>> {
         let continues_line = self.recent.equally_spaced(position) >= 2;
         if !continues_line && self.line_starts.distance(position) < self.recent.distance(position) {
             return self.line_starts.predict(position);
@@ -144,13 +180,28 @@ impl LoadedHistory {
         self.recent.predict(position)
     }
 
-    /// Records the solution at `position`.
-    pub fn push(&mut self, position: Vec3, displacement: Vec6, offsets: Vec<LoadedOffsets>) {
+    /// The platform's displacement predicted at `position`.
+    pub fn predict_displacement(&self, position: &Vec3) -> Option<Vec6> {
+        self.predict(position).map(|p| p.displacement())
+    }
+
+    /// The start of the equilibrium at `position` (the key the solutions were recorded by), where the run
+    /// has solutions: the legs, placed in `legs`, moved by their predicted departures from the placement,
+    /// and the platform pose `from` moved by the predicted displacement. None, `legs` untouched, without.
+    pub fn start(&self, position: &Vec3, from: &Frame, legs: &mut [LegState]) -> Option<Frame> {
+        let prediction = self.predict(position)?;
+        prediction.apply(legs);
+        Some(apply_twist(from, &prediction.displacement()))
+    }
+
+    /// Records the solution at `position`: the platform's displacement and the legs' departures from their
+    /// placement (`LegState::loaded_offsets`).
+    pub fn push(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
         let continues_line = self.recent.equally_spaced(&position) >= 2;
         if !continues_line {
             self.line_recorded = false;
         }
-        self.recent.push(Solution { position, displacement, offsets });
+        self.recent.record(position, displacement, legs);
         // Three equally spaced points make a line: its first is the oldest of them.
         if continues_line && !self.line_recorded {
             self.line_starts.push(self.recent.solutions[self.recent.solutions.len() - 3].clone());
@@ -161,11 +212,11 @@ impl LoadedHistory {
     /// Records the solution at `position` in place of the newest where that was solved at the same
     /// position (another command tried for one target of a compensation): a line's points stay equally
     /// spaced, and the latest solve, the one the next starts nearest to, is the one kept.
-    pub fn supersede(&mut self, position: Vec3, displacement: Vec6, offsets: Vec<LoadedOffsets>) {
+    pub fn supersede(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
         if self.recent.solutions.last().is_some_and(|s| s.position == position) {
             self.recent.solutions.pop();
         }
-        self.push(position, displacement, offsets);
+        self.push(position, displacement, legs);
     }
 
     /// Forgets every solution (after a point that failed: its neighbours' starts are no longer trusted).
@@ -188,11 +239,11 @@ mod tests {
         let position = |x: f64| Vec3::new(x, 2.0 * x, -x);
         let displacement = |x: f64| Vec6::new(x * x, 1.0 - x, 0.5 * x * x, 0.0, 0.0, 0.0);
         let mut history = LoadedHistory::default();
-        history.supersede(position(0.0), displacement(0.0), Vec::new());
-        history.supersede(position(1.0), displacement(1.0), Vec::new());
-        history.supersede(position(2.0), Vec6::repeat(7.0), Vec::new());
-        history.supersede(position(2.0), displacement(2.0), Vec::new());
-        let (predicted, _) = history.predict(&position(3.0)).unwrap();
+        history.supersede(position(0.0), displacement(0.0), &[]);
+        history.supersede(position(1.0), displacement(1.0), &[]);
+        history.supersede(position(2.0), Vec6::repeat(7.0), &[]);
+        history.supersede(position(2.0), displacement(2.0), &[]);
+        let predicted = history.predict_displacement(&position(3.0)).unwrap();
         assert!((predicted - displacement(3.0)).norm() < 1e-12, "{predicted} vs {}", displacement(3.0));
     }
 }
