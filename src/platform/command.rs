@@ -13,7 +13,7 @@ impl Manipulator {
     /// After the nominal manipulator placed `nominal` for a command: sets this (real) manipulator's
     /// actuators where that placement put them, every leg starting its loaded equilibrium from the nominal
     /// placement (a caller with earlier solutions then applies their extrapolated departures from it,
-    /// `LegState::apply_loaded_offsets`). The real legs must have the nominal legs' coordinates (errors built
+    /// `LegState::apply_combined_offsets`). The real legs must have the nominal legs' coordinates (errors built
     /// in by fixed transforms and parameter values, `Leg::with_errors`).
     pub fn take_command(&self, nominal: &ManipulatorState, state: &mut ManipulatorState) {
         for (real, placed) in state.legs.iter_mut().zip(&nominal.legs) {

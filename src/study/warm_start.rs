@@ -149,7 +149,7 @@ impl Prediction<'_> {
         self.terms().map(|(w, s)| s.displacement * w).sum()
     }
 
-    /// Each leg placed in `legs` moved by its predicted offsets (`LoadedOffsets::combine`, summed in place).
+    /// Each leg placed in `legs` moved by its predicted offsets (`LegState::apply_combined_offsets`).
     fn apply(&self, legs: &mut [LegState]) {
         for (k, leg) in legs.iter_mut().enumerate() {
             if self.terms().all(|(_, s)| k < s.offsets.len()) {
