@@ -103,21 +103,20 @@ impl Sequence {
         equally_spaced(self.solutions.iter().rev().map(|s| &s.position), position)
     }
 
-    fn push(&mut self, solution: Solution) {
-        if self.solutions.len() == KEPT {
-            self.solutions.remove(0);
-        }
-        self.solutions.push(solution);
-    }
-
-    /// Records a solution in the buffers of the one it evicts (no allocation once the sequence is full).
-    fn record(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
+    /// The slot of a new newest solution: the oldest one's buffers once the sequence is full (no
+    /// allocation), to be overwritten.
+    fn make_room(&mut self) -> &mut Solution {
         if self.solutions.len() == KEPT {
             self.solutions.rotate_left(1);
         } else {
             self.solutions.push(Solution::default());
         }
-        let newest = self.solutions.last_mut().expect("a solution was just made room for");
+        self.solutions.last_mut().expect("a solution was just made room for")
+    }
+
+    /// Records a solution: the platform's displacement and the legs' departures from their placement.
+    fn record(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
+        let newest = self.make_room();
         newest.position = position;
         newest.displacement = displacement;
         newest.offsets.resize_with(legs.len(), LoadedOffsets::default);
@@ -180,11 +179,6 @@ impl LoadedHistory {
         self.recent.predict(position)
     }
 
-    /// The platform's displacement predicted at `position`.
-    pub fn predict_displacement(&self, position: &Vec3) -> Option<Vec6> {
-        self.predict(position).map(|p| p.displacement())
-    }
-
     /// The start of the equilibrium at `position` (the key the solutions were recorded by), where the run
     /// has solutions: the legs, placed in `legs`, moved by their predicted departures from the placement,
     /// and the platform pose `from` moved by the predicted displacement. None, `legs` untouched, without.
@@ -204,7 +198,7 @@ impl LoadedHistory {
         self.recent.record(position, displacement, legs);
         // Three equally spaced points make a line: its first is the oldest of them.
         if continues_line && !self.line_recorded {
-            self.line_starts.push(self.recent.solutions[self.recent.solutions.len() - 3].clone());
+            self.line_starts.make_room().clone_from(&self.recent.solutions[self.recent.solutions.len() - 3]);
             self.line_recorded = true;
         }
     }
@@ -243,7 +237,7 @@ mod tests {
         history.supersede(position(1.0), displacement(1.0), &[]);
         history.supersede(position(2.0), Vec6::repeat(7.0), &[]);
         history.supersede(position(2.0), displacement(2.0), &[]);
-        let predicted = history.predict_displacement(&position(3.0)).unwrap();
+        let predicted = history.predict(&position(3.0)).unwrap().displacement();
         assert!((predicted - displacement(3.0)).norm() < 1e-12, "{predicted} vs {}", displacement(3.0));
     }
 }
