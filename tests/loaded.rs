@@ -436,8 +436,9 @@ chain = [
 /// The leg pair under a vertical load P is stable under force control below the closed-form critical load
 /// and unstable above it (its lateral stiffness changes sign there). `settle_stable`, which decides
 /// stability on a linearisation within the Newton tolerance of the equilibrium (compensation's check),
-/// must settle where `deflect` does and decide as it does on both sides, from a fresh state and from the
-/// state of a load 1% smaller (chord steps first).
+/// must settle where `deflect` does and decide as it does on both sides, from a fresh state, from the
+/// state of a load 1% smaller (chord steps first), and solved again from its own equilibrium (a start that
+/// close is linearised at once: one iteration, the linearisation that decides).
 #[test]
 fn settling_with_stability_decides_as_the_tangent_solve_on_both_sides_of_buckling() {
     let pair = LegPair { a: 100.0, h: 300.0, k: 1.0e5 };
@@ -461,7 +462,17 @@ fn settling_with_stability_decides_as_the_tangent_solve_on_both_sides_of_bucklin
         assert_eq!(tangent.stable, ratio < 1.0, "P / P_cr = {ratio}");
         assert_eq!(fresh_stable, tangent.stable, "P / P_cr = {ratio}, fresh");
         assert_eq!(carried_stable, tangent.stable, "P / P_cr = {ratio}, from the neighbour");
-        for (name, d) in [("fresh", fresh.displacement), ("from the neighbour", carried.displacement)] {
+        // Twice from the equilibrium itself: the second solve follows one that started within round-off.
+        let (again, _) = m.settle_stable(&at, &wrench(ratio), Some(&carried.pose), &mut neighbour).unwrap();
+        let (settled, settled_stable) =
+            m.settle_stable(&at, &wrench(ratio), Some(&again.pose), &mut neighbour).unwrap();
+        assert_eq!(settled_stable, tangent.stable, "P / P_cr = {ratio}, from the equilibrium");
+        assert_eq!(settled.iterations, 1, "P / P_cr = {ratio}: a start at the equilibrium is linearised at once");
+        for (name, d) in [
+            ("fresh", fresh.displacement),
+            ("from the neighbour", carried.displacement),
+            ("from the equilibrium", settled.displacement),
+        ] {
             let gap = (d - tangent.displacement).norm();
             assert!(gap < 1e-9 * pair.h, "P / P_cr = {ratio}, {name}: {gap:e} mm from the tangent solve's pose");
         }

@@ -66,12 +66,14 @@ pub struct Settled {
 }
 
 /// The factorisations the last loaded solve ended with, for the next solve's chord steps: the
-/// manipulator's tangent stiffness of that full linearisation (the legs keep theirs), and the chord
-/// iteration's last measured contraction with them (infinite where none was measured since).
+/// manipulator's tangent stiffness of that full linearisation (the legs keep theirs), the chord
+/// iteration's last measured contraction with them (infinite where none was measured since), and how far
+/// from its equilibrium that solve started (its first step's distance).
 #[derive(Clone, Copy, Debug)]
 pub struct Chord {
     stiffness: Mat6,
     contraction: f64,
+    start_distance: f64,
 }
 
 /// What a loaded solve must deliver besides the pose.
@@ -83,8 +85,9 @@ enum Finish {
     /// The pose alone: chord steps that have converged end the solve, and a full linearisation is made
     /// only where they stop contracting.
     Pose,
-    /// The pose and the stability there: chord steps until the next would be within `NEWTON_TOLERANCE`,
-    /// then one full linearisation, which ends the solve once its step is within `NEWTON_TOLERANCE` (the
+    /// The pose and the stability there: chord steps until the next would be within `NEWTON_TOLERANCE`
+    /// (none where the last solve started within `FULL_FIRST_RANGE`), then one full linearisation, which
+    /// ends the solve once its step is within `NEWTON_TOLERANCE` (the
     /// pose's error is then of the order of its square). Its tangent is that close to the equilibrium's:
     /// enough to decide stability, not to report the stiffness to `TANGENT_TOLERANCE`.
     Stability,
@@ -146,6 +149,11 @@ const MAX_STEP_MM: f64 = 5.0;
 const CHORD_STALL: f64 = 0.1;
 /// How much a chord contraction measured by the last solve may have grown by the next (`newton`).
 const CARRIED_GROWTH: f64 = 2.0;
+/// A stability solve whose predecessor started this close to its equilibrium (relative, as `distance`)
+/// starts with its full linearisation: its start is then expected within `NEWTON_TOLERANCE` too (a
+/// hundredth of it, for a prediction twice as far off), and the chord step before it would only confirm
+/// that.
+const FULL_FIRST_RANGE: f64 = 1e-2 * NEWTON_TOLERANCE;
 
 impl Manipulator {
     /// The external wrench that holds the platform at `platform`, and the tangent stiffness there.
@@ -205,10 +213,17 @@ impl Manipulator {
         // Chord steps first where the last solve's factorisations are at hand (the neighbouring point's, or
         // the last load step's): from a warm start they contract by the small change of the matrices
         // between neighbours, and the one full linearisation the point needs is then the last.
+        // A stability solve ends on a full linearisation anyway: where the last solve started within
+        // `FULL_FIRST_RANGE`, this one is expected within `NEWTON_TOLERANCE` from the start, and the
+        // linearisation there is its only step.
         let (mut stiffness, mut full, mut chord_contraction) = match chord.take() {
-            Some(c) => (c.stiffness, false, c.contraction),
+            Some(c) => {
+                let full_first = finish == Finish::Stability && c.start_distance <= FULL_FIRST_RANGE;
+                (c.stiffness, full_first, c.contraction)
+            }
             None => (Mat6::zeros(), true, f64::INFINITY),
         };
+        let mut start_distance = f64::INFINITY;
         // A contraction measured in this solve (not carried): the next solve may start from it.
         let mut measured = false;
         let mut last_distance = f64::INFINITY;
@@ -235,6 +250,9 @@ impl Manipulator {
             };
             let step_size = weigh_rotations(&step, self.length_scale).norm() / self.length_scale;
             let distance = lins.iter().map(|l| l.distance).fold(step_size, f64::max);
+            if it == 0 {
+                start_distance = distance;
+            }
             // Quadratic convergence: after this last full step the pose's error is of the order of its
             // square. The stiffness is the one linearised before the step, so its error is of the order of
             // the step itself: it is taken once the step is below `TANGENT_TOLERANCE`, or where the steps no
@@ -264,7 +282,7 @@ impl Manipulator {
                 *t = apply_twist(t, &step);
                 // A contraction carried once is not carried again: the next solve measures its own.
                 let contraction = if measured { chord_contraction } else { f64::INFINITY };
-                *chord = Some(Chord { stiffness, contraction });
+                *chord = Some(Chord { stiffness, contraction, start_distance });
                 return Ok((None, it + 1));
             }
             let tangent_close = finish == Finish::Stability || distance <= TANGENT_TOLERANCE || stalled;
@@ -277,7 +295,7 @@ impl Manipulator {
                 }
                 *t = apply_twist(t, &step);
                 let magnitude: Vec6 = lins.iter().map(|l| l.magnitude).sum();
-                *chord = Some(Chord { stiffness, contraction: chord_contraction });
+                *chord = Some(Chord { stiffness, contraction: chord_contraction, start_distance });
                 let held =
                     Held { force: force + stiffness * step, stiffness, magnitude, unstable_legs, iterations: it + 1 };
                 return Ok((Some(held), it + 1));
