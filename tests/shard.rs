@@ -86,12 +86,14 @@ fn merged_shards_of_assemble_compensate_synth_and_sweep_are_the_whole_runs() {
     let errors = ["--errors", "manipulators/errors/orthoglide-case-b.toml"];
     let wrench = ["--wrench", "215,-10,-25,1000,21500,0"];
     let path = ["--path", "-73.65,-73.65,-73.65", "-73.65,126.35,-73.65", "600"];
+    let long_path = ["--path", "-73.65,-73.65,-73.65", "-73.65,126.35,-73.65", "2100"];
     let points = points_file(dir.path(), 700);
     let runs: Vec<Vec<&str>> = vec![
         [&["assemble", MODEL][..], &errors, &path, &wrench].concat(),
         [&["assemble", MODEL][..], &errors, &["--grid", "manipulators/grids/orthoglide-small.toml", "--samples", "20"]]
             .concat(),
-        [&["compensate", MODEL][..], &errors, &path, &wrench].concat(),
+        // Past one run of the compensation's longer runs (`COMPENSATE_RUN`, 2,048 targets).
+        [&["compensate", MODEL][..], &errors, &long_path, &wrench].concat(),
         vec![
             "synth",
             MODEL,

@@ -74,7 +74,7 @@ pub(crate) fn run(a: AssembleArgs, matches: &ArgMatches) -> Result<()> {
     }
     let perturbed = set.perturbed_legs(a.scale)?;
     let mut points = a.poses.load()?;
-    let shard = a.shard.split_points(&mut points, &a.output, a.plot.as_ref())?;
+    let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
     let mut options =
         AssembleOptions { wrench: a.wrench, scale: a.scale, samples: a.samples, seed: a.seed, selection: None };

@@ -15,7 +15,9 @@ use crate::kinematics::frame::Vec6;
 use crate::model::assembly_errors::ErrorSet;
 use crate::platform::leg::Leg;
 use crate::study::assemble::LegErrors;
-use crate::study::compensate::{compensate_table, run_compensate, CompensateOptions, Method, RealRobot};
+use crate::study::compensate::{
+    compensate_table, run_compensate, CompensateOptions, Method, RealRobot, COMPENSATE_RUN,
+};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -95,7 +97,7 @@ pub(crate) fn run(a: CompensateArgs, matches: &ArgMatches) -> Result<()> {
         None => Vec::new(),
     };
     let mut points = a.poses.load()?;
-    let shard = a.shard.split_points(&mut points, &a.output, a.plot.as_ref())?;
+    let shard = a.shard.split_points(&mut points, COMPENSATE_RUN, &a.output, a.plot.as_ref())?;
     if a.wrench.is_some() && points.has_wrench {
         bail!(
             "the targets carry their own wrenches (Fx_N..Mz_Nmm) and --wrench gives another: drop --wrench to use \

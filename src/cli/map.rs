@@ -53,7 +53,7 @@ pub(crate) struct MapArgs {
 pub(crate) fn run(a: MapArgs, matches: &ArgMatches) -> Result<()> {
     let model = a.model.load()?;
     let mut points = a.points.load()?;
-    let shard = a.shard.split_points(&mut points, &a.output, a.plot.as_ref())?;
+    let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
     let mut options = a.load.map_options(&points, a.stiffness)?;
     let columns = map_columns(&points, &options);

@@ -72,14 +72,16 @@ impl ShardArgs {
 
 impl ShardArgs {
     /// `plan` for the poses of a map, assembly, compensation or synth: counts them, then keeps this
-    /// shard's portion in whole runs of `batch::RUN` points (whose warm starts begin afresh).
+    /// shard's portion in whole runs of `run` points (the study's `Study::run_length`, whose warm starts
+    /// begin afresh), so that the shards' rows are the whole run's.
     pub(crate) fn split_points(
         &self,
         points: &mut PointSet,
+        run: usize,
         output: &OutputArgs,
         plot: Option<&PathBuf>,
     ) -> Result<Option<ShardPlan>> {
-        let plan = self.plan(|| Ok(points.count()?), crate::batch::RUN, output, plot)?;
+        let plan = self.plan(|| Ok(points.count()?), run, output, plot)?;
         if let Some(p) = &plan {
             points.keep_portion(p.portion.clone())?;
         }

@@ -70,7 +70,7 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
         bail!("--noise must be >= 0 (mm)");
     }
     let mut points = a.points.load()?;
-    let shard = a.shard.split_points(&mut points, &a.output, None)?;
+    let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, None)?;
     let options = synth::SynthOptions {
         effects,
         wrenches,
