@@ -15,7 +15,8 @@
 //! The command found is checked by an independent forward solve with stability
 //! (`Manipulator::settle_stable`): the command placed by its own inverse kinematics and the real robot's
 //! equilibrium with those actuator coordinates, from the last forward solve's equilibrium (as a controller
-//! stepping along the path would see it), never from Newton's evaluations. The extrapolated command, Newton's
+//! stepping along the path would see it; at a run's first target, from the uncompensated equilibrium), never
+//! from Newton's evaluations. The extrapolated command, Newton's
 //! first, is evaluated by that forward solve: where it meets the tolerance (along a fine path, nearly every
 //! target) it is the check, and the target costs three loaded equilibria instead of four.
 
@@ -71,7 +72,7 @@ pub struct CompensateOptions {
 }
 
 /// Targets per run of the study (`Study::run_length`): 8 times a map's, so that the cold start of each run
-/// (about 30 targets' work on the milling path with Case B errors) costs under 2% of the run, while 100,000
+/// (about 20 targets' work on the milling path with Case B errors) costs about 1% of the run, while 100,000
 /// targets still make 49 runs to share between threads.
 pub const COMPENSATE_RUN: usize = 8 * crate::batch::RUN;
 
@@ -560,6 +561,15 @@ impl Solver<'_> {
         };
         let uncompensated = self.target.error_to(&reached.pose);
         out.uncompensated = Some(uncompensated);
+        // Where another pair has no solution yet (a run's first target, or the first after a failure),
+        // it starts from this one's: its command differs by about the error, so its legs' departures from
+        // their placement and the platform's deflection are nearly these. Cold, from the placement, the
+        // load would cost a dozen or more damped full linearisations where leg errors are large.
+        for pair in [&mut st.mirror, &mut st.compensated, &mut st.check] {
+            if pair.history.is_empty() {
+                pair.history.clone_from(&st.uncompensated.history);
+            }
+        }
         let task = match self.task(&mut st.uncompensated.nominal) {
             Ok(t) => t,
             Err(s) => return Compensation { status: s, ..out },

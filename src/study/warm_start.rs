@@ -213,6 +213,11 @@ impl LoadedHistory {
         self.push(position, displacement, legs);
     }
 
+    /// No solution recorded (a run's start, or after a failure).
+    pub fn is_empty(&self) -> bool {
+        self.recent.solutions.is_empty()
+    }
+
     /// Forgets every solution (after a point that failed: its neighbours' starts are no longer trusted).
     pub fn clear(&mut self) {
         *self = Self::default();
