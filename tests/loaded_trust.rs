@@ -323,3 +323,35 @@ fn a_settled_pose_is_the_deflected_pose() {
     }
     assert!(single_steps > points * 3 / 4, "{single_steps} of {points} points settled in one chord step");
 }
+
+/// The controller's placements in compensation are polished past inverse kinematics' tolerance (1e-9 of
+/// the leg's length scale, about 1e-6 mm) so that a command moved by less still moves the actuators as
+/// their derivative says: moved by 1e-8 mm (Newton's command tolerance), every actuator of the 3-PUU moves
+/// by its derivative (from a 1e-3 mm difference) times 1e-8 within 1%. Placed again at its own pose, a
+/// polished placement is already there: no iteration, actuators unchanged to the bit.
+#[test]
+fn polished_placements_follow_commands_below_the_ik_tolerance() {
+    let m = orthoglide();
+    let mut s = m.new_state();
+    s.polish_placements();
+    let actuators = |s: &stiff::platform::manipulator::ManipulatorState| -> Vec<f64> {
+        s.actuators().flat_map(|a| a.iter().copied()).collect()
+    };
+    let at = |dx: f64| Frame::translation(Vec3::new(-20.0 + dx, 15.0, -5.0));
+    let place = |dx: f64, s: &mut stiff::platform::manipulator::ManipulatorState| -> Vec<usize> {
+        (m.legs.iter().zip(s.legs.iter_mut())).map(|(leg, state)| leg.place(&at(dx), state).unwrap()).collect()
+    };
+    place(1e-3, &mut s);
+    let far = actuators(&s);
+    place(0.0, &mut s);
+    let base = actuators(&s);
+    assert_eq!(place(0.0, &mut s), vec![0; m.legs.len()], "a polished placement placed again iterates");
+    assert_eq!(actuators(&s), base, "a polished placement placed again moves");
+    place(1e-8, &mut s);
+    let near = actuators(&s);
+    for k in 0..base.len() {
+        let slope = (far[k] - base[k]) / 1e-3;
+        let moved = (near[k] - base[k]) / 1e-8;
+        assert!((moved - slope).abs() <= 1e-2 * slope.abs().max(1e-3), "actuator {k}: {moved} vs {slope} per mm");
+    }
+}

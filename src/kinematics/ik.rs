@@ -36,6 +36,9 @@ pub const MAX_ITERATIONS: usize = 60;
 /// Convergence: weighted pose error below this times the chain's length scale (a 900 mm leg: 1e-6 mm and
 /// 1e-9 rad), far below what changes a stiffness in its printed digits.
 pub const TOLERANCE: f64 = 1e-9;
+/// A pose error below this times the tolerance counts as polished (`IkWorkspace::polish`): a polishing step
+/// leaves about the tolerance's square, round-off, and this is within a few hundred times round-off.
+const POLISHED: f64 = 1e-5;
 /// The reach decision's tolerance (mm, rotations weighted by the length scale). At a reach boundary (a leg
 /// stretched to a fold of its kinematics) Gauss-Newton converges sublinearly: a 3-PUU pose 1e-5 mm inside
 /// its boundary ends 60 iterations 7e-6 mm away, as does one 1e-6 mm outside. A solve that ends within
@@ -100,6 +103,9 @@ pub fn solve(
     let mut polished = false;
     for iteration in 0..MAX_ITERATIONS {
         let converged = norm <= tolerance;
+        // A pose error already at the polished level (a solve at the pose of the last, polished, one)
+        // needs no polishing step.
+        polished |= norm <= POLISHED * tolerance;
         if converged && (polished || !ws.polish) {
             ws.current_is_valid = true;
             return Ok(iteration);
