@@ -87,8 +87,8 @@ enum Finish {
     Pose,
     /// The pose and the stability there: chord steps until the next would be within `NEWTON_TOLERANCE`
     /// (none where the last solve started within `FULL_FIRST_RANGE`), then one full linearisation, which
-    /// ends the solve once its step is within `NEWTON_TOLERANCE` (the
-    /// pose's error is then of the order of its square). Its tangent is that close to the equilibrium's:
+    /// ends the solve once its step is within `NEWTON_TOLERANCE` (the pose's error is then of the order of
+    /// its square). Its tangent is that close to the equilibrium's:
     /// enough to decide stability, not to report the stiffness to `TANGENT_TOLERANCE`.
     Stability,
 }
@@ -212,10 +212,9 @@ impl Manipulator {
         lins.resize_with(self.legs.len(), LegLinear::default);
         // Chord steps first where the last solve's factorisations are at hand (the neighbouring point's, or
         // the last load step's): from a warm start they contract by the small change of the matrices
-        // between neighbours, and the one full linearisation the point needs is then the last.
-        // A stability solve ends on a full linearisation anyway: where the last solve started within
-        // `FULL_FIRST_RANGE`, this one is expected within `NEWTON_TOLERANCE` from the start, and the
-        // linearisation there is its only step.
+        // between neighbours, and the one full linearisation the point needs is then the last. A stability
+        // solve whose predecessor started within `FULL_FIRST_RANGE` is expected within `NEWTON_TOLERANCE`
+        // from its start: the full linearisation there is its only step.
         let (mut stiffness, mut full, mut chord_contraction) = match chord.take() {
             Some(c) => {
                 let full_first = finish == Finish::Stability && c.start_distance <= FULL_FIRST_RANGE;

@@ -411,9 +411,9 @@ impl Study for Compensator<'_> {
         compensate_table(self.robot.nominal)
     }
 
-    /// Runs as long as a path's memory allows: each run's first target is solved cold, from the load at
-    /// the commands' placements (a dozen full linearisations per equilibrium where the leg errors are
-    /// large), where the next costs one.
+    /// Runs eight times a map's (`COMPENSATE_RUN`): a run's first target is solved cold, its uncompensated
+    /// equilibrium from the placement (a dozen or more damped full linearisations where the leg errors are
+    /// large), where the next targets cost one.
     fn run_length(&self) -> usize {
         COMPENSATE_RUN
     }
