@@ -16,9 +16,9 @@
 //! (`Manipulator::settle_stable`): the command placed by its own inverse kinematics and the real robot's
 //! equilibrium with those actuator coordinates, from the last forward solve's equilibrium (as a controller
 //! stepping along the path would see it; at a run's first target, from the uncompensated equilibrium), never
-//! from Newton's evaluations. The extrapolated command, Newton's
-//! first, is evaluated by that forward solve: where it meets the tolerance (along a fine path, nearly every
-//! target) it is the check, and the target costs three loaded equilibria instead of four.
+//! from Newton's evaluations. The extrapolated command, Newton's first, is evaluated by that forward solve:
+//! where it meets the tolerance (along a fine path, nearly every target) it is the check, and the target
+//! costs three loaded equilibria instead of four.
 
 use std::borrow::Cow;
 use std::collections::VecDeque;
