@@ -145,6 +145,38 @@ fn points_csv_keeps_input_order_names_and_reports_unreachable_points_as_rows() {
     assert!(lines[3].starts_with("2,Q0,0.0,0.0,0.0,ok,6,"));
 }
 
+/// A points file is text: its fields are read with the white space around them dropped (Unicode's, as a
+/// reader of text trims), and a field that is not UTF-8 text is refused where it is, line and column, even in
+/// a column the run does not use: the points are read field by field from bytes, not as whole strings.
+#[test]
+fn points_csv_fields_are_trimmed_text_and_bytes_that_are_not_text_are_located() {
+    use stiff::model::error::InputError;
+    use stiff::model::grid::PointSet;
+    let dir = temp_dir();
+    let read = |bytes: &[u8]| {
+        let path = dir.path().join("p.csv");
+        std::fs::write(&path, bytes).unwrap();
+        let mut points = PointSet::from_points_csv(&path).unwrap();
+        let mut out = Vec::new();
+        points.next_block(10, &mut out).map(|_| out)
+    };
+    let points = read(" name , x_mm,y_mm , z_mm \n  Q2 ,\t126.35, 1e1 ,\u{a0}-3\u{a0}\n".as_bytes()).unwrap();
+    assert_eq!(points.len(), 1);
+    assert_eq!(points[0].name.as_deref(), Some("Q2"));
+    assert_eq!(points[0].position, stiff::kinematics::frame::Vec3::new(126.35, 10.0, -3.0));
+    for (bytes, line, column) in
+        [(&b"x_mm,y_mm,z_mm\n1,2,3\n1,2,\xff\n"[..], 3, 3), (&b"x_mm,y_mm,z_mm,note\n1,2,3,\xc3\n"[..], 2, 4)]
+    {
+        match read(bytes) {
+            Err(InputError::At { line: l, column: c, message, .. }) => {
+                assert_eq!((l, c), (line, column), "{message}");
+                assert!(message.contains("UTF-8"), "{message}");
+            }
+            other => panic!("not refused where the bytes are: {:?}", other.map(|p| p.len())),
+        }
+    }
+}
+
 #[test]
 fn point_prints_both_matrices_with_units() {
     let out = stiff().args(["point", MODEL, "--at", "0,0,0"]).output().unwrap();

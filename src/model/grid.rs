@@ -155,7 +155,7 @@ enum Source {
         path: PathBuf,
         reader: csv::Reader<Box<dyn std::io::Read + Send>>,
         columns: CsvColumns,
-        record: csv::StringRecord,
+        record: csv::ByteRecord,
     },
 }
 
@@ -270,7 +270,9 @@ impl PointSet {
     /// `Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm`.
     pub fn from_points_csv(path: &Path) -> Result<Self, InputError> {
         let file = open_input(path)?;
-        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(file);
+        // Fields are trimmed as they are parsed (`read_source`): the reader's own trimming of fields copies
+        // every record into a newly allocated one.
+        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::Headers).comment(Some(b'#')).from_reader(file);
         let whole = |m: String| InputError::Whole { path: path.to_path_buf(), message: m };
         let headers = reader.headers().map_err(|e| whole(format!("cannot read the header: {e}")))?.clone();
         let find = |n: &str| headers.iter().position(|h| h == n);
@@ -295,7 +297,7 @@ impl PointSet {
             has_orientation: columns.orientation.is_some(),
             has_wrench: columns.wrench.is_some(),
             len: None,
-            source: Source::Csv { path: path.to_path_buf(), reader, columns, record: csv::StringRecord::new() },
+            source: Source::Csv { path: path.to_path_buf(), reader, columns, record: csv::ByteRecord::new() },
             next_index: 0,
             end_index: None,
         })
@@ -398,7 +400,7 @@ impl PointSet {
             Source::Csv { path, reader, columns, record } => {
                 let mut added = 0;
                 while added < n {
-                    match reader.read_record(record) {
+                    match reader.read_byte_record(record) {
                         Ok(false) => break,
                         Ok(true) => {}
                         Err(e) => {
@@ -409,8 +411,19 @@ impl PointSet {
                     let line = record.position().map_or(0, |p| p.line()) as usize;
                     let at =
                         |column: usize, message: String| InputError::At { path: path.clone(), line, column, message };
+                    // The record must be text, as a reader of string records would require (the fields read
+                    // are checked one by one as well).
+                    let not_text = |i: usize| at(i + 1, "this field is not valid UTF-8 text".into());
+                    if std::str::from_utf8(record.as_slice()).is_err() {
+                        let bad = record.iter().position(|f| std::str::from_utf8(f).is_err());
+                        return Err(not_text(bad.unwrap_or(0)));
+                    }
+                    let text = |i: usize| -> Result<&str, InputError> {
+                        let bytes = record.get(i).unwrap_or(b"").trim_ascii();
+                        std::str::from_utf8(bytes).map(str::trim).map_err(|_| not_text(i))
+                    };
                     let field = |i: usize| -> Result<f64, InputError> {
-                        let t = record.get(i).unwrap_or("");
+                        let t = text(i)?;
                         match t.parse::<f64>() {
                             Ok(v) if v.is_finite() => Ok(v),
                             _ => Err(at(i + 1, not_finite(t))),
@@ -431,7 +444,7 @@ impl PointSet {
                         }
                         None => None,
                     };
-                    let name = columns.name.and_then(|i| record.get(i)).map(str::to_string);
+                    let name = columns.name.map(|i| text(i).map(str::to_string)).transpose()?;
                     out.push(PosePoint { name, position, rotation, wrench });
                     added += 1;
                 }
