@@ -413,7 +413,7 @@ impl PointSet {
                         |column: usize, message: String| InputError::At { path: path.clone(), line, column, message };
                     // The record must be text, as a reader of string records would require (the fields read
                     // are checked one by one as well).
-                    let not_text = |i: usize| at(i + 1, "this field is not valid UTF-8 text".into());
+                    let not_text = |i: usize| at(i + 1, "this field is not UTF-8 text: save the file as UTF-8".into());
                     if std::str::from_utf8(record.as_slice()).is_err() {
                         let bad = record.iter().position(|f| std::str::from_utf8(f).is_err());
                         return Err(not_text(bad.unwrap_or(0)));
