@@ -419,7 +419,7 @@ impl PointSet {
                         return Err(not_text(bad.unwrap_or(0)));
                     }
                     let text = |i: usize| -> Result<&str, InputError> {
-                        let bytes = record.get(i).unwrap_or(b"").trim_ascii();
+                        let bytes = record.get(i).unwrap_or(b"");
                         std::str::from_utf8(bytes).map(str::trim).map_err(|_| not_text(i))
                     };
                     let field = |i: usize| -> Result<f64, InputError> {
