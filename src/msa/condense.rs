@@ -579,17 +579,7 @@ impl Work {
                 }
                 self.link.push((c, dt, k * dt));
             }
-            // The link's energy is symmetric in the coordinates: the upper triangle, mirrored.
-            let kz = self.kz.as_mut_slice();
-            for (a, (ca, dta, _)) in self.link.iter().enumerate() {
-                for (cb, _, load) in &self.link[a..] {
-                    let v = dta.dot(load);
-                    kz[cb * nz + ca] += v;
-                    if cb != ca {
-                        kz[ca * nz + cb] += v;
-                    }
-                }
-            }
+            add_link_energy(&self.link, self.kz.as_mut_slice(), nz);
         }
     }
 
@@ -636,6 +626,48 @@ impl Work {
         }
         Ok(EndAnswer { stiffness, holding_wrench: holding })
     }
+}
+
+/// A link's energy dt_a . (K dt_b) for every pair of its coordinates (`link`: column, dt, K dt), added to
+/// `kz` (column-major, `nz` square): the upper triangle, mirrored. Two coordinates a1 < a2 are taken
+/// together against each b, their dot products side by side in the two lanes of one register, each lane
+/// summed in the order of `dot6`, so the sums are those of one pair at a time to the bit.
+fn add_link_energy(link: &[(usize, Vec6, Vec6)], kz: &mut [f64], nz: usize) {
+    let mut add = |ca: usize, cb: usize, v: f64| {
+        kz[cb * nz + ca] += v;
+        if cb != ca {
+            kz[ca * nz + cb] += v;
+        }
+    };
+    let mut a = 0;
+    while a < link.len() {
+        let (ca, dta, load_a) = &link[a];
+        let Some((cn, dtn, _)) = link.get(a + 1) else {
+            add(*ca, *ca, dot6(dta, load_a));
+            break;
+        };
+        add(*ca, *ca, dot6(dta, load_a));
+        let pair: [[f64; 2]; 6] = std::array::from_fn(|k| [dta[k], dtn[k]]);
+        for (cb, _, load) in &link[a + 1..] {
+            let mut sum = [0.0f64; 2];
+            for k in 0..6 {
+                sum[0] += pair[k][0] * load[k];
+                sum[1] += pair[k][1] * load[k];
+            }
+            add(*ca, *cb, sum[0]);
+            add(*cn, *cb, sum[1]);
+        }
+        a += 2;
+    }
+}
+
+/// x . y summed from +0 in index order, as nalgebra's `dot` of two 6-vectors sums it.
+fn dot6(x: &Vec6, y: &Vec6) -> f64 {
+    let mut sum = 0.0;
+    for k in 0..6 {
+        sum += x[k] * y[k];
+    }
+    sum
 }
 
 /// Drops constraint rows that repeat others (a loop of joints closed exactly, as in an over-constrained
@@ -778,5 +810,42 @@ mod tests {
         let dt = tj - carry(&(pj - pi), &ti);
         let square = dt.dot(&(kjj * dt));
         assert!((full - square).abs() < 1e-12 * full.abs(), "{full} vs {square}");
+    }
+
+    /// A link's energy is the same number however its coordinate pairs are grouped: the paired lanes of
+    /// `add_link_energy` give, to the bit, the sums of one pair at a time with nalgebra's `dot`, for odd
+    /// and even counts, coordinates out of column order, and a signed zero.
+    #[test]
+    fn paired_link_energies_equal_one_pair_at_a_time_to_the_bit() {
+        let value = |i: usize| ((i * 37 % 101) as f64 - 50.0) / 7.0 + (i as f64).sqrt() * 1e-9;
+        for count in [0, 1, 2, 5, 8] {
+            let nz = 11;
+            let columns = [9, 2, 6, 0, 10, 4, 7, 1];
+            let mut link: Vec<(usize, Vec6, Vec6)> = (0..count)
+                .map(|a| {
+                    let dt = Vec6::from_fn(|r, _| value(a * 12 + r));
+                    (columns[a], dt, Vec6::from_fn(|r, _| value(a * 12 + 6 + r)))
+                })
+                .collect();
+            if count > 1 {
+                // (1, 1)'s products are all -0: summed from +0 they give +0, which the -0 in kz keeps.
+                link[1].1 = Vec6::from_element(-0.0);
+                link[1].2 = Vec6::from_element(2.0);
+            }
+            let mut expected = vec![-0.0; nz * nz];
+            for (a, (ca, dta, _)) in link.iter().enumerate() {
+                for (cb, _, load) in &link[a..] {
+                    let v = dta.dot(load);
+                    expected[cb * nz + ca] += v;
+                    if cb != ca {
+                        expected[ca * nz + cb] += v;
+                    }
+                }
+            }
+            let mut kz = vec![-0.0; nz * nz];
+            add_link_energy(&link, &mut kz, nz);
+            let bits = |m: &[f64]| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&kz), bits(&expected), "{count} coordinates");
+        }
     }
 }
