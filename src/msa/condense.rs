@@ -629,9 +629,9 @@ impl Work {
 }
 
 /// A link's energy dt_a . (K dt_b) for every pair of its coordinates (`link`: column, dt, K dt), added to
-/// `kz` (column-major, `nz` square): the upper triangle, mirrored. Two coordinates a1 < a2 are taken
-/// together against each b, their dot products side by side in the two lanes of one register, each lane
-/// summed in the order of `dot6`, so the sums are those of one pair at a time to the bit.
+/// `kz` (column-major, `nz` square): the upper triangle, mirrored. Coordinates a and a + 1 are taken
+/// together against each b, their two sums side by side (which the compiler keeps in one vector register),
+/// each summed in the order of `dot6`, so the sums are those of one pair at a time to the bit.
 fn add_link_energy(link: &[(usize, Vec6, Vec6)], kz: &mut [f64], nz: usize) {
     let mut add = |ca: usize, cb: usize, v: f64| {
         kz[cb * nz + ca] += v;
@@ -642,11 +642,8 @@ fn add_link_energy(link: &[(usize, Vec6, Vec6)], kz: &mut [f64], nz: usize) {
     let mut a = 0;
     while a < link.len() {
         let (ca, dta, load_a) = &link[a];
-        let Some((cn, dtn, _)) = link.get(a + 1) else {
-            add(*ca, *ca, dot6(dta, load_a));
-            break;
-        };
         add(*ca, *ca, dot6(dta, load_a));
+        let Some((cn, dtn, _)) = link.get(a + 1) else { break };
         let pair: [[f64; 2]; 6] = std::array::from_fn(|k| [dta[k], dtn[k]]);
         for (cb, _, load) in &link[a + 1..] {
             let mut sum = [0.0f64; 2];
