@@ -2,7 +2,7 @@
 //! step (`stiff::study::compensate::Compensator`): the Orthoglide 3-PUU milling from Q2 to Q5 (paper 000
 //! s. 5.2) under the cutting wrench with the Case B leg errors. Prints targets per second on one core, the
 //! latency per target (median, 99th percentile, largest), commands tried after the mirror command and loaded
-//! equilibria per target.
+//! equilibria per target: with the full rows, then with only what a controller needs (`commands_only`).
 //!
 //! `cargo bench --bench compensate [-- TARGETS]` (default 100,000 targets); `scripts/bench-compensate` runs
 //! it with the `dist` profile and adds the command line's thread scaling.
@@ -24,34 +24,36 @@ fn main() {
     let set = ErrorSet::load(Path::new("manipulators/errors/orthoglide-case-b.toml"), model, &m).expect("Case B");
     let perturbed = set.perturbed_legs(1.0).expect("no parameter errors");
     let robot = RealRobot { nominal: &m, errors: Some((LegErrors { set: &set, perturbed: &perturbed }, 1.0)) };
-    let wrench = Vec6::new(215.0, -10.0, -25.0, 1000.0, 21500.0, 0.0);
-    let options = CompensateOptions { wrench: Some(wrench), method: Method::Newton, scale: 1.0 };
-    let compensator = Compensator::new(&robot, &options);
     let path = path_points(&Vec3::new(-73.65, -73.65, -73.65), &Vec3::new(-73.65, 126.35, -73.65), targets);
-    let mut state = compensator.start();
-    let mut latencies = Vec::with_capacity(targets);
-    let (mut steps, mut equilibria, mut worst_residual) = (0usize, 0usize, 0.0f64);
-    let start = Instant::now();
-    for p in &path {
-        let t = Instant::now();
-        let (_, c) = compensator.next(p, &mut state);
-        latencies.push(t.elapsed().as_secs_f64() * 1e6);
-        assert_eq!(c.status, Status::Ok, "target {:?}", p.position);
-        steps += c.iterations.unwrap_or(0);
-        equilibria += c.equilibria;
-        worst_residual = worst_residual.max(c.residual.map_or(f64::NAN, |r| r.fixed_rows::<3>(0).norm()));
+    for (commands_only, what) in [(false, "full rows"), (true, "commands only (--commands-only)")] {
+        let wrench = Vec6::new(215.0, -10.0, -25.0, 1000.0, 21500.0, 0.0);
+        let options = CompensateOptions { wrench: Some(wrench), method: Method::Newton, scale: 1.0, commands_only };
+        let compensator = Compensator::new(&robot, &options);
+        let mut state = compensator.start();
+        let mut latencies = Vec::with_capacity(targets);
+        let (mut steps, mut equilibria, mut worst_residual) = (0usize, 0usize, 0.0f64);
+        let start = Instant::now();
+        for p in &path {
+            let t = Instant::now();
+            let (_, c) = compensator.next(p, &mut state);
+            latencies.push(t.elapsed().as_secs_f64() * 1e6);
+            assert_eq!(c.status, Status::Ok, "target {:?}", p.position);
+            steps += c.iterations.unwrap_or(0);
+            equilibria += c.equilibria;
+            worst_residual = worst_residual.max(c.residual.map_or(f64::NAN, |r| r.fixed_rows::<3>(0).norm()));
+        }
+        let total = start.elapsed().as_secs_f64();
+        latencies.sort_by(f64::total_cmp);
+        let at = |q: f64| latencies[((latencies.len() - 1) as f64 * q).round() as usize];
+        let n = targets as f64;
+        println!("{targets} targets on the milling line (Case B, cutting wrench), one core, {what}:");
+        println!("  {:.0} targets/s, {:.1} us per target", n / total, 1e6 * total / n);
+        println!("  latency: median {:.1} us, 99th percentile {:.1} us, largest {:.1} us", at(0.5), at(0.99), at(1.0));
+        println!(
+            "  {:.2} commands after the mirror and {:.2} loaded equilibria per target",
+            steps as f64 / n,
+            equilibria as f64 / n
+        );
+        println!("  largest residual {worst_residual:.2e} mm");
     }
-    let total = start.elapsed().as_secs_f64();
-    latencies.sort_by(f64::total_cmp);
-    let at = |q: f64| latencies[((latencies.len() - 1) as f64 * q).round() as usize];
-    let n = targets as f64;
-    println!("{targets} targets on the milling line (Case B, cutting wrench), one core:");
-    println!("  {:.0} targets/s, {:.1} us per target", n / total, 1e6 * total / n);
-    println!("  latency: median {:.1} us, 99th percentile {:.1} us, largest {:.1} us", at(0.5), at(0.99), at(1.0));
-    println!(
-        "  {:.2} commands after the mirror and {:.2} loaded equilibria per target",
-        steps as f64 / n,
-        equilibria as f64 / n
-    );
-    println!("  largest residual {worst_residual:.2e} mm");
 }

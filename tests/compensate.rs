@@ -239,6 +239,85 @@ fn bad_targets_become_row_statuses() {
     assert!(rows.iter().all(|r| r[0].is_nan() && r[1].is_nan()), "nothing is written for a load with no equilibrium");
 }
 
+/// `--commands-only` answers a target by the command extrapolated from the last targets where its forward
+/// solve meets the tolerance with the robot stable: a controller's commands, not a cheaper approximation of
+/// them. Along the milling path sampled every 0.1 mm with Case B errors under the cutting wrench, every
+/// command meets the same 1e-8 mm tolerance as the full rows' (so the two commands differ by about that,
+/// the robot's compliance Jacobian being near the identity), the actuators follow within that times their
+/// ratio to the platform's motion, the forward solve's residual is below the tolerance, and the
+/// uncompensated and mirror columns are empty at every target. The run solves about one loaded
+/// equilibrium per target where the full rows take three (its summary line).
+#[test]
+fn commands_only_gives_the_full_rows_commands_from_one_equilibrium_per_target() {
+    let path = ["--path", "-73.65,-73.65,-73.65", "-73.65,126.35,-73.65", "2001"];
+    let args = [
+        &["compensate", ORTHOGLIDE, "--errors", "manipulators/errors/orthoglide-case-b.toml"][..],
+        &path,
+        &["--wrench", CUTTING],
+    ]
+    .concat();
+    let run = |extra: &[&str]| {
+        let o = assert_cmd::Command::cargo_bin("stiff").unwrap().args(&args).args(extra).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (String::from_utf8(o.stdout).unwrap(), String::from_utf8(o.stderr).unwrap())
+    };
+    let (full, full_summary) = run(&[]);
+    let (lean, lean_summary) = run(&["--commands-only"]);
+    assert!(statuses(&full).iter().chain(&statuses(&lean)).all(|s| s == "ok"));
+    let per_target = |summary: &str| -> f64 {
+        let before = summary.split(" loaded equilibria per target").next().unwrap();
+        before.rsplit(' ').next().unwrap().parse().unwrap()
+    };
+    let (full_equilibria, lean_equilibria) = (per_target(&full_summary), per_target(&lean_summary));
+    assert!(full_equilibria >= 2.9, "{full_summary}");
+    assert!(lean_equilibria < 1.05, "{lean_summary}");
+    let actuators = ["leg1_actuator1_mm", "leg2_actuator1_mm", "leg3_actuator1_mm"];
+    let columns =
+        [&COMMAND[..], &actuators, &["residual_error_mm", "uncompensated_error_mm", "mirror_error_mm"]].concat();
+    let (full, lean) = (csv_columns(&full, &columns), csv_columns(&lean, &columns));
+    assert_eq!(full.len(), 2001);
+    assert_eq!(full.len(), lean.len());
+    for (k, (f, l)) in full.iter().zip(&lean).enumerate() {
+        for c in 0..6 {
+            assert!((f[c] - l[c]).abs() < 1e-7, "target {k}, {}: {} vs {}", columns[c], f[c], l[c]);
+        }
+        assert!(l[6] < 1e-8, "target {k}: residual {} mm", l[6]);
+        assert!(f[7] > 0.5 && l[7].is_nan() && l[8].is_nan(), "target {k}: {f:?} {l:?}");
+    }
+}
+
+/// The option changes which solves are made, not what a target's status says: on the paths of
+/// `bad_targets_become_row_statuses` (leaving the workspace with and without the wrench, a load with no
+/// equilibrium) the statuses are the full rows', and the bytes do not depend on the thread count. With
+/// --plot (whose lines are the skipped errors) or --method mirror it is refused.
+#[test]
+fn commands_only_keeps_statuses_and_refuses_what_needs_the_mirror() {
+    for extra in [&[][..], &["--wrench", CUTTING], &["--wrench", "0,0,-3e4,0,0,0"]] {
+        let args = [&["compensate", ORTHOGLIDE, "--path", "0,0,0", "400,0,0", "401", "-q"][..], extra].concat();
+        let full = run_stiff(&args);
+        let lean = run_stiff(&[&args[..], &["--commands-only"]].concat());
+        assert_eq!(statuses(&full), statuses(&lean), "{extra:?}");
+    }
+    let args = [
+        &["compensate", ORTHOGLIDE, "--errors", "manipulators/errors/orthoglide-case-a.toml"][..],
+        &["--path", "-73.65,-73.65,-73.65", "-73.65,126.35,-73.65", "600", "--wrench", CUTTING, "--commands-only"],
+        &["-q"],
+    ]
+    .concat();
+    let one = run_stiff(&[&args[..], &["--threads", "1"]].concat());
+    assert_eq!(one, run_stiff(&[&args[..], &["--threads", "2"]].concat()));
+    let refused = |extra: &[&str]| {
+        let o = assert_cmd::Command::cargo_bin("stiff").unwrap().args(&args).args(extra).output().unwrap();
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (code, message) = refused(&["--plot", "x.svg", "-o", "x.csv"]);
+    assert_eq!(code, Some(2), "{message}");
+    assert!(message.contains("--plot"), "{message}");
+    let (code, message) = refused(&["--method", "mirror"]);
+    assert_eq!(code, Some(1), "{message}");
+    assert!(message.contains("--method mirror"), "{message}");
+}
+
 /// The whole loop, through the command line: measurements of a robot whose leg 2 actuator is 1.4 times
 /// more compliant than the description says are diagnosed, the corrected description is written, and the
 /// milling path is compensated once with the description and once with the corrected one. Both command

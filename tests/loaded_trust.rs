@@ -355,3 +355,49 @@ fn polished_placements_follow_commands_below_the_ik_tolerance() {
         assert!((moved - slope).abs() <= 1e-2 * slope.abs().max(1e-3), "actuator {k}: {moved} vs {slope} per mm");
     }
 }
+
+/// Along a finely sampled path the controller's placement is a smooth function of the target, so the
+/// quadratic extrapolation of the last three placements has a third-order error (~h^3 / L^2 ~ 1e-14 mm for
+/// targets 2 um apart on a 3-PUU with ~1 m legs) and lands within a few times the polished tolerance (1e-5
+/// of inverse kinematics' 1e-6 mm; the earlier placements' round-off amplified by the weights 3, -3, 1):
+/// started there, a leg's placement takes at most the one polishing step, where started from the last
+/// placement it takes a Gauss-Newton step and the polishing one, and lands where that placement does
+/// (both within the polished tolerance of the exact placement, 1e-11 mm).
+#[test]
+fn placements_started_from_their_extrapolation_along_a_path_need_at_most_the_polishing_step() {
+    use stiff::platform::leg::Placement;
+    use stiff::platform::manipulator::ManipulatorState;
+    use stiff::study::warm_start::Trail;
+    let m = orthoglide();
+    let at = |k: usize| Frame::translation(Vec3::new(-73.65 + 0.001 * k as f64, -73.65 + 0.002 * k as f64, -50.0));
+    let place = |k: usize, s: &mut ManipulatorState| -> Vec<usize> {
+        (m.legs.iter().zip(s.legs.iter_mut())).map(|(leg, state)| leg.place(&at(k), state).unwrap()).collect()
+    };
+    let actuators = |s: &ManipulatorState| -> Vec<f64> { s.actuators().flat_map(|a| a.iter().copied()).collect() };
+    let (mut extrapolated, mut last) = (m.new_state(), m.new_state());
+    extrapolated.polish_placements();
+    last.polish_placements();
+    let mut trail: Trail<Vec<Placement>> = Trail::default();
+    let (mut extrapolated_iterations, mut last_iterations) = (0, 0);
+    for k in 0..50 {
+        let target = at(k).pos;
+        if let Some(terms) = trail.extrapolation(&target) {
+            extrapolated.start_placements_from(terms.map(|(w, p)| (w, p.as_slice())));
+        }
+        let steps = place(k, &mut extrapolated);
+        extrapolated.placements_into(trail.slot(target));
+        let from_last = place(k, &mut last);
+        if k >= 3 {
+            assert!(steps.iter().all(|n| *n <= 1), "target {k}: {steps:?} steps from the extrapolation");
+            extrapolated_iterations += steps.iter().sum::<usize>();
+            last_iterations += from_last.iter().sum::<usize>();
+            for (a, b) in actuators(&extrapolated).iter().zip(actuators(&last)) {
+                assert!((a - b).abs() < 2e-11, "target {k}: actuator {a} mm from the extrapolation, {b} mm");
+            }
+        }
+    }
+    assert!(
+        2 * extrapolated_iterations < last_iterations && last_iterations >= 2 * 3 * 47,
+        "{extrapolated_iterations} steps from the extrapolations, {last_iterations} from the last placements"
+    );
+}

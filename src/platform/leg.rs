@@ -10,7 +10,7 @@ use crate::kinematics::ik::{self, IkWorkspace};
 use crate::vjm::equilibrium::{EquilibriumWorkspace, Linearization};
 use crate::vjm::spring::SpringGroup;
 
-pub use super::leg_state::{LegState, LoadedOffsets};
+pub use super::leg_state::{LegState, LoadedOffsets, Placement};
 use super::msa_leg::{MsaLeg, MsaState};
 pub use super::vjm_leg::VjmLeg;
 

@@ -21,7 +21,6 @@
 //! costs three loaded equilibria instead of four.
 
 use std::borrow::Cow;
-use std::collections::VecDeque;
 use std::io::Write;
 
 use anyhow::Result;
@@ -31,11 +30,12 @@ use nalgebra::{DMatrix, DVector};
 use super::assemble::{real_manipulator, LegErrors};
 use super::map::MapSummary;
 use super::point::Status;
-use super::warm_start::{equally_spaced, extrapolation_weights, LoadedHistory};
+use super::warm_start::{LoadedHistory, Trail};
 use crate::batch::{stream, Study, Tally};
 use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec3, Vec6};
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header_line, names, Column, Record, Row};
+use crate::platform::leg::Placement;
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
@@ -69,6 +69,11 @@ pub struct CompensateOptions {
     pub method: Method,
     /// Factor on every leg error.
     pub scale: f64,
+    /// Only what a controller needs (Newton's method): the command, its actuator coordinates and the forward
+    /// solve that checks it. Along a path the command extrapolated from the last targets is evaluated
+    /// first and, where it meets the tolerance with the robot stable there, is the target's answer: the
+    /// uncompensated and mirror equilibria are not solved, and their columns stay empty at every target.
+    pub commands_only: bool,
 }
 
 /// Targets per run of the study (`Study::run_length`): 8 times a map's, so that the cold start of each run
@@ -311,7 +316,10 @@ impl<'a> Compensator<'a> {
             None => self.robot.at(&target),
         };
         let solver = Solver { nominal: self.robot.nominal, real: &real, target, wrench };
-        let result = solver.compensate(self.o.method, st);
+        let result = match (self.o.method, self.o.commands_only) {
+            (Method::Newton, true) => solver.command_only(st),
+            (method, _) => solver.compensate(method, st),
+        };
         // A failed target leaves no Jacobian and no command to extrapolate from for the next one.
         if result.status != Status::Ok {
             st.jacobian = None;
@@ -329,7 +337,8 @@ impl<'a> Compensator<'a> {
             compensated: Commanded::new(m),
             check: Commanded::new(m),
             jacobian: None,
-            commands: CommandHistory::default(),
+            commands: Trail::default(),
+            skipped: false,
         }
     }
 }
@@ -342,13 +351,41 @@ struct Commanded {
     nominal: ManipulatorState,
     real: ManipulatorState,
     history: LoadedHistory,
+    /// The nominal legs' placements for the last targets.
+    placements: Trail<Vec<Placement>>,
 }
 
 impl Commanded {
     fn new(m: &Manipulator) -> Self {
         let mut nominal = m.new_state();
         nominal.polish_placements();
-        Commanded { nominal, real: m.new_state(), history: LoadedHistory::default() }
+        Commanded { nominal, real: m.new_state(), history: LoadedHistory::default(), placements: Trail::default() }
+    }
+
+    /// Forgets the solutions and placements of earlier targets (they lie back along the path, so that
+    /// extrapolating from them would mislead).
+    fn forget(&mut self) {
+        self.history.clear();
+        self.placements.clear();
+    }
+
+    /// The controller's inverse kinematics for `command`, the pair's command for `target`. A new target's
+    /// placement starts from the placements extrapolated along the path (every pair's command is a smooth
+    /// function of its target): along a fine path that start is already within the polished tolerance,
+    /// and one evaluation of each leg confirms it where the last placement would take two Gauss-Newton
+    /// steps. Another command for the same target (Newton's) starts from the last placement.
+    fn place(&mut self, nominal: &Manipulator, target: &Vec3, command: &Frame) -> Result<(), Status> {
+        if !self.placements.newest_at(target) {
+            if let Some(terms) = self.placements.extrapolation(target) {
+                self.nominal.start_placements_from(terms.map(|(w, p)| (w, p.as_slice())));
+            }
+        }
+        if let Err(e) = nominal.place(command, &mut self.nominal) {
+            self.placements.clear();
+            return Err(Status::of(&e));
+        }
+        self.nominal.placements_into(self.placements.slot(*target));
+        Ok(())
     }
 }
 
@@ -365,41 +402,13 @@ pub struct CompensateState {
     check: Commanded,
     /// The Jacobian of the reached pose by the command (weighted coordinates), from the last target.
     jacobian: Option<Mat6>,
-    /// The last targets' commands.
-    commands: CommandHistory,
-}
-
-/// The commands found for the last targets, as the command's offset from its target (weighted
-/// coordinates), for the next target's prediction.
-#[derive(Default)]
-struct CommandHistory {
-    /// (target position, offset), oldest first.
-    last: VecDeque<(Vec3, Vec6)>,
-}
-
-/// Commands a history keeps: three, for a quadratic extrapolation.
-const COMMANDS_KEPT: usize = 3;
-
-impl CommandHistory {
-    fn push(&mut self, target: Vec3, offset: Vec6) {
-        if self.last.len() == COMMANDS_KEPT {
-            self.last.pop_front();
-        }
-        self.last.push_back((target, offset));
-    }
-
-    fn clear(&mut self) {
-        self.last.clear();
-    }
-
-    /// The offset extrapolated to `target` through the last offsets when their targets and `target` are
-    /// equally spaced on a line (the compensation is a smooth function of the target along a path), else
-    /// the last offset; None without history.
-    fn predict(&self, target: &Frame) -> Option<Vec6> {
-        let count = equally_spaced(self.last.iter().rev().map(|(p, _)| p), &target.pos);
-        let weights = extrapolation_weights(count);
-        (count > 0).then(|| self.last.iter().rev().zip(weights).map(|((_, o), w)| o * *w).sum())
-    }
+    /// The commands found for the last targets, as the command's offset from its target (weighted
+    /// coordinates): the compensation is a smooth function of the target along a path, and its
+    /// extrapolation starts the next target's Newton method.
+    commands: Trail<Vec6>,
+    /// With `commands_only`, targets answered by the extrapolated command alone have passed since the
+    /// uncompensated and mirror pairs last solved: their solutions lie back along the path.
+    skipped: bool,
 }
 
 impl Study for Compensator<'_> {
@@ -484,6 +493,16 @@ impl Task {
         self.basis.tr_mul(&(jd * &self.basis))
     }
 
+    /// The offset of `trial`'s command from its target (weighted coordinates) moved by the Newton step its
+    /// residual still asks with `jacobian`.
+    fn refined_offset(&self, jacobian: &Mat6, trial: &Trial) -> Vec6 {
+        let refined = match self.project(jacobian).lu().solve(&trial.task) {
+            Some(step) if step.iter().all(|v| v.is_finite()) => &trial.y - step,
+            _ => trial.y.clone(),
+        };
+        Vec6::from_column_slice((&self.basis * refined).as_slice())
+    }
+
     fn column(&self, k: usize) -> Vec6 {
         Vec6::from_fn(|r, _| self.basis[(r, k)])
     }
@@ -520,7 +539,7 @@ impl Solver<'_> {
     /// solves its loaded equilibrium, starting from the pair's last one: the pose alone (`settle`), or with
     /// `stability` the stability there too (`settle_stable`).
     fn reach(&self, command: &Frame, pair: &mut Commanded, stability: bool) -> Result<Reached, Status> {
-        self.nominal.place(command, &mut pair.nominal).map_err(|e| Status::of(&e))?;
+        pair.place(self.nominal, &self.target.pos, command)?;
         self.real.take_command(&pair.nominal, &mut pair.real);
         // Keyed by the target: every pair's command is a smooth function of it, equally spaced along a path
         // as the commands themselves are not.
@@ -590,7 +609,8 @@ impl Solver<'_> {
             Method::Mirror => mirror.map(|t| (t, None)),
             Method::Newton => {
                 let mut iterations = 0;
-                let predicted = st.commands.predict(&self.target).map(|offset| task.along(&offset));
+                let predicted = (st.commands.extrapolation(&self.target.pos))
+                    .map(|terms| task.along(&terms.map(|(w, offset)| offset * w).sum()));
                 let found = self.newton(&task, start, mirror.ok(), predicted, st, &mut iterations, &mut out.equilibria);
                 out.iterations = Some(iterations);
                 found.map(|(t, refined)| (t, Some(refined)))
@@ -631,9 +651,52 @@ impl Solver<'_> {
         // Only a target that ends `ok` starts the next one (`Compensator::next` forgets the history on
         // any other status).
         if let (Status::Ok, Some(offset)) = (out.status, refined) {
-            st.commands.push(self.target.pos, offset);
+            *st.commands.slot(self.target.pos) = offset;
         }
         out
+    }
+
+    /// `commands_only`: the command extrapolated from the last targets, evaluated by the forward solve that
+    /// checks it, is the answer where it meets the tolerance with the robot stable there (along a fine
+    /// path, nearly every target: one loaded equilibrium instead of three). Anywhere else (a run's first
+    /// target, the first after a failure, a miss, a failure or instability, whose status the full
+    /// procedure then decides as it does without this option) the full procedure follows, its
+    /// uncompensated and mirror errors left out of the row as at every other target.
+    fn command_only(&self, st: &mut CompensateState) -> Compensation {
+        if let Some(found) = self.extrapolated_command(st) {
+            st.skipped = true;
+            return found;
+        }
+        // The uncompensated and mirror pairs' last solutions lie back along the path: the uncompensated
+        // pair starts from the check's (its command differs by about the error) and seeds the others.
+        if st.skipped {
+            st.uncompensated.forget();
+            st.mirror.forget();
+            st.uncompensated.history.clone_from(&st.check.history);
+            st.skipped = false;
+        }
+        Compensation { uncompensated: None, mirror: None, ..self.compensate(Method::Newton, st) }
+    }
+
+    /// The target's compensation by the extrapolated command alone where it meets the tolerance and the
+    /// robot is stable there, else None.
+    fn extrapolated_command(&self, st: &mut CompensateState) -> Option<Compensation> {
+        let jacobian = st.jacobian?;
+        let offset: Vec6 = st.commands.extrapolation(&self.target.pos)?.map(|(w, o)| o * w).sum();
+        st.uncompensated.place(self.nominal, &self.target.pos, &self.target).ok()?;
+        let task = self.task(&mut st.uncompensated.nominal).ok()?;
+        let mut out = Compensation::failed(Status::Ok);
+        let found = self.evaluate(&task, &task.along(&offset), &mut st.check, true, &mut out.equilibria).ok()?;
+        let checked = found.checked.filter(|c| c.stable == Some(true))?;
+        if found.task.norm() > COMMAND_TOLERANCE_MM {
+            return None;
+        }
+        out.command = Some(task.command(&self.target, &found.y));
+        out.actuators = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
+        out.residual = Some(self.target.error_to(&checked.pose));
+        out.iterations = Some(1);
+        *st.commands.slot(self.target.pos) = task.refined_offset(&jacobian, &found);
+        Some(out)
     }
 
     /// The directions the actuators move the platform at the target (the nominal robot placed there).
@@ -767,12 +830,9 @@ impl Solver<'_> {
         // The command meets the tolerance; the step its residual still asks (second order small with the
         // Jacobian Newton ends with) gives the next target's extrapolation a start far inside it, where
         // the command itself carries up to the tolerance, which extrapolation would amplify.
-        let refined = match task.project(&jacobian).lu().solve(&best.task) {
-            Some(step) if step.iter().all(|v| v.is_finite()) => &best.y - step,
-            _ => best.y.clone(),
-        };
+        let refined = task.refined_offset(&jacobian, &best);
         st.jacobian = Some(jacobian);
-        Ok((best, Vec6::from_column_slice((&task.basis * refined).as_slice())))
+        Ok((best, refined))
     }
 
     /// The Jacobian with its columns along the task basis replaced by one-sided differences at `at`.

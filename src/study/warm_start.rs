@@ -63,6 +63,58 @@ pub fn extrapolation_degree(newest_first: &[Vec6]) -> usize {
     degree
 }
 
+/// Values a `Trail` keeps: three, for a quadratic extrapolation (on a finely sampled path a higher degree
+/// would only amplify the values' round-off, see `extrapolation_degree`).
+const TRAIL_KEPT: usize = 3;
+
+/// A quantity's values at the last positions of a sequence (oldest first), and its polynomial
+/// extrapolation to the next position, at most quadratic.
+#[derive(Clone, Debug)]
+pub struct Trail<T> {
+    last: Vec<(Vec3, T)>,
+}
+
+impl<T> Default for Trail<T> {
+    fn default() -> Self {
+        Trail { last: Vec::new() }
+    }
+}
+
+impl<T: Default> Trail<T> {
+    /// The value to write for `position`: the newest where it was recorded there (another solve for the
+    /// same position replaces it, so that the positions stay equally spaced), else a new newest (the
+    /// oldest's buffers once the trail is full).
+    pub fn slot(&mut self, position: Vec3) -> &mut T {
+        if !self.newest_at(&position) {
+            if self.last.len() == TRAIL_KEPT {
+                self.last.rotate_left(1);
+                self.last.last_mut().expect("a full trail").0 = position;
+            } else {
+                self.last.push((position, T::default()));
+            }
+        }
+        &mut self.last.last_mut().expect("a value was just made room for").1
+    }
+
+    /// The newest value was recorded at `position`.
+    pub fn newest_at(&self, position: &Vec3) -> bool {
+        self.last.last().is_some_and(|(p, _)| p == position)
+    }
+
+    /// The extrapolation to `position` as weighted values, newest first (`extrapolation_weights` through
+    /// the values whose positions lie with it equally spaced on a line, else the newest value alone);
+    /// None without values.
+    pub fn extrapolation(&self, position: &Vec3) -> Option<impl Iterator<Item = (f64, &T)> + Clone> {
+        let count = equally_spaced(self.last.iter().rev().map(|(p, _)| p), position);
+        (count > 0).then(|| extrapolation_weights(count).iter().zip(self.last.iter().rev()).map(|(w, (_, v))| (*w, v)))
+    }
+
+    /// Forgets every value.
+    pub fn clear(&mut self) {
+        self.last.clear();
+    }
+}
+
 /// One loaded solution: commanded position, platform displacement, each leg's departure from its placement.
 #[derive(Clone, Debug, Default)]
 struct Solution {
