@@ -4,8 +4,9 @@
 //! latency per target (median, 99th percentile, largest), commands tried after the mirror command and loaded
 //! equilibria per target: with the full rows, then with only what a controller needs (`commands_only`).
 //!
-//! `cargo bench --bench compensate [-- TARGETS]` (default 100,000 targets); `scripts/bench-compensate` runs
-//! it with the `dist` profile and adds the command line's thread scaling.
+//! `cargo bench --bench compensate [-- TARGETS] [full | commands-only] [--length MM]` (default 100,000
+//! targets over the whole 200 mm line, both modes); `scripts/bench-compensate` runs it with the `dist` profile and adds the command line's thread
+//! scaling.
 
 use std::path::Path;
 use std::time::Instant;
@@ -18,14 +19,26 @@ use stiff::study::compensate::{CompensateOptions, Compensator, Method, RealRobot
 use stiff::study::point::Status;
 
 fn main() {
-    let targets: usize = std::env::args().skip(1).find_map(|a| a.parse().ok()).unwrap_or(100_000);
+    // Arguments: TARGETS, `full` or `commands-only` (that mode alone, e.g. under callgrind), `--length MM`
+    // (the first MM of the line: the same spacing for fewer targets, for instruction counts).
+    let (mut targets, mut length, mut modes_asked) = (100_000usize, 200.0f64, Vec::new());
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--length" => length = args.next().and_then(|v| v.parse().ok()).expect("--length takes a length in mm"),
+            "full" | "commands-only" => modes_asked.push(a),
+            _ => targets = a.parse().unwrap_or(targets),
+        }
+    }
     let model = Path::new("manipulators/orthoglide-3puu.toml");
     let m = stiff::model::load_manipulator(model).expect("the shipped model");
     let set = ErrorSet::load(Path::new("manipulators/errors/orthoglide-case-b.toml"), model, &m).expect("Case B");
     let perturbed = set.perturbed_legs(1.0).expect("no parameter errors");
     let robot = RealRobot { nominal: &m, errors: Some((LegErrors { set: &set, perturbed: &perturbed }, 1.0)) };
-    let path = path_points(&Vec3::new(-73.65, -73.65, -73.65), &Vec3::new(-73.65, 126.35, -73.65), targets);
-    for (commands_only, what) in [(false, "full rows"), (true, "commands only (--commands-only)")] {
+    let path = path_points(&Vec3::new(-73.65, -73.65, -73.65), &Vec3::new(-73.65, -73.65 + length, -73.65), targets);
+    let modes = [(false, "full rows", "full"), (true, "commands only (--commands-only)", "commands-only")];
+    let chosen = modes.iter().filter(|(_, _, name)| modes_asked.is_empty() || modes_asked.iter().any(|m| m == name));
+    for &(commands_only, what, _) in chosen {
         let wrench = Vec6::new(215.0, -10.0, -25.0, 1000.0, 21500.0, 0.0);
         let options = CompensateOptions { wrench: Some(wrench), method: Method::Newton, scale: 1.0, commands_only };
         let compensator = Compensator::new(&robot, &options);
@@ -46,7 +59,10 @@ fn main() {
         latencies.sort_by(f64::total_cmp);
         let at = |q: f64| latencies[((latencies.len() - 1) as f64 * q).round() as usize];
         let n = targets as f64;
-        println!("{targets} targets on the milling line (Case B, cutting wrench), one core, {what}:");
+        let spacing = length / (targets.max(2) - 1) as f64;
+        println!(
+            "{targets} targets {spacing} mm apart on the milling line (Case B, cutting wrench), one core, {what}:"
+        );
         println!("  {:.0} targets/s, {:.1} us per target", n / total, 1e6 * total / n);
         println!("  latency: median {:.1} us, 99th percentile {:.1} us, largest {:.1} us", at(0.5), at(0.99), at(1.0));
         println!(
