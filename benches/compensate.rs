@@ -61,7 +61,7 @@ fn main() {
         let n = targets as f64;
         let spacing = length / (targets.max(2) - 1) as f64;
         println!(
-            "{targets} targets {spacing} mm apart on the milling line (Case B, cutting wrench), one core, {what}:"
+            "{targets} targets {spacing:.4} mm apart on the milling line (Case B, cutting wrench), one core, {what}:"
         );
         println!("  {:.0} targets/s, {:.1} us per target", n / total, 1e6 * total / n);
         println!("  latency: median {:.1} us, 99th percentile {:.1} us, largest {:.1} us", at(0.5), at(0.99), at(1.0));

@@ -239,6 +239,12 @@ fn bad_targets_become_row_statuses() {
     assert!(rows.iter().all(|r| r[0].is_nan() && r[1].is_nan()), "nothing is written for a load with no equilibrium");
 }
 
+/// The loaded equilibria solved per target, from a run's summary line on stderr.
+fn equilibria_per_target(summary: &str) -> f64 {
+    let before = summary.split(" loaded equilibria per target").next().unwrap();
+    before.rsplit(' ').next().unwrap().parse().unwrap()
+}
+
 /// `--commands-only` answers a target by the command extrapolated from the last targets where its forward
 /// solve meets the tolerance with the robot stable: a controller's commands, not a cheaper approximation of
 /// them. Along the milling path sampled every 0.1 mm with Case B errors under the cutting wrench, every
@@ -264,11 +270,8 @@ fn commands_only_gives_the_full_rows_commands_from_one_equilibrium_per_target() 
     let (full, full_summary) = run(&[]);
     let (lean, lean_summary) = run(&["--commands-only"]);
     assert!(statuses(&full).iter().chain(&statuses(&lean)).all(|s| s == "ok"));
-    let per_target = |summary: &str| -> f64 {
-        let before = summary.split(" loaded equilibria per target").next().unwrap();
-        before.rsplit(' ').next().unwrap().parse().unwrap()
-    };
-    let (full_equilibria, lean_equilibria) = (per_target(&full_summary), per_target(&lean_summary));
+    let (full_equilibria, lean_equilibria) =
+        (equilibria_per_target(&full_summary), equilibria_per_target(&lean_summary));
     assert!(full_equilibria >= 2.9, "{full_summary}");
     assert!(lean_equilibria < 1.05, "{lean_summary}");
     let actuators = ["leg1_actuator1_mm", "leg2_actuator1_mm", "leg3_actuator1_mm"];
@@ -286,17 +289,28 @@ fn commands_only_gives_the_full_rows_commands_from_one_equilibrium_per_target() 
     }
 }
 
-/// The option changes which solves are made, not what a target's status says: on the paths of
-/// `bad_targets_become_row_statuses` (leaving the workspace with and without the wrench, a load with no
-/// equilibrium) the statuses are the full rows', and the bytes do not depend on the thread count. With
-/// --plot (whose lines are the skipped errors) or --method mirror it is refused.
+/// The option changes which solves are made, not what a target's status says: along the path of
+/// `bad_targets_become_row_statuses` that leaves the workspace (sampled every 0.4 mm, so that the targets
+/// before the edge are answered by the extrapolated command alone, and the first target beyond it falls
+/// back to the full procedure after them), with and without the cutting wrench, and under a load with no
+/// equilibrium, the statuses are the full rows'. The bytes do not depend on the thread count. With --plot
+/// (whose lines are the skipped errors) or --method mirror it is refused.
 #[test]
 fn commands_only_keeps_statuses_and_refuses_what_needs_the_mirror() {
-    for extra in [&[][..], &["--wrench", CUTTING], &["--wrench", "0,0,-3e4,0,0,0"]] {
-        let args = [&["compensate", ORTHOGLIDE, "--path", "0,0,0", "400,0,0", "401", "-q"][..], extra].concat();
-        let full = run_stiff(&args);
-        let lean = run_stiff(&[&args[..], &["--commands-only"]].concat());
+    let fine = ["--path", "0,0,0", "400,0,0", "1001"];
+    for (path, extra) in
+        [(&fine, &[][..]), (&fine, &["--wrench", CUTTING]), (&MILLING, &["--wrench", "0,0,-3e4,0,0,0"])]
+    {
+        let args = [&["compensate", ORTHOGLIDE][..], path, extra].concat();
+        let full = run_stiff(&[&args[..], &["-q"]].concat());
+        let o = assert_cmd::Command::cargo_bin("stiff").unwrap().args(&args).arg("--commands-only").output().unwrap();
+        let lean = String::from_utf8(o.stdout).unwrap();
         assert_eq!(statuses(&full), statuses(&lean), "{extra:?}");
+        if extra.is_empty() {
+            let summary = String::from_utf8(o.stderr).unwrap();
+            assert!(statuses(&lean).iter().filter(|s| *s == "unreachable").count() > 100, "{summary}");
+            assert!(equilibria_per_target(&summary) < 1.5, "mostly one equilibrium per target: {summary}");
+        }
     }
     let args = [
         &["compensate", ORTHOGLIDE, "--errors", "manipulators/errors/orthoglide-case-a.toml"][..],

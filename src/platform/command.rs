@@ -4,7 +4,7 @@
 //! springs, a payload) holds its actuators there and settles under the process wrench.
 
 use super::compliance::analyse;
-use super::leg::{Leg, LegState, Placement};
+use super::leg::{Leg, LegState};
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::chain::{JointKind, Role};
 use crate::kinematics::frame::{Frame, Mat6, Vec6};
@@ -80,24 +80,6 @@ impl ManipulatorState {
     /// The actuated coordinates of every leg at its last placement (mm or rad), leg by leg.
     pub fn actuators(&self) -> impl Iterator<Item = &[f64]> {
         self.legs.iter().map(|l| l.coords.actuated.as_slice())
-    }
-
-    /// Every leg's last placement, into `placements` (buffers reused).
-    pub fn placements_into(&self, placements: &mut Vec<Placement>) {
-        placements.resize_with(self.legs.len(), Placement::default);
-        for (leg, p) in self.legs.iter().zip(placements.iter_mut()) {
-            leg.placement_into(p);
-        }
-    }
-
-    /// Starts every leg's next placement from the weighted sum of earlier placements (one slice per term,
-    /// leg by leg), `LegState::start_placement_from`.
-    pub fn start_placements_from<'a>(&mut self, terms: impl Iterator<Item = (f64, &'a [Placement])> + Clone) {
-        for (k, leg) in self.legs.iter_mut().enumerate() {
-            if terms.clone().all(|(_, p)| k < p.len()) {
-                leg.start_placement_from(terms.clone().map(|(w, p)| (w, &p[k])));
-            }
-        }
     }
 }
 

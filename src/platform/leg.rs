@@ -10,7 +10,7 @@ use crate::kinematics::ik::{self, IkWorkspace};
 use crate::vjm::equilibrium::{EquilibriumWorkspace, Linearization};
 use crate::vjm::spring::SpringGroup;
 
-pub use super::leg_state::{LegState, LoadedOffsets, Placement};
+pub use super::leg_state::{LegState, LoadedOffsets};
 use super::msa_leg::{MsaLeg, MsaState};
 pub use super::vjm_leg::VjmLeg;
 

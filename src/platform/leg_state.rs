@@ -75,49 +75,12 @@ impl LegState {
             return;
         }
         for (k, q) in self.coords.passive.iter_mut().enumerate() {
-            *q += combined(terms.clone(), |o| o.passive[k]);
+            *q += terms.clone().fold(0.0, |sum, (w, o)| sum + w * o.passive[k]);
         }
         for (k, theta) in self.coords.virtual_.iter_mut().enumerate() {
-            *theta = combined(terms.clone(), |o| o.virtual_[k]);
+            *theta = terms.clone().fold(0.0, |sum, (w, o)| sum + w * o.virtual_[k]);
         }
         self.end_wrench = terms.fold(Vec6::zeros(), |sum, (w, o)| sum + o.wrench * w);
         self.ik.invalidate();
     }
-
-    /// Its last placement (`placed`), into `placement` (its buffers reused).
-    pub fn placement_into(&self, placement: &mut Placement) {
-        placement.actuated.clone_from(&self.placed.actuated);
-        placement.passive.clone_from(&self.placed.passive);
-    }
-
-    /// Starts the next placement's inverse kinematics from the weighted sum `sum w_k p_k` of earlier
-    /// placements (the weights of a polynomial extrapolation, as `apply_combined_offsets`) instead of the
-    /// last solution. Only a leg placed before (`warm`) whose placements have its shape is moved: an MSA
-    /// leg has no coordinates to start from.
-    pub fn start_placement_from<'a>(&mut self, terms: impl Iterator<Item = (f64, &'a Placement)> + Clone) {
-        let (a, p) = (self.coords.actuated.len(), self.coords.passive.len());
-        if !self.warm || a + p == 0 || !terms.clone().all(|(_, o)| o.actuated.len() == a && o.passive.len() == p) {
-            return;
-        }
-        for (k, u) in self.coords.actuated.iter_mut().enumerate() {
-            *u = combined(terms.clone(), |o| o.actuated[k]);
-        }
-        for (k, q) in self.coords.passive.iter_mut().enumerate() {
-            *q = combined(terms.clone(), |o| o.passive[k]);
-        }
-        self.ik.invalidate();
-    }
-}
-
-/// A leg's rigid placement: its actuated and passive coordinates (mm or rad), kept to start a later
-/// placement from an extrapolation of earlier ones (`LegState::start_placement_from`).
-#[derive(Clone, Debug, Default)]
-pub struct Placement {
-    actuated: Vec<f64>,
-    passive: Vec<f64>,
-}
-
-/// One entry of a weighted sum `sum w_k o_k` of earlier values, summed from zero in the terms' order.
-fn combined<'a, T: 'a>(terms: impl Iterator<Item = (f64, &'a T)>, entry: impl Fn(&T) -> f64) -> f64 {
-    terms.fold(0.0, |sum, (w, o)| sum + w * entry(o))
 }

@@ -32,10 +32,9 @@ use super::map::MapSummary;
 use super::point::Status;
 use super::warm_start::{LoadedHistory, Trail};
 use crate::batch::{stream, Study, Tally};
-use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec3, Vec6};
+use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec6};
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header_line, names, Column, Record, Row};
-use crate::platform::leg::Placement;
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
@@ -351,41 +350,19 @@ struct Commanded {
     nominal: ManipulatorState,
     real: ManipulatorState,
     history: LoadedHistory,
-    /// The nominal legs' placements for the last targets.
-    placements: Trail<Vec<Placement>>,
 }
 
 impl Commanded {
     fn new(m: &Manipulator) -> Self {
         let mut nominal = m.new_state();
         nominal.polish_placements();
-        Commanded { nominal, real: m.new_state(), history: LoadedHistory::default(), placements: Trail::default() }
+        Commanded { nominal, real: m.new_state(), history: LoadedHistory::default() }
     }
 
-    /// Forgets the solutions and placements of earlier targets (they lie back along the path, so that
-    /// extrapolating from them would mislead).
+    /// Forgets the solutions of earlier targets (they lie back along the path, so that extrapolating from
+    /// them would mislead).
     fn forget(&mut self) {
         self.history.clear();
-        self.placements.clear();
-    }
-
-    /// The controller's inverse kinematics for `command`, the pair's command for `target`. A new target's
-    /// placement starts from the placements extrapolated along the path (every pair's command is a smooth
-    /// function of its target): along a fine path that start is already within the polished tolerance,
-    /// and one evaluation of each leg confirms it where the last placement would take two Gauss-Newton
-    /// steps. Another command for the same target (Newton's) starts from the last placement.
-    fn place(&mut self, nominal: &Manipulator, target: &Vec3, command: &Frame) -> Result<(), Status> {
-        if !self.placements.newest_at(target) {
-            if let Some(terms) = self.placements.extrapolation(target) {
-                self.nominal.start_placements_from(terms.map(|(w, p)| (w, p.as_slice())));
-            }
-        }
-        if let Err(e) = nominal.place(command, &mut self.nominal) {
-            self.placements.clear();
-            return Err(Status::of(&e));
-        }
-        self.nominal.placements_into(self.placements.slot(*target));
-        Ok(())
     }
 }
 
@@ -539,7 +516,7 @@ impl Solver<'_> {
     /// solves its loaded equilibrium, starting from the pair's last one: the pose alone (`settle`), or with
     /// `stability` the stability there too (`settle_stable`).
     fn reach(&self, command: &Frame, pair: &mut Commanded, stability: bool) -> Result<Reached, Status> {
-        pair.place(self.nominal, &self.target.pos, command)?;
+        self.nominal.place(command, &mut pair.nominal).map_err(|e| Status::of(&e))?;
         self.real.take_command(&pair.nominal, &mut pair.real);
         // Keyed by the target: every pair's command is a smooth function of it, equally spaced along a path
         // as the commands themselves are not.
@@ -683,7 +660,7 @@ impl Solver<'_> {
     fn extrapolated_command(&self, st: &mut CompensateState) -> Option<Compensation> {
         let jacobian = st.jacobian?;
         let offset: Vec6 = st.commands.extrapolation(&self.target.pos)?.map(|(w, o)| o * w).sum();
-        st.uncompensated.place(self.nominal, &self.target.pos, &self.target).ok()?;
+        // The controller's placement at the target, which the task basis needs, is the uncompensated pair's.
         let task = self.task(&mut st.uncompensated.nominal).ok()?;
         let mut out = Compensation::failed(Status::Ok);
         let found = self.evaluate(&task, &task.along(&offset), &mut st.check, true, &mut out.equilibria).ok()?;
