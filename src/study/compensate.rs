@@ -640,30 +640,35 @@ impl Solver<'_> {
     /// procedure then decides as it does without this option) the full procedure follows, its
     /// uncompensated and mirror errors left out of the row as at every other target.
     fn command_only(&self, st: &mut CompensateState) -> Compensation {
-        if let Some(found) = self.extrapolated_command(st) {
+        let mut tried = 0;
+        if let Some(found) = self.extrapolated_command(st, &mut tried) {
             st.skipped = true;
             return found;
         }
-        // The uncompensated and mirror pairs' last solutions lie back along the path: the uncompensated
-        // pair starts from the check's (its command differs by about the error) and seeds the others.
+        // The uncompensated, mirror and search pairs' last solutions lie back along the path: the
+        // uncompensated pair starts from the check's (its command differs by about the error) and seeds
+        // the others.
         if st.skipped {
-            st.uncompensated.forget();
-            st.mirror.forget();
+            for pair in [&mut st.uncompensated, &mut st.mirror, &mut st.compensated] {
+                pair.forget();
+            }
             st.uncompensated.history.clone_from(&st.check.history);
             st.skipped = false;
         }
-        Compensation { uncompensated: None, mirror: None, ..self.compensate(Method::Newton, st) }
+        let full = self.compensate(Method::Newton, st);
+        Compensation { uncompensated: None, mirror: None, equilibria: full.equilibria + tried, ..full }
     }
 
     /// The target's compensation by the extrapolated command alone where it meets the tolerance and the
-    /// robot is stable there, else None.
-    fn extrapolated_command(&self, st: &mut CompensateState) -> Option<Compensation> {
+    /// robot is stable there, else None; `equilibria` counts the loaded equilibrium solved either way.
+    fn extrapolated_command(&self, st: &mut CompensateState, equilibria: &mut usize) -> Option<Compensation> {
         let jacobian = st.jacobian?;
         let offset: Vec6 = st.commands.extrapolation(&self.target.pos)?.map(|(w, o)| o * w).sum();
         // The controller's placement at the target, which the task basis needs, is the uncompensated pair's.
         let task = self.task(&mut st.uncompensated.nominal).ok()?;
         let mut out = Compensation::failed(Status::Ok);
-        let found = self.evaluate(&task, &task.along(&offset), &mut st.check, true, &mut out.equilibria).ok()?;
+        let found = self.evaluate(&task, &task.along(&offset), &mut st.check, true, equilibria).ok()?;
+        out.equilibria = *equilibria;
         let checked = found.checked.filter(|c| c.stable == Some(true))?;
         if found.task.norm() > COMMAND_TOLERANCE_MM {
             return None;
