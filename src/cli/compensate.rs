@@ -60,7 +60,7 @@ pub(crate) struct CompensateArgs {
     pub(crate) method: MethodArg,
     /// Only what a controller needs: the command, its actuator coordinates and the forward solve that
     /// checks it (residual, stability). The uncompensated and mirror errors are not computed (their columns
-    /// stay empty): along a fine path one loaded equilibrium per target instead of three, about 1.6 times
+    /// stay empty): along a fine path one loaded equilibrium per target instead of three, about 1.4 times
     /// faster. Newton's method only; not with --plot, whose lines are those errors.
     #[arg(long, conflicts_with = "plot")]
     pub(crate) commands_only: bool,

@@ -358,12 +358,6 @@ impl Commanded {
         nominal.polish_placements();
         Commanded { nominal, real: m.new_state(), history: LoadedHistory::default() }
     }
-
-    /// Forgets the solutions of earlier targets (they lie back along the path, so that extrapolating from
-    /// them would mislead).
-    fn forget(&mut self) {
-        self.history.clear();
-    }
 }
 
 /// What a worker carries from one target to the next. Each sequence of commands has its own pair, so that
@@ -382,7 +376,7 @@ pub struct CompensateState {
     /// The commands found for the last targets, as the command's offset from its target (weighted
     /// coordinates): the compensation is a smooth function of the target along a path, and its
     /// extrapolation starts the next target's Newton method.
-    commands: Trail<Vec6>,
+    commands: Trail,
     /// With `commands_only`, targets answered by the extrapolated command alone have passed since the
     /// uncompensated and mirror pairs last solved: their solutions lie back along the path.
     skipped: bool,
@@ -586,8 +580,7 @@ impl Solver<'_> {
             Method::Mirror => mirror.map(|t| (t, None)),
             Method::Newton => {
                 let mut iterations = 0;
-                let predicted = (st.commands.extrapolation(&self.target.pos))
-                    .map(|terms| task.along(&terms.map(|(w, offset)| offset * w).sum()));
+                let predicted = st.commands.predict(&self.target.pos).map(|offset| task.along(&offset));
                 let found = self.newton(&task, start, mirror.ok(), predicted, st, &mut iterations, &mut out.equilibria);
                 out.iterations = Some(iterations);
                 found.map(|(t, refined)| (t, Some(refined)))
@@ -628,7 +621,7 @@ impl Solver<'_> {
         // Only a target that ends `ok` starts the next one (`Compensator::next` forgets the history on
         // any other status).
         if let (Status::Ok, Some(offset)) = (out.status, refined) {
-            *st.commands.slot(self.target.pos) = offset;
+            st.commands.record(self.target.pos, offset);
         }
         out
     }
@@ -650,7 +643,7 @@ impl Solver<'_> {
         // the others.
         if st.skipped {
             for pair in [&mut st.uncompensated, &mut st.mirror, &mut st.compensated] {
-                pair.forget();
+                pair.history.clear();
             }
             st.uncompensated.history.clone_from(&st.check.history);
             st.skipped = false;
@@ -663,7 +656,7 @@ impl Solver<'_> {
     /// robot is stable there, else None; `equilibria` counts the loaded equilibrium solved either way.
     fn extrapolated_command(&self, st: &mut CompensateState, equilibria: &mut usize) -> Option<Compensation> {
         let jacobian = st.jacobian?;
-        let offset: Vec6 = st.commands.extrapolation(&self.target.pos)?.map(|(w, o)| o * w).sum();
+        let offset = st.commands.predict(&self.target.pos)?;
         // The controller's placement at the target, which the task basis needs, is the uncompensated pair's.
         let task = self.task(&mut st.uncompensated.nominal).ok()?;
         let mut out = Compensation::failed(Status::Ok);
@@ -677,7 +670,7 @@ impl Solver<'_> {
         out.actuators = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
         out.residual = Some(self.target.error_to(&checked.pose));
         out.iterations = Some(1);
-        *st.commands.slot(self.target.pos) = task.refined_offset(&jacobian, &found);
+        st.commands.record(self.target.pos, task.refined_offset(&jacobian, &found));
         Some(out)
     }
 

@@ -67,46 +67,28 @@ pub fn extrapolation_degree(newest_first: &[Vec6]) -> usize {
 /// would only amplify the values' round-off, see `extrapolation_degree`).
 const TRAIL_KEPT: usize = 3;
 
-/// A quantity's values at the last positions of a sequence (oldest first), and its polynomial
-/// extrapolation to the next position, at most quadratic.
-#[derive(Clone, Debug)]
-pub struct Trail<T> {
-    last: Vec<(Vec3, T)>,
+/// A quantity's values at the last positions of a sequence (oldest first), and its extrapolation to the
+/// next position, at most quadratic.
+#[derive(Clone, Debug, Default)]
+pub struct Trail {
+    last: Vec<(Vec3, Vec6)>,
 }
 
-impl<T> Default for Trail<T> {
-    fn default() -> Self {
-        Trail { last: Vec::new() }
-    }
-}
-
-impl<T: Default> Trail<T> {
-    /// The value to write for `position`: the newest where it was recorded there (another solve for the
-    /// same position replaces it, so that the positions stay equally spaced), else a new newest (the
-    /// oldest's buffers once the trail is full).
-    pub fn slot(&mut self, position: Vec3) -> &mut T {
-        if !self.newest_at(&position) {
-            if self.last.len() == TRAIL_KEPT {
-                self.last.rotate_left(1);
-                self.last.last_mut().expect("a full trail").0 = position;
-            } else {
-                self.last.push((position, T::default()));
-            }
+impl Trail {
+    /// Records the value at `position` as the newest (the oldest dropped once the trail is full).
+    pub fn record(&mut self, position: Vec3, value: Vec6) {
+        if self.last.len() == TRAIL_KEPT {
+            self.last.remove(0);
         }
-        &mut self.last.last_mut().expect("a value was just made room for").1
+        self.last.push((position, value));
     }
 
-    /// The newest value was recorded at `position`.
-    pub fn newest_at(&self, position: &Vec3) -> bool {
-        self.last.last().is_some_and(|(p, _)| p == position)
-    }
-
-    /// The extrapolation to `position` as weighted values, newest first (`extrapolation_weights` through
-    /// the values whose positions lie with it equally spaced on a line, else the newest value alone);
-    /// None without values.
-    pub fn extrapolation(&self, position: &Vec3) -> Option<impl Iterator<Item = (f64, &T)> + Clone> {
+    /// The value extrapolated to `position` (`extrapolation_weights` through the values whose positions lie
+    /// with it equally spaced on a line, else the newest value); None without values.
+    pub fn predict(&self, position: &Vec3) -> Option<Vec6> {
         let count = equally_spaced(self.last.iter().rev().map(|(p, _)| p), position);
-        (count > 0).then(|| extrapolation_weights(count).iter().zip(self.last.iter().rev()).map(|(w, (_, v))| (*w, v)))
+        let weights = extrapolation_weights(count).iter().zip(self.last.iter().rev());
+        (count > 0).then(|| weights.map(|(w, (_, v))| v * *w).sum())
     }
 
     /// Forgets every value.
