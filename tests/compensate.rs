@@ -393,3 +393,52 @@ fn a_description_corrected_by_diagnose_compensates_ten_times_better() {
     );
     assert!(corrected * 10.0 <= nominal, "{corrected} mm corrected vs {nominal} mm nominal");
 }
+
+/// The platform motions the actuators command, found two ways: from the legs' joint twists (screw theory:
+/// the twists every leg's joints can follow, `Manipulator::commanded_directions`) and as K^-1 K_i u from the
+/// legs' stiffnesses (`actuator_motions`). At random poses of the 3-PUU and the 3-PRPaR (three
+/// translations) and of Stewart-Gough B (all six directions) they span the same directions: every motion,
+/// weighted, lies in the basis' span to 1e-9 of its size, and the dimensions agree. Stewart-Gough A, whose
+/// six leg lines meet in one point (the platform turns about it with the actuators locked), is singular
+/// both ways.
+#[test]
+fn the_directions_from_joint_twists_span_the_actuator_motions() {
+    use rand::Rng;
+    use stiff::kinematics::frame::{rotation_from_vector, weigh_rotations, Frame, Vec3};
+    use stiff::platform::command::Directions;
+    let mut r = common::rng(19);
+    let load = |path: &str| stiff::model::load_manipulator(std::path::Path::new(path)).unwrap();
+    let models = [
+        (ORTHOGLIDE, 3, 0.0),
+        ("manipulators/orthoglide-3prpar.toml", 3, 0.0),
+        ("manipulators/stewart-gough-b.toml", 6, 300.0),
+    ];
+    for (path, dimension, height) in models {
+        let m = load(path);
+        for _ in 0..20 {
+            let pose = if height > 0.0 {
+                let turn = Vec3::from_fn(|_, _| r.random_range(-0.1..0.1));
+                Frame::new(
+                    rotation_from_vector(&turn),
+                    Vec3::new(r.random_range(-20.0..20.0), r.random_range(-20.0..20.0), height),
+                )
+            } else {
+                Frame::translation(Vec3::from_fn(|_, _| r.random_range(-70.0..120.0)))
+            };
+            let Directions::Span(basis) = m.commanded_directions(&pose, &mut m.new_state()).unwrap() else {
+                panic!("{path} at {pose:?}: no directions")
+            };
+            assert_eq!(basis.len(), dimension, "{path}");
+            let motions = m.actuator_motions(&pose, &mut m.new_state()).unwrap().unwrap();
+            for motion in motions {
+                let w = weigh_rotations(&motion, m.length_scale);
+                let rest = basis.iter().fold(w, |rest, q| rest - q * q.dot(&w));
+                assert!(rest.norm() <= 1e-9 * w.norm(), "{path}: {:.2e} of {:.2e} outside", rest.norm(), w.norm());
+            }
+        }
+    }
+    let a = load("manipulators/stewart-gough-a.toml");
+    let home = Frame::translation(Vec3::new(0.0, 0.0, 300.0));
+    assert_eq!(a.commanded_directions(&home, &mut a.new_state()).unwrap(), Directions::Singular);
+    assert!(a.actuator_motions(&home, &mut a.new_state()).unwrap().is_none());
+}

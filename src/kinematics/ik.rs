@@ -77,6 +77,11 @@ impl IkWorkspace {
         self.current.fill_virtual();
         Some(&self.current)
     }
+
+    /// As `solution`, without filling the virtual coordinates' columns (for the joints' twists alone).
+    pub fn joints_at_solution(&self) -> Option<&ChainJacobians> {
+        self.current_is_valid.then_some(&self.current)
+    }
 }
 
 /// Solves `end_frame(coords) = target` for the actuated and passive coordinates; virtual coordinates are

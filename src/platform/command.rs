@@ -7,7 +7,20 @@ use super::compliance::analyse;
 use super::leg::{Leg, LegState};
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::chain::{JointKind, Role};
-use crate::kinematics::frame::{Frame, Mat6, Vec6};
+use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
+use crate::linalg::{orthogonal_complement6, span_basis};
+use nalgebra::DMatrix;
+
+/// The directions the actuators move the platform in (`Manipulator::commanded_directions`).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Directions {
+    /// An orthonormal basis of them (weighted coordinates: rotations times the length scale).
+    Span(Vec<Vec6>),
+    /// None, or the platform also moves with the actuators locked (the stiffness K is singular).
+    Singular,
+    /// The kinematics is not finite there.
+    NotFinite,
+}
 
 impl Manipulator {
     /// After the nominal manipulator placed `nominal` for a command: sets this (real) manipulator's
@@ -44,6 +57,56 @@ impl Manipulator {
             motions.extend(leg.actuator_twists(pose, s).iter().map(|u| compliance * (k * u)));
         }
         Ok(Some(motions))
+    }
+
+    /// The platform motions the actuators command at `pose` (placing the rigid robot there): an orthonormal
+    /// basis of the span of `actuator_motions`, in weighted coordinates (rotations times the length scale).
+    ///
+    /// With VJM legs it comes from the legs' joint twists (screw theory): the platform can move along a
+    /// twist only where every leg's joints can follow it, that is along the twists orthogonal to every
+    /// leg's constraints (the complement of its joints' twists); the actuators command every such motion
+    /// unless the platform can also move with them locked, along twists every leg's passive joints follow
+    /// (the complements of the passive twists alone then span less than all six directions: `Singular`, as
+    /// K^-1 is there). The joint twists are the placement's own evaluation, so this costs a few small
+    /// Gram-Schmidt passes where `actuator_motions` needs every leg's stiffness, the whole one's inverse and
+    /// an SVD. A robot with an MSA leg (no joint coordinates) takes that route.
+    pub fn commanded_directions(&self, pose: &Frame, state: &mut ManipulatorState) -> Result<Directions, PoseFailure> {
+        self.place(pose, state)?;
+        let weighted =
+            |twists: &[Vec6]| twists.iter().map(|t| weigh_rotations(t, self.length_scale)).collect::<Vec<_>>();
+        let (mut constraints, mut locked) = (Vec::new(), Vec::new());
+        for (leg, s) in self.legs.iter().zip(&state.legs) {
+            let Some(joints) = leg.joint_twists(pose, s) else { return self.directions_by_stiffness(pose, state) };
+            let mut all = weighted(&joints.passive);
+            let Some(passive_free) = orthogonal_complement6(&all) else { return Ok(Directions::NotFinite) };
+            all.extend(weighted(&joints.actuated));
+            let Some(leg_free) = orthogonal_complement6(&all) else { return Ok(Directions::NotFinite) };
+            locked.extend(passive_free);
+            constraints.extend(leg_free);
+        }
+        let (Some(with_actuators_locked), Some(span)) =
+            (orthogonal_complement6(&locked), orthogonal_complement6(&constraints))
+        else {
+            return Ok(Directions::NotFinite);
+        };
+        Ok(match with_actuators_locked.is_empty() && !span.is_empty() {
+            true => Directions::Span(span),
+            false => Directions::Singular,
+        })
+    }
+
+    /// `commanded_directions` from `actuator_motions`: the span of the motions, weighted.
+    fn directions_by_stiffness(&self, pose: &Frame, state: &mut ManipulatorState) -> Result<Directions, PoseFailure> {
+        let Some(motions) = self.actuator_motions(pose, state)? else { return Ok(Directions::Singular) };
+        let l = self.length_scale;
+        let weighted = DMatrix::from_fn(6, motions.len(), |r, c| weigh_rotations(&motions[c], l)[r]);
+        Ok(match span_basis(&weighted) {
+            Some(basis) if basis.ncols() > 0 => {
+                Directions::Span(basis.column_iter().map(|c| Vec6::from_iterator(c.iter().copied())).collect())
+            }
+            Some(_) => Directions::Singular,
+            None => Directions::NotFinite,
+        })
     }
 
     /// The unit of every actuated coordinate, leg by leg: `mm` for a prismatic, `rad` for a revolute joint.

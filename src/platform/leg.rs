@@ -319,6 +319,17 @@ impl Leg {
         }
     }
 
+    /// After `place`: the twists at the reference point (base frame) along which the leg's actuated and
+    /// passive joints move its end, the rigid leg's kinematics; None for an MSA leg (its joints are
+    /// elements of a structure, not coordinates of a chain) or where the placement failed.
+    pub fn joint_twists(&self, platform: &Frame, state: &LegState) -> Option<JointTwists> {
+        let Leg::Vjm(_) = self else { return None };
+        let jac = state.ik.joints_at_solution()?;
+        let back = point_shift(&(platform.pos - jac.end.pos));
+        let at_reference = |twists: &[Vec6]| twists.iter().map(|t| back * t).collect();
+        Some(JointTwists { actuated: at_reference(&jac.actuated), passive: at_reference(&jac.passive) })
+    }
+
     /// After `place`: the platform twist at the reference point that a unit change of each actuated
     /// coordinate would cause if it alone moved the leg's end (its end-point error per unit actuator offset,
     /// paper 000 s. 4.2), in the base frame.
@@ -335,6 +346,14 @@ impl Leg {
             }
         }
     }
+}
+
+/// The twists of a VJM leg's joints at its placement (`Leg::joint_twists`), at the reference point.
+pub struct JointTwists {
+    /// One per actuated coordinate.
+    pub actuated: Vec<Vec6>,
+    /// One per passive coordinate.
+    pub passive: Vec<Vec6>,
 }
 
 /// The wrench the platform applies to a leg once the leg's own Newton correction is made, at the

@@ -35,6 +35,7 @@ use crate::batch::{stream, Study, Tally};
 use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec6};
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header_line, names, Column, Record, Row};
+use crate::platform::command::Directions;
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
@@ -676,17 +677,14 @@ impl Solver<'_> {
 
     /// The directions the actuators move the platform at the target (the nominal robot placed there).
     fn task(&self, nominal: &mut ManipulatorState) -> Result<Task, Status> {
-        let motions = match self.nominal.actuator_motions(&self.target, nominal) {
-            Ok(Some(m)) => m,
-            Ok(None) => return Err(Status::Singular),
-            Err(e) => return Err(Status::of(&e)),
-        };
-        let l = self.nominal.length_scale;
-        let weighted = DMatrix::from_fn(6, motions.len(), |r, c| weigh_rotations(&motions[c], l)[r]);
-        match crate::linalg::span_basis(&weighted) {
-            Some(basis) if basis.ncols() > 0 => Ok(Task { basis, length_scale: l }),
-            Some(_) => Err(Status::Singular),
-            None => Err(Status::Overflow),
+        match self.nominal.commanded_directions(&self.target, nominal) {
+            Ok(Directions::Span(basis)) => {
+                let basis = DMatrix::from_fn(6, basis.len(), |r, c| basis[c][r]);
+                Ok(Task { basis, length_scale: self.nominal.length_scale })
+            }
+            Ok(Directions::Singular) => Err(Status::Singular),
+            Ok(Directions::NotFinite) => Err(Status::Overflow),
+            Err(e) => Err(Status::of(&e)),
         }
     }
 
