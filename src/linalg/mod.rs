@@ -77,7 +77,8 @@ fn extend_orthonormal(
     while basis.len() < 6 {
         let sizes = candidates.iter().map(|c| c.norm()).enumerate();
         let Some((i, size)) = sizes.max_by(|a, b| a.1.total_cmp(&b.1)) else { break };
-        if !(size > threshold) {
+        // (Finite: the callers' vectors are checked.)
+        if size <= threshold {
             break;
         }
         // Again against the basis: the first pass leaves round-off of the size of what it removed.
