@@ -40,53 +40,99 @@ pub fn span_basis(y: &nalgebra::DMatrix<f64>) -> Option<nalgebra::DMatrix<f64>> 
     Some(svd.u?.select_columns(&keep))
 }
 
-/// An orthonormal basis of the directions of R^6 orthogonal to every vector of `vectors`, by Gram-Schmidt:
-/// the vectors' span is built first, its rank decided as `span_basis` decides it (a vector's part left by
-/// the directions taken, largest first, below `SPAN_SHARE` of the largest vector is round-off), then the
-/// unit vectors complete it. Each direction is orthogonalised twice, so the basis is orthonormal to
+/// Orthonormal directions of R^6 grown by Gram-Schmidt: the spans of vectors added, then their orthogonal
+/// complement (`complement`). A vector's part outside the directions so far is a new direction when it is
+/// above `SPAN_SHARE` of the largest vector added (the rank decision `span_basis` makes with singular
+/// values), largest part first; each direction is orthogonalised twice, so the set is orthonormal to
 /// round-off even where the vectors are nearly dependent. For a handful of six-vectors this costs a few
-/// hundred operations where an SVD costs thousands. None where a vector is not finite or has an entry
-/// beyond `MAX_ENTRY`.
-pub fn orthogonal_complement6(vectors: &[nalgebra::Vector6<f64>]) -> Option<Vec<nalgebra::Vector6<f64>>> {
-    if !vectors.iter().flatten().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY) {
-        return None;
-    }
-    let largest = vectors.iter().map(|v| v.norm()).fold(0.0f64, f64::max);
-    let mut basis = Vec::with_capacity(6);
-    extend_orthonormal(&mut basis, vectors.to_vec(), SPAN_SHARE * largest);
-    let rank = basis.len();
-    // The unit vectors' parts outside the span have squared norms summing to the dimension left, so the
-    // largest is at least 1/sqrt(6) while a direction is missing: any threshold below that completes it.
-    extend_orthonormal(&mut basis, (0..6).map(|k| nalgebra::Vector6::ith(k, 1.0)).collect(), 0.1);
-    Some(basis.split_off(rank))
+/// hundred operations where an SVD costs thousands, and nothing is allocated.
+#[derive(Clone, Copy, Debug)]
+pub struct Orthonormal6 {
+    directions: [nalgebra::Vector6<f64>; 6],
+    len: usize,
+    largest: f64,
 }
 
-/// Adds to the orthonormal `basis` the candidates' parts outside it, largest first, while that part is
-/// above `threshold` (and the basis has fewer than six directions).
-fn extend_orthonormal(
-    basis: &mut Vec<nalgebra::Vector6<f64>>,
-    mut candidates: Vec<nalgebra::Vector6<f64>>,
-    threshold: f64,
-) {
-    let orthogonalise = |v: &mut nalgebra::Vector6<f64>, basis: &[nalgebra::Vector6<f64>]| {
-        for q in basis {
-            *v -= q * q.dot(v);
+impl Default for Orthonormal6 {
+    fn default() -> Self {
+        Orthonormal6 { directions: [nalgebra::Vector6::zeros(); 6], len: 0, largest: 0.0 }
+    }
+}
+
+impl Orthonormal6 {
+    /// The directions so far.
+    pub fn directions(&self) -> &[nalgebra::Vector6<f64>] {
+        &self.directions[..self.len]
+    }
+
+    /// Adds the span of `vectors` (at most six at a time). False, leaving the set unusable, where a vector
+    /// is not finite or has an entry beyond `MAX_ENTRY`.
+    pub fn span(&mut self, vectors: &[nalgebra::Vector6<f64>]) -> bool {
+        assert!(vectors.len() <= 6, "at most six vectors at a time");
+        if !vectors.iter().flatten().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY) {
+            return false;
         }
-    };
-    candidates.iter_mut().for_each(|c| orthogonalise(c, basis));
-    while basis.len() < 6 {
-        let sizes = candidates.iter().map(|c| c.norm()).enumerate();
-        let Some((i, size)) = sizes.max_by(|a, b| a.1.total_cmp(&b.1)) else { break };
-        // (Finite: the callers' vectors are checked.)
-        if size <= threshold {
-            break;
+        self.largest = vectors.iter().map(|v| v.norm_squared()).fold(self.largest, f64::max);
+        let mut candidates = [nalgebra::Vector6::zeros(); 6];
+        candidates[..vectors.len()].copy_from_slice(vectors);
+        self.grow(&mut candidates[..vectors.len()], SPAN_SHARE * SPAN_SHARE * self.largest);
+        true
+    }
+
+    /// Adds the directions orthogonal to `other` (`complement`: unit vectors, so the rank decision's scale
+    /// is at least 1).
+    pub fn span_complement_of(&mut self, other: &Orthonormal6) {
+        let mut candidates = [nalgebra::Vector6::zeros(); 6];
+        let mut count = 0;
+        for (c, direction) in candidates.iter_mut().zip(other.complement()) {
+            *c = direction;
+            count += 1;
         }
-        // Again against the basis: the first pass leaves round-off of the size of what it removed.
-        let mut q = candidates.swap_remove(i) / size;
-        orthogonalise(&mut q, basis);
-        q /= q.norm();
-        candidates.iter_mut().for_each(|c| *c -= q * q.dot(c));
-        basis.push(q);
+        self.largest = self.largest.max(1.0);
+        self.grow(&mut candidates[..count], SPAN_SHARE * SPAN_SHARE * self.largest);
+    }
+
+    /// An orthonormal basis of the directions orthogonal to the set: the unit vectors complete it. Their
+    /// parts outside the set have squared norms summing to the dimension left, so the largest is at least
+    /// 1/sqrt(6) while a direction is missing, and any threshold below that completes it.
+    pub fn complement(&self) -> impl Iterator<Item = nalgebra::Vector6<f64>> {
+        let mut complete = *self;
+        let mut units: [nalgebra::Vector6<f64>; 6] = std::array::from_fn(|k| nalgebra::Vector6::ith(k, 1.0));
+        complete.grow(&mut units, 0.01);
+        complete.directions.into_iter().take(complete.len).skip(self.len)
+    }
+
+    /// Adds the candidates' parts outside the set, largest first, while its squared norm is above
+    /// `threshold` (candidates finite).
+    fn grow(&mut self, candidates: &mut [nalgebra::Vector6<f64>], threshold: f64) {
+        let orthogonalise = |v: &mut nalgebra::Vector6<f64>, directions: &[nalgebra::Vector6<f64>]| {
+            for q in directions {
+                *v -= q * q.dot(v);
+            }
+        };
+        candidates.iter_mut().for_each(|c| orthogonalise(c, self.directions()));
+        let mut left = candidates.len();
+        while self.len < 6 && left > 0 {
+            let (i, size) = (0..left).map(|i| (i, candidates[i].norm_squared())).fold((0, -1.0), |best, c| {
+                if c.1 > best.1 {
+                    c
+                } else {
+                    best
+                }
+            });
+            if size <= threshold {
+                break;
+            }
+            // Again against the set: the first pass leaves round-off of the size of what it removed.
+            let mut q = candidates[i] / size.sqrt();
+            candidates.swap(i, left - 1);
+            left -= 1;
+            orthogonalise(&mut q, self.directions());
+            q /= q.norm();
+            candidates[..left].iter_mut().for_each(|c| *c -= q * q.dot(c));
+            self.directions[self.len] = q;
+            self.len += 1;
+        }
     }
 }
 
@@ -669,7 +715,7 @@ mod tests {
     /// every vector to round-off: the dimension the SVD's rank decision (`span_basis`) gives. Nothing
     /// finite is refused; a NaN is.
     #[test]
-    fn the_orthogonal_complement_has_the_dimension_the_svd_gives() {
+    fn the_orthonormal_complement_has_the_dimension_the_svd_gives() {
         let mut seed = 11u64;
         let mut next = || {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -685,7 +731,11 @@ mod tests {
                         mixed + nalgebra::Vector6::from_fn(|_, _| next() * 1e-14 * mixed.norm())
                     })
                     .collect();
-                let complement = orthogonal_complement6(&vectors).unwrap();
+                let mut set = Orthonormal6::default();
+                for part in vectors.chunks(6) {
+                    assert!(set.span(part));
+                }
+                let complement: Vec<nalgebra::Vector6<f64>> = set.complement().collect();
                 let columns = DMatrix::from_fn(6, count, |r, c| vectors[c][r]);
                 let svd_rank = span_basis(&columns).unwrap().ncols();
                 assert_eq!(complement.len(), 6 - svd_rank, "rank {rank}, {count} vectors");
@@ -701,10 +751,10 @@ mod tests {
                 }
             }
         }
-        let mut not_finite = vec![nalgebra::Vector6::repeat(1.0)];
+        let mut not_finite = [nalgebra::Vector6::repeat(1.0)];
         not_finite[0][3] = f64::NAN;
-        assert!(orthogonal_complement6(&not_finite).is_none());
-        assert_eq!(orthogonal_complement6(&[]).unwrap().len(), 6);
+        assert!(!Orthonormal6::default().span(&not_finite));
+        assert_eq!(Orthonormal6::default().complement().count(), 6);
     }
 
     #[test]

@@ -8,7 +8,7 @@ use super::leg::{Leg, LegState};
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::chain::{JointKind, Role};
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
-use crate::linalg::{orthogonal_complement6, span_basis};
+use crate::linalg::{span_basis, Orthonormal6};
 use nalgebra::DMatrix;
 
 /// The directions the actuators move the platform in (`Manipulator::commanded_directions`).
@@ -72,24 +72,27 @@ impl Manipulator {
     /// an SVD. A robot with an MSA leg (no joint coordinates) takes that route.
     pub fn commanded_directions(&self, pose: &Frame, state: &mut ManipulatorState) -> Result<Directions, PoseFailure> {
         self.place(pose, state)?;
-        let weighted =
-            |twists: &[Vec6]| twists.iter().map(|t| weigh_rotations(t, self.length_scale)).collect::<Vec<_>>();
-        let (mut constraints, mut locked) = (Vec::new(), Vec::new());
+        // The directions no leg's joints follow (the constraints), and those the passive joints alone do
+        // not follow (constraints and actuations).
+        let (mut constraints, mut actuations) = (Orthonormal6::default(), Orthonormal6::default());
         for (leg, s) in self.legs.iter().zip(&state.legs) {
-            let Some(joints) = leg.joint_twists(pose, s) else { return self.directions_by_stiffness(pose, state) };
-            let mut all = weighted(&joints.passive);
-            let Some(passive_free) = orthogonal_complement6(&all) else { return Ok(Directions::NotFinite) };
-            all.extend(weighted(&joints.actuated));
-            let Some(leg_free) = orthogonal_complement6(&all) else { return Ok(Directions::NotFinite) };
-            locked.extend(passive_free);
-            constraints.extend(leg_free);
+            let Some(mut joints) = leg.joint_twists(pose, s) else { return self.directions_by_stiffness(pose, state) };
+            for t in joints.passive.iter_mut().chain(joints.actuated.iter_mut()) {
+                *t = weigh_rotations(t, self.length_scale);
+            }
+            let mut follows = Orthonormal6::default();
+            let spans = |set: &mut Orthonormal6, twists: &[Vec6]| twists.chunks(6).all(|part| set.span(part));
+            if !spans(&mut follows, &joints.passive) {
+                return Ok(Directions::NotFinite);
+            }
+            actuations.span_complement_of(&follows);
+            if !spans(&mut follows, &joints.actuated) {
+                return Ok(Directions::NotFinite);
+            }
+            constraints.span_complement_of(&follows);
         }
-        let (Some(with_actuators_locked), Some(span)) =
-            (orthogonal_complement6(&locked), orthogonal_complement6(&constraints))
-        else {
-            return Ok(Directions::NotFinite);
-        };
-        Ok(match with_actuators_locked.is_empty() && !span.is_empty() {
+        let span: Vec<Vec6> = constraints.complement().collect();
+        Ok(match actuations.directions().len() == 6 && !span.is_empty() {
             true => Directions::Span(span),
             false => Directions::Singular,
         })

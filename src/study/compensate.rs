@@ -338,6 +338,7 @@ impl<'a> Compensator<'a> {
             check: Commanded::new(m),
             jacobian: None,
             commands: Trail::default(),
+            directions: m.new_state(),
             skipped: false,
         }
     }
@@ -378,6 +379,9 @@ pub struct CompensateState {
     /// coordinates): the compensation is a smooth function of the target along a path, and its
     /// extrapolation starts the next target's Newton method.
     commands: Trail,
+    /// With `commands_only`, the nominal robot placed at the target for the task's directions alone:
+    /// nothing is commanded through it, so its placement is not polished (one evaluation per leg less).
+    directions: ManipulatorState,
     /// With `commands_only`, targets answered by the extrapolated command alone have passed since the
     /// uncompensated and mirror pairs last solved: their solutions lie back along the path.
     skipped: bool,
@@ -658,8 +662,7 @@ impl Solver<'_> {
     fn extrapolated_command(&self, st: &mut CompensateState, equilibria: &mut usize) -> Option<Compensation> {
         let jacobian = st.jacobian?;
         let offset = st.commands.predict(&self.target.pos)?;
-        // The controller's placement at the target, which the task basis needs, is the uncompensated pair's.
-        let task = self.task(&mut st.uncompensated.nominal).ok()?;
+        let task = self.task(&mut st.directions).ok()?;
         let mut out = Compensation::failed(Status::Ok);
         let found = self.evaluate(&task, &task.along(&offset), &mut st.check, true, equilibria).ok()?;
         out.equilibria = *equilibria;
