@@ -92,14 +92,29 @@ impl Orthonormal6 {
         self.grow(&mut candidates[..count], SPAN_SHARE * SPAN_SHARE * self.largest);
     }
 
-    /// An orthonormal basis of the directions orthogonal to the set: the unit vectors complete it. Their
-    /// parts outside the set have squared norms summing to the dimension left, so the largest is at least
-    /// 1/sqrt(6) while a direction is missing, and any threshold below that completes it.
+    /// An orthonormal basis of the directions orthogonal to the set. The projector P = I - sum q q^T onto
+    /// them has the unit vectors' parts outside the set as its columns and their squared norms on its
+    /// diagonal; while a direction is missing the largest is at least 1/6 (the trace is the dimension
+    /// left), so the largest column, normalised, is a direction, and P loses it.
     pub fn complement(&self) -> impl Iterator<Item = nalgebra::Vector6<f64>> {
+        let mut p = nalgebra::Matrix6::identity();
+        for q in self.directions() {
+            p -= q * q.transpose();
+        }
         let mut complete = *self;
-        let mut units: [nalgebra::Vector6<f64>; 6] = std::array::from_fn(|k| nalgebra::Vector6::ith(k, 1.0));
-        complete.grow(&mut units, 0.01);
-        complete.directions.into_iter().take(complete.len).skip(self.len)
+        while complete.len < 6 {
+            let k = (0..6).fold(0, |best, k| if p[(k, k)] > p[(best, best)] { k } else { best });
+            // Once more against every direction: the column carries round-off of what P removed.
+            let mut q = p.column(k) / p[(k, k)].sqrt();
+            for d in complete.directions() {
+                q -= d * d.dot(&q);
+            }
+            q /= q.norm();
+            p -= q * q.transpose();
+            complete.directions[complete.len] = q;
+            complete.len += 1;
+        }
+        complete.directions.into_iter().take(6).skip(self.len)
     }
 
     /// Adds the candidates' parts outside the set, largest first, while its squared norm is above

@@ -325,8 +325,16 @@ impl Leg {
     pub fn joint_twists(&self, platform: &Frame, state: &LegState) -> Option<JointTwists> {
         let Leg::Vjm(_) = self else { return None };
         let jac = state.ik.joints_at_solution()?;
-        let back = point_shift(&(platform.pos - jac.end.pos));
-        let at_reference = |twists: &[Vec6]| twists.iter().map(|t| back * t).collect();
+        // The reference point moves with v + w x (RP - EP).
+        let arm = platform.pos - jac.end.pos;
+        let at_reference = |twists: &[Vec6]| {
+            let shift = |t: &Vec6| {
+                let (v, w) = (t.fixed_rows::<3>(0), t.fixed_rows::<3>(3));
+                let moved = v + w.cross(&arm);
+                Vec6::new(moved.x, moved.y, moved.z, w.x, w.y, w.z)
+            };
+            twists.iter().map(shift).collect()
+        };
         Some(JointTwists { actuated: at_reference(&jac.actuated), passive: at_reference(&jac.passive) })
     }
 
