@@ -517,10 +517,13 @@ impl SaddlePointLu {
         if f == 0 {
             return true;
         }
+        // Only the half the Cholesky reads (entries (c, row) with row <= c; the sum is exactly symmetric, so
+        // the largest entry is there too).
         let r = &self.reduced;
         self.symmetric.clear();
         for c in 0..f {
-            self.symmetric.extend((0..f).map(|row| -0.5 * (r[c * f + row] + r[row * f + c])));
+            self.symmetric.extend((0..=c).map(|row| -0.5 * (r[c * f + row] + r[row * f + c])));
+            self.symmetric.extend(std::iter::repeat_n(0.0, f - 1 - c));
         }
         let margin = 1e-12 * self.symmetric.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
         for d in 0..f {
