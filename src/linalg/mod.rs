@@ -106,9 +106,7 @@ impl Orthonormal6 {
             let k = (0..6).fold(0, |best, k| if p[(k, k)] > p[(best, best)] { k } else { best });
             // Once more against every direction: the column carries round-off of what P removed.
             let mut q = p.column(k) / p[(k, k)].sqrt();
-            for d in complete.directions() {
-                q -= d * d.dot(&q);
-            }
+            remove_parts_along(&mut q, complete.directions());
             q /= q.norm();
             p -= q * q.transpose();
             complete.directions[complete.len] = q;
@@ -120,12 +118,7 @@ impl Orthonormal6 {
     /// Adds the candidates' parts outside the set, largest first, while its squared norm is above
     /// `threshold` (candidates finite).
     fn grow(&mut self, candidates: &mut [nalgebra::Vector6<f64>], threshold: f64) {
-        let orthogonalise = |v: &mut nalgebra::Vector6<f64>, directions: &[nalgebra::Vector6<f64>]| {
-            for q in directions {
-                *v -= q * q.dot(v);
-            }
-        };
-        candidates.iter_mut().for_each(|c| orthogonalise(c, self.directions()));
+        candidates.iter_mut().for_each(|c| remove_parts_along(c, self.directions()));
         let mut left = candidates.len();
         while self.len < 6 && left > 0 {
             let (i, size) = (0..left).map(|i| (i, candidates[i].norm_squared())).fold((0, -1.0), |best, c| {
@@ -142,12 +135,20 @@ impl Orthonormal6 {
             let mut q = candidates[i] / size.sqrt();
             candidates.swap(i, left - 1);
             left -= 1;
-            orthogonalise(&mut q, self.directions());
+            remove_parts_along(&mut q, self.directions());
             q /= q.norm();
-            candidates[..left].iter_mut().for_each(|c| *c -= q * q.dot(c));
+            candidates[..left].iter_mut().for_each(|c| remove_parts_along(c, &[q]));
             self.directions[self.len] = q;
             self.len += 1;
         }
+    }
+}
+
+/// Removes from `v` its parts along each of the orthonormal `directions`, one after the other (modified
+/// Gram-Schmidt).
+fn remove_parts_along(v: &mut nalgebra::Vector6<f64>, directions: &[nalgebra::Vector6<f64>]) {
+    for q in directions {
+        *v -= q * q.dot(v);
     }
 }
 

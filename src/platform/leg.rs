@@ -325,17 +325,10 @@ impl Leg {
     pub fn joint_twists(&self, platform: &Frame, state: &LegState) -> Option<JointTwists> {
         let Leg::Vjm(_) = self else { return None };
         let jac = state.ik.joints_at_solution()?;
-        // The reference point moves with v + w x (RP - EP).
-        let arm = platform.pos - jac.end.pos;
-        let at_reference = |twists: &[Vec6]| {
-            let shift = |t: &Vec6| {
-                let (v, w) = (t.fixed_rows::<3>(0), t.fixed_rows::<3>(3));
-                let moved = v + w.cross(&arm);
-                Vec6::new(moved.x, moved.y, moved.z, w.x, w.y, w.z)
-            };
-            twists.iter().map(shift).collect()
-        };
-        Some(JointTwists { actuated: at_reference(&jac.actuated), passive: at_reference(&jac.passive) })
+        Some(JointTwists {
+            actuated: twists_at_reference_point(&jac.actuated, platform, jac),
+            passive: twists_at_reference_point(&jac.passive, platform, jac),
+        })
     }
 
     /// After `place`: the platform twist at the reference point that a unit change of each actuated
@@ -348,12 +341,17 @@ impl Leg {
             Leg::Msa(_) => Vec::new(),
             Leg::Vjm(l) => {
                 let jac = l.evaluation(state);
-                // A twist at EP seen at RP: inverse of point_shift(v), v = EP - RP.
-                let back = point_shift(&(platform.pos - jac.end.pos));
-                jac.actuated.iter().map(|t| back * t).collect()
+                twists_at_reference_point(&jac.actuated, platform, jac)
             }
         }
     }
+}
+
+/// Twists of a chain's joints at its end point EP seen at the platform's reference point RP: the inverse of
+/// `point_shift(v)`, v = EP - RP.
+fn twists_at_reference_point(twists: &[Vec6], platform: &Frame, jac: &ChainJacobians) -> Vec<Vec6> {
+    let back = point_shift(&(platform.pos - jac.end.pos));
+    twists.iter().map(|t| back * t).collect()
 }
 
 /// The twists of a VJM leg's joints at its placement (`Leg::joint_twists`), at the reference point.
