@@ -174,6 +174,20 @@ impl PlacedJoint {
     }
 }
 
+/// What `ChainJacobians::add_point_hessian` needs of one joint with an unknown: the unknown's index, the
+/// joint's gain, kind and world axis, the motion dx of the load point per unit motion of the joint, and the
+/// vectors u and s of the joint's pairs with the joints before and after it.
+#[derive(Clone, Copy, Debug)]
+struct HessianTerm {
+    index: usize,
+    gain: f64,
+    revolute: bool,
+    axis: Vec3,
+    motion: Vec3,
+    u: Vec3,
+    s: Vec3,
+}
+
 /// A mass's place in the base frame during one evaluation, and how many joints lie before it.
 #[derive(Clone, Copy, Debug)]
 struct PlacedMass {
@@ -196,8 +210,8 @@ pub struct ChainJacobians {
     virtual_filled: bool,
     placed: Vec<PlacedJoint>,
     masses: Vec<PlacedMass>,
-    /// Scratch of `add_point_hessian`: each joint's motion of the load point.
-    motions: Vec<Vec3>,
+    /// Scratch of `add_point_hessian`: its per-joint vectors.
+    hessian_terms: Vec<HessianTerm>,
 }
 
 /// Where a coordinate sits among the unknowns of an equilibrium: passive coordinates first, then virtual
@@ -276,45 +290,38 @@ impl ChainJacobians {
         //   l before k, l prismatic: dphi_k = 0
         //   l at or after k:         dphi_k = dx_l . (f x w_k) (revolute k), 0 (prismatic k)
         // where c_k = m + (x - o_k) x f: one dot product per pair.
-        let joints = &self.placed[..upto];
-        // dx_l, the motion of x per unit motion of joint l, once per joint rather than once per pair.
-        let mut motions = std::mem::take(&mut self.motions);
-        motions.clear();
-        motions.extend(joints.iter().map(|pl| match pl.joint.kind {
-            JointKind::Revolute => pl.axis_world.cross(&(x - pl.origin_world)),
-            JointKind::Prismatic => pl.axis_world,
-        }));
-        for (a, pk) in joints.iter().enumerate() {
-            let Some(row) = unknown_index(&pk.joint, n_passive) else { continue };
+        // Per joint with an unknown (actuated ones take no part), in chain order, what its pairs read:
+        // as the later joint k its u_k and (revolute) s_k = f x w_k, as the earlier joint l its axis
+        // (revolute) and dx_l, the motion of x: once per joint rather than once per pair.
+        let mut terms = std::mem::take(&mut self.hessian_terms);
+        terms.clear();
+        terms.extend(self.placed[..upto].iter().filter_map(|pk| {
+            let index = unknown_index(&pk.joint, n_passive)?;
             let wk = pk.axis_world;
-            let revolute_k = pk.joint.kind == JointKind::Revolute;
-            let (u, s) = if revolute_k {
-                let arm = x - pk.origin_world;
+            let revolute = pk.joint.kind == JointKind::Revolute;
+            let arm = x - pk.origin_world;
+            let (motion, u, s) = if revolute {
                 let fxw = f.cross(&wk);
-                (wk.cross(&(m + arm.cross(f))) + arm.cross(&fxw), fxw)
+                (wk.cross(&arm), wk.cross(&(m + arm.cross(f))) + arm.cross(&fxw), fxw)
             } else {
-                (wk.cross(f), Vec3::zeros())
+                (wk, wk.cross(f), Vec3::zeros())
             };
-            let gk = pk.joint.gain;
-            for (b, pl) in joints.iter().enumerate() {
-                let Some(col) = unknown_index(&pl.joint, n_passive) else { continue };
-                let wl = pl.axis_world;
-                let revolute_l = pl.joint.kind == JointKind::Revolute;
-                let d = if b < a {
-                    if revolute_l {
-                        wl.dot(&u)
-                    } else {
-                        0.0
-                    }
-                } else if revolute_k {
-                    motions[b].dot(&s)
-                } else {
-                    0.0
-                };
-                out[(row, col)] += gk * pl.joint.gain * d;
+            Some(HessianTerm { index, gain: pk.joint.gain, revolute, axis: wk, motion, u, s })
+        }));
+        // A pair whose d is zero adds nothing: the entries start at +0 and never become -0, so skipping
+        // the addition of a zero leaves the same bits.
+        for (a, tk) in terms.iter().enumerate() {
+            let (earlier, rest) = terms.split_at(a);
+            for tl in earlier.iter().filter(|tl| tl.revolute) {
+                out[(tk.index, tl.index)] += tk.gain * tl.gain * tl.axis.dot(&tk.u);
+            }
+            if tk.revolute {
+                for tl in rest {
+                    out[(tk.index, tl.index)] += tk.gain * tl.gain * tl.motion.dot(&tk.s);
+                }
             }
         }
-        self.motions = motions;
+        self.hessian_terms = terms;
     }
 
     /// Computes the Jacobian columns of the virtual coordinates from the last evaluation.
