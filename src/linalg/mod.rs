@@ -520,17 +520,22 @@ impl SaddlePointLu {
         }
         // Only the half the Cholesky reads (entries (c, row) with row <= c; the sum is exactly symmetric, so
         // the largest entry is there too).
-        let r = &self.reduced;
-        self.symmetric.clear();
+        let (r, s) = (&self.reduced, &mut self.symmetric);
+        s.clear();
+        s.resize(f * f, 0.0);
+        let mut largest = 0.0f64;
         for c in 0..f {
-            self.symmetric.extend((0..=c).map(|row| -0.5 * (r[c * f + row] + r[row * f + c])));
-            self.symmetric.extend(std::iter::repeat_n(0.0, f - 1 - c));
+            for row in 0..=c {
+                let v = -0.5 * (r[c * f + row] + r[row * f + c]);
+                s[c * f + row] = v;
+                largest = largest.max(v.abs());
+            }
         }
-        let margin = 1e-12 * self.symmetric.iter().fold(0.0f64, |l, v| l.max(v.abs())).max(f64::MIN_POSITIVE);
+        let margin = 1e-12 * largest.max(f64::MIN_POSITIVE);
         for d in 0..f {
-            self.symmetric[d * f + d] -= margin;
+            s[d * f + d] -= margin;
         }
-        dense_cholesky(&mut self.symmetric, f)
+        dense_cholesky(s, f)
     }
 }
 
