@@ -477,15 +477,21 @@ impl SaddlePointLu {
         for (s, &bi) in statics.iter_mut().zip(&self.basic) {
             *s = a[bi];
         }
+        // The free coordinates' terms, then the basic ones' (two loops: a chained iterator's halves
+        // compiled to a branch per term).
         let w_rows = &self.w_basic_rows;
-        let by_free = self.free.iter().zip(y.iter()).map(|(&fc, yc)| (&w_rows[fc], yc));
-        let by_basic = self.basic.iter().zip(&x_basic).map(|(&bc, xb)| (&w_rows[bc], xb));
-        for (wr, xv) in by_free.chain(by_basic) {
+        let subtract = |statics: &mut [[f64; R]; CONSTRAINTS], wr: &[f64; CONSTRAINTS], xv: &[f64; R]| {
             for (s, w) in statics.iter_mut().zip(wr) {
                 for (v, x) in s.iter_mut().zip(xv) {
                     *v -= w * x;
                 }
             }
+        };
+        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+            subtract(&mut statics, &w_rows[fc], yc);
+        }
+        for (&bc, xb) in self.basic.iter().zip(&x_basic) {
+            subtract(&mut statics, &w_rows[bc], xb);
         }
         let mut multipliers = [[0.0; R]; CONSTRAINTS];
         for (si, bi) in statics.iter().zip(&self.basic_inverse) {
