@@ -850,6 +850,25 @@ mod tests {
         }
     }
 
+    /// The branch-free helpers of the factorisations decide as the library's tests do: `larger` is
+    /// `f64::max` on a running maximum (a NaN argument ignored, an infinite one kept), so pivots and margins
+    /// do not move; `all_finite` is `all(is_finite)` (one infinity or NaN anywhere refuses the values).
+    #[test]
+    fn branch_free_maximum_and_finiteness_decide_as_the_library_does() {
+        let mut next = stream(3);
+        let specials = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0, f64::MIN_POSITIVE, f64::MAX];
+        for trial in 0..200 {
+            let values: Vec<f64> = (0..1 + trial % 23)
+                .map(|i| if (trial + i) % 9 == 0 { specials[(trial + i) % specials.len()] } else { next() * 1e3 })
+                .collect();
+            let expected = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let got = values.iter().fold(0.0f64, |m, v| larger(m, v.abs()));
+            assert_eq!(got.to_bits(), expected.to_bits(), "trial {trial}: {values:?}");
+            assert_eq!(all_finite(&values), values.iter().all(|v| v.is_finite()), "trial {trial}: {values:?}");
+        }
+        assert!(all_finite(&[]));
+    }
+
     /// The whole saddle-point matrix [[J, 0], [W, J^T]] of `SaddlePointLu`, dense.
     fn saddle_matrix(j: &DMatrix<f64>, w: &DMatrix<f64>) -> DMatrix<f64> {
         let k = w.nrows();
