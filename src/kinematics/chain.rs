@@ -299,8 +299,8 @@ impl ChainJacobians {
             let index = unknown_index(&pk.joint, n_passive)?;
             let wk = pk.axis_world;
             let revolute = pk.joint.kind == JointKind::Revolute;
-            let arm = x - pk.origin_world;
             let (motion, u, s) = if revolute {
+                let arm = x - pk.origin_world;
                 let fxw = f.cross(&wk);
                 (wk.cross(&arm), wk.cross(&(m + arm.cross(f))) + arm.cross(&fxw), fxw)
             } else {

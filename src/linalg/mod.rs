@@ -730,19 +730,11 @@ mod tests {
     use super::*;
     use nalgebra::{DMatrix, DVector};
 
-    /// Numbers uniform in [-0.5, 0.5) from a seed (a linear congruential generator: reproducible, no crate).
-    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
-        move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        }
-    }
-
     /// The Cholesky inverse of SPD matrices Q D Q^T (Q orthogonal, condition 1 to 1e8) is exactly symmetric and
     /// equals Q D^-1 Q^T to the condition times round-off; an indefinite or singular matrix is refused.
     #[test]
     fn spd_inverse_is_the_inverse_and_refuses_indefinite_matrices() {
-        let mut next = uniform(7);
+        let mut next = stream(7);
         for spread in [1.0f64, 1e4, 1e8] {
             let q = nalgebra::Matrix6::from_fn(|_, _| next()).qr().q();
             let d = nalgebra::Vector6::from_fn(|i, _| spread.powf(i as f64 / 5.0));
@@ -764,7 +756,7 @@ mod tests {
     /// finite is refused; a NaN is.
     #[test]
     fn the_orthonormal_complement_has_the_dimension_the_svd_gives() {
-        let mut next = uniform(11);
+        let mut next = stream(11);
         for rank in 0..=6 {
             for count in [rank, rank + 2, 7] {
                 let spanning: Vec<nalgebra::Vector6<f64>> =
