@@ -541,3 +541,55 @@ fn the_order_of_effects_does_not_change_a_prediction() {
         assert!((x - y).norm() <= 1e-12, "{x} vs {y}");
     }
 }
+
+/// Regression: one mutated row of a measurement file (dx_mm = -9.2e18, a typing or export error) made the
+/// report print `0.0000+-NaN` and residual RMS values of 2e18 mm, and the verdict `unexplained`. A row no
+/// plausible model fits is named and left out of every fit: with one gross row, and with several of very
+/// different sizes among clean rows carrying a hidden effect (actuator compliance, 20 times the noise), the
+/// effect is still named with its value within its 95% interval, exactly the gross rows are left out, and
+/// neither the text nor the JSON holds a NaN or an infinity; null data with gross rows gives `none`.
+#[test]
+fn gross_rows_are_named_and_left_out_and_the_effect_still_found() {
+    use stiff::diagnose::screen::diagnose_screened;
+    let m = model();
+    let hidden = sized(&m, &Effect::parse("actuator-compliance:2=1.5", &m).unwrap(), 20.0);
+    let model = Model::nominal(m.clone());
+    let cases: [(&[Effect], &[(usize, usize, f64)]); 3] = [
+        (std::slice::from_ref(&hidden), &[(6, 0, -9.2e18)]),
+        (std::slice::from_ref(&hidden), &[(3, 0, -9.2e18), (40, 1, 50.0), (77, 2, -3.0), (101, 0, 1e6)]),
+        (&[], &[(12, 2, 7.5), (90, 0, -9.2e18)]),
+    ];
+    for (seed, (effects, gross)) in cases.iter().enumerate() {
+        let mut data = synth(&m, effects, &wrenches(), SIGMA, 300 + seed as u64);
+        for &(row, axis, value) in gross.iter() {
+            data.rows[row].displacement[axis] = value;
+        }
+        let d = diagnose_screened(&m, &model.measurement_terms, &data, None, &Options::default()).unwrap();
+        let what = format!("case {seed}: {}", stiff::diagnose::report::sentence(&d));
+        let left: Vec<usize> = d.left_out.iter().map(|l| l.row).collect();
+        let mut expected: Vec<usize> = gross.iter().map(|g| g.0).collect();
+        expected.sort();
+        assert_eq!(left, expected, "{what}");
+        assert_eq!(d.rows, data.rows.len() - gross.len(), "{what}");
+        if effects.is_empty() {
+            assert_eq!(d.verdict, Verdict::None, "{what}");
+        } else {
+            assert_eq!(d.verdict, Verdict::Effect, "{what}");
+            assert_eq!(d.accepted.len(), 1, "{what}");
+            let a = &d.accepted[0];
+            assert_eq!((a.effect.kind, &a.effect.target), (hidden.kind, &hidden.target), "{what}");
+            let z = (a.params[0] - hidden.user_values()[0]) / a.se[0];
+            assert!(z.abs() <= 3.0, "{what}: {} +- {} vs {}", a.params[0], a.se[0], hidden.user_values()[0]);
+        }
+        let text = stiff::diagnose::report::text(&d, MODEL);
+        let json = serde_json::to_string(&stiff::diagnose::report::json(&d, MODEL)).unwrap();
+        for out in [&text, &json] {
+            let lower = out.to_lowercase();
+            let words: Vec<&str> = lower.split(|c: char| !c.is_ascii_alphanumeric()).collect();
+            assert!(!words.iter().any(|w| ["nan", "inf", "infinity"].contains(w)), "{what}: {out}");
+        }
+        assert!(text.contains(&format!("{} rows left out", gross.len())), "{text}");
+        assert!(text.contains("row 7 (line 8), pose ") || seed != 0, "{text}");
+        assert!(json.contains(&format!("\"left_out_count\":{}", gross.len())), "{json}");
+    }
+}

@@ -389,6 +389,71 @@ fn pantograph_leg_closed_forms_and_free_directions() {
     }
 }
 
+/// Regression: a NaVARo II leg on its own is a mechanism with two free motions, the platform joint's
+/// rotation about z at B and the clutch let go (the leg's length in mode 1, its angle about the base pivot A
+/// in mode 2: a translation of B across the leg). At about half the poses the reported rank was 5 with the
+/// rotation alone: the in-plane stiffness, cancelled from bar stiffnesses a million times larger, carries
+/// round-off that equilibrating K to a unit diagonal magnified above the rank tolerance. The rank and free
+/// directions a map row reports are checked against the mechanism (which end motions leave every link
+/// unstrained), independently of any factorisation: exactly two directions listed, spanning the two
+/// mechanism motions; each listed direction satisfies |K t| <= 1e-11 |K| in the length-scaled metric,
+/// and every direction orthogonal to them does not.
+#[test]
+fn a_pantograph_legs_rank_and_free_directions_follow_its_mechanism() {
+    use stiff::platform::compliance::FREE_DIRECTION_TOLERANCE;
+    use stiff::study::point::{unloaded_point, Status};
+    let a = Vec3::new(0.0, R_B, 0.0);
+    let mut poses = vec![
+        Vec3::new(150.0, 100.0, 0.0),
+        Vec3::new(-120.0, 250.0, 0.0),
+        Vec3::new(200.0, 0.0, 0.0),
+        Vec3::new(-200.0, 50.0, 0.0),
+    ];
+    let mut r = rng(44);
+    while poses.len() < 40 {
+        let (rho, angle) = (r.random_range(135.0..475.0), r.random_range(0.0..std::f64::consts::TAU));
+        poses.push(a + Vec3::new(rho * f64::cos(angle), rho * f64::sin(angle), 0.0));
+    }
+    for (file, passive_length) in
+        [("manipulators/navaro2-leg-passive.toml", true), ("manipulators/navaro2-leg-active.toml", false)]
+    {
+        let m = model_with(file, &[]);
+        let l = m.length_scale;
+        let weigh = |t: &Vec6| Vec6::from_fn(|i, _| if i < 3 { t[i] } else { t[i] * l });
+        for b in &poses {
+            let pose =
+                stiff::model::grid::PosePoint { name: None, position: *b, rotation: Vec3::zeros(), wrench: None };
+            let row = unloaded_point(&m, &pose, &mut m.new_state());
+            assert_eq!((row.status, row.rank), (Status::Singular, Some(4)), "{file} at {b}");
+            // The mechanism's two motions, in the length-scaled metric (rotations times l), orthonormal.
+            let u = (b - a).normalize();
+            let slide = if passive_length { u } else { Vec3::new(-u.y, u.x, 0.0) };
+            let mechanism = [Vec6::new(slide.x, slide.y, 0.0, 0.0, 0.0, 0.0), Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0)];
+            assert_eq!(row.free.len(), 2, "{file} at {b}: {:?}", row.free);
+            let ks = stiff::platform::compliance::scaled(&row.stiffness.unwrap(), l);
+            let norm_k = ks.singular_values().max();
+            for t in &row.free {
+                let t = weigh(t).normalize();
+                let outside = t - mechanism.iter().map(|m| m * m.dot(&t)).sum::<Vec6>();
+                assert!(outside.norm() < 1e-9, "{file} at {b}: {t:?} is not a mechanism motion");
+                assert!(
+                    (ks * t).norm() <= FREE_DIRECTION_TOLERANCE * norm_k,
+                    "{file} at {b}: |K t| {}",
+                    (ks * t).norm()
+                );
+            }
+            // The four directions orthogonal to the mechanism are all resisted: K times the projector onto
+            // them has four singular values (those of K restricted there), the smallest of which must not vanish.
+            let m6 = nalgebra::Matrix6x2::from_columns(&mechanism);
+            let projector = Mat6::identity() - m6 * m6.transpose();
+            let mut sigma: Vec<f64> = (ks * projector).singular_values().iter().copied().collect();
+            sigma.sort_by(|x, y| y.total_cmp(x));
+            let resisted = sigma[3];
+            assert!(resisted > 1e3 * FREE_DIRECTION_TOLERANCE * norm_k, "{file} at {b}: {resisted} of {norm_k}");
+        }
+    }
+}
+
 /// Eq (18)-(20) computed here independently: a pose is reachable exactly when every leg length
 /// |B_i - A_i| lies in [rho_min, rho_max]; the whole manipulator then has full rank in both modes (the leg
 /// lines do not meet in one point), and its two modes differ.

@@ -131,6 +131,52 @@ fn output_to_a_fifo_is_written_through_not_replaced() {
     assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo(), "the FIFO is still a FIFO");
 }
 
+/// Regression: `-o results.csv`, a symbolic link to a file kept elsewhere (results on another disk), replaced
+/// the link by a regular file and left its target untouched. The target is written (atomically, through a
+/// temporary file beside it) and the link stays; a link to a missing file creates that file; a dangling link
+/// into a missing folder is a clear error and nothing is written anywhere.
+#[test]
+fn output_through_a_symbolic_link_writes_its_target_and_keeps_the_link() {
+    use std::os::unix::fs::symlink;
+    let dir = tempfile::tempdir().unwrap();
+    let elsewhere = dir.path().join("other-disk");
+    std::fs::create_dir(&elsewhere).unwrap();
+    let target = elsewhere.join("results.csv");
+    std::fs::write(&target, "old contents\n").unwrap();
+    let link = dir.path().join("results.csv");
+    symlink(&target, &link).unwrap();
+    let o = run(&["map", PUU, "--grid", SMALL, "-q", "-o", link.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link is still a link");
+    let written = std::fs::read_to_string(&target).unwrap();
+    assert_eq!(written.lines().count(), 126, "the target holds the map");
+    assert!(written.starts_with("index,name,x_mm,"), "{}", &written[..40]);
+    let leftovers = |d: &Path| {
+        std::fs::read_dir(d)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".partial"))
+            .count()
+    };
+    assert_eq!(leftovers(&elsewhere) + leftovers(dir.path()), 0, "no temporary file left");
+
+    // A relative link to a file that does not exist yet: the file is created where the link points.
+    let relative = dir.path().join("relative.csv");
+    symlink("other-disk/new.csv", &relative).unwrap();
+    let o = run(&["map", PUU, "--grid", SMALL, "-q", "-o", relative.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::symlink_metadata(&relative).unwrap().file_type().is_symlink());
+    assert_eq!(std::fs::read_to_string(elsewhere.join("new.csv")).unwrap().lines().count(), 126);
+
+    // A dangling link into a folder that does not exist: refused before any work, nothing created.
+    let dangling = dir.path().join("dangling.csv");
+    symlink(dir.path().join("no-such-folder/out.csv"), &dangling).unwrap();
+    let o = run(&["map", PUU, "--grid", SMALL, "-q", "-o", dangling.to_str().unwrap()]);
+    let e = refused(&o);
+    assert!(e.contains("symbolic link") && e.contains("no-such-folder") && e.contains("does not exist"), "{e}");
+    assert!(!dir.path().join("no-such-folder").exists());
+    assert!(std::fs::symlink_metadata(&dangling).unwrap().file_type().is_symlink(), "the link is untouched");
+}
+
 /// Regression: `map ... | head -1` computed the whole map, then failed with "Broken pipe". A closed pipe
 /// stops the run quietly (exit 0), as ripgrep and xsv do: a grid of 1e9 points ends at once.
 #[test]
@@ -196,6 +242,40 @@ fn an_interrupted_run_leaves_no_partial_file() {
         assert!(!status.success(), "{signal}: interrupted");
         assert!(!partial() && !dir.path().join("out.csv").exists(), "{signal}: the partial file is removed");
     }
+}
+
+/// Regression (fuzzing): `curve ... --plot c.svg --direction=-1 -o c.csv` exited 1 on `--direction` after
+/// the curve had run and `c.csv` had been written, so a failed run left an output behind. The picture's
+/// options are checked before the curve runs, as map and assemble check theirs: nothing is written.
+#[test]
+fn a_bad_curve_picture_option_fails_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = root().join(PRPAR).display().to_string();
+    let o = run_in(
+        dir.path(),
+        &[
+            "curve",
+            &m,
+            "--at",
+            "0,0,0",
+            "--wrench-direction",
+            "1e-300,215,1e-300,1e-300,0,1e-300",
+            "--max",
+            "10",
+            "--steps",
+            "5",
+            "--plot",
+            "c.svg",
+            "--direction=-1",
+            "-o",
+            "c.csv",
+        ],
+        Duration::from_secs(60),
+    );
+    let e = refused(&o);
+    assert!(e.contains("--direction") && e.contains("`-1`"), "{e}");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(left.is_empty(), "a failed run wrote {left:?}");
 }
 
 /// Regression: size requests beyond what the machine can do hung or aborted (`curve --intervals 4294967297`

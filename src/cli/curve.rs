@@ -5,7 +5,9 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{check_picture_path, wrench_text, write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs};
+use super::args::{
+    check_picture_path, name_plot_flag, wrench_text, write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs,
+};
 use super::parse::parse_vec6;
 use crate::kinematics::frame::{Frame, Vec6};
 use crate::study::curve::{curve_header, curve_table, push_curve_row, run_curve, Control, MAX_INTERVALS};
@@ -63,10 +65,14 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
     if !(a.max.is_finite() && a.max > 0.0) {
         bail!("--max must be a positive finite number, got {}", a.max);
     }
-    let mut sink = a.output.open(&curve_table())?;
+    // The picture's options and file are checked before the curve runs: a bad one must not fail the run
+    // after its table is written.
+    let style = PlotStyle { direction: a.direction.clone(), ..PlotStyle::default() };
     if let Some(p) = &a.plot {
+        crate::plot::curve::check_curve_options(&style.options()).map_err(name_plot_flag)?;
         check_picture_path(p)?;
     }
+    let mut sink = a.output.open(&curve_table())?;
     // Rows are written as they become final; the picture, if asked, is drawn from the same text.
     let mut picture = a.plot.as_ref().map(|_| curve_header());
     let writer = sink.writer();
@@ -89,7 +95,7 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
     })?;
     sink.finish()?;
     if let (Some(plot), Some(text)) = (&a.plot, &picture) {
-        let style = PlotStyle { direction: a.direction.clone(), title: Some(title), ..PlotStyle::default() };
+        let style = PlotStyle { title: Some(title), ..style };
         write_plot(text.as_bytes(), plot, &style)?;
     }
     if !a.quiet {

@@ -62,30 +62,29 @@ pub(crate) enum FailOn {
 }
 
 pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
-    use crate::diagnose::{data::Dataset, error::DiagnoseError, fit::Problem, report, select};
+    use crate::diagnose::{data::Dataset, error::DiagnoseError, report, screen, select};
     let model = a.model.load_model()?;
     let data = Dataset::read(&a.data)?;
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         bail!("--alpha must lie in (0, 1)");
     }
-    let (weights, sigma, source) = select::noise(&data, a.sigma).map_err(|e| match e {
-        // The command line says how to give the noise level: its flag.
-        DiagnoseError::NoiseUnknown => anyhow::anyhow!("{}: {e}: --sigma MM", a.data.display()),
-        DiagnoseError::NoiseOutOfRange { .. } => anyhow::anyhow!("--sigma: {e}"),
-        e => anyhow::anyhow!("{}: {e}", a.data.display()),
-    })?;
     let loaded = !a.linear;
-    // The loaded equilibrium of every row is computed either way: the linear nominal offers its difference
-    // as the loaded-nonlinearity candidate.
-    let problem = Problem::new(&model.manipulator, &model.measurement_terms, &data, weights, loaded, true)
-        .map_err(|e| anyhow::anyhow!("{}, {e}", a.data.display()))?;
     let options = select::Options { alpha: a.alpha, loaded, max_effects: 3 };
     // The outputs are opened before the work, so an unwritable path fails at once.
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let model_sink = a.model_out.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let plot_sink = a.plot.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
-    let d = select::diagnose(&problem, sigma, source, &options)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    // The loaded equilibrium of every row is computed either way: the linear nominal offers its difference
+    // as the loaded-nonlinearity candidate. Gross rows are left out of the fits (and named in the report).
+    let d = screen::diagnose_screened(&model.manipulator, &model.measurement_terms, &data, a.sigma, &options).map_err(
+        |e| match e {
+            // The command line says how to give the noise level: its flag.
+            DiagnoseError::NoiseUnknown => anyhow::anyhow!("{}: {e}: --sigma MM", a.data.display()),
+            DiagnoseError::NoiseOutOfRange { .. } => anyhow::anyhow!("--sigma: {e}"),
+            e @ DiagnoseError::Pose { .. } => anyhow::anyhow!("{}, {e}", a.data.display()),
+            e => anyhow::anyhow!("{}: {e}", a.data.display()),
+        },
+    )?;
     let name = a.model.model.display().to_string();
     write_stdout(&report::text(&d, &name))?;
     let json = report::json(&d, &name);

@@ -7,5 +7,6 @@ pub mod fit;
 pub mod measurement;
 pub mod plan;
 pub mod report;
+pub mod screen;
 pub mod select;
 pub mod synth;

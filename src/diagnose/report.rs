@@ -3,8 +3,8 @@
 use std::fmt::Write;
 
 use crate::output::diagnosis::{
-    finite, Ambiguity, CandidateReport, Correlations, DiagnosisReport, EffectReport, Indistinguishable, NominalTest,
-    PoseResidual, ResidualRms,
+    finite, Ambiguity, CandidateReport, Correlations, DiagnosisReport, EffectReport, Indistinguishable, LeftOutRow,
+    NominalTest, PoseResidual, ResidualRms,
 };
 
 use super::select::{Diagnosis, SigmaSource, Verdict};
@@ -99,7 +99,18 @@ pub fn text(d: &Diagnosis, model: &str) -> String {
         SigmaSource::Repeats { .. } => "lack-of-fit F",
         _ => "chi-square",
     };
-    let _ = writeln!(s, "nominal model: {test} = {:.4e}, p = {:.3e}", d.nominal_statistic, d.nominal_p);
+    if !d.left_out.is_empty() {
+        let _ = writeln!(
+            s,
+            "{} rows left out of every fit as gross errors (no plausible model fits them):",
+            d.left_out.len()
+        );
+        for l in &d.left_out {
+            let _ = writeln!(s, "  {}, left out", l.describe());
+        }
+    }
+    let _ =
+        writeln!(s, "nominal model: {test} = {}, p = {}", exponent(d.nominal_statistic, 4), exponent(d.nominal_p, 3));
     let _ = writeln!(s, "\nverdict: {}\n", sentence(d));
     for line in indistinguishable_lines(d) {
         let _ = writeln!(s, "{line}");
@@ -107,11 +118,19 @@ pub fn text(d: &Diagnosis, model: &str) -> String {
     for a in &d.accepted {
         let _ = writeln!(
             s,
-            "accepted {} (given the others: p = {:.2e}, delta BIC {:.1})",
-            a.effect, a.p_value, a.delta_bic
+            "accepted {} (given the others: p = {}, delta BIC {})",
+            a.effect,
+            exponent(a.p_value, 2),
+            fixed(a.delta_bic, 1)
         );
         for (k, (v, e)) in a.params.iter().zip(&a.se).enumerate() {
-            let _ = writeln!(s, "  parameter {}: {v:.6} +- {e:.6} (1 standard error, joint fit)", k + 1);
+            let _ = writeln!(
+                s,
+                "  parameter {}: {} +- {} (1 standard error, joint fit)",
+                k + 1,
+                fixed(*v, 6),
+                fixed(*e, 6)
+            );
         }
         let _ = writeln!(s, "  ({})", a.effect.kind.values().1);
     }
@@ -119,7 +138,7 @@ pub fn text(d: &Diagnosis, model: &str) -> String {
     if labels.len() > 1 {
         let _ = writeln!(s, "correlations of the fitted parameters (joint fit):");
         for (label, row) in labels.iter().zip(corr) {
-            let cells: Vec<String> = row.iter().map(|v| format!("{v:>6.2}")).collect();
+            let cells: Vec<String> = row.iter().map(|v| format!("{:>6}", fixed(*v, 2))).collect();
             let _ = writeln!(s, "  {label:<28} {}", cells.join(" "));
         }
     }
@@ -130,22 +149,24 @@ pub fn text(d: &Diagnosis, model: &str) -> String {
         "candidate", "dim", "ident", "cond", "delta BIC", "F", "p"
     );
     for r in &d.table {
-        let values: Vec<String> = r.values.iter().zip(&r.se).map(|(v, e)| format!("{v:.4}+-{e:.2e}")).collect();
+        let values: Vec<String> =
+            r.values.iter().zip(&r.se).map(|(v, e)| format!("{}+-{}", fixed(*v, 4), exponent(*e, 2))).collect();
         let _ = writeln!(
             s,
-            "  {:<26} {:>4} {:>5} {:>10.2e} {:>12.1} {:>10.3e} {:>10.2e}  {}{}",
+            "  {:<26} {:>4} {:>5} {:>10} {:>12} {:>10} {:>10}  {}{}",
             r.label,
             r.dim,
             if r.identifiable { "yes" } else { "no" },
-            r.condition,
-            r.delta_bic,
-            r.f,
-            r.p_value,
+            exponent(r.condition, 2),
+            fixed(r.delta_bic, 1),
+            exponent(r.f, 3),
+            exponent(r.p_value, 2),
             if r.identifiable { values.join(" ") } else { r.note.clone() },
             if r.passes { "  [passes]" } else { "" }
         );
     }
-    let axes = |v: &crate::kinematics::frame::Vec3| format!("x {:.4}  y {:.4}  z {:.4}", v.x, v.y, v.z);
+    let axes =
+        |v: &crate::kinematics::frame::Vec3| format!("x {}  y {}  z {}", fixed(v.x, 4), fixed(v.y, 4), fixed(v.z, 4));
     let _ =
         writeln!(s, "\nresidual RMS (mm), fitting data: before {}  after {}", axes(&d.rms_before), axes(&d.rms_after));
     let _ = writeln!(
@@ -155,6 +176,24 @@ pub fn text(d: &Diagnosis, model: &str) -> String {
         axes(&d.heldout_after)
     );
     s
+}
+
+/// `v` with `digits` decimals, or `-` where it is not a finite number (a report never prints NaN or inf).
+fn fixed(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$}")
+    } else {
+        "-".into()
+    }
+}
+
+/// `v` in exponent form with `digits` decimals, or `-` where it is not a finite number.
+fn exponent(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$e}")
+    } else {
+        "-".into()
+    }
 }
 
 /// The diagnosis as the JSON file `--json` writes (`output::diagnosis`).
@@ -232,6 +271,19 @@ pub fn json(d: &Diagnosis, model: &str) -> DiagnosisReport {
             heldout_before: arr(&d.heldout_before),
             heldout_after: arr(&d.heldout_after),
         },
+        left_out_count: d.left_out.len(),
+        left_out: d
+            .left_out
+            .iter()
+            .map(|l| LeftOutRow {
+                row: l.row + 1,
+                line: l.line,
+                pose_id: l.pose_id.clone(),
+                wrench: l.wrench.into(),
+                misfit_mm: l.misfit_mm,
+                description: l.describe(),
+            })
+            .collect(),
     }
 }
 

@@ -186,6 +186,9 @@ pub struct Diagnosis {
     /// Per pose: its position, and the residual (mm) of its row with the largest nominal residual, before and
     /// after the accepted effects (for the picture).
     pub per_pose: Vec<(Vec3, Vec3, Vec3)>,
+    /// Rows of the data left out of every fit as gross errors (`screen`), with how far each lies from the
+    /// model.
+    pub left_out: Vec<super::screen::LeftOut>,
 }
 
 /// The candidates for this model and data (leg-geometry restricted to what the data can see), each
@@ -665,6 +668,7 @@ pub fn diagnose(problem: &Problem, sigma: f64, source: SigmaSource, o: &Options)
         final_p: p0,
         alpha: o.alpha,
         per_pose: Vec::new(),
+        left_out: Vec::new(),
     };
     let step = Step { problem, rows: rows.clone(), n, ln_n: (n as f64).ln() };
     let alpha_c = o.alpha / cands.len().max(1) as f64;

@@ -42,6 +42,29 @@ pub struct DiagnosisReport {
     pub residuals: Vec<PoseResidual>,
     /// Residual RMS per axis.
     pub rms_mm: ResidualRms,
+    /// How many rows were left out of the fits as gross errors.
+    #[serde(default)]
+    pub left_out_count: usize,
+    /// The rows left out, each with how far it lies from the model.
+    #[serde(default)]
+    pub left_out: Vec<LeftOutRow>,
+}
+
+/// A measured row left out of the fits as a gross error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LeftOutRow {
+    /// Its number among the data rows (1 for the first after the header).
+    pub row: usize,
+    /// Its line in the file.
+    pub line: usize,
+    /// Its pose.
+    pub pose_id: String,
+    /// The wrench applied (Fx, Fy, Fz in N, Mx, My, Mz in N mm).
+    pub wrench: [f64; 6],
+    /// How far its measured displacement lies from the model's prediction, mm.
+    pub misfit_mm: f64,
+    /// The same in words.
+    pub description: String,
 }
 
 /// The nominal model against the data.

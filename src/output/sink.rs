@@ -1,7 +1,8 @@
 //! Where a study's rows go: stdout; a regular file, written through a temporary file in the same folder and
 //! renamed into place on success, so an interrupted or failed run never leaves a file that looks complete;
 //! or anything else that exists and is not a regular file (`/dev/null`, a FIFO), written through directly,
-//! since renaming over it would replace the device node by a plain file.
+//! since renaming over it would replace the device node by a plain file. A symbolic link is followed: its
+//! target is written (the temporary file beside the target, renamed over it) and the link stays.
 //!
 //! The temporary files in use are registered, so that Ctrl-C or SIGTERM removes them before the process
 //! exits (`install_signal_cleanup`). A SIGKILL cannot be caught: it leaves a hidden `.stiff-XXXXXX.partial`
@@ -54,6 +55,41 @@ fn unregister(path: &Path) {
     if let Ok(mut files) = PARTIAL.lock() {
         files.retain(|f| f != path);
     }
+}
+
+/// Symbolic links followed before a path is given up as a loop (Linux's own limit).
+const MAX_LINK_HOPS: usize = 40;
+
+/// The file a path names once its symbolic links are followed: a link is written through (its target
+/// replaced atomically, the link kept), as a user who keeps results on another disk expects. A link to a
+/// missing file names the file to create; its folder must exist. Relative targets are read from the link's
+/// own folder.
+fn follow_links(path: &Path) -> Result<PathBuf> {
+    let mut current = path.to_path_buf();
+    for _ in 0..MAX_LINK_HOPS {
+        let Ok(meta) = std::fs::symlink_metadata(&current) else { return Ok(current) };
+        if !meta.file_type().is_symlink() {
+            return Ok(current);
+        }
+        let target = std::fs::read_link(&current).map_err(|e| {
+            anyhow!("cannot write {}: cannot read the link {}: {}", path.display(), current.display(), e.kind())
+        })?;
+        current = match current.parent() {
+            Some(folder) if target.is_relative() => folder.join(target),
+            _ => target,
+        };
+        if let Some(folder) = current.parent().filter(|f| !f.as_os_str().is_empty()) {
+            if !folder.is_dir() {
+                bail!(
+                    "cannot write {}: it is a symbolic link to {}, whose folder {} does not exist (create it, or point the link elsewhere)",
+                    path.display(),
+                    current.display(),
+                    folder.display()
+                );
+            }
+        }
+    }
+    bail!("cannot write {}: more than {MAX_LINK_HOPS} symbolic links in a row (a loop?)", path.display())
 }
 
 /// Where a command's output goes.
@@ -165,6 +201,10 @@ impl Sink {
             Some(p) if p.as_os_str() == "-" => return Ok(Sink::Stdout(BufWriter::new(io::stdout()))),
             Some(p) => p,
         };
+        // The format follows the name given; the file written is where its links lead.
+        let given = p;
+        let target = follow_links(given)?;
+        let p = target.as_path();
         if p.is_dir() {
             bail!("cannot write {}: it is a folder", p.display());
         }
@@ -190,7 +230,7 @@ impl Sink {
             .tempfile_in(&dir)
             .map_err(|e| anyhow!("cannot write {}: {}", p.display(), e.kind()))?;
         register(temp.path());
-        let temp = Encoded::new(temp, p, columns).map_err(|e| anyhow!("cannot write {}: {e}", p.display()))?;
+        let temp = Encoded::new(temp, given, columns).map_err(|e| anyhow!("cannot write {}: {e}", p.display()))?;
         Ok(Sink::File { temp, path: p.to_path_buf() })
     }
 

@@ -2,23 +2,34 @@
 //! conditioned, its rank and free directions where it is not, its condition figure, and the principal
 //! compliances.
 //!
-//! Every decision (rank, definiteness, conditioning) is taken on the *equilibrated* stiffness: rotations
-//! weighted by the model's length scale (every entry in N/mm), then scaled symmetrically to a unit diagonal.
-//! A diagonal congruence changes neither the rank nor the signs of the eigenvalues (Sylvester's law of
-//! inertia), but it makes the decisions independent of units and of springs written as "rigid" with huge
-//! numbers (a link with E = 1e30 no longer hides the 2e4 N/mm of the others under a relative tolerance).
-//! A diagonal entry is not scaled up where it is round-off: where the legs' contributions cancelled to
-//! below `CANCELLATION_TOLERANCE` of their own size (`magnitude`, the entrywise sum of |K_i|), as the
-//! free rotations of a singular Stewart-Gough platform do.
+//! Definiteness and conditioning are decided on the *equilibrated* stiffness: rotations weighted by the
+//! model's length scale (every entry in N/mm), then scaled symmetrically to a unit diagonal. A diagonal
+//! congruence changes neither the rank nor the signs of the eigenvalues (Sylvester's law of inertia), but it
+//! makes the decisions independent of units and of springs written as "rigid" with huge numbers (a link
+//! with E = 1e30 no longer hides the 2e4 N/mm of the others under a relative tolerance: well conditioned
+//! after a diagonal scaling, K is regular). A diagonal entry is not scaled up where it is round-off: where
+//! the legs' contributions cancelled to below `CANCELLATION_TOLERANCE` of their own size (`magnitude`, the
+//! entrywise sum of |K_i|), as the free rotations of a singular Stewart-Gough platform do.
+//!
+//! Where the equilibrated stiffness is not regular, its rank and free directions are one decision on the
+//! length-scaled stiffness alone (`rank_deficiency`), which no equilibration can move: equilibration
+//! magnifies the round-off of small entries, and it hid a free direction.
 
 use nalgebra::{SymmetricEigen, SVD};
 
 use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec6};
 use crate::linalg::{small_cholesky, MAX_ENTRY, MAX_SWEEPS};
 
-/// Relative singular value of the equilibrated stiffness below which a direction is free: a few hundred
-/// times round-off.
+/// Relative eigenvalue of the equilibrated stiffness's symmetric part at or below which it is not positive
+/// definite: a few hundred times round-off.
 pub const RANK_TOLERANCE: f64 = 1e-13;
+
+/// Relative size, against the largest, of the length-scaled stiffness along a direction that is free
+/// (`rank_deficiency`). A stiffness condensed from much stiffer parts carries round-off of about 1e-13 of
+/// its largest singular value (a NaVARo II leg: entries cancelled from its beams' stiffness); a hundred times
+/// that is free. Any direction resisted by less is a mechanism for every purpose: the condition limit calls
+/// a point ill-conditioned five orders of magnitude earlier.
+pub const FREE_DIRECTION_TOLERANCE: f64 = 1e-11;
 
 /// A diagonal entry of the sum over legs smaller than this times the sum of its terms' sizes is round-off
 /// (a few thousand times the unit round-off: the legs' own stiffnesses carry errors of that order).
@@ -248,12 +259,7 @@ pub fn analyse(k: &Mat6, magnitude: &Vec6, length_scale: f64, symmetric: bool) -
     // values for the rank (an SVD), vectors for the free directions.
     let Some(values) = capped_eigenvalues(&((ke + ke.transpose()) * 0.5)) else { return not_finite };
     let positive_definite = relative_smallest(&values) > RANK_TOLERANCE;
-    let Some(svd) = SVD::try_new(ke, false, true, f64::EPSILON, MAX_SWEEPS) else { return not_finite };
-    let sigma_max = svd.singular_values.max();
-    let rank = svd.singular_values.iter().filter(|s| **s > RANK_TOLERANCE * sigma_max).count();
-    if rank < 6 {
-        let e = t.component_div(&length_weights(length_scale));
-        let free = free_directions(&svd.v_t.expect("requested"), &svd.singular_values, sigma_max, &e, length_scale);
+    if let Some((rank, free)) = rank_deficiency(k, length_scale) {
         return Analysis { outcome: Outcome::Singular { rank, free }, condition: f64::INFINITY, positive_definite };
     }
     // Full rank: the condition from an LU inverse where Cholesky failed (an indefinite symmetric K).
@@ -276,24 +282,32 @@ fn capped_eigenvalues(m: &Mat6) -> Option<Vec6> {
     (m.iter().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY)).then(|| m.symmetric_eigenvalues())
 }
 
-/// The null space of the equilibrated stiffness mapped back to twists: orthonormal in the length-scaled
-/// metric, then each written in mm and rad and normalised.
-fn free_directions(v_t: &Mat6, sigma: &Vec6, sigma_max: f64, e: &Vec6, length_scale: f64) -> Vec<Vec6> {
-    let mut basis: Vec<Vec6> = Vec::new();
-    for (i, s) in sigma.iter().enumerate() {
-        if *s > RANK_TOLERANCE * sigma_max {
-            continue;
-        }
-        // A null vector y of E Ks E gives E y in the null space of Ks.
-        let mut u: Vec6 = v_t.row(i).transpose().component_mul(e);
-        for b in &basis {
-            u -= b * b.dot(&u);
-        }
-        if u.norm() > 0.0 {
-            basis.push(u.normalize());
-        }
+/// The rank of a stiffness the equilibrated analysis did not find regular, and its free directions, where
+/// the rank is below 6 (None at full rank).
+///
+/// One decision, on the length-scaled stiffness Ks = D K D (every entry in N/mm: a change of length unit
+/// scales Ks as a whole, so the decision does not depend on units, and no equilibration enters it): a unit
+/// twist t (unit in that metric) is free where |Ks t| <= `FREE_DIRECTION_TOLERANCE` |Ks| (2-norms), so the
+/// free directions are Ks's right singular vectors below the tolerance and every direction orthogonal to
+/// them is resisted. (Equilibrating first magnified the round-off of a leg's small in-plane stiffness,
+/// cancelled from beam stiffnesses a million times larger, above the rank tolerance: a NaVARo II leg's free
+/// translation along its passive slider was lost.)
+fn rank_deficiency(k: &Mat6, length_scale: f64) -> Option<(usize, Vec<Vec6>)> {
+    let svd = SVD::try_new(scaled(k, length_scale), false, true, f64::EPSILON, MAX_SWEEPS)?;
+    let sigma_max = svd.singular_values.max();
+    let free_index = |i: &usize| svd.singular_values[*i] <= FREE_DIRECTION_TOLERANCE * sigma_max;
+    let rank = (0..6).filter(|i| !free_index(i)).count();
+    if rank == 6 {
+        return None;
     }
-    basis.iter().map(|u| weigh_rotations(u, 1.0 / length_scale).normalize()).collect()
+    let v_t = svd.v_t.expect("requested");
+    // Right singular vectors are orthonormal in the scaled metric: written in mm and rad (t = D y), each
+    // normalised.
+    let free = (0..6)
+        .filter(free_index)
+        .map(|i| weigh_rotations(&v_t.row(i).transpose(), 1.0 / length_scale).normalize())
+        .collect();
+    Some((rank, free))
 }
 
 /// Largest and smallest translational compliance (eigenvalues of the 3x3 translational block of the

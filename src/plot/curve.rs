@@ -73,12 +73,29 @@ impl Rows {
     }
 }
 
+/// The directions a curve can be drawn along, in the order of the displacement and wrench columns.
+const DIRECTIONS: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
+
+/// The index of a `--direction` value (x, y, z, rx, ry, rz).
+fn direction_index(d: &str) -> Result<usize, OptionError> {
+    DIRECTIONS.iter().position(|n| *n == d).ok_or_else(|| OptionError::Direction(d.to_string()))
+}
+
+/// Checks a curve picture's options before the curve is computed, so that a bad option fails before any
+/// output is written (as `check_map_options` does for a map).
+pub fn check_curve_options(o: &PlotOptions) -> Result<()> {
+    if let Some(d) = &o.direction {
+        direction_index(d)?;
+    }
+    Ok(())
+}
+
 /// Force against displacement along one direction.
 pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
-    let directions = ["x", "y", "z", "rx", "ry", "rz"];
+    let directions = DIRECTIONS;
     let (disp, force) = (names::DISPLACEMENT, names::WRENCH);
     let k = match &o.direction {
-        Some(d) => directions.iter().position(|n| n == d).ok_or_else(|| OptionError::Direction(d.clone()))?,
+        Some(d) => direction_index(d)?,
         None => {
             let range = |c: &str| extent(t.numbers(c).unwrap_or_default().into_iter().flatten());
             (0..3).max_by(|a, b| range(disp[*a]).total_cmp(&range(disp[*b]))).unwrap_or(0)
