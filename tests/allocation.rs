@@ -13,33 +13,57 @@ struct Counting;
 thread_local! {
     static COUNTING: Cell<bool> = const { Cell::new(false) };
     static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+    /// Bytes allocated minus bytes freed on this thread while it counts, and the largest that reached.
+    static LIVE: Cell<isize> = const { Cell::new(0) };
+    static PEAK: Cell<isize> = const { Cell::new(0) };
 }
 
-/// Counts an allocation made while its thread counts.
-fn count() {
+/// Counts an allocation (or a change of size, `grown` bytes) made while its thread counts.
+fn count(grown: isize) {
     if COUNTING.with(Cell::get) {
         ALLOCATIONS.with(|a| a.set(a.get() + 1));
+        resize(grown);
+    }
+}
+
+/// Follows the live bytes of a counting thread.
+fn resize(grown: isize) {
+    if COUNTING.with(Cell::get) {
+        let live = LIVE.with(|l| {
+            l.set(l.get() + grown);
+            l.get()
+        });
+        PEAK.with(|p| p.set(p.get().max(live)));
     }
 }
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
+        count(layout.size() as isize);
         unsafe { System.alloc(layout) }
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        resize(-(layout.size() as isize));
         unsafe { System.dealloc(ptr, layout) }
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
+        count(new_size as isize - layout.size() as isize);
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
+
+/// The largest number of bytes `f` held allocated at once (on this thread, beyond what it was given).
+fn peak_bytes<T>(f: impl FnOnce() -> T) -> (T, usize) {
+    LIVE.with(|l| l.set(0));
+    PEAK.with(|p| p.set(0));
+    let (out, _) = counted(f);
+    (out, PEAK.with(Cell::get).max(0) as usize)
+}
 
 fn counted<T>(f: impl FnOnce() -> T) -> (T, usize) {
     let before = ALLOCATIONS.with(Cell::get);
@@ -100,4 +124,29 @@ fn loaded_vjm_deflections_allocate_nothing_per_point() {
     });
     assert_eq!(solved, 19, "every point solved");
     assert_eq!(allocations, 0, "allocations over 19 loaded points");
+}
+
+/// Regression: drawing a map over one section of 1,000 x 1,000 points took 248 MB, 250 bytes per point:
+/// every column read was copied several times over (positions, the rows drawn, their coordinates, every
+/// value kept as a candidate extreme, each name as its own string). The picture needs memory in proportion
+/// to what it draws: here under 130 bytes per point of a 400 x 400 section (the four columns kept, 8 bytes per
+/// number and per name, and the value drawn), whatever the number of columns the file has.
+#[test]
+fn drawing_a_large_section_needs_memory_in_proportion_to_the_points_drawn() {
+    use std::fmt::Write as _;
+    let n = 400;
+    let mut csv = String::from("index,name,x_mm,y_mm,z_mm,status,rank,condition,c_tran_max_mm_per_N");
+    (0..24).for_each(|k| write!(csv, ",extra{k}_mm").unwrap());
+    csv.push('\n');
+    for i in 0..n * n {
+        let (x, y) = ((i % n) as f64 - 150.0, (i / n) as f64 - 150.0);
+        let value = 1e-4 * (1.0 + 0.5 * (0.01 * x).sin() * (0.02 * y).cos());
+        write!(csv, "{i},,{x},{y},0,ok,6,12.5,{value}").unwrap();
+        (0..24).for_each(|k| write!(csv, ",{}", k as f64 * 0.125).unwrap());
+        csv.push('\n');
+    }
+    let (svg, peak) = peak_bytes(|| stiff::plot::plot_text(&csv, &Default::default()).unwrap());
+    assert!(svg.contains("<image"), "drawn as a raster");
+    let per_point = peak as f64 / (n * n) as f64;
+    assert!(per_point < 130.0, "{per_point:.0} bytes per point drawn ({peak} bytes)");
 }

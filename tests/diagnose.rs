@@ -554,7 +554,9 @@ fn gross_rows_are_named_and_left_out_and_the_effect_still_found() {
     let m = model();
     let hidden = sized(&m, &Effect::parse("actuator-compliance:2=1.5", &m).unwrap(), 20.0);
     let model = Model::nominal(m.clone());
-    let cases: [(&[Effect], &[(usize, usize, f64)]); 3] = [
+    // (hidden effects, gross rows as (row, axis, value written there))
+    type Case<'a> = (&'a [Effect], &'a [(usize, usize, f64)]);
+    let cases: [Case; 3] = [
         (std::slice::from_ref(&hidden), &[(6, 0, -9.2e18)]),
         (std::slice::from_ref(&hidden), &[(3, 0, -9.2e18), (40, 1, 50.0), (77, 2, -3.0), (101, 0, 1e6)]),
         (&[], &[(12, 2, 7.5), (90, 0, -9.2e18)]),

@@ -25,7 +25,9 @@ fn at(m: &Manipulator, p: Vec3) -> PointResult {
 /// Regression: from about 0.001 mm inside the 3-PUU's reach on its x axis, both descriptions reported `ok`
 /// with a negative smallest compliance (-0.29 and -1.8 mm/N) and disagreed by 50%. Approaching the
 /// boundary the condition number grows without bound: every `ok` row must have positive principal
-/// compliances and a condition within the documented limit, and the rest be `ill_conditioned`.
+/// compliances and a condition within the documented limit, and the rest be `ill_conditioned` or, within
+/// a few micrometres of the fold where the stiffness along x is below 1e-11 of the largest (it vanishes in
+/// proportion to the distance: 1.9e-12 at 1e-3 mm), `singular`.
 #[test]
 fn no_negative_compliance_under_ok_near_the_reach_boundary() {
     for path in ["manipulators/orthoglide-3puu.toml", "manipulators/orthoglide-3puu-msa.toml"] {
@@ -39,7 +41,7 @@ fn no_negative_compliance_under_ok_near_the_reach_boundary() {
                     assert!(p.translation_min > 0.0 && p.rotation_max > 0.0, "{path} {inside} mm inside: {p:?}");
                     assert!(r.condition.unwrap() <= CONDITION_LIMIT);
                 }
-                Status::IllConditioned => ill += 1,
+                Status::IllConditioned | Status::Singular => ill += 1,
                 s => panic!("{path}, {inside} mm inside the reach: {s:?}"),
             }
         }
@@ -49,13 +51,15 @@ fn no_negative_compliance_under_ok_near_the_reach_boundary() {
 
 /// Regression: a pose 4.5e-5 mm inside the reach was refused as `unreachable` (inverse kinematics converges
 /// sublinearly at the fold). Within `ik::REACH_TOLERANCE_MM` of the boundary a pose is at the boundary
-/// (`ill_conditioned`), never `unreachable`.
+/// (`ill_conditioned`, or `singular` where the stiffness along the fold is below the free-direction
+/// tolerance of the largest), never `unreachable`, and no compliance is written.
 #[test]
 fn a_pose_just_inside_the_reach_is_not_unreachable() {
     let m = load("manipulators/orthoglide-3puu.toml");
     for inside in [4.5e-5, 1e-5, 1e-6] {
         let r = at(&m, Vec3::new(310.25 - inside, 0.0, 0.0));
-        assert_eq!(r.status, Status::IllConditioned, "{inside} mm inside");
+        assert!(matches!(r.status, Status::IllConditioned | Status::Singular), "{inside} mm inside: {:?}", r.status);
+        assert!(r.compliance.is_none(), "{inside} mm inside");
     }
     assert_eq!(at(&m, Vec3::new(310.26, 0.0, 0.0)).status, Status::Unreachable);
 }

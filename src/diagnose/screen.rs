@@ -106,10 +106,12 @@ fn gross_among(rows: &[usize], r: &DVector<f64>, scale_rows: &[usize], floor: f6
     let median = trusted[trusted.len() / 2];
     let scale = (median / MEDIAN_CHI3).max(floor);
     // A zero scale (more than half the rows fitted exactly, and no noise level known) decides nothing.
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return Vec::new();
     }
-    (0..rows.len()).filter(|&i| !(misfit(i) <= GROSS_FACTOR * scale)).map(|i| rows[i]).collect()
+    // A misfit that is not a number (an overflow) is gross too.
+    let gross = |m: f64| m.is_nan() || m > GROSS_FACTOR * scale;
+    (0..rows.len()).filter(|&i| gross(misfit(i))).map(|i| rows[i]).collect()
 }
 
 /// The gross rows of `problem`'s data under the model with `effects`: every row's residual, the scale from

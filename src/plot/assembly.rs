@@ -42,9 +42,9 @@ pub fn assembly_path(t: &Table, o: &PlotOptions) -> Result<String> {
 pub fn path_panels(t: &Table, o: &PlotOptions, what: &str, series: Vec<Series>) -> Result<String> {
     let coords = t.positions()?;
     // Along the path: the coordinate that varies most.
-    let range = |v: &Vec<f64>| extent(v.iter().copied());
-    let along = (0..3).max_by(|a, b| range(&coords[*a]).total_cmp(&range(&coords[*b]))).unwrap_or(0);
-    let s_values = &coords[along];
+    let range = |v: &[f64]| extent(v.iter().copied());
+    let along = (0..3).max_by(|a, b| range(coords[*a]).total_cmp(&range(coords[*b]))).unwrap_or(0);
+    let s_values = coords[along];
     let series: Vec<Series> = series.into_iter().filter(|s| t.has(&format!("{}_dx_mm", s.columns))).collect();
     let data: Vec<Vec<Vec<Option<f64>>>> = AXES
         .iter()

@@ -102,9 +102,9 @@ pub fn curve(t: &Table, o: &PlotOptions) -> Result<String> {
         }
     };
     let rows = Rows {
-        x: t.numbers_or_nan(disp[k])?,
-        y: t.numbers_or_nan(force[k])?,
-        load: t.numbers_or_nan(names::LOAD_FACTOR)?,
+        x: t.numbers_or_nan(disp[k])?.to_vec(),
+        y: t.numbers_or_nan(force[k])?.to_vec(),
+        load: t.numbers_or_nan(names::LOAD_FACTOR)?.to_vec(),
         stable: t.texts(names::STABLE)?.iter().map(|s| s == "true").collect(),
         events: t.texts(names::EVENT)?,
         event_at: t.numbers(&format!("{}_load_factor", names::EVENT))?,

@@ -84,18 +84,21 @@ enum Shape {
 /// The distinct coordinates of the poses along each axis, sorted.
 type Levels = [Vec<f64>; 3];
 
-fn levels_of(pos: &[Vec<f64>; 3]) -> Levels {
-    [distinct(&pos[0]), distinct(&pos[1]), distinct(&pos[2])]
+/// The rows' positions, one column per axis, as the table keeps them.
+type Positions<'a> = [&'a [f64]; 3];
+
+fn levels_of(pos: &Positions) -> Levels {
+    [distinct(pos[0]), distinct(pos[1]), distinct(pos[2])]
 }
 
 /// The poses' shape (at least two poses with finite positions).
-fn shape(pos: &[Vec<f64>; 3], levels: &Levels) -> Shape {
+fn shape(pos: &Positions, levels: &Levels) -> Shape {
     let n = pos[0].len();
     let counts: Vec<usize> = levels.iter().map(Vec::len).collect();
     let varying: Vec<usize> = (0..3).filter(|&a| counts[a] > 1).collect();
     if varying.len() == 1 {
         let a = varying[0];
-        return Shape::Line(pos[a].clone(), format!("{} [mm]", AXES[a]));
+        return Shape::Line(pos[a].to_vec(), format!("{} [mm]", AXES[a]));
     }
     if counts.iter().product::<usize>() == n {
         return Shape::Grid;
@@ -130,13 +133,13 @@ pub fn is_path(t: &Table) -> Result<bool> {
     let pos = t.positions()?;
     Ok(pos[0].len() >= 2
         && !all_named(t)?
-        && pos.iter().flatten().all(|v| v.is_finite())
+        && pos.iter().all(|c| c.iter().all(|v| v.is_finite()))
         && matches!(shape(&pos, &levels_of(&pos)), Shape::Line(..)))
 }
 
 /// Whether every row has a name.
 fn all_named(t: &Table) -> Result<bool> {
-    Ok(t.has(names::NAME) && t.texts(names::NAME)?.iter().all(|s| !s.is_empty()))
+    Ok(t.has(names::NAME) && t.text_cells(names::NAME)?.all(|s| !s.is_empty()))
 }
 
 /// The picture of `q` over the table's poses.
@@ -267,22 +270,27 @@ fn sections(all_levels: &Levels, o: &PlotOptions) -> Result<(usize, Vec<f64>)> {
 }
 
 /// Colour maps of a full grid over its sections (small multiples on shared axes, at most six sections).
-fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOptions) -> Result<String> {
+fn grid_map(pos: &Positions, all_levels: &Levels, q: &Quantity, o: &PlotOptions) -> Result<String> {
     let (axis, levels) = sections(all_levels, o)?;
     let (u, v) = match axis {
         0 => (1, 2),
         1 => (0, 2),
         _ => (0, 1),
     };
+    // The picture needs memory in proportion to what it draws: the rows drawn are visited, never copied.
     let on = |i: usize, level: f64| (pos[axis][i] - level).abs() <= 1e-9 * (1.0 + level.abs());
-    let drawn: Vec<usize> = (0..q.values.len()).filter(|&i| levels.iter().any(|l| on(i, *l))).collect();
-    let finite: Vec<f64> = drawn.iter().filter_map(|&i| q.values[i]).collect();
-    let scale = colour_scale(&finite, q, o)?;
-    let missing = drawn.iter().any(|&i| q.values[i].is_none());
+    let drawn = || (0..q.values.len()).filter(|&i| levels.iter().any(|l| on(i, *l)));
+    let (lo, hi) =
+        drawn().filter_map(|i| q.values[i]).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+    let negative = drawn().filter_map(|i| q.values[i]).find(|x| *x <= 0.0);
+    let scale = colour_scale(&[lo, hi, negative.unwrap_or(hi)], q, o)?;
+    let missing = drawn().any(|i| q.values[i].is_none());
     let (du, dv) = (super::spacing(&all_levels[u]), super::spacing(&all_levels[v]));
-    // Shared axes: every section on the same ranges.
-    let us: Vec<f64> = drawn.iter().map(|&i| pos[u][i]).collect();
-    let vs: Vec<f64> = drawn.iter().map(|&i| pos[v][i]).collect();
+    // Shared axes: every section on the same ranges (those of the rows drawn).
+    let range =
+        |c: &[f64]| drawn().map(|i| c[i]).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+    let ((u_lo, u_hi), (v_lo, v_hi)) = (range(pos[u]), range(pos[v]));
+    let (us, vs) = ([u_lo, u_hi], [v_lo, v_hi]);
     let cols = levels.len().min(3);
     let rows = levels.len().div_ceil(3);
     let panel = 240.0;
@@ -301,27 +309,29 @@ fn grid_map(pos: &[Vec<f64>; 3], all_levels: &Levels, q: &Quantity, o: &PlotOpti
     let top = heading(&mut s, width, o, &what) + 24.0;
     let height = top + rows as f64 * (panel + 70.0);
     s.height = height;
-    let mut extremes: Vec<Extreme> = Vec::new();
+    let mut extremes = Extremes::default();
     for (k, level) in levels.iter().enumerate() {
         let x0 = left + (k % 3) as f64 * (panel + gap);
         let y0 = top + (k / 3) as f64 * (panel + 70.0);
-        let members: Vec<usize> = drawn.iter().copied().filter(|&i| on(i, *level)).collect();
+        let members = || drawn().filter(|&i| on(i, *level));
         let ax = Axis::new(us.iter().map(|x| x - du / 2.0).chain(us.iter().map(|x| x + du / 2.0)), x0, x0 + panel);
         let ay = Axis::new(vs.iter().map(|x| x - dv / 2.0).chain(vs.iter().map(|x| x + dv / 2.0)), y0 + panel, y0);
         let fill = |i: usize| q.values[i].map_or(NO_VALUE.to_string(), |x| scale.colour(x));
-        if members.len() > RASTER_CELLS && uniform(&all_levels[u]) && uniform(&all_levels[v]) {
-            raster_section(&mut s, &members, (&pos[u], &pos[v]), (&ax, &ay), (du, dv), &|i| fill(i));
+        if members().count() > RASTER_CELLS && uniform(&all_levels[u]) && uniform(&all_levels[v]) {
+            // A full grid: every section holds every level of u and v.
+            let (su, sv) = (all_levels[u].as_slice(), all_levels[v].as_slice());
+            raster_section(&mut s, &mut members(), (pos[u], pos[v]), (su, sv), (&ax, &ay), (du, dv), &|i| fill(i));
         } else {
-            for &i in &members {
+            for i in members() {
                 let (cx, cy) = (ax.px(pos[u][i] - du / 2.0), ay.px(pos[v][i] + dv / 2.0));
                 let (w, h) = (ax.px(pos[u][i] + du / 2.0) - cx, ay.px(pos[v][i] - dv / 2.0) - cy);
                 // A hair of overlap so anti-aliasing leaves no seams between cells.
                 s.rect(cx, cy, w + 0.6, h + 0.6, &fill(i), "cell");
             }
         }
-        for &i in &members {
+        for i in members() {
             if let Some(x) = q.values[i] {
-                extremes.push(Extreme {
+                extremes.see(Extreme {
                     value: x,
                     at: (ax.px(pos[u][i]), ay.px(pos[v][i])),
                     centre: (x0 + panel / 2.0, y0 + panel / 2.0),
@@ -342,21 +352,21 @@ fn uniform(sorted_distinct: &[f64]) -> bool {
     sorted_distinct.windows(2).all(|w| ((w[1] - w[0]) - step).abs() <= 1e-6 * step.abs().max(1e-12))
 }
 
-/// One section as an embedded image, a pixel per grid cell.
+/// One section as an embedded image, a pixel per grid cell: `members` the rows of the section, `su` and `sv`
+/// the section's sorted distinct coordinates.
 fn raster_section(
     s: &mut Svg,
-    members: &[usize],
+    members: &mut dyn Iterator<Item = usize>,
     (pu, pv): (&[f64], &[f64]),
+    (su, sv): (&[f64], &[f64]),
     (ax, ay): (&Axis, &Axis),
     (du, dv): (f64, f64),
     fill: &dyn Fn(usize) -> String,
 ) {
-    let su: Vec<f64> = distinct(&members.iter().map(|&i| pu[i]).collect::<Vec<_>>());
-    let sv: Vec<f64> = distinct(&members.iter().map(|&i| pv[i]).collect::<Vec<_>>());
     let (u0, v0) = (su[0], sv[0]);
     let (nu, nv) = (su.len(), sv.len());
     let mut image = Raster::new(nu, nv, [255, 255, 255]);
-    for &i in members {
+    for i in members {
         let iu = ((pu[i] - u0) / du).round() as usize;
         let iv = ((pv[i] - v0) / dv).round() as usize;
         let colour = fill(i);
@@ -368,6 +378,26 @@ fn raster_section(
     s.image(x, y, w, h, &image.data_uri(), "cells");
 }
 
+/// The smallest and the largest value drawn so far, kept as the values stream by (a million-point section
+/// keeps two, not a million).
+#[derive(Default)]
+struct Extremes {
+    lowest: Option<Extreme>,
+    highest: Option<Extreme>,
+}
+
+impl Extremes {
+    /// Of equal values the first is the smallest and the last the largest, as `min_by` and `max_by` choose.
+    fn see(&mut self, e: Extreme) {
+        if self.lowest.as_ref().is_none_or(|l| e.value < l.value) {
+            self.lowest = Some(Extreme { ..e });
+        }
+        if self.highest.as_ref().is_none_or(|h| e.value >= h.value) {
+            self.highest = Some(e);
+        }
+    }
+}
+
 /// A value drawn at a pixel, in a panel with this centre.
 struct Extreme {
     value: f64,
@@ -377,10 +407,8 @@ struct Extreme {
 
 /// Marks the smallest and the largest value drawn, each with its value, the label turned toward the
 /// panel's centre so that it stays inside the panel.
-fn mark_extremes(s: &mut Svg, points: &[Extreme]) {
-    let lowest = points.iter().min_by(|a, b| a.value.total_cmp(&b.value));
-    let highest = points.iter().max_by(|a, b| a.value.total_cmp(&b.value));
-    for (which, p) in [("min", lowest), ("max", highest)] {
+fn mark_extremes(s: &mut Svg, extremes: &Extremes) {
+    for (which, p) in [("min", &extremes.lowest), ("max", &extremes.highest)] {
         if let Some(e) = p {
             let (x, y) = e.at;
             s.circle_outline(x, y, 5.0, "#ffffff", "extreme");
@@ -429,7 +457,7 @@ fn line_chart(along: &[f64], axis_label: &str, q: &Quantity, o: &PlotOptions) ->
 }
 
 /// Poses anywhere: markers coloured by value on the plane of the two axes they spread most over.
-fn scatter(pos: &[Vec<f64>; 3], (u, v): (usize, usize), q: &Quantity, o: &PlotOptions) -> Result<String> {
+fn scatter(pos: &Positions, (u, v): (usize, usize), q: &Quantity, o: &PlotOptions) -> Result<String> {
     let finite: Vec<f64> = q.values.iter().flatten().copied().collect();
     let scale = colour_scale(&finite, q, o)?;
     let missing = q.values.iter().any(Option::is_none);
@@ -445,13 +473,13 @@ fn scatter(pos: &[Vec<f64>; 3], (u, v): (usize, usize), q: &Quantity, o: &PlotOp
     s.height = top + plot + 60.0;
     let ax = Axis::new(pos[u].iter().copied(), left, left + plot);
     let ay = Axis::new(pos[v].iter().copied(), top + plot, top);
-    let mut extremes = Vec::new();
-    for ((pu, pv), value) in pos[u].iter().zip(&pos[v]).zip(&q.values) {
+    let mut extremes = Extremes::default();
+    for ((pu, pv), value) in pos[u].iter().zip(pos[v]).zip(&q.values) {
         let (x, y) = (ax.px(*pu), ay.px(*pv));
         let fill = value.map_or(NO_VALUE.to_string(), |val| scale.colour(val));
         s.circle(x, y, 5.0, &fill, "point");
         if let Some(val) = value {
-            extremes.push(Extreme {
+            extremes.see(Extreme {
                 value: *val,
                 at: (x, y),
                 centre: ((ax.from + ax.to) / 2.0, (ay.from + ay.to) / 2.0),
