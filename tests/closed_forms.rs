@@ -1,6 +1,6 @@
 //! Leg stiffness (paper 001 eq 9) against closed forms, and three routes to it against each other.
 
-mod common;
+use crate::common;
 use common::*;
 use rand::Rng;
 use stiff::kinematics::chain::{ChainJacobians, Coordinates, JointKind, Role};

@@ -2,7 +2,7 @@
 //! process wrench) on the target, checked against closed forms, against an independent forward solve, on
 //! paper 000 s. 5.2's milling path, and through the whole loop (synthesise, diagnose, correct, compensate).
 
-mod common;
+use crate::common;
 use common::{csv_columns, run_stiff};
 
 use nalgebra::{Matrix2, Vector2};

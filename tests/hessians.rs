@@ -1,7 +1,7 @@
 //! Second derivatives of the kinematics (paper 000 eq 41-44): the load Hessian against central
 //! differences of the generalised forces J^T w + sum_j J_j^T G_j, on random chains with masses.
 
-mod common;
+use crate::common;
 use common::*;
 use rand::Rng;
 use stiff::kinematics::chain::{ChainJacobians, Coordinates};

@@ -1,7 +1,7 @@
 //! Analytic Jacobians (joint twists, paper 001 eq 5) against central differences of the forward kinematics,
 //! at random configurations of random chains, every kind of coordinate included.
 
-mod common;
+use crate::common;
 use common::*;
 use rand::Rng;
 use stiff::kinematics::chain::{ChainJacobians, Coordinates, Role};

@@ -2,7 +2,7 @@
 //! against finite differences of equilibria, paper 001 Table 1 loaded rows and Table 3, a closed-form
 //! buckling load, a cantilever under its own weight, and spring preload.
 
-mod common;
+use crate::common;
 use common::*;
 use stiff::kinematics::frame::apply_twist;
 use stiff::kinematics::frame::{Frame, Mat6, Vec3, Vec6};

@@ -3,7 +3,7 @@
 //! derivative of the equilibrium wrench (checked against central differences of equilibria under wrenches
 //! with moments, and for the 3-PRPaR, whose parallelogram spring depends on the parallelogram angle).
 
-mod common;
+use crate::common;
 use std::path::Path;
 
 use common::*;

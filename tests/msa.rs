@@ -1,7 +1,7 @@
 //! Matrix structural analysis (paper 003 s. 2) against beam closed forms, a portal frame solved by hand, and
 //! the VJM model of the same Orthoglide leg.
 
-mod common;
+use crate::common;
 use common::*;
 use nalgebra::DMatrix;
 use rand::Rng;

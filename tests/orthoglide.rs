@@ -1,7 +1,7 @@
 //! The Orthoglide 3-PUU against paper 001 Table 1 (unloaded), paper 000 Table 4 (assembly, Case A), the
 //! closed-form kinematics of tests/reference/README.md, and invariances of the model.
 
-mod common;
+use crate::common;
 use common::*;
 use rand::Rng;
 use stiff::kinematics::frame::{block_rotation, Frame, Mat3, Mat6, Vec3, Vec6};

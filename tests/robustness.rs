@@ -3,7 +3,7 @@
 //! doubles hold (a modulus of 5e-324, a length of 1e200, a load of 1e308) give no finite stiffness, so the
 //! answer is a located error or a row status, never a panic (exit 101), an endless loop or a NaN under `ok`.
 
-mod common;
+use crate::common;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

@@ -3,8 +3,6 @@
 //! afresh at each run of points, so a shard cut at whole runs solves each row exactly as the whole run);
 //! a merge refuses a missing, foreign or repeated shard and names it.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
 use assert_cmd::Command;

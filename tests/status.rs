@@ -2,7 +2,7 @@
 //! compliance), decisions independent of units and of "rigid" springs written as huge numbers, the reach
 //! decided with a stated tolerance, and the VJM and MSA descriptions of one robot agreeing on every status.
 
-mod common;
+use crate::common;
 use std::path::Path;
 
 use common::rng;

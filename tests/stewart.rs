@@ -2,7 +2,7 @@
 //! the closed forms of eq (10) (case A) and eq (11) with its misprint corrected (case B,
 //! tests/reference/README.md), for several geometries; case A's rank and free rotations.
 
-mod common;
+use crate::common;
 use common::*;
 use stiff::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use stiff::platform::compliance::{analyse, Outcome};

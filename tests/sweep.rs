@@ -2,7 +2,7 @@
 //! here, independently), the Orthoglide's compliance falls as 1/k_act when its links are rigid, Latin
 //! hypercubes are reproducible and stratified, and a design that cannot be built is a row, not an abort.
 
-mod common;
+use crate::common;
 
 use common::{csv_columns, run_stiff};
 

@@ -13,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{csv_columns as columns, run_stiff as run};
 
 const MODEL: &str = "manipulators/orthoglide-3puu.toml";
