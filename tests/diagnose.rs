@@ -595,3 +595,44 @@ fn gross_rows_are_named_and_left_out_and_the_effect_still_found() {
         assert!(json.contains(&format!("\"left_out_count\":{}", gross.len())), "{json}");
     }
 }
+
+/// Regression: a deterministic misfit outside the library, about 100 standard deviations deep, that grows
+/// with the load and averages out under each wrench (actuator springs that stiffen with their deflection
+/// act along the load, more at some poses than at others) got the verdict `noise`: the only test of a
+/// systematic misfit read its mean per wrench. A deterministic misfit follows the pose smoothly (here a
+/// product of the poses' centred coordinates, which sums to zero over the grid under every wrench) and
+/// repeats where a row is measured again: both are tested before anything is called noise. Noise that
+/// grows with the load is still `noise` (noise_that_grows_with_the_load_is_not_an_effect).
+#[test]
+fn a_deterministic_misfit_that_averages_out_per_wrench_is_not_noise() {
+    let m = model();
+    let base = synth(&m, &[], &wrenches(), SIGMA, 21);
+    let misfit = |r: &stiff::diagnose::data::Measurement| {
+        let force = Vec3::new(r.wrench[0], r.wrench[1], r.wrench[2]);
+        let (u, v) = ((r.position.x - 25.0) / 85.0, (r.position.y - 25.0) / 85.0);
+        force / 200.0 * (100.0 * SIGMA * u * v)
+    };
+    let mut data = base.clone();
+    for r in data.rows.iter_mut() {
+        r.displacement += misfit(r);
+    }
+    // Replicates: the same rows measured twice, with fresh noise.
+    let mut replicated = data.clone();
+    let again = synth(&m, &[], &wrenches(), SIGMA, 22);
+    for (r, fresh) in data.rows.iter().zip(&again.rows) {
+        let mut copy = r.clone();
+        copy.displacement = fresh.displacement + misfit(fresh);
+        replicated.rows.push(copy);
+    }
+    let n = data.rows.len();
+    for (k, p) in replicated.poses.iter_mut().enumerate() {
+        let extra: Vec<usize> = p.rows.iter().map(|i| i + n).collect();
+        p.rows.extend(extra);
+        assert_eq!(p.id, data.poses[k].id);
+    }
+    for (what, d) in [("single", run(&m, &data)), ("replicated", run(&m, &replicated))] {
+        let sentence = stiff::diagnose::report::sentence(&d);
+        assert_ne!(d.verdict, Verdict::Noise, "{what}: {sentence}");
+        assert_ne!(d.verdict, Verdict::None, "{what}: {sentence}");
+    }
+}

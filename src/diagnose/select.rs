@@ -763,10 +763,15 @@ fn variance_grows_with_load(problem: &Problem, rows: &[usize], r: &DVector<f64>,
     let (d_low, d_high) = (3 * low.len(), 3 * high.len());
     let ratio = (ss(high) / d_high as f64) / (ss(low) / d_low as f64).max(1e-300);
     let p = f_sf(ratio, d_high, d_low);
-    // A misfit that follows the load (the same residual wherever the same wrench is applied) is
-    // systematic, an effect outside the library, not noise: the residuals' means per wrench are tested
-    // against their scatter about those means.
-    if p >= alpha || residuals_follow_the_load(problem, rows, r, alpha) {
+    // A deterministic misfit (an effect outside the library) is not noise, however its size grows with the
+    // load: it follows the load (the same residual wherever the same wrench is applied), repeats where a
+    // pose and wrench are measured again, or follows the pose smoothly (neighbouring poses under one wrench
+    // have alike residuals, where noise makes them independent).
+    if p >= alpha
+        || residuals_follow_the_load(problem, rows, r, alpha)
+        || residuals_repeat(problem, rows, r, alpha)
+        || residuals_follow_the_pose(problem, rows, r, alpha)
+    {
         return None;
     }
     Some({
@@ -783,23 +788,94 @@ fn variance_grows_with_load(problem: &Problem, rows: &[usize], r: &DVector<f64>,
 /// Whether the mean residual of the rows under each distinct wrench departs from zero beyond their scatter
 /// (F test at alpha of the means' sum of squares against the rest).
 fn residuals_follow_the_load(problem: &Problem, rows: &[usize], r: &DVector<f64>, alpha: f64) -> bool {
-    let mut groups: Vec<(Vec6, Vec<usize>)> = Vec::new();
-    for (i, &row) in rows.iter().enumerate() {
-        let w = problem.data.rows[row].wrench;
-        match groups.iter_mut().find(|(g, _)| (g - w).norm() <= 1e-9 * (1.0 + w.norm())) {
-            Some((_, members)) => members.push(i),
-            None => groups.push((w, vec![i])),
+    let wrench = |i: usize| problem.data.rows[rows[i]].wrench;
+    groups_explain_residuals(&group_rows(rows.len(), |a, b| same_wrench(&wrench(a), &wrench(b))), r, alpha)
+}
+
+/// Whether rows repeated at one pose under one wrench share their residual beyond their scatter (F test at
+/// alpha of the repeat groups' means against the scatter within them): noise does not repeat.
+fn residuals_repeat(problem: &Problem, rows: &[usize], r: &DVector<f64>, alpha: f64) -> bool {
+    let row = |i: usize| &problem.data.rows[rows[i]];
+    let groups =
+        group_rows(rows.len(), |a, b| row(a).pose_id == row(b).pose_id && same_wrench(&row(a).wrench, &row(b).wrench));
+    groups.iter().any(|g| g.len() > 1) && groups_explain_residuals(&groups, r, alpha)
+}
+
+/// Whether the residuals follow the pose, tested on pairs of rows whose residuals noise makes independent
+/// and a deterministic misfit does not: each row with the row under the same wrench at the nearest other
+/// pose (a misfit smooth over the workspace makes their products positive), and each row with the row at
+/// its pose under the opposite wrench (a misfit odd or even in the load makes them negative or positive).
+/// For independent noise a sum of products S = sum r_i . r_j is zero on average with variance
+/// sum_c r_ic^2 r_jc^2 (whatever each row's own variance), so z = S / sqrt(variance) is a standard normal:
+/// one-sided for the neighbours, two-sided for the mirror pairs, at alpha / 2 each.
+fn residuals_follow_the_pose(problem: &Problem, rows: &[usize], r: &DVector<f64>, alpha: f64) -> bool {
+    let row = |i: usize| &problem.data.rows[rows[i]];
+    let mut neighbours: Vec<(usize, usize)> = Vec::new();
+    let mut mirrors: Vec<(usize, usize)> = Vec::new();
+    for i in 0..rows.len() {
+        let nearest = (0..rows.len())
+            .filter(|&j| row(j).pose_id != row(i).pose_id && same_wrench(&row(i).wrench, &row(j).wrench))
+            .min_by(|&a, &b| {
+                let d = |j: usize| (row(j).position - row(i).position).norm();
+                d(a).total_cmp(&d(b))
+            });
+        let mirror = (0..rows.len()).find(|&j| {
+            row(j).pose_id == row(i).pose_id
+                && row(i).wrench.norm() > 0.0
+                && same_wrench(&row(i).wrench, &-row(j).wrench)
+        });
+        for (pairs, other) in [(&mut neighbours, nearest), (&mut mirrors, mirror)] {
+            if let Some(j) = other {
+                let pair = (i.min(j), i.max(j));
+                if !pairs.contains(&pair) {
+                    pairs.push(pair);
+                }
+            }
         }
     }
-    let total: f64 = r.norm_squared();
+    let z = |pairs: &[(usize, usize)]| {
+        let residual = |i: usize| Vec3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]);
+        let sum: f64 = pairs.iter().map(|&(i, j)| residual(i).dot(&residual(j))).sum();
+        let variance: f64 = pairs.iter().map(|&(i, j)| residual(i).component_mul(&residual(j)).norm_squared()).sum();
+        (pairs.len() >= 3 && variance > 0.0).then(|| sum / variance.sqrt())
+    };
+    use statrs::distribution::{ContinuousCDF, Normal};
+    let Ok(normal) = Normal::new(0.0, 1.0) else { return false };
+    let smooth = z(&neighbours).is_some_and(|z| normal.sf(z) < alpha / 2.0);
+    let mirrored = z(&mirrors).is_some_and(|z| 2.0 * normal.sf(z.abs()) < alpha / 2.0);
+    smooth || mirrored
+}
+
+/// Two wrenches equal to round-off.
+fn same_wrench(a: &Vec6, b: &Vec6) -> bool {
+    (a - b).norm() <= 1e-9 * (1.0 + a.norm())
+}
+
+/// The positions 0..n grouped by `same` (each group in order, groups in order of their first member).
+fn group_rows(n: usize, same: impl Fn(usize, usize) -> bool) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for i in 0..n {
+        match groups.iter_mut().find(|g| same(g[0], i)) {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups
+}
+
+/// Whether the groups' mean residuals depart from zero beyond the scatter about them (F test at alpha of the
+/// means' sum of squares, 3 per group, against the rest).
+fn groups_explain_residuals(groups: &[Vec<usize>], r: &DVector<f64>, alpha: f64) -> bool {
+    let rows: usize = groups.iter().map(Vec::len).sum();
+    let total: f64 = groups.iter().flatten().map(|&i| (0..3).map(|c| r[3 * i + c].powi(2)).sum::<f64>()).sum();
     let means: f64 = groups
         .iter()
-        .map(|(_, m)| {
+        .map(|m| {
             let mean = m.iter().fold(Vec3::zeros(), |acc, &i| acc + Vec3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]));
             mean.norm_squared() / m.len() as f64
         })
         .sum();
-    let (d1, d2) = (3 * groups.len(), 3 * rows.len().saturating_sub(groups.len()));
+    let (d1, d2) = (3 * groups.len(), 3 * rows.saturating_sub(groups.len()));
     if d2 == 0 {
         return false;
     }
