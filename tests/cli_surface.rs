@@ -45,6 +45,33 @@ fn shell_words(line: &str) -> Vec<String> {
     words
 }
 
+/// Runs `examples` (lines starting with `stiff `) in order, as printed, on the shipped files; files they write
+/// go to `dir` (an example may read what the one before it wrote). Returns how many ran.
+fn run_examples(examples: &[&str], dir: &Path) -> usize {
+    for example in examples {
+        let words = shell_words(example);
+        let args: Vec<String> = words[1..]
+            .iter()
+            .map(|w| {
+                let written = [".csv", ".svg", ".json", ".toml", "/"].iter().any(|e| w.ends_with(e));
+                if written && !Path::new(w).exists() {
+                    dir.join(w).display().to_string()
+                } else {
+                    w.clone()
+                }
+            })
+            .collect();
+        let out = stiff().args(&args).output().unwrap();
+        let expected_failure = example.contains("--fail-on");
+        assert!(
+            out.status.success() || expected_failure,
+            "`{example}` failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    examples.len()
+}
+
 /// Every example printed by a command's `--help` runs as printed, on the shipped files, in order (an
 /// example may read what the one before it wrote). Files the examples write go to a temporary folder.
 #[test]
@@ -56,30 +83,30 @@ fn every_help_example_runs() {
         let help = String::from_utf8(help.stdout).unwrap();
         let examples: Vec<&str> = help.lines().map(str::trim).filter(|l| l.starts_with("stiff ")).collect();
         assert!(!examples.is_empty(), "`stiff {command} --help` shows examples");
-        for example in examples {
-            let words = shell_words(example);
-            let args: Vec<String> = words[1..]
-                .iter()
-                .map(|w| {
-                    let written = [".csv", ".svg", ".json", ".toml", "/"].iter().any(|e| w.ends_with(e));
-                    if written && !Path::new(w).exists() {
-                        dir.path().join(w).display().to_string()
-                    } else {
-                        w.clone()
-                    }
-                })
-                .collect();
-            let out = stiff().args(&args).output().unwrap();
-            let expected_failure = example.contains("--fail-on");
-            assert!(
-                out.status.success() || expected_failure,
-                "`{example}` failed: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            ran += 1;
-        }
+        ran += run_examples(&examples, dir.path());
     }
     assert!(ran >= 14, "{ran} examples");
+}
+
+/// README's five-minute tour runs as printed, and what it says the diagnosis finds is what it finds.
+#[test]
+fn the_readme_tour_runs_as_printed() {
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let tour = &readme[readme.find("## A five-minute tour").expect("README has a tour")..];
+    let block = tour.split("```").nth(1).expect("the tour's commands in a code block");
+    let examples: Vec<&str> = block.lines().map(str::trim).filter(|l| l.starts_with("stiff ")).collect();
+    let dir = tempfile::tempdir().unwrap();
+    assert_eq!(run_examples(&examples, dir.path()), 5);
+    for picture in ["cube.svg", "curve.svg", "verdict.svg"] {
+        assert!(dir.path().join(picture).exists(), "{picture}");
+    }
+    let last = shell_words(examples[4]);
+    let args: Vec<String> = last[1..]
+        .iter()
+        .map(|w| if w.ends_with(".csv") { dir.path().join(w).display().to_string() } else { w.clone() })
+        .collect();
+    let report = String::from_utf8(stiff().args(&args[..4]).output().unwrap().stdout).unwrap();
+    assert!(report.contains("verdict: effect") && report.contains("actuator-compliance:2"), "{report}");
 }
 
 /// A default is printed once, by clap (`[default: ...]`), not also in the option's text.

@@ -11,7 +11,7 @@ use crate::output::sink::Sink;
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
-  stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --effect actuator-compliance:2=1.5 --wrenches \"200,0,0,0,0,0;0,0,-200,0,0,0\" --noise 0.002 --seed 1 -o data.csv
+  stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --effect actuator-compliance:2=1.5 --wrenches \"200,0,0,0,0,0;0,200,0,0,0,0;0,0,-200,0,0,0\" --noise 0.002 --seed 1 -o data.csv
   stiff diagnose manipulators/orthoglide-3puu.toml --data data.csv --json verdict.json --model-out corrected.toml --plot verdict.svg
 
 Exit status: 0 success whatever the verdict (unless --fail-on), 1 the run failed or --fail-on matched the\nverdict, 2 usage error.";
