@@ -26,7 +26,7 @@ fn load(model: &str) -> Manipulator {
 }
 
 fn point(at: [f64; 3]) -> PosePoint {
-    PosePoint { name: None, position: Vec3::from(at), rotation: Vec3::zeros(), wrench: None }
+    PosePoint { name: None, position: Vec3::from(at), rotation: Vec3::zeros(), wrench: None, joints: Vec::new() }
 }
 
 fn assemble(model: &str, errors: &str, at: [f64; 3], scale: f64, wrench: Option<Vec6>) -> Assembled {

@@ -32,7 +32,13 @@ fn poses() -> Vec<PosePoint> {
     for x in [-60.0, 25.0, 110.0] {
         for y in [-60.0, 25.0, 110.0] {
             for z in [-60.0, 80.0] {
-                out.push(PosePoint { name: None, position: Vec3::new(x, y, z), rotation: Vec3::zeros(), wrench: None });
+                out.push(PosePoint {
+                    name: None,
+                    position: Vec3::new(x, y, z),
+                    rotation: Vec3::zeros(),
+                    wrench: None,
+                    joints: Vec::new(),
+                });
             }
         }
     }
@@ -336,7 +342,7 @@ fn an_effect_is_offered_exactly_when_it_changes_a_prediction() {
         let mut points = Vec::new();
         for (dx, dy) in [(0.0, 0.0), (15.0, 0.0), (0.0, 15.0), (-10.0, -10.0)] {
             let position = centre + Vec3::new(dx, dy, 0.0);
-            points.push(PosePoint { name: None, position, rotation: Vec3::zeros(), wrench: None });
+            points.push(PosePoint { name: None, position, rotation: Vec3::zeros(), wrench: None, joints: Vec::new() });
         }
         for loads in [wrenches(), vec![Vec6::zeros()]] {
             let data = synth_at(&m, points.clone(), &[], &loads, 0.0, 1);
@@ -476,7 +482,13 @@ fn each_row_is_predicted_from_the_legs_placed_at_its_own_pose() {
     let m = with_model_effects(&nominal, &[Effect::parse("actuator-offset:2=0.02", &nominal).unwrap()]);
     let points: Vec<PosePoint> = [[-60.0, 110.0, 80.0], [0.0, 0.0, 0.0], [110.0, -60.0, -60.0]]
         .iter()
-        .map(|p| PosePoint { name: None, position: Vec3::from(*p), rotation: Vec3::zeros(), wrench: None })
+        .map(|p| PosePoint {
+            name: None,
+            position: Vec3::from(*p),
+            rotation: Vec3::zeros(),
+            wrench: None,
+            joints: Vec::new(),
+        })
         .collect();
     let loads = [Vec6::zeros(), Vec6::new(0.0, 150.0, -100.0, 0.0, 0.0, 0.0)];
     let data = synth_at(&nominal, points, &[], &loads, 0.0, 1);

@@ -421,8 +421,13 @@ fn a_pantograph_legs_rank_and_free_directions_follow_its_mechanism() {
         let l = m.length_scale;
         let weigh = |t: &Vec6| Vec6::from_fn(|i, _| if i < 3 { t[i] } else { t[i] * l });
         for b in &poses {
-            let pose =
-                stiff::model::grid::PosePoint { name: None, position: *b, rotation: Vec3::zeros(), wrench: None };
+            let pose = stiff::model::grid::PosePoint {
+                name: None,
+                position: *b,
+                rotation: Vec3::zeros(),
+                wrench: None,
+                joints: Vec::new(),
+            };
             let row = unloaded_point(&m, &pose, &mut m.new_state());
             assert_eq!((row.status, row.rank), (Status::Singular, Some(4)), "{file} at {b}");
             // The mechanism's two motions, in the length-scaled metric (rotations times l), orthonormal.

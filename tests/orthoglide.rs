@@ -12,7 +12,7 @@ use stiff::platform::manipulator::Manipulator;
 use stiff::study::point::{unloaded_point, Status};
 
 fn compliance_at(m: &Manipulator, p: Vec3) -> Mat6 {
-    let point = PosePoint { name: None, position: p, rotation: Vec3::zeros(), wrench: None };
+    let point = PosePoint { name: None, position: p, rotation: Vec3::zeros(), wrench: None, joints: Vec::new() };
     let r = unloaded_point(m, &point, &mut m.new_state());
     assert_eq!(r.status, Status::Ok);
     r.compliance.unwrap()

@@ -230,6 +230,7 @@ fn diagnose_plot_has_arrows_and_bars() {
                 position: [x, y, z].into(),
                 rotation: Default::default(),
                 wrench: None,
+                joints: Vec::new(),
             })
             .collect();
     let mut wrenches = vec![stiff::kinematics::frame::Vec6::zeros()];

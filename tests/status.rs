@@ -18,7 +18,7 @@ fn load(path: &str) -> Manipulator {
 }
 
 fn at(m: &Manipulator, p: Vec3) -> PointResult {
-    let pose = PosePoint { name: None, position: p, rotation: Vec3::zeros(), wrench: None };
+    let pose = PosePoint { name: None, position: p, rotation: Vec3::zeros(), wrench: None, joints: Vec::new() };
     unloaded_point(m, &pose, &mut m.new_state())
 }
 

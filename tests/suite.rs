@@ -22,6 +22,7 @@ mod orthoglide;
 mod plan;
 mod plot;
 mod robustness;
+mod serial;
 mod shard;
 mod status;
 mod stewart;

@@ -192,9 +192,32 @@ pub(crate) struct PointsArgs {
 }
 
 impl PointsArgs {
-    /// The poses of `--grid` or `--points`.
+    /// The poses of `--grid` or `--points` (as poses: joint coordinates are refused, see `load_joints`).
     pub(crate) fn load(&self) -> Result<PointSet> {
         point_set(&self.grid, &self.points)
+    }
+
+    /// The poses of `--grid` or `--points`, which may give a serial arm's joint coordinates (`q_<joint>`
+    /// columns) instead of poses: checked against `m`'s joints; returns the points and each joint's column.
+    pub(crate) fn load_joints(&self, m: &crate::platform::manipulator::Manipulator) -> Result<(PointSet, Vec<usize>)> {
+        let mut points = point_set_any(&self.grid, &self.points)?;
+        let file = self.points.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+        let order = if points.joint_names.is_empty() {
+            if let Some(space) = m.joint_space.as_ref().filter(|s| s.names.len() > 6) {
+                bail!(
+                    "{} has {} joint coordinates ({}): a pose does not fix them; give the points as joint coordinates, one column q_<joint> each",
+                    m.name,
+                    space.names.len(),
+                    space.names.join(", ")
+                );
+            }
+            Vec::new()
+        } else {
+            // Rows carry the whole pose forward kinematics gives, orientation included.
+            points.has_orientation = true;
+            crate::study::point::joint_order(m, &points.joint_names).map_err(|e| anyhow::anyhow!("{file}: {e}"))?
+        };
+        Ok((points, order))
     }
 }
 
@@ -259,6 +282,7 @@ impl LoadArgs {
             wrench: self.wrench,
             use_point_wrench: self.loaded,
             selection: None,
+            joint_order: Vec::new(),
         })
     }
 }
@@ -368,8 +392,22 @@ fn rate_text(per_second: f64) -> String {
     format!("{}/s", indicatif::HumanCount(whole))
 }
 
-/// The poses of `--grid` or `--points` (clap keeps the two exclusive).
+/// The poses of `--grid` or `--points` (clap keeps the two exclusive). Joint coordinates (`q_<joint>`
+/// columns) are read by `map` only, so far: refused here with what to do.
 pub(crate) fn point_set(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Result<PointSet> {
+    let set = point_set_any(grid, points)?;
+    if !set.joint_names.is_empty() {
+        bail!(
+            "{}: joint coordinates (q_{}) are read by `stiff map` only in this version: give poses (x_mm, y_mm, z_mm), or map the joint coordinates first (its rows carry the pose)",
+            points.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+            set.joint_names.join(", q_")
+        );
+    }
+    Ok(set)
+}
+
+/// The points of `--grid` or `--points`, poses or joint coordinates.
+fn point_set_any(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Result<PointSet> {
     Ok(match (grid, points) {
         (Some(g), None) => PointSet::from_grid_file(g)?,
         (None, Some(p)) => PointSet::from_points_csv(p)?,

@@ -40,7 +40,13 @@ pub(crate) struct PointArgs {
 
 pub(crate) fn run(a: PointArgs) -> Result<()> {
     let model = a.model.load()?;
-    let p = PosePoint { name: None, position: a.pose.at, rotation: a.pose.rotation(), wrench: a.wrench };
+    let p = PosePoint {
+        name: None,
+        position: a.pose.at,
+        rotation: a.pose.rotation(),
+        wrench: a.wrench,
+        joints: Vec::new(),
+    };
     let mut state = model.new_state();
     let r = unloaded_point(&model, &p, &mut state);
     let loaded = a.wrench.map(|w| loaded_point(&model, &p, &w, &mut state, &mut LoadedHistory::default()));

@@ -8,14 +8,18 @@ use toml::Spanned;
 
 use super::effect::{with_model_effects, Effect, EffectError, Form, Kind};
 use super::error::{read_text, InputError, Locator};
-use super::schema::{AxisSpec, BeamSpec, ElementSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec};
+use super::schema::{
+    AxisSpec, BeamSpec, ElementSpec, JointStiffnessSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec,
+    UrdfSpec,
+};
+use super::urdf::UrdfJointKind;
 use crate::beam::{beam_compliance, BeamSection};
 use crate::expr::ExprSrc;
 use crate::expr::Scope;
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::{Leg, VjmLeg};
-use crate::platform::manipulator::{Manipulator, Payload};
+use crate::platform::manipulator::{JointSpace, Manipulator, Payload};
 use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
 use crate::vjm::spring::{SpringGroup, SIX_DOF};
@@ -609,6 +613,186 @@ impl Builder<'_> {
         Ok(())
     }
 
+    /// A leg read from URDF (`crate::model::urdf`): per joint on the path, its fixed origin, then the joint
+    /// (actuated, with the spring `joints` gives it; a `<mimic>` joint driven by its master's coordinate
+    /// times the multiplier, after its offset), then the child link's mass; the tool transform last. Returns
+    /// the leg and its joint space (the actuated joints' names and the controller's map).
+    fn urdf_leg(
+        &self,
+        leg_name: &str,
+        spec: &Spanned<UrdfSpec>,
+        gravity: Vec3,
+    ) -> Result<(Leg, JointSpace), InputError> {
+        let u = spec.get_ref();
+        let path = super::urdf::resolve(self.loc.path, u.file.get_ref());
+        let text = read_text(&path)?;
+        let read = super::urdf::read_chain(&path, &text, u.root.get_ref(), u.tip.get_ref())?;
+        let on_path: Vec<&str> = read.joints.iter().map(|j| j.name.as_str()).collect();
+        let named_joint = |name: &str, span: std::ops::Range<usize>, table: &str| -> Result<(), InputError> {
+            match read.joints.iter().find(|j| j.name == name) {
+                Some(j) if j.kind != UrdfJointKind::Fixed && j.mimic.is_none() => Ok(()),
+                Some(_) => Err(self.loc.at(
+                    span,
+                    format!("joint `{name}` in `{table}` is fixed or a <mimic> joint: it has no coordinate of its own"),
+                )),
+                None => Err(self.loc.at(
+                    span,
+                    format!(
+                        "joint `{name}` in `{table}` is not on the chain from `{}` to `{}` of {} (joints: {})",
+                        u.root.get_ref(),
+                        u.tip.get_ref(),
+                        path.display(),
+                        on_path.join(", ")
+                    ),
+                )),
+            }
+        };
+        for (name, j) in &u.joints {
+            named_joint(name, j.span(), "joints")?;
+        }
+        for (name, f) in &u.controller {
+            named_joint(name, f.span(), "controller")?;
+        }
+        // A mimic joint's ultimate master (a mimic of a mimic composed), its gain and offset.
+        let master_of = |j: &super::urdf::UrdfJoint| -> Result<Option<(String, f64, f64)>, InputError> {
+            let Some((mut master, mut gain, mut offset)) = j.mimic.clone() else { return Ok(None) };
+            let mut seen = vec![j.name.clone()];
+            loop {
+                if seen.contains(&master) {
+                    seen.push(master);
+                    return Err(self.loc.at(
+                        spec.span(),
+                        format!("{}: the <mimic> joints form a loop: {}", path.display(), seen.join(" -> ")),
+                    ));
+                }
+                let m = read.joints.iter().find(|k| k.name == master).ok_or_else(|| {
+                    self.loc.at(
+                        spec.span(),
+                        format!("{}: joint `{}` mimics `{master}`, which is not on the chain", path.display(), j.name),
+                    )
+                })?;
+                match &m.mimic {
+                    Some((next, k, o)) => {
+                        seen.push(master.clone());
+                        offset += gain * o;
+                        gain *= k;
+                        master = next.clone();
+                    }
+                    None => return Ok(Some((master, gain, offset))),
+                }
+            }
+        };
+        let mut parts = ChainParts::default();
+        let mut names: Vec<String> = Vec::new();
+        let mut pending: Vec<(usize, String, f64)> = Vec::new();
+        for j in &read.joints {
+            parts.elements.push(Element::Fixed(j.origin));
+            let kind = match j.kind {
+                UrdfJointKind::Fixed => None,
+                UrdfJointKind::Revolute => Some(JointKind::Revolute),
+                UrdfJointKind::Prismatic => Some(JointKind::Prismatic),
+            };
+            if let Some(jk) = kind {
+                let offset_motion = |value: f64| match jk {
+                    JointKind::Revolute => Frame::new(rotation_about(&j.axis, value), Vec3::zeros()),
+                    JointKind::Prismatic => Frame::translation(j.axis * value),
+                };
+                match master_of(j)? {
+                    Some((master, gain, offset)) => {
+                        if offset != 0.0 {
+                            parts.elements.push(Element::Fixed(offset_motion(offset)));
+                        }
+                        // The master's coordinate index is known once the path is read: filled in below.
+                        pending.push((parts.elements.len(), master, gain));
+                        parts.elements.push(Element::Joint(Joint {
+                            kind: jk,
+                            axis: j.axis,
+                            role: Role::Actuated,
+                            index: 0,
+                            gain,
+                        }));
+                    }
+                    None => {
+                        names.push(j.name.clone());
+                        parts.joint(jk, j.axis, Role::Actuated);
+                        if let Some(k) = u.joints.get(&j.name) {
+                            let k = self.joint_stiffness(k)?;
+                            let (mut km, mut cm) = (Mat6::zeros(), Mat6::zeros());
+                            km[(0, 0)] = k;
+                            cm[(0, 0)] = 1.0 / k;
+                            parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
+                        }
+                    }
+                }
+            }
+            if let Some((kg, centre)) = j.child_mass {
+                parts.elements.push(Element::Mass { kg, centre });
+            }
+        }
+        for (at, master, gain) in pending {
+            let index = names.iter().position(|n| *n == master).expect("a master without a mimic is on the path");
+            if let Element::Joint(joint) = &mut parts.elements[at] {
+                *joint = Joint { index, gain, ..*joint };
+            }
+        }
+        if let Some(TransformSpec { translation, rotation_axis, rotation_deg }) = &u.tool {
+            parts.elements.push(Element::Fixed(self.transform(
+                translation,
+                rotation_axis,
+                rotation_deg,
+                spec.span(),
+            )?));
+        }
+        if names.is_empty() {
+            return Err(self.loc.at(
+                spec.span(),
+                format!("the chain from `{}` to `{}` has no moving joint", u.root.get_ref(), u.tip.get_ref()),
+            ));
+        }
+        let controller = names
+            .iter()
+            .map(|n| {
+                u.controller
+                    .get(n)
+                    .map(|f| {
+                        crate::expr::compile(
+                            f.get_ref(),
+                            &mut |name: &str| match names.iter().position(|m| m == name) {
+                                Some(i) => Ok(crate::expr::Expr::Slot(i)),
+                                None => self.params.get(name).map(|v| crate::expr::Expr::Const(*v)).ok_or_else(|| {
+                                    format!("unknown name `{name}` (the joints: {}; or a parameter)", names.join(", "))
+                                }),
+                            },
+                        )
+                        .map_err(|e| self.loc.at(f.span(), e))
+                    })
+                    .transpose()
+            })
+            .collect::<Result<Vec<_>, InputError>>()?;
+        let chain = Chain::new(std::mem::take(&mut parts.elements));
+        let length_scale = chain.length_scale().max(1.0);
+        let leg = Leg::Vjm(VjmLeg {
+            name: leg_name.to_string(),
+            place: Frame::IDENTITY,
+            preload: parts.preload,
+            gravity,
+            chain,
+            attachment: Frame::IDENTITY,
+            springs: parts.springs,
+            length_scale,
+        });
+        Ok((leg, JointSpace { names, controller }))
+    }
+
+    /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.
+    fn joint_stiffness(&self, k: &Spanned<JointStiffnessSpec>) -> Result<f64, InputError> {
+        match (&k.get_ref().stiffness, &k.get_ref().compliance) {
+            (Some(s), None) => self.positive(s, "stiffness"),
+            (None, Some(c)) => Ok(1.0 / self.positive(c, "compliance")?),
+            _ => Err(self.loc.at(k.span(), "give exactly one of `stiffness` (N mm/rad or N/mm) and `compliance`")),
+        }
+    }
+
     fn model(&self, file: &ModelFile, depth: usize) -> Result<Model, InputError> {
         let gravity = match &file.gravity {
             Some(g) => self.vec3(g)?,
@@ -662,7 +846,14 @@ impl Builder<'_> {
             length_scale,
             gravity: file.gravity.as_ref().map(|_| gravity),
             payload: None,
+            joint_space: None,
         };
+        // A serial arm (one leg, read from URDF, not copied) takes poses as its joint angles too.
+        if let [leg] = file.legs.get_ref().as_slice() {
+            if let (Some(urdf), true) = (&leg.get_ref().urdf, leg.get_ref().copies.is_empty()) {
+                nominal.joint_space = Some(self.urdf_leg(&leg.get_ref().name, urdf, gravity)?.1);
+            }
+        }
         for spec in &file.payloads {
             let p = spec.get_ref();
             let centre = p.centre.as_ref().map(|c| self.vec3(c)).transpose()?.unwrap_or_else(Vec3::zeros);
@@ -694,11 +885,15 @@ impl Builder<'_> {
     /// One leg as written (a chain, an MSA structure, or the leg of another file), before copies.
     fn leg_body(&self, leg_spec: &Spanned<LegSpec>, gravity: Vec3, depth: usize) -> Result<Leg, InputError> {
         let spec = leg_spec.get_ref();
-        let given = [spec.chain.is_some(), spec.msa.is_some(), spec.from.is_some()];
+        let given = [spec.chain.is_some(), spec.msa.is_some(), spec.from.is_some(), spec.urdf.is_some()];
         if given.iter().filter(|g| **g).count() != 1 {
-            return Err(self
-                .loc
-                .at(leg_spec.span(), format!("leg `{}` needs exactly one of `chain`, `msa` and `from`", spec.name)));
+            return Err(self.loc.at(
+                leg_spec.span(),
+                format!("leg `{}` needs exactly one of `chain`, `msa`, `urdf` and `from`", spec.name),
+            ));
+        }
+        if let Some(urdf) = &spec.urdf {
+            return Ok(self.urdf_leg(&spec.name, urdf, gravity)?.0);
         }
         if !spec.parameters.is_empty() && spec.from.is_none() {
             return Err(self

@@ -10,6 +10,10 @@ use toml::Spanned;
 use super::error::{is_stdin, not_finite, open_input, read_text, InputError, Locator};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 
+/// The prefix of a points file's joint-coordinate columns: `q_<joint name>` (rad, or mm for a prismatic
+/// joint).
+pub const JOINT_PREFIX: &str = "q_";
+
 /// One pose to evaluate.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PosePoint {
@@ -21,6 +25,10 @@ pub struct PosePoint {
     pub rotation: Vec3,
     /// Reference wrench (N, N mm) at the reference point, if the input gives one.
     pub wrench: Option<Vec6>,
+    /// A serial arm's joint coordinates as its controller gives them (rad, or mm for a prismatic joint), in
+    /// the order of the points file's `q_<joint>` columns (`PointSet::joint_names`); empty where the pose
+    /// is given as a pose. The study puts the pose where forward kinematics puts it.
+    pub joints: Vec<f64>,
 }
 
 impl PosePoint {
@@ -109,7 +117,7 @@ impl BoxGrid {
                 (n, None) => self.from[k] + (self.to[k] - self.from[k]) * idx[k] as f64 / (n - 1) as f64,
             };
         }
-        PosePoint { name: None, position: p, rotation: self.rotation, wrench: self.wrench }
+        PosePoint { name: None, position: p, rotation: self.rotation, wrench: self.wrench, joints: Vec::new() }
     }
 }
 
@@ -140,7 +148,10 @@ const ORIENTATION_COLUMNS: [&str; 3] = names::ORIENTATION;
 
 struct CsvColumns {
     name: Option<usize>,
-    xyz: [usize; 3],
+    /// The position's columns; None where the poses are given by joint coordinates alone.
+    xyz: Option<[usize; 3]>,
+    /// The `q_<joint>` columns.
+    joints: Vec<usize>,
     orientation: Option<[usize; 3]>,
     wrench: Option<[usize; 6]>,
 }
@@ -167,6 +178,8 @@ pub struct PointSet {
     pub has_wrench: bool,
     /// Number of points, when known in advance.
     pub len: Option<u64>,
+    /// The joints of the points file's `q_<joint>` columns, in their order (empty: poses are given as poses).
+    pub joint_names: Vec<String>,
     source: Source,
     /// The input index of the next point read.
     next_index: u64,
@@ -181,6 +194,7 @@ impl PointSet {
             has_orientation: points.iter().any(|p| p.rotation != Vec3::zeros()),
             has_wrench: points.iter().any(|p| p.wrench.is_some()),
             len: Some(points.len() as u64),
+            joint_names: Vec::new(),
             source: Source::Grid { grid: None, named: points, next: 0 },
             next_index: 0,
             end_index: None,
@@ -245,6 +259,7 @@ impl PointSet {
                     position: Vec3::from(loc.finite_array(&p.at, "at")?),
                     rotation: Vec3::from(loc.optional_array(&p.orientation, "orientation")?.unwrap_or([0.0; 3])),
                     wrench: loc.optional_array(&p.wrench, "wrench")?.map(Vec6::from),
+                    joints: Vec::new(),
                 })
             })
             .collect::<Result<_, InputError>>()?;
@@ -260,6 +275,7 @@ impl PointSet {
             has_orientation,
             has_wrench,
             len: Some(len),
+            joint_names: Vec::new(),
             source: Source::Grid { grid, named, next: 0 },
             next_index: 0,
             end_index: None,
@@ -281,7 +297,17 @@ impl PointSet {
                 whole(format!("no column `{n}` (columns: {})", headers.iter().collect::<Vec<_>>().join(",")))
             })
         };
-        let xyz = [need(names::POSITION[0])?, need(names::POSITION[1])?, need(names::POSITION[2])?];
+        // A serial arm's poses may be given by its joint coordinates (`q_<joint>` columns) instead.
+        let joint_columns: Vec<(usize, String)> = headers
+            .iter()
+            .enumerate()
+            .filter_map(|(i, h)| h.strip_prefix(JOINT_PREFIX).map(|n| (i, n.to_string())))
+            .collect();
+        let xyz = if joint_columns.is_empty() || find(names::POSITION[0]).is_some() {
+            Some([need(names::POSITION[0])?, need(names::POSITION[1])?, need(names::POSITION[2])?])
+        } else {
+            None
+        };
         let group = |names: &[&str]| -> Result<Option<Vec<usize>>, InputError> {
             let found: Vec<Option<usize>> = names.iter().map(|n| find(n)).collect();
             match found.iter().filter(|f| f.is_some()).count() {
@@ -292,11 +318,14 @@ impl PointSet {
         };
         let orientation = group(&ORIENTATION_COLUMNS)?.map(|v| [v[0], v[1], v[2]]);
         let wrench = group(&WRENCH_COLUMNS)?.map(|v| [v[0], v[1], v[2], v[3], v[4], v[5]]);
-        let columns = CsvColumns { name: find(names::NAME), xyz, orientation, wrench };
+        let joint_names = joint_columns.iter().map(|(_, n)| n.clone()).collect();
+        let joints = joint_columns.iter().map(|(i, _)| *i).collect();
+        let columns = CsvColumns { name: find(names::NAME), xyz, joints, orientation, wrench };
         Ok(Self {
             has_orientation: columns.orientation.is_some(),
             has_wrench: columns.wrench.is_some(),
             len: None,
+            joint_names,
             source: Source::Csv { path: path.to_path_buf(), reader, columns, record: csv::ByteRecord::new() },
             next_index: 0,
             end_index: None,
@@ -429,7 +458,11 @@ impl PointSet {
                             _ => Err(at(i + 1, not_finite(t))),
                         }
                     };
-                    let position = Vec3::new(field(columns.xyz[0])?, field(columns.xyz[1])?, field(columns.xyz[2])?);
+                    let position = match columns.xyz {
+                        Some(c) => Vec3::new(field(c[0])?, field(c[1])?, field(c[2])?),
+                        None => Vec3::zeros(),
+                    };
+                    let joints = columns.joints.iter().map(|&c| field(c)).collect::<Result<Vec<f64>, _>>()?;
                     let rotation = match &columns.orientation {
                         Some(c) => Vec3::new(field(c[0])?, field(c[1])?, field(c[2])?),
                         None => Vec3::zeros(),
@@ -445,7 +478,7 @@ impl PointSet {
                         None => None,
                     };
                     let name = columns.name.map(|i| text(i).map(str::to_string)).transpose()?;
-                    out.push(PosePoint { name, position, rotation, wrench });
+                    out.push(PosePoint { name, position, rotation, wrench, joints });
                     added += 1;
                 }
                 Ok(added)
@@ -472,6 +505,7 @@ pub fn path_points(
                 position: from + (to - from) * a,
                 rotation: crate::kinematics::frame::Vec3::zeros(),
                 wrench: None,
+                joints: Vec::new(),
             }
         })
         .collect()

@@ -6,6 +6,7 @@ pub mod effect;
 pub mod error;
 pub mod grid;
 pub mod schema;
+pub mod urdf;
 
 pub use build::{load_manipulator, load_model, parse_manipulator, parse_with, Model};
 pub use error::InputError;

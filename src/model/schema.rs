@@ -102,6 +102,9 @@ pub struct LegSpec {
     /// An MSA leg: nodes, links and joints (paper 003 Table 1).
     #[serde(default)]
     pub msa: Option<Spanned<MsaSpec>>,
+    /// A chain read from a URDF file, with the joints' stiffnesses beside it (`[leg.urdf]`).
+    #[serde(default)]
+    pub urdf: Option<Spanned<UrdfSpec>>,
     /// The leg of another model file (path relative to this one), its parameters overridden by `parameters`.
     #[serde(default)]
     pub from: Option<Spanned<String>>,
@@ -229,6 +232,43 @@ pub struct MsaJointSpec {
     /// A `spring` joint's 6x6 stiffness (leg frame).
     #[serde(default)]
     pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+}
+
+/// A leg whose chain comes from a URDF file: the joints on the path from `root` to `tip`, then `tool` (a fixed
+/// transform in the tip link's frame, mm and degrees) to the reference point. Each actuated joint's
+/// stiffness is given by name in `joints` (what is not given is rigid); `controller` maps the controller's
+/// angles to the model's coordinates (formulas of the joints' names).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UrdfSpec {
+    /// The URDF file, relative to the description.
+    pub file: Spanned<String>,
+    /// The link the chain starts from (fixed to the base).
+    pub root: Spanned<String>,
+    /// The link it ends at.
+    pub tip: Spanned<String>,
+    /// From the tip link's frame to the reference point (the tool point), mm and degrees.
+    #[serde(default)]
+    pub tool: Option<TransformSpec>,
+    /// Per joint name: its stiffness or compliance.
+    #[serde(default)]
+    pub joints: BTreeMap<String, Spanned<JointStiffnessSpec>>,
+    /// Per joint name: its model coordinate as a formula of the controller's angles (by joint name).
+    #[serde(default)]
+    pub controller: BTreeMap<String, Spanned<String>>,
+}
+
+/// A URDF joint's spring: a stiffness (N mm/rad for a revolute joint, N/mm for a prismatic one) or a
+/// compliance (rad/(N mm), mm/N).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointStiffnessSpec {
+    /// N mm/rad or N/mm.
+    #[serde(default)]
+    pub stiffness: Option<Num>,
+    /// rad/(N mm) or mm/N.
+    #[serde(default)]
+    pub compliance: Option<Num>,
 }
 
 /// A copy of a leg, moved rigidly about the world / platform origin.

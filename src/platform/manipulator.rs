@@ -17,6 +17,31 @@ pub struct Manipulator {
     pub gravity: Option<crate::kinematics::frame::Vec3>,
     /// A mass carried by the platform (`[[payload]]`), weighed under `weight_gravity`.
     pub payload: Option<Payload>,
+    /// A serial arm's joint coordinates by name (a manipulator of one chain read from URDF), so that poses
+    /// can be given as the joint angles its controller reports.
+    pub joint_space: Option<JointSpace>,
+}
+
+/// The joint coordinates of a serial arm (one chain) by name, and how its controller's angles map to them.
+#[derive(Clone, Debug)]
+pub struct JointSpace {
+    /// The actuated joints' names, in the order of the chain's actuated coordinates.
+    pub names: Vec<String>,
+    /// Per coordinate: its formula of the controller's angles (slot i is the angle of `names[i]`, as the
+    /// controller gives it), or None for the angle itself (a coupling such as a parallelogram's
+    /// q3 = -(theta2 + theta3)).
+    pub controller: Vec<Option<crate::expr::Expr>>,
+}
+
+impl JointSpace {
+    /// The model's coordinates from the controller's angles (in the order of `names`).
+    pub fn model_coordinates(&self, controller: &[f64]) -> Vec<f64> {
+        self.controller
+            .iter()
+            .enumerate()
+            .map(|(i, f)| f.as_ref().map_or(controller[i], |f| f.eval(controller)))
+            .collect()
+    }
 }
 
 /// Standard gravity (m/s^2) along -z: what a payload weighs under when the model gives no gravity.
@@ -169,6 +194,22 @@ impl Manipulator {
     /// A fresh state (no warm starts).
     pub fn new_state(&self) -> ManipulatorState {
         ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect(), linear: Vec::new(), chord: None }
+    }
+
+    /// The platform frame of a serial arm at the controller's joint angles `controller` (in the order of
+    /// `joint_space`'s names), by forward kinematics, with the state seeded there so that a study placing
+    /// the arm at that frame keeps the configuration given. None where the manipulator has no joint space
+    /// or the angles give no finite frame.
+    pub fn pose_at_joints(&self, controller: &[f64], state: &mut ManipulatorState) -> Option<Frame> {
+        let space = self.joint_space.as_ref()?;
+        if controller.len() != space.names.len() || self.legs.len() != 1 {
+            return None;
+        }
+        let q = space.model_coordinates(controller);
+        match (&self.legs[0], state.legs.first_mut()) {
+            (Leg::Vjm(leg), Some(s)) => leg.pose_at_joints(&q, s),
+            _ => None,
+        }
     }
 
     /// Places every leg for the commanded pose (inverse kinematics).

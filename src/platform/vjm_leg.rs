@@ -37,6 +37,24 @@ impl VjmLeg {
         platform.compose(&self.attachment)
     }
 
+    /// The platform frame where the leg's actuated coordinates `q` put its end (springs at rest, no passive
+    /// joint moved), with `state` seeded there, so that placing the leg for that frame starts from `q` and
+    /// keeps its branch (a serial arm's elbow and wrist). None where `q` is not one value per actuated
+    /// coordinate or the frame is not finite.
+    pub(super) fn pose_at_joints(&self, q: &[f64], state: &mut LegState) -> Option<Frame> {
+        if q.len() != state.coords.actuated.len() {
+            return None;
+        }
+        state.coords.actuated.copy_from_slice(q);
+        state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
+        state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
+        state.ik.invalidate();
+        state.warm = true;
+        let end = self.chain.end_frame(&state.coords);
+        let platform = end.compose(&self.attachment.inverse());
+        (platform.pos.iter().chain(platform.rot.iter()).all(|v| v.is_finite())).then_some(platform)
+    }
+
     pub(super) fn has_masses(&self) -> bool {
         self.chain.elements().iter().any(|e| matches!(e, crate::kinematics::chain::Element::Mass { .. }))
     }

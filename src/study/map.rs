@@ -28,6 +28,9 @@ pub struct MapOptions {
     pub use_point_wrench: bool,
     /// The columns written (`--columns`), all where None.
     pub selection: Option<Selection>,
+    /// For points given by joint coordinates: for each of the arm's joints (`JointSpace::names`), the index
+    /// of its value in a point's `joints` (`point::joint_order`).
+    pub joint_order: Vec<usize>,
 }
 
 /// The groups `--columns` knows, in table order.
@@ -243,7 +246,11 @@ impl Study for MapStudy<'_> {
     }
 
     fn solve(&self, index: u64, p: &PosePoint, state: &mut Self::State, tally: &mut MapSummary, out: &mut String) {
-        let r = map_point(self.m, p, &self.options, state);
+        let placed = super::point::pose_of_joints(self.m, p, &self.options.joint_order, &mut state.0);
+        let (p, r) = match &placed {
+            Some(p) => (p.as_ref(), map_point(self.m, p, &self.options, state)),
+            None => (p, PointResult::failed(Status::Unreachable)),
+        };
         tally.add(r.status);
         let row = MapRow { index, point: p, result: &r };
         write_selected_row(&row, &self.columns, self.options.selection.as_ref(), out);

@@ -125,7 +125,7 @@ impl PointResult {
         Self::failed(Status::Ok)
     }
 
-    fn failed(status: Status) -> Self {
+    pub(crate) fn failed(status: Status) -> Self {
         Self {
             status,
             rank: None,
@@ -195,6 +195,52 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
         _ => None,
     };
     r.check_finite()
+}
+
+/// A point as a pose: itself where it is given as a pose; where it is given by a serial arm's joint
+/// coordinates (`PosePoint::joints`, `order` mapping the arm's joints to them), the pose forward kinematics
+/// puts its tool at, with `state` seeded at those coordinates (so the placement keeps the configuration
+/// given). None where the angles give no finite pose (the row is then `unreachable`).
+pub fn pose_of_joints<'a>(
+    m: &Manipulator,
+    p: &'a PosePoint,
+    order: &[usize],
+    state: &mut ManipulatorState,
+) -> Option<std::borrow::Cow<'a, PosePoint>> {
+    if p.joints.is_empty() {
+        return Some(std::borrow::Cow::Borrowed(p));
+    }
+    let angles: Vec<f64> = order.iter().map(|&i| p.joints[i]).collect();
+    let f = m.pose_at_joints(&angles, state)?;
+    Some(std::borrow::Cow::Owned(PosePoint {
+        position: f.pos,
+        rotation: crate::kinematics::frame::rotation_vector(&f.rot),
+        ..p.clone()
+    }))
+}
+
+/// For each joint of `m`'s joint space, the index of its column among `columns` (a points file's joint
+/// names), or why the two do not match (the arm's joint names; the file's missing or extra ones).
+pub fn joint_order(m: &Manipulator, columns: &[String]) -> Result<Vec<usize>, String> {
+    let Some(space) = &m.joint_space else {
+        return Err(format!(
+            "the points give joint coordinates ({}), but {} is not a serial arm read from URDF: give poses (x_mm, y_mm, z_mm)",
+            columns.iter().map(|c| format!("q_{c}")).collect::<Vec<_>>().join(", "),
+            m.name
+        ));
+    };
+    let missing: Vec<&String> = space.names.iter().filter(|n| !columns.contains(n)).collect();
+    let extra: Vec<&String> = columns.iter().filter(|c| !space.names.contains(c)).collect();
+    if !missing.is_empty() || !extra.is_empty() {
+        let list = |v: &[&String]| v.iter().map(|n| format!("q_{n}")).collect::<Vec<_>>().join(", ");
+        return Err(format!(
+            "the joint columns must be exactly q_ and each of the arm's joints ({}): missing {}; not joints of the arm {}",
+            space.names.join(", "),
+            if missing.is_empty() { "none".into() } else { list(&missing) },
+            if extra.is_empty() { "none".into() } else { list(&extra) },
+        ));
+    }
+    Ok(space.names.iter().map(|n| columns.iter().position(|c| c == n).expect("checked")).collect())
 }
 
 /// The loaded equilibrium under `wrench` at a commanded pose: where the platform settles (its displacement

@@ -1,0 +1,392 @@
+//! Serial arms described in URDF: the chain read from URDF equals the same robot written by hand from its
+//! modified Denavit-Hartenberg table (forward kinematics and compliance at random configurations), the
+//! compliance is Salisbury's C = J K_theta^-1 J^T computed here independently (paper 002, rigid links),
+//! poses are given as the controller's joint angles, and the shipped FANUC R-2000iC reproduces the 43
+//! measured deflections of tests/reference/fanuc-r2000ic/ as an independent computation with the source's
+//! stiffnesses does. Bad URDF input is a located error.
+
+use std::path::Path;
+
+use nalgebra::{Matrix3x6, Matrix6};
+use rand::Rng;
+use stiff::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
+use stiff::platform::manipulator::Manipulator;
+
+use crate::common::{rng, run_with_deadline};
+
+const FANUC: &str = "manipulators/fanuc-r2000ic.toml";
+
+/// The source's modified DH rows (alpha(i-1), a(i-1) in mm, theta offset, d(i) in mm), its tool point in frame
+/// 6 (mm) and its identified joint stiffnesses (N mm/rad): tests/reference/fanuc-r2000ic/README.md.
+const DH: [(f64, f64, f64, f64); 6] = [
+    (0.0, 0.0, 0.0, 670.0),
+    (-std::f64::consts::FRAC_PI_2, 312.0, -std::f64::consts::FRAC_PI_2, 0.0),
+    (0.0, 1075.0, 0.0, 0.0),
+    (-std::f64::consts::FRAC_PI_2, 225.0, 0.0, 1280.0),
+    (std::f64::consts::FRAC_PI_2, 0.0, 0.0, 0.0),
+    (-std::f64::consts::FRAC_PI_2, 0.0, 0.0, 215.0),
+];
+const TOOL: [f64; 3] = [6.9, 245.3, 319.3];
+const K_JOINT: [f64; 6] = [9.339417645e8, 4.129256136e9, 1.907534091e9, 2.332046026e8, 4.043588275e8, 7.961815940e7];
+
+/// Craig's modified DH transform of one row: Rx(alpha) Tx(a) Rz(theta) Tz(d), as a 4x4 matrix.
+fn mdh(alpha: f64, a: f64, theta: f64, d: f64) -> nalgebra::Matrix4<f64> {
+    let (ca, sa, ct, st) = (alpha.cos(), alpha.sin(), theta.cos(), theta.sin());
+    nalgebra::Matrix4::new(
+        ct,
+        -st,
+        0.0,
+        a,
+        st * ca,
+        ct * ca,
+        -sa,
+        -sa * d,
+        st * sa,
+        ct * sa,
+        ca,
+        ca * d,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    )
+}
+
+/// The tool point and each joint's frame (axis z, origin) from the DH table at model angles q.
+fn dh_kinematics(q: &[f64; 6]) -> (Vec3, Vec<nalgebra::Matrix4<f64>>) {
+    let mut m = nalgebra::Matrix4::identity();
+    let mut frames = Vec::new();
+    for (k, (alpha, a, offset, d)) in DH.iter().enumerate() {
+        m *= mdh(*alpha, *a, q[k] + offset, *d);
+        frames.push(m);
+    }
+    let tool = m * nalgebra::Vector4::new(TOOL[0], TOOL[1], TOOL[2], 1.0);
+    (Vec3::new(tool.x, tool.y, tool.z), frames)
+}
+
+/// The geometric Jacobian at the tool point (rows: translation mm/rad, rotation), from the DH frames.
+fn dh_jacobian(q: &[f64; 6]) -> Matrix6<f64> {
+    let (p, frames) = dh_kinematics(q);
+    let mut j = Matrix6::zeros();
+    for (k, f) in frames.iter().enumerate() {
+        let z = Vec3::new(f[(0, 2)], f[(1, 2)], f[(2, 2)]);
+        let o = Vec3::new(f[(0, 3)], f[(1, 3)], f[(2, 3)]);
+        let v = z.cross(&(p - o));
+        j.set_column(k, &Vec6::new(v.x, v.y, v.z, z.x, z.y, z.z));
+    }
+    j
+}
+
+/// The source's controller-to-model map: q1 = t1, q2 = t2, q3 = -(t2 + t3), q4 = -t4, q5 = -t5, q6 = -t6.
+fn model_angles(t: &[f64; 6]) -> [f64; 6] {
+    [t[0], t[1], -(t[1] + t[2]), -t[3], -t[4], -t[5]]
+}
+
+fn fanuc() -> Manipulator {
+    stiff::model::load_manipulator(Path::new(FANUC)).unwrap()
+}
+
+/// The arm's unloaded stiffness at the controller's angles `t`, placed through its joint space.
+fn stiffness_at(m: &Manipulator, t: &[f64; 6]) -> (Frame, Mat6) {
+    let mut state = m.new_state();
+    let frame = m.pose_at_joints(t, &mut state).expect("a finite pose");
+    (frame, m.unloaded(&frame, &mut state).unwrap().stiffness)
+}
+
+fn random_angles(r: &mut rand::rngs::StdRng) -> [f64; 6] {
+    // Within the joint limits, away from the wrist's singularity (q5 = 0).
+    let t: [f64; 6] = std::array::from_fn(|k| match k {
+        0 => r.random_range(-3.0..3.0),
+        1 => r.random_range(-0.9..1.2),
+        2 => r.random_range(-1.5..1.5),
+        4 => r.random_range(0.2..1.8) * if r.random_bool(0.5) { 1.0 } else { -1.0 },
+        _ => r.random_range(-3.0..3.0),
+    });
+    t
+}
+
+/// Forward kinematics from URDF (fixed-axis roll-pitch-yaw origins, metres) equals the DH table computed
+/// here (mm) to 1e-9 mm, and the compliance equals Salisbury's C = J K^-1 J^T with J from the DH frames to
+/// 1e-10 relative, at 100 random configurations given as the controller's angles.
+#[test]
+fn urdf_arm_matches_its_dh_table_and_salisbury() {
+    let m = fanuc();
+    let mut r = rng(46);
+    let k_inv = Matrix6::from_diagonal(&Vec6::from_iterator(K_JOINT.iter().map(|k| 1.0 / k)));
+    for _ in 0..100 {
+        let t = random_angles(&mut r);
+        let q = model_angles(&t);
+        let (frame, k) = stiffness_at(&m, &t);
+        let (p, frames) = dh_kinematics(&q);
+        assert!((frame.pos - p).norm() < 1e-9, "{t:?}: {} vs {p}", frame.pos);
+        let last = frames[5];
+        let rot = nalgebra::Matrix3::from_fn(|i, j| last[(i, j)]);
+        assert!((frame.rot - rot).norm() < 1e-12, "{t:?}: orientation");
+        let j = dh_jacobian(&q);
+        let c_salisbury = j * k_inv * j.transpose();
+        let c = k.try_inverse().unwrap();
+        // Relative to the size of each block (translations in mm/N, rotations in rad/(N mm)).
+        for (rows, cols) in [(0..3, 0..3), (0..3, 3..6), (3..6, 3..6)] {
+            let scale = rows
+                .clone()
+                .flat_map(|i| cols.clone().map(move |jj| (i, jj)))
+                .map(|(i, jj)| c_salisbury[(i, jj)].abs())
+                .fold(0.0, f64::max);
+            for i in rows.clone() {
+                for jj in cols.clone() {
+                    assert!(
+                        (c[(i, jj)] - c_salisbury[(i, jj)]).abs() <= 1e-10 * scale,
+                        "{t:?}: C{i}{jj} {} vs {}",
+                        c[(i, jj)],
+                        c_salisbury[(i, jj)]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The FANUC measurements (tests/reference/fanuc-r2000ic/): a cable pulled the tool point with a known force
+/// at 43 configurations. The measurement is differential (the self-weight's sag is the same with and
+/// without the cable), so `stiff map --loaded` with each row's force minus the same map at zero force is the
+/// prediction. With the source's joint stiffnesses it leaves an RMS residual length of 0.423 mm (a rigid
+/// robot: 1.725 mm), as Salisbury's model computed here independently does (0.4229 mm); the largest residual
+/// component is 0.925 mm (the largest residual length is 1.215 mm, at row 17).
+#[test]
+fn the_fanuc_measurements_are_reproduced_with_the_sources_stiffnesses() {
+    let read = |name: &str| -> Vec<[f64; 3]> {
+        let text = std::fs::read_to_string(format!("tests/reference/fanuc-r2000ic/{name}")).unwrap();
+        text.lines()
+            .skip(1)
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
+                [v[0], v[1], v[2]]
+            })
+            .collect()
+    };
+    let angles: Vec<[f64; 6]> = std::fs::read_to_string("tests/reference/fanuc-r2000ic/joint_angles.csv")
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
+            std::array::from_fn(|k| v[k])
+        })
+        .collect();
+    let (forces, measured) = (read("forces.csv"), read("deltaX.csv"));
+    assert_eq!((angles.len(), forces.len(), measured.len()), (43, 43, 43));
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, with_force: bool| {
+        let mut text = String::from("q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm\n");
+        for (t, f) in angles.iter().zip(&forces) {
+            let f = if with_force { *f } else { [0.0; 3] };
+            let cells: Vec<String> = t.iter().chain(&f).chain(&[0.0; 3]).map(|v| v.to_string()).collect();
+            text.push_str(&(cells.join(",") + "\n"));
+        }
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let map = |points: &Path| -> Vec<[f64; 3]> {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .args(["map", FANUC, "--points", points.to_str().unwrap(), "--loaded", "-q"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let rows = crate::common::csv_columns(&String::from_utf8(out.stdout).unwrap(), &["dx_mm", "dy_mm", "dz_mm"]);
+        rows.iter().map(|r| [r[0], r[1], r[2]]).collect()
+    };
+    let (loaded, sag) = (map(&write("force.csv", true)), map(&write("zero.csv", false)));
+    let k_inv = Matrix6::from_diagonal(&Vec6::from_iterator(K_JOINT.iter().map(|k| 1.0 / k)));
+    let (mut stiff_sq, mut salisbury_sq, mut rigid_sq, mut largest_component) = (0.0, 0.0, 0.0, 0.0f64);
+    for i in 0..43 {
+        let m = Vec3::from(measured[i]) * 1000.0;
+        let predicted = Vec3::from(loaded[i]) - Vec3::from(sag[i]);
+        let q = model_angles(&angles[i]);
+        let jt: Matrix3x6<f64> = dh_jacobian(&q).fixed_rows::<3>(0).into();
+        let salisbury = jt * k_inv * jt.transpose() * Vec3::from(forces[i]);
+        // The self-weight's sag changes the configuration by a few 1e-4 rad: the two agree to 1%.
+        assert!(
+            (predicted - salisbury).norm() <= 0.01 * salisbury.norm() + 1e-3,
+            "row {i}: {predicted} vs {salisbury}"
+        );
+        stiff_sq += (predicted - m).norm_squared();
+        salisbury_sq += (salisbury - m).norm_squared();
+        rigid_sq += m.norm_squared();
+        largest_component = largest_component.max((predicted - m).amax());
+    }
+    let rms = |s: f64| (s / 43.0).sqrt();
+    assert!((rms(salisbury_sq) - 0.4229).abs() < 5e-5, "Salisbury: {}", rms(salisbury_sq));
+    assert!((rms(stiff_sq) - 0.423).abs() < 1e-3, "stiff: {} mm RMS", rms(stiff_sq));
+    assert!((rms(rigid_sq) - 1.725).abs() < 5e-4, "rigid: {}", rms(rigid_sq));
+    assert!((largest_component - 0.925).abs() < 5e-3, "largest component {largest_component}");
+}
+
+/// The links' own weight: with gravity set, a loaded map at zero wrench is the sag under self-weight. For the
+/// FANUC at its first measured configuration the sag equals, to first order, C_q applied to the gravity
+/// torques of the links computed here from the source's masses (tau = sum_i J_i(c_i)^T m_i g over the links
+/// beyond each joint): the tool point moves by J K^-1 tau, within 1% of the loaded equilibrium's sag.
+#[test]
+fn self_weight_sags_the_arm_as_its_gravity_torques_say() {
+    const MASSES: [(f64, [f64; 3]); 6] = [
+        (262.614, [-13.9, 76.5, -110.7]),
+        (156.154, [424.8, 42.87, 216.3]),
+        (149.341, [134.2, 241.5, 39.1]),
+        (10.190, [0.0, 1.9, -105.5]),
+        (17.698, [0.0, 54.3, -27.7]),
+        (41.450, [0.5, -33.6, 265.4]),
+    ];
+    let t = [-1.047040472, -0.291347812, -0.504923753, 0.066113072, -1.098335698, 2.529313699];
+    let q = model_angles(&t);
+    let (p, frames) = dh_kinematics(&q);
+    // Gravity torques tau_k = sum over links i >= k of (z_k x (c_i - o_k)) . (m_i g), g = -9.81 z (N, mm).
+    let mut tau = Vec6::zeros();
+    for (i, (kg, c)) in MASSES.iter().enumerate() {
+        let f = frames[i];
+        let centre = f * nalgebra::Vector4::new(c[0], c[1], c[2], 1.0);
+        let centre = Vec3::new(centre.x, centre.y, centre.z);
+        let weight = Vec3::new(0.0, 0.0, -9.81 * kg);
+        for k in 0..=i {
+            let fk = frames[k];
+            let (z, o) = (Vec3::new(fk[(0, 2)], fk[(1, 2)], fk[(2, 2)]), Vec3::new(fk[(0, 3)], fk[(1, 3)], fk[(2, 3)]));
+            tau[k] += z.cross(&(centre - o)).dot(&weight);
+        }
+    }
+    let j = dh_jacobian(&q);
+    let dq = Vec6::from_iterator((0..6).map(|k| tau[k] / K_JOINT[k]));
+    let sag_first_order: Vec3 = (j * dq).fixed_rows::<3>(0).into();
+    let dir = tempfile::tempdir().unwrap();
+    let points = dir.path().join("q.csv");
+    let cells: Vec<String> = t.iter().map(|v| v.to_string()).collect();
+    std::fs::write(&points, format!("q_J1,q_J2,q_J3,q_J4,q_J5,q_J6\n{}\n", cells.join(","))).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["map", FANUC, "--points", points.to_str().unwrap(), "--wrench", "0,0,0,0,0,0", "-q"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let c = crate::common::csv_columns(&text, &["x_mm", "y_mm", "z_mm", "dx_mm", "dy_mm", "dz_mm"]);
+    let row = &c[0];
+    assert!((Vec3::new(row[0], row[1], row[2]) - p).norm() < 1e-9, "the row carries the pose");
+    let sag = Vec3::new(row[3], row[4], row[5]);
+    assert!(sag.norm() > 0.5, "{sag}");
+    assert!((sag - sag_first_order).norm() < 0.01 * sag_first_order.norm(), "{sag} vs {sag_first_order}");
+    // Unloaded compliance does not see the weight.
+    let unloaded = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["map", FANUC, "--points", points.to_str().unwrap(), "-q"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8(unloaded.stdout).unwrap().contains(",ok,"));
+}
+
+/// A URDF tree with branches off the path, a fixed joint folded into the transforms and a `<mimic>` joint:
+/// the chain from root to tip is the path only, the fixed joint's offset moves the tool, and the mimic joint
+/// turns with its master (multiplier 2, offset 0.1 rad): a planar arm whose tool point is known in closed
+/// form, (L1 cos a + L2 cos(a + 2a + 0.1), L1 sin a + L2 sin(3a + 0.1)) with the fixed offset along x.
+#[test]
+fn a_urdf_tree_with_a_fixed_and_a_mimic_joint_gives_the_path_from_root_to_tip() {
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = r#"<robot name="planar">
+  <link name="base"/><link name="a"/><link name="b"/><link name="c"/><link name="camera"/><link name="d"/>
+  <joint name="J1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/></joint>
+  <joint name="J2" type="continuous"><parent link="a"/><child link="b"/><origin xyz="0.4 0 0"/><axis xyz="0 0 1"/>
+    <mimic joint="J1" multiplier="2" offset="0.1"/></joint>
+  <joint name="mount" type="fixed"><parent link="b"/><child link="c"/><origin xyz="0.3 0 0"/></joint>
+  <joint name="cam" type="fixed"><parent link="a"/><child link="camera"/><origin xyz="0 0.1 0"/></joint>
+  <joint name="other" type="revolute"><parent link="base"/><child link="d"/><axis xyz="1 0 0"/></joint>
+</robot>"#;
+    std::fs::write(dir.path().join("planar.urdf"), urdf).unwrap();
+    let toml = "name = \"planar\"\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"planar.urdf\"\nroot = \"base\"\ntip = \"c\"\njoints = { J1 = { stiffness = 1e6 } }\n";
+    std::fs::write(dir.path().join("planar.toml"), toml).unwrap();
+    let m = stiff::model::load_manipulator(&dir.path().join("planar.toml")).unwrap();
+    assert_eq!(m.joint_space.as_ref().unwrap().names, vec!["J1".to_string()]);
+    for a in [0.0, 0.3, -1.1, 2.5] {
+        let mut state = m.new_state();
+        let f = m.pose_at_joints(&[a], &mut state).unwrap();
+        let want = Vec3::new(
+            400.0 * f64::cos(a) + 300.0 * f64::cos(3.0 * a + 0.1),
+            400.0 * f64::sin(a) + 300.0 * f64::sin(3.0 * a + 0.1),
+            0.0,
+        );
+        assert!((f.pos - want).norm() < 1e-9, "{a}: {} vs {want}", f.pos);
+    }
+}
+
+fn stiff_in(dir: &Path, args: &[&str]) -> (bool, String) {
+    let done = run_with_deadline(
+        std::process::Command::new(env!("CARGO_BIN_EXE_stiff")).args(args).current_dir(dir),
+        usize::MAX,
+        std::time::Duration::from_secs(60),
+    )
+    .expect("no hang");
+    (done.status.success(), done.stderr)
+}
+
+/// Bad input is a located error and nothing is written: a URDF that does not parse, a root and tip that
+/// are not connected, a floating joint on the path, a mimic loop, a joint in the stiffness table that is not
+/// on the chain, and joint columns missing or extra.
+#[test]
+fn bad_urdf_input_is_a_located_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = r#"<robot name="r"><link name="base"/><link name="a"/><link name="b"/><link name="x"/>
+<joint name="J1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/></joint>
+<joint name="J2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0.5 0 0"/><axis xyz="0 1 0"/></joint>
+</robot>"#;
+    let cases: [(&str, String, &str, &str); 6] = [
+        ("not-xml", "<robot><link name=\"base\">".to_string(), "", "not a URDF"),
+        ("disconnected", good.to_string(), "tip = \"x\"", "are not connected"),
+        (
+            "floating",
+            good.replace("type=\"revolute\"><parent link=\"a\"", "type=\"floating\"><parent link=\"a\""),
+            "",
+            "joint `J2` is `floating`",
+        ),
+        (
+            "mimic-loop",
+            good.replace("<axis xyz=\"0 0 1\"/></joint>", "<axis xyz=\"0 0 1\"/><mimic joint=\"J2\"/></joint>")
+                .replace("<axis xyz=\"0 1 0\"/></joint>", "<axis xyz=\"0 1 0\"/><mimic joint=\"J1\"/></joint>"),
+            "",
+            "loop",
+        ),
+        (
+            "unknown-joint",
+            good.to_string(),
+            "joints = { J9 = { stiffness = 1e6 } }",
+            "joint `J9` in `joints` is not on the chain",
+        ),
+        ("good", good.to_string(), "", ""),
+    ];
+    for (name, urdf, extra, message) in cases {
+        std::fs::write(dir.path().join(format!("{name}.urdf")), urdf).unwrap();
+        let tip = if extra.starts_with("tip") { extra.to_string() } else { "tip = \"b\"".into() };
+        let extra = if extra.starts_with("tip") { "" } else { extra };
+        let toml = format!(
+            "name = \"r\"\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"{name}.urdf\"\nroot = \"base\"\n{tip}\n{extra}\n"
+        );
+        std::fs::write(dir.path().join(format!("{name}.toml")), toml).unwrap();
+        std::fs::write(dir.path().join("q.csv"), "q_J1,q_J2\n0.1,0.2\n").unwrap();
+        let (ok, err) =
+            stiff_in(dir.path(), &["map", &format!("{name}.toml"), "--points", "q.csv", "-q", "-o", "out.csv"]);
+        if message.is_empty() {
+            assert!(ok, "{name}: {err}");
+            std::fs::remove_file(dir.path().join("out.csv")).unwrap();
+        } else {
+            assert!(!ok && err.contains(message) && err.contains(name), "{name}: {err}");
+            assert!(!dir.path().join("out.csv").exists(), "{name}: nothing written");
+        }
+    }
+    // Joint columns missing or extra, and joint columns for a robot that has no joint space.
+    for (columns, message) in
+        [("q_J1\n0.1\n", "missing q_J2"), ("q_J1,q_J2,q_J3\n0.1,0.2,0.3\n", "not joints of the arm q_J3")]
+    {
+        std::fs::write(dir.path().join("q.csv"), columns).unwrap();
+        let (ok, err) = stiff_in(dir.path(), &["map", "good.toml", "--points", "q.csv", "-q", "-o", "out.csv"]);
+        assert!(!ok && err.contains(message) && err.contains("q.csv"), "{err}");
+        assert!(!dir.path().join("out.csv").exists());
+    }
+    let root = std::env::current_dir().unwrap();
+    std::fs::write(dir.path().join("q.csv"), "q_J1,q_J2\n0.1,0.2\n").unwrap();
+    let puu = root.join("manipulators/orthoglide-3puu.toml");
+    let (ok, err) = stiff_in(dir.path(), &["map", puu.to_str().unwrap(), "--points", "q.csv", "-q"]);
+    assert!(!ok && err.contains("not a serial arm read from URDF"), "{err}");
+}
