@@ -96,7 +96,7 @@ fn the_readme_tour_runs_as_printed() {
     let block = tour.split("```").nth(1).expect("the tour's commands in a code block");
     let examples: Vec<&str> = block.lines().map(str::trim).filter(|l| l.starts_with("stiff ")).collect();
     let dir = tempfile::tempdir().unwrap();
-    assert_eq!(run_examples(&examples, dir.path()), 5);
+    assert_eq!(run_examples(&examples, dir.path()), 6);
     for picture in ["cube.svg", "curve.svg", "verdict.svg"] {
         assert!(dir.path().join(picture).exists(), "{picture}");
     }
