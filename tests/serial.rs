@@ -390,3 +390,110 @@ fn bad_urdf_input_is_a_located_error() {
     let (ok, err) = stiff_in(dir.path(), &["map", puu.to_str().unwrap(), "--points", "q.csv", "-q"]);
     assert!(!ok && err.contains("not a serial arm read from URDF"), "{err}");
 }
+
+/// A planar two-joint arm in the vertical x-z plane (joints about y, gravity along -z), point masses at the
+/// middle of each link and at its end, read from URDF (four stiff joints after the end mass, which carry no
+/// load, give the tool the other four directions, so that its stiffness has rank 6). Its sag under its own weight, computed here from the
+/// potential energy V = sum m g z + 1/2 k1 t1^2 + 1/2 k2 t2^2: to first order t = K^-1 tau(q) (the gravity
+/// torques at the commanded angles); exactly, the root of dV/dt = 0 found here by Newton's method on the two
+/// angles. `map --wrench 0,0,0,0,0,0` gives the exact one to 1e-9 mm, and differs from the first order by
+/// the second-order term (checked to be above 1e-3 mm, so the comparison tells them apart). Made soft and
+/// heavy and commanded upright, the arm is an inverted pendulum past its limit (m g L > k): its
+/// equilibrium at the commanded pose is reported `unstable`, never `ok`.
+#[test]
+fn self_weight_of_a_planar_arm_against_its_closed_form() {
+    let (l1, l2) = (800.0, 600.0);
+    let (m1, m2, tip) = (40.0, 25.0, 15.0);
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = format!(
+        r#"<robot name="planar">
+  <link name="base"/>
+  <link name="a"><inertial><origin xyz="{h1} 0 0"/><mass value="{m1}"/></inertial></link>
+  <link name="b"><inertial><origin xyz="{h2} 0 0"/><mass value="{m2}"/></inertial></link>
+  <link name="c"><inertial><origin xyz="0 0 0"/><mass value="{tip}"/></inertial></link>
+  <joint name="J1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/></joint>
+  <joint name="J2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="{l1m} 0 0"/><axis xyz="0 1 0"/></joint>
+  <joint name="end" type="fixed"><parent link="b"/><child link="c"/><origin xyz="{l2m} 0 0"/></joint>
+  <link name="d"/><link name="e"/><link name="f"/><link name="g"/>
+  <joint name="X1" type="prismatic"><parent link="c"/><child link="d"/><axis xyz="0 1 0"/></joint>
+  <joint name="X2" type="revolute"><parent link="d"/><child link="e"/><axis xyz="1 0 0"/></joint>
+  <joint name="X3" type="revolute"><parent link="e"/><child link="f"/><axis xyz="0 0 1"/></joint>
+  <joint name="X4" type="prismatic"><parent link="f"/><child link="g"/><axis xyz="1 0 0"/></joint>
+</robot>"#,
+        h1 = l1 / 2000.0,
+        h2 = l2 / 2000.0,
+        l1m = l1 / 1000.0,
+        l2m = l2 / 1000.0
+    );
+    std::fs::write(dir.path().join("planar.urdf"), urdf).unwrap();
+    let write_model = |k1: f64, k2: f64| {
+        let toml = format!(
+            "name = \"planar\"\ngravity = [0, 0, -9.81]\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"planar.urdf\"\nroot = \"base\"\ntip = \"g\"\njoints = {{ J1 = {{ stiffness = {k1:e} }}, J2 = {{ stiffness = {k2:e} }}, X1 = {{ stiffness = 1e4 }}, X2 = {{ stiffness = 1e9 }}, X3 = {{ stiffness = 1e9 }}, X4 = {{ stiffness = 1e4 }} }}\n"
+        );
+        std::fs::write(dir.path().join("planar.toml"), toml).unwrap();
+    };
+    let map = |q: [f64; 2]| -> (String, Vec3) {
+        std::fs::write(dir.path().join("q.csv"), format!("q_J1,q_J2,q_X1,q_X2,q_X3,q_X4\n{},{},0,0,0,0\n", q[0], q[1]))
+            .unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .args(["map", "planar.toml", "--points", "q.csv", "--wrench", "0,0,0,0,0,0", "-q"])
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let text = String::from_utf8(out.stdout).unwrap();
+        let row = text.lines().nth(1).unwrap().to_string();
+        let c = crate::common::csv_columns(&text, &["dx_mm", "dy_mm", "dz_mm"]);
+        (row, Vec3::new(c[0][0], c[0][1], c[0][2]))
+    };
+    // Rotation about y by phi turns x to (cos phi, 0, -sin phi): heights of the masses and the tip.
+    let tip_of =
+        |p1: f64, p2: f64| Vec3::new(l1 * p1.cos() + l2 * (p1 + p2).cos(), 0.0, -l1 * p1.sin() - l2 * (p1 + p2).sin());
+    // dV/dt for V = g [m1 z(l1/2) + m2 z(l1 + l2/2 along 2) + tip z(end)] + springs, z = -(...) sin(...).
+    let gradient = |q: [f64; 2], t: [f64; 2], k: [f64; 2]| {
+        let (p1, p2) = (q[0] + t[0], q[0] + t[0] + q[1] + t[1]);
+        // dz/dp1 and dz/dp2 of each mass (p2 here the absolute angle of link 2).
+        let (dz1_1, dz2_1, dzt_1) = (-l1 / 2.0 * p1.cos(), -l1 * p1.cos(), -l1 * p1.cos());
+        let (dz2_2, dzt_2) = (-l2 / 2.0 * p2.cos(), -l2 * p2.cos());
+        let w = |m: f64| m * 9.81; // the weight in N (kg times m/s^2); heights in mm, so V in N mm
+        let d_abs1 = w(m1) * dz1_1 + w(m2) * (dz2_1 + dz2_2) + w(tip) * (dzt_1 + dzt_2);
+        let d_abs2 = w(m2) * dz2_2 + w(tip) * dzt_2;
+        // t1 moves both absolute angles, t2 only the second.
+        [d_abs1 + k[0] * t[0], d_abs2 + k[1] * t[1]]
+    };
+    let k = [4e7, 1.5e7];
+    write_model(k[0], k[1]);
+    for q in [[0.3, -0.5], [-0.2, 0.9], [1.0, -1.4]] {
+        // First order: t = -K^-1 dV/dt at t = 0 (the gravity torques).
+        let g0 = gradient(q, [0.0, 0.0], [0.0, 0.0]);
+        let first = [-g0[0] / k[0], -g0[1] / k[1]];
+        // Exact: Newton on the two angles with a central-difference Hessian.
+        let mut t = first;
+        for _ in 0..30 {
+            let r = gradient(q, t, k);
+            let h = 1e-7;
+            let col = |i: usize| {
+                let (mut a, mut b) = (t, t);
+                a[i] += h;
+                b[i] -= h;
+                let (ga, gb) = (gradient(q, a, k), gradient(q, b, k));
+                [(ga[0] - gb[0]) / (2.0 * h), (ga[1] - gb[1]) / (2.0 * h)]
+            };
+            let (c0, c1) = (col(0), col(1));
+            let det = c0[0] * c1[1] - c1[0] * c0[1];
+            t = [t[0] - (c1[1] * r[0] - c1[0] * r[1]) / det, t[1] - (-c0[1] * r[0] + c0[0] * r[1]) / det];
+        }
+        let base = tip_of(q[0], q[1]);
+        let exact = tip_of(q[0] + t[0], q[1] + t[1]) - base;
+        let linear = tip_of(q[0] + first[0], q[1] + first[1]) - base;
+        let (row, sag) = map(q);
+        assert!(row.contains(",ok,"), "{row}");
+        assert!((sag - exact).norm() < 1e-9 * exact.norm().max(1.0) + 1e-9, "{q:?}: {sag} vs exact {exact}");
+        assert!((exact - linear).norm() > 1e-3, "{q:?}: the first order is {linear}, exact {exact}: too close to tell");
+    }
+    // Soft and heavy, commanded upright (q1 = -pi/2 points link 1 up): gravity's destabilising stiffness
+    // (about 6.3e5 N mm/rad at joint 1, 1.6e5 at joint 2) exceeds the springs'.
+    write_model(2e5, 1e5);
+    let (row, _) = map([-std::f64::consts::FRAC_PI_2, 0.0]);
+    assert!(row.contains(",unstable,") || row.contains(",not_converged,"), "{row}");
+}

@@ -270,7 +270,9 @@ pub fn loaded_point(
             let mut r = PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true);
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;
-            if r.status == Status::Ok && !d.stable {
+            // An unstable equilibrium says more than its conditioning: ill-conditioned or not, it is not where
+            // the platform stays.
+            if matches!(r.status, Status::Ok | Status::IllConditioned) && !d.stable {
                 r.status = Status::Unstable;
             }
             r.check_finite()
