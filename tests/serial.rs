@@ -497,3 +497,34 @@ fn self_weight_of_a_planar_arm_against_its_closed_form() {
     let (row, _) = map([-std::f64::consts::FRAC_PI_2, 0.0]);
     assert!(row.contains(",unstable,") || row.contains(",not_converged,"), "{row}");
 }
+
+/// `stiff point --joints` at a FANUC configuration reports the pose the DH table gives for the controller's
+/// angles and, under a wrench, a loaded equilibrium whose displacement minus the self-weight's sag (the
+/// same command at zero wrench) is the cable's deflection the map reports for that row.
+#[test]
+fn point_takes_a_serial_arms_joint_coordinates() {
+    let t = [-1.047040472, -0.291347812, -0.504923753, 0.066113072, -1.098335698, 2.529313699];
+    let joints = format!("--joints={}", t.map(|v| v.to_string()).join(","));
+    let run = |wrench: &str| -> serde_json::Value {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .args(["point", FANUC, &joints, &format!("--wrench={wrench}"), "--json"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let (loaded, sag) = (run("-120.2110768,-78.21523168,-14.69090881,0,0,0"), run("0,0,0,0,0,0"));
+    let position: Vec<f64> = serde_json::from_value(loaded["pose"]["position_mm"].clone()).unwrap();
+    let (p, _) = dh_kinematics(&model_angles(&t));
+    assert!((Vec3::new(position[0], position[1], position[2]) - p).norm() < 1e-9, "{position:?} vs {p}");
+    let d = |v: &serde_json::Value| -> Vec3 {
+        let d: Vec<f64> = serde_json::from_value(v["loaded"]["deflection"].clone()).unwrap();
+        Vec3::new(d[0], d[1], d[2])
+    };
+    let cable = d(&loaded) - d(&sag);
+    // Salisbury with the source's stiffnesses at this configuration: 0.44 mm, mostly along -x.
+    let k_inv = Matrix6::from_diagonal(&Vec6::from_iterator(K_JOINT.iter().map(|k| 1.0 / k)));
+    let jt: Matrix3x6<f64> = dh_jacobian(&model_angles(&t)).fixed_rows::<3>(0).into();
+    let salisbury = jt * k_inv * jt.transpose() * Vec3::new(-120.2110768, -78.21523168, -14.69090881);
+    assert!((cable - salisbury).norm() < 0.01 * salisbury.norm(), "{cable} vs {salisbury}");
+}

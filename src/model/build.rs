@@ -194,6 +194,22 @@ struct ChainParts {
 }
 
 impl ChainParts {
+    /// The leg these parts make, written once (not copied, not placed), its masses under `gravity`.
+    fn into_leg(self, name: String, gravity: Vec3) -> Leg {
+        let chain = Chain::new(self.elements);
+        let length_scale = chain.length_scale().max(1.0);
+        Leg::Vjm(VjmLeg {
+            name,
+            place: Frame::IDENTITY,
+            preload: self.preload,
+            gravity,
+            chain,
+            attachment: Frame::IDENTITY,
+            springs: self.springs,
+            length_scale,
+        })
+    }
+
     fn passive_index(&self, name: &Spanned<String>) -> Option<usize> {
         self.passive_names.iter().find(|(n, _)| n == name.get_ref()).map(|(_, i)| *i)
     }
@@ -769,19 +785,7 @@ impl Builder<'_> {
                     .transpose()
             })
             .collect::<Result<Vec<_>, InputError>>()?;
-        let chain = Chain::new(std::mem::take(&mut parts.elements));
-        let length_scale = chain.length_scale().max(1.0);
-        let leg = Leg::Vjm(VjmLeg {
-            name: leg_name.to_string(),
-            place: Frame::IDENTITY,
-            preload: parts.preload,
-            gravity,
-            chain,
-            attachment: Frame::IDENTITY,
-            springs: parts.springs,
-            length_scale,
-        });
-        Ok((leg, JointSpace { names, controller }))
+        Ok((parts.into_leg(leg_name.to_string(), gravity), JointSpace { names, controller }))
     }
 
     /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.
@@ -908,18 +912,7 @@ impl Builder<'_> {
             for (i, e) in chain_spec.get_ref().iter().enumerate() {
                 self.element(e, i, &mut parts)?;
             }
-            let chain = Chain::new(std::mem::take(&mut parts.elements));
-            let length_scale = chain.length_scale().max(1.0);
-            return Ok(Leg::Vjm(VjmLeg {
-                name: spec.name.clone(),
-                place: Frame::IDENTITY,
-                preload: parts.preload,
-                gravity,
-                chain,
-                attachment: Frame::IDENTITY,
-                springs: parts.springs,
-                length_scale,
-            }));
+            return Ok(parts.into_leg(spec.name.clone(), gravity));
         }
         if let Some(msa) = &spec.msa {
             let template = self.msa_leg(msa)?;
