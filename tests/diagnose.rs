@@ -648,3 +648,43 @@ fn a_deterministic_misfit_that_averages_out_per_wrench_is_not_noise() {
         assert_ne!(d.verdict, Verdict::None, "{what}: {sentence}");
     }
 }
+
+/// Regression: spring scalings were predicted to first order around the nominal equilibrium (the loaded
+/// response's non-linear part moved by its slope in the factor's logarithm), so on noise-free data from the
+/// exact loaded equilibrium of the changed robot (synth) a leg compliance of 0.535 was fitted as 0.5370 and
+/// 1.6 as 1.6015, a bias of 1.2 standard errors at 1 um, with 0.2 um of misfit left: at high signal-to-noise
+/// (a tracker's 20-50 um on millimetres) that is a spurious second effect or `unexplained`. The
+/// linearisation is re-centred at the fitted factor while what it neglects exceeds a tenth of sigma: the
+/// factor comes back to 1e-5 and the misfit below 1e-3 sigma, under +-250 N on the Orthoglide.
+#[test]
+fn spring_scalings_far_from_one_are_fitted_on_the_loaded_equilibrium() {
+    let m = model();
+    let mut wrenches = Vec::new();
+    for k in 0..3 {
+        for s in [250.0, -250.0] {
+            let mut w = Vec6::zeros();
+            w[k] = s;
+            wrenches.push(w);
+        }
+    }
+    let points = PointSet::from_grid_file(Path::new("manipulators/grids/orthoglide-small.toml")).unwrap();
+    let mut grid = Vec::new();
+    let mut points = points;
+    while points.next_block(256, &mut grid).unwrap() > 0 {}
+    for factor in [0.535, 1.6] {
+        let hidden = Effect::parse(&format!("link-compliance:leg={factor}"), &m).unwrap();
+        let data = synth_at(&m, grid.clone(), std::slice::from_ref(&hidden), &wrenches, 0.0, 3);
+        let sigma = 0.001;
+        let (weights, sigma, source) = noise(&data, Some(sigma)).unwrap();
+        let problem = Problem::new(&m, &[], &data, weights, true, true).unwrap();
+        let d = diagnose(&problem, sigma, source, &Options::default()).unwrap();
+        let what = stiff::diagnose::report::sentence(&d);
+        assert_eq!((d.verdict, d.accepted.len()), (Verdict::Effect, 1), "{factor}: {what}");
+        let a = &d.accepted[0];
+        assert_eq!((a.effect.kind, &a.effect.target), (hidden.kind, &hidden.target), "{what}");
+        assert!((a.params[0] / factor - 1.0).abs() < 1e-5, "{factor}: fitted {}", a.params[0]);
+        for k in 0..3 {
+            assert!(d.rms_after[k] < 1e-3 * sigma, "{factor}: misfit left {}", d.rms_after);
+        }
+    }
+}
