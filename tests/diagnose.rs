@@ -659,25 +659,9 @@ fn a_deterministic_misfit_that_averages_out_per_wrench_is_not_noise() {
 #[test]
 fn spring_scalings_far_from_one_are_fitted_on_the_loaded_equilibrium() {
     let m = model();
-    let mut wrenches = Vec::new();
-    for k in 0..3 {
-        for s in [250.0, -250.0] {
-            let mut w = Vec6::zeros();
-            w[k] = s;
-            wrenches.push(w);
-        }
-    }
-    let points = PointSet::from_grid_file(Path::new("manipulators/grids/orthoglide-small.toml")).unwrap();
-    let mut grid = Vec::new();
-    let mut points = points;
-    while points.next_block(256, &mut grid).unwrap() > 0 {}
     for factor in [0.535, 1.6] {
         let hidden = Effect::parse(&format!("link-compliance:leg={factor}"), &m).unwrap();
-        let data = synth_at(&m, grid.clone(), std::slice::from_ref(&hidden), &wrenches, 0.0, 3);
-        let sigma = 0.001;
-        let (weights, sigma, source) = noise(&data, Some(sigma)).unwrap();
-        let problem = Problem::new(&m, &[], &data, weights, true, true).unwrap();
-        let d = diagnose(&problem, sigma, source, &Options::default()).unwrap();
+        let (d, sigma) = noise_free_diagnosis(&m, &hidden);
         let what = stiff::diagnose::report::sentence(&d);
         assert_eq!((d.verdict, d.accepted.len()), (Verdict::Effect, 1), "{factor}: {what}");
         let a = &d.accepted[0];
@@ -686,5 +670,46 @@ fn spring_scalings_far_from_one_are_fitted_on_the_loaded_equilibrium() {
         for k in 0..3 {
             assert!(d.rms_after[k] < 1e-3 * sigma, "{factor}: misfit left {}", d.rms_after);
         }
+    }
+}
+
+/// Noise-free synthetic data from the loaded equilibrium with `hidden` built in, on the small grid under
+/// +-250 N along each axis, diagnosed with a stated sigma of 1 um: the diagnosis and that sigma.
+fn noise_free_diagnosis(m: &Manipulator, hidden: &Effect) -> (Diagnosis, f64) {
+    let mut wrenches = Vec::new();
+    for k in 0..3 {
+        for s in [250.0, -250.0] {
+            let mut w = Vec6::zeros();
+            w[k] = s;
+            wrenches.push(w);
+        }
+    }
+    let mut points = PointSet::from_grid_file(Path::new("manipulators/grids/orthoglide-small.toml")).unwrap();
+    let mut grid = Vec::new();
+    while points.next_block(256, &mut grid).unwrap() > 0 {}
+    let data = synth_at(m, grid, std::slice::from_ref(hidden), &wrenches, 0.0, 3);
+    let (weights, sigma, source) = noise(&data, Some(0.001)).unwrap();
+    let problem = Problem::new(m, &[], &data, weights, true, true).unwrap();
+    (diagnose(&problem, sigma, source, &Options::default()).unwrap(), sigma)
+}
+
+/// Regression: an added load (a payload's weight) was predicted to first order, through the tangent
+/// compliance of the row's own equilibrium: on noise-free data a 5 kg mass 100 mm off the reference point
+/// was fitted as 5.24 kg at 96.3 mm with a spurious 1.9 um tool-offset beside it. The accepted effects are
+/// refitted against the loaded equilibrium of the robot carrying them (the miss at the fitted values kept as
+/// a correction): the mass alone is named, 5 kg to 1e-3 and 100 mm to 0.1%, nothing left.
+#[test]
+fn an_added_mass_is_fitted_on_the_loaded_equilibrium() {
+    let m = model();
+    let hidden = Effect::parse("gravity-offset=5,100,0,0", &m).unwrap();
+    let (d, sigma) = noise_free_diagnosis(&m, &hidden);
+    let what = stiff::diagnose::report::sentence(&d);
+    assert_eq!((d.verdict, d.accepted.len()), (Verdict::Effect, 1), "{what}");
+    let a = &d.accepted[0];
+    assert_eq!(a.effect.kind, Kind::GravityOffset, "{what}");
+    assert!((a.params[0] / 5.0 - 1.0).abs() < 1e-3, "mass {}", a.params[0]);
+    assert!((a.params[1] / 100.0 - 1.0).abs() < 1e-3, "centre x {}", a.params[1]);
+    for k in 0..3 {
+        assert!(d.rms_after[k] < 0.1 * sigma, "misfit left {}", d.rms_after);
     }
 }

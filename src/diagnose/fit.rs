@@ -10,7 +10,7 @@ use super::data::Dataset;
 use super::error::{DiagnoseError, PoseError};
 use super::measurement::{gravity_of, PoseModel};
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
-use crate::model::effect::{scaled, Effect, Kind, Target};
+use crate::model::effect::{scaled, with_model_effects, Effect, Form, Kind, Target};
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
 /// The model, the data and what does not change between fits.
@@ -40,6 +40,18 @@ pub struct Problem<'a> {
     /// Per spring scaling (kind and target), per row: the derivative of the loaded response's non-linear
     /// part (loaded - C w) by the logarithm of the factor, computed when first needed (loaded mode).
     slopes: Mutex<Vec<Slope>>,
+    /// Per set of model-form effects fitted (kinds, targets and values): what the loaded equilibrium of the
+    /// robot with them built in differs by from their linearised prediction, per row (`correct`).
+    corrections: Mutex<Vec<Correction>>,
+}
+
+/// The loaded equilibrium's difference from the linearised prediction at one set of model-form effects:
+/// added to every later prediction with those effects (nearest values), so that a fit sees the exact
+/// response where the first order is not enough (added loads: a payload's weight changes the tangent it
+/// acts through; its moment turns with the platform).
+struct Correction {
+    effects: Vec<Effect>,
+    per_row: Vec<Vec3>,
 }
 
 /// One factor's linearisation of the loaded response's non-linear part N (loaded - C w) about a centre c in
@@ -130,6 +142,7 @@ impl<'a> Problem<'a> {
             tangent,
             pose_of,
             slopes: Mutex::new(Vec::new()),
+            corrections: Mutex::new(Vec::new()),
         })
     }
 
@@ -283,7 +296,70 @@ impl<'a> Problem<'a> {
             };
             out.push(pm.displacement(row, &base, nonlinear.as_ref(), &terms, &self.gravity, tangent.as_ref()));
         }
+        if let Some(c) = self.correction_for(effects) {
+            for (o, &r) in out.iter_mut().zip(rows) {
+                *o += c[r];
+            }
+        }
         Ok(out)
+    }
+
+    /// The model-form effects of a set (those `with_model_effects` builds into the robot).
+    fn model_form(effects: &[Effect]) -> Vec<Effect> {
+        effects.iter().filter(|e| e.kind.form() == Form::Model).cloned().collect()
+    }
+
+    /// The kept correction for these effects: of those made for exactly their model-form kinds and
+    /// targets, the one whose values are nearest. Loaded mode only.
+    fn correction_for(&self, effects: &[Effect]) -> Option<Vec<Vec3>> {
+        if !self.loaded_mode {
+            return None;
+        }
+        let mine = Self::model_form(effects);
+        if mine.is_empty() {
+            return None;
+        }
+        let cache = self.corrections.lock().unwrap_or_else(|p| p.into_inner());
+        let same = |c: &&Correction| {
+            c.effects.len() == mine.len()
+                && c.effects.iter().zip(&mine).all(|(a, b)| a.kind == b.kind && a.target == b.target)
+        };
+        let distance = |c: &Correction| -> f64 {
+            c.effects
+                .iter()
+                .zip(&mine)
+                .flat_map(|(a, b)| a.values.iter().zip(&b.values).map(|(x, y)| (x - y).powi(2)))
+                .sum()
+        };
+        cache.iter().filter(same).min_by(|a, b| distance(a).total_cmp(&distance(b))).map(|c| c.per_row.clone())
+    }
+
+    /// Compares the prediction with `effects` against the loaded equilibrium of the robot with their
+    /// model-form part built in (exactly what `synth` computes); where some row misses by more than
+    /// `RECENTRE_SIGMA` standard deviations, keeps the difference at these values as a correction of later
+    /// predictions and returns true (the caller refits). Loaded mode only.
+    pub fn correct(&self, effects: &[Effect]) -> Result<bool, PoseError> {
+        let mine = Self::model_form(effects);
+        if !(self.loaded_mode && self.loaded.is_some()) || mine.is_empty() {
+            return Ok(false);
+        }
+        let all: Vec<usize> = (0..self.data.rows.len()).collect();
+        let robot = with_model_effects(self.model, &mine);
+        let exact = Problem::new(&robot, self.terms, self.data, self.weights.clone(), true, true)
+            .map_err(|e| match e {
+                DiagnoseError::Pose { why, .. } => why,
+                _ => PoseError::NotFinite,
+            })?
+            .predict(&[], &all)?;
+        let predicted = self.predict(&mine, &all)?;
+        let miss = (0..all.len()).map(|r| (exact[r] - predicted[r]).amax() * self.weights[r]).fold(0.0, f64::max);
+        if miss.is_nan() || miss <= RECENTRE_SIGMA {
+            return Ok(false);
+        }
+        let applied = self.correction_for(&mine).unwrap_or_else(|| vec![Vec3::zeros(); all.len()]);
+        let per_row = (0..all.len()).map(|r| applied[r] + exact[r] - predicted[r]).collect();
+        self.corrections.lock().unwrap_or_else(|p| p.into_inner()).push(Correction { effects: mine, per_row });
+        Ok(true)
     }
 
     /// Weighted residuals (measured - predicted) / sigma, three per row.

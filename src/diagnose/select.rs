@@ -949,7 +949,7 @@ fn select_effects(
         }
         cv_current = cv;
         accepted = trial;
-        current = f;
+        current = exact_refit(problem, &accepted, rows, f)?;
         let k = current.theta.len();
         if chi2_sf(current.ssr, n.saturating_sub(k).max(1)) >= o.alpha {
             break;
@@ -958,8 +958,28 @@ fn select_effects(
     if out.verdict == Verdict::Ambiguous || accepted.is_empty() {
         return Ok((accepted, current));
     }
-    Ok(refine(step, cands, accepted, current)?)
+    let (accepted, current) = refine(step, cands, accepted, current)?;
+    let current = exact_refit(problem, &accepted, &step.rows, current)?;
+    Ok((accepted, current))
 }
+
+/// The accepted effects refitted where their linearised prediction misses the loaded equilibrium of the
+/// robot with them built in by more than a tenth of sigma (`Problem::correct`: the miss at the fitted values
+/// is kept as a correction of every later prediction with these effects, and the fit redone), at most
+/// `EXACT_REFITS` times: the candidates of the next step, the held-out errors and the final test then see
+/// what the accepted effects really do.
+fn exact_refit(problem: &Problem, accepted: &[Candidate], rows: &[usize], mut f: Fit) -> Result<Fit, PoseError> {
+    for _ in 0..EXACT_REFITS {
+        if !problem.correct(&effects_of(accepted, &f.theta))? {
+            break;
+        }
+        f = fit(problem, accepted, rows, Some(&f.theta))?;
+    }
+    Ok(f)
+}
+
+/// Corrections per accepted set: each leaves a miss of the order of the last step's square.
+const EXACT_REFITS: usize = 3;
 
 /// Most rounds of backward elimination and swaps (each strictly lowers the BIC, so they end anyway).
 const MAX_REFINE: usize = 6;
