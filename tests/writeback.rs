@@ -136,3 +136,25 @@ fn an_actuator_offset_found_by_diagnose_moves_every_study() {
     assert_same(&columns(&curve, &DISPLACEMENT)[..1], &shift[1..2], "curve at zero load");
     assert_clean(&fixed, &data);
 }
+
+/// Regression: under `--linear` (every prediction first order in the loads), a corrected file carrying the
+/// `[[payload]]` that a linear diagnosis of `gravity-offset` wrote diagnosed `unexplained` (tool-offset,
+/// leg-geometry) on the same data: its nominal settled the payload's weight exactly (the moment's arm turning
+/// with the platform), where the effect had been fitted as C times the weight. The linear nominal's rest
+/// displacement under a payload is C times its weight too: the corrected file diagnoses `none`.
+#[test]
+fn a_payload_written_by_a_linear_diagnosis_is_clean_under_linear() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data.csv");
+    let d = data.to_str().unwrap();
+    run(&["synth", MODEL, "--grid", GRID, "--effect", "gravity-offset=5,100,0,0", "--wrenches", WRENCHES]
+        .into_iter()
+        .chain(["--noise", "0.001", "--seed", "4", "--linear", "-q", "-o", d])
+        .collect::<Vec<_>>());
+    let fixed = dir.path().join("fixed.toml");
+    let out = run(&["diagnose", MODEL, "--data", d, "--linear", "--model-out", fixed.to_str().unwrap()]);
+    assert!(out.contains("verdict: effect: gravity-offset"), "{out}");
+    assert!(std::fs::read_to_string(&fixed).unwrap().contains("[[payload]]"));
+    let out = run(&["diagnose", fixed.to_str().unwrap(), "--data", d, "--linear"]);
+    assert!(out.contains("verdict: none"), "{out}");
+}

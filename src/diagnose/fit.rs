@@ -105,7 +105,18 @@ impl<'a> Problem<'a> {
                     .map_err(|why| fails(&p.id, data.rows[p.rows[0]].line, why))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let rest = if model.loaded_at_rest() {
+        // The linear nominal (`--linear`) is first order throughout: where the only load at rest is a
+        // payload, its rest displacement is C times the payload's weight, as the gravity effects are
+        // predicted there (a corrected file carrying the payload `--model-out` wrote then diagnoses as the
+        // effect did). Preloads and weighed chain masses settle exactly.
+        let payload_only = model.payload.is_some() && model.legs.iter().all(|l| l.unloaded_at_placement());
+        let rest = if !loaded_mode && payload_only {
+            data.poses
+                .iter()
+                .zip(&poses)
+                .map(|(p, pm)| pm.compliance * model.weight(&Frame::translation(p.position)).0)
+                .collect()
+        } else if model.loaded_at_rest() {
             data.poses
                 .iter()
                 .map(|p| {
