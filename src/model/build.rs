@@ -806,9 +806,14 @@ impl Builder<'_> {
         if file.legs.get_ref().is_empty() {
             return Err(self.loc.at(file.legs.span(), "a manipulator needs at least one [[leg]]"));
         }
+        let mut joint_space = None;
         for leg_spec in file.legs.get_ref() {
             let spec = leg_spec.get_ref();
-            let body = self.leg_body(leg_spec, gravity, depth)?;
+            let (body, space) = self.leg_body(leg_spec, gravity, depth)?;
+            // A serial arm (one leg, read from URDF, not copied) takes poses as its joint angles too.
+            if file.legs.get_ref().len() == 1 && spec.copies.is_empty() {
+                joint_space = space;
+            }
             let attachment = match &spec.attachment {
                 Some(TransformSpec { translation, rotation_axis, rotation_deg }) => {
                     self.transform(translation, rotation_axis, rotation_deg, leg_spec.span())?
@@ -850,14 +855,8 @@ impl Builder<'_> {
             length_scale,
             gravity: file.gravity.as_ref().map(|_| gravity),
             payload: None,
-            joint_space: None,
+            joint_space,
         };
-        // A serial arm (one leg, read from URDF, not copied) takes poses as its joint angles too.
-        if let [leg] = file.legs.get_ref().as_slice() {
-            if let (Some(urdf), true) = (&leg.get_ref().urdf, leg.get_ref().copies.is_empty()) {
-                nominal.joint_space = Some(self.urdf_leg(&leg.get_ref().name, urdf, gravity)?.1);
-            }
-        }
         for spec in &file.payloads {
             let p = spec.get_ref();
             let centre = p.centre.as_ref().map(|c| self.vec3(c)).transpose()?.unwrap_or_else(Vec3::zeros);
@@ -886,8 +885,14 @@ impl Builder<'_> {
         Ok(Model { manipulator, measurement_terms })
     }
 
-    /// One leg as written (a chain, an MSA structure, or the leg of another file), before copies.
-    fn leg_body(&self, leg_spec: &Spanned<LegSpec>, gravity: Vec3, depth: usize) -> Result<Leg, InputError> {
+    /// One leg as written (a chain, an MSA structure, a URDF chain, or the leg of another file), before
+    /// copies, with its joint space where it was read from URDF.
+    fn leg_body(
+        &self,
+        leg_spec: &Spanned<LegSpec>,
+        gravity: Vec3,
+        depth: usize,
+    ) -> Result<(Leg, Option<JointSpace>), InputError> {
         let spec = leg_spec.get_ref();
         let given = [spec.chain.is_some(), spec.msa.is_some(), spec.from.is_some(), spec.urdf.is_some()];
         if given.iter().filter(|g| **g).count() != 1 {
@@ -897,7 +902,8 @@ impl Builder<'_> {
             ));
         }
         if let Some(urdf) = &spec.urdf {
-            return Ok(self.urdf_leg(&spec.name, urdf, gravity)?.0);
+            let (leg, space) = self.urdf_leg(&spec.name, urdf, gravity)?;
+            return Ok((leg, Some(space)));
         }
         if !spec.parameters.is_empty() && spec.from.is_none() {
             return Err(self
@@ -912,7 +918,7 @@ impl Builder<'_> {
             for (i, e) in chain_spec.get_ref().iter().enumerate() {
                 self.element(e, i, &mut parts)?;
             }
-            return Ok(parts.into_leg(spec.name.clone(), gravity));
+            return Ok((parts.into_leg(spec.name.clone(), gravity), None));
         }
         if let Some(msa) = &spec.msa {
             let template = self.msa_leg(msa)?;
@@ -930,7 +936,7 @@ impl Builder<'_> {
             })?;
             let end = home.nodes[home.end];
             leg.length_scale = home.nodes.iter().map(|p| (p - end).norm()).fold(1.0, f64::max);
-            return Ok(Leg::Msa(leg));
+            return Ok((Leg::Msa(leg), None));
         }
         let from = spec.from.as_ref().expect("one of the three is given");
         if depth > 8 {
@@ -946,10 +952,14 @@ impl Builder<'_> {
         let other = parse_with(&path, &source, &overrides, depth + 1)?;
         let mut legs = other.manipulator.legs.into_iter();
         match (legs.next(), legs.next()) {
-            (Some(leg), None) => Ok(match leg {
-                Leg::Vjm(v) => Leg::Vjm(VjmLeg { name: spec.name.clone(), gravity, ..v }),
-                Leg::Msa(m) => Leg::Msa(MsaLeg { name: spec.name.clone(), ..m }),
-            }),
+            // The other file's arm keeps its joint space.
+            (Some(leg), None) => Ok((
+                match leg {
+                    Leg::Vjm(v) => Leg::Vjm(VjmLeg { name: spec.name.clone(), gravity, ..v }),
+                    Leg::Msa(m) => Leg::Msa(MsaLeg { name: spec.name.clone(), ..m }),
+                },
+                other.manipulator.joint_space,
+            )),
             _ => {
                 Err(self.loc.at(from.span(), format!("`{}` must describe exactly one leg (no copies)", from.get_ref())))
             }
