@@ -500,7 +500,8 @@ fn self_weight_of_a_planar_arm_against_its_closed_form() {
 
 /// `stiff point --joints` at a FANUC configuration reports the pose the DH table gives for the controller's
 /// angles and, under a wrench, a loaded equilibrium whose displacement minus the self-weight's sag (the
-/// same command at zero wrench) is the cable's deflection the map reports for that row.
+/// same command at zero wrench) is the cable's deflection (Salisbury's to 1%); `stiff curve --joints` goes
+/// from the one to the other.
 #[test]
 fn point_takes_a_serial_arms_joint_coordinates() {
     let t = [-1.047040472, -0.291347812, -0.504923753, 0.066113072, -1.098335698, 2.529313699];
@@ -527,4 +528,15 @@ fn point_takes_a_serial_arms_joint_coordinates() {
     let jt: Matrix3x6<f64> = dh_jacobian(&model_angles(&t)).fixed_rows::<3>(0).into();
     let salisbury = jt * k_inv * jt.transpose() * Vec3::new(-120.2110768, -78.21523168, -14.69090881);
     assert!((cable - salisbury).norm() < 0.01 * salisbury.norm(), "{cable} vs {salisbury}");
+    // `curve --joints` at the same configuration: from the sag (load factor 0) to the cable's load (1), the
+    // same displacement as the two loaded points.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["curve", FANUC, &joints, "--wrench-direction=-120.2110768,-78.21523168,-14.69090881,0,0,0"])
+        .args(["--max", "1", "--intervals", "2", "-q"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows = crate::common::csv_columns(&String::from_utf8(out.stdout).unwrap(), &["dx_mm", "dy_mm", "dz_mm"]);
+    let along = Vec3::new(rows[2][0] - rows[0][0], rows[2][1] - rows[0][1], rows[2][2] - rows[0][2]);
+    assert!((along - cable).norm() < 1e-6, "curve {along} vs point {cable}");
 }

@@ -160,21 +160,60 @@ impl PlotStyle {
     }
 }
 
-/// One commanded pose of the platform (`point`, `curve`).
+/// One commanded pose of the platform (`point`, `curve`): a reference point and orientation, or a serial
+/// arm's joint coordinates.
 #[derive(Args, Debug)]
+#[command(group = clap::ArgGroup::new("pose").required(true).multiple(false).args(["at", "joints"]))]
 pub(crate) struct PoseArgs {
     /// Commanded platform reference point x,y,z in mm.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub(crate) at: Vec3,
+    pub(crate) at: Option<Vec3>,
     /// Commanded orientation as a rotation vector rx,ry,rz in rad [default: 0,0,0].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "at")]
     pub(crate) orientation: Option<Vec3>,
+    /// A serial arm's joint coordinates as its controller gives them (rad, or mm for a prismatic joint), one
+    /// per joint in the order the description's URDF chain lists them (the FANUC: J1,...,J6): the pose is
+    /// where forward kinematics puts the tool, and the arm is placed in exactly that configuration.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub(crate) joints: Option<Vec<f64>>,
 }
 
 impl PoseArgs {
-    /// The orientation given, or none.
-    pub(crate) fn rotation(&self) -> Vec3 {
-        self.orientation.unwrap_or_else(Vec3::zeros)
+    /// The pose asked for, with `state` seeded at the joint coordinates where they are given (so that placing
+    /// `m` at the pose keeps that configuration).
+    pub(crate) fn resolve(
+        &self,
+        m: &crate::platform::manipulator::Manipulator,
+        state: &mut crate::platform::manipulator::ManipulatorState,
+    ) -> Result<crate::model::grid::PosePoint> {
+        use crate::model::grid::PosePoint;
+        match (&self.joints, self.at) {
+            (Some(q), _) => {
+                let Some(space) = &m.joint_space else {
+                    bail!("--joints: {} is not a serial arm read from URDF: give --at", m.name);
+                };
+                if q.len() != space.names.len() || q.iter().any(|v| !v.is_finite()) {
+                    bail!(
+                        "--joints needs {} finite numbers, one per joint ({}), got {}",
+                        space.names.len(),
+                        space.names.join(", "),
+                        q.len()
+                    );
+                }
+                let order: Vec<usize> = (0..q.len()).collect();
+                let given = PosePoint { joints: q.clone(), ..PosePoint::default() };
+                match crate::study::point::pose_of_joints(m, &given, &order, state) {
+                    Some(p) => Ok(PosePoint { joints: Vec::new(), ..p.into_owned() }),
+                    None => bail!("--joints: these joint coordinates give no finite pose"),
+                }
+            }
+            (None, Some(at)) => Ok(PosePoint {
+                position: at,
+                rotation: self.orientation.unwrap_or_else(Vec3::zeros),
+                ..PosePoint::default()
+            }),
+            (None, None) => bail!("give --at or --joints"),
+        }
     }
 }
 

@@ -9,8 +9,8 @@ use super::args::{
     check_picture_path, name_plot_flag, wrench_text, write_plot, ModelArgs, OutputArgs, PlotStyle, PoseArgs,
 };
 use super::parse::parse_vec6;
-use crate::kinematics::frame::{Frame, Vec6};
-use crate::study::curve::{curve_header, curve_table, push_curve_row, run_curve, Control, MAX_INTERVALS};
+use crate::kinematics::frame::Vec6;
+use crate::study::curve::{curve_header, curve_table, push_curve_row, run_curve_from, Control, MAX_INTERVALS};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
@@ -53,7 +53,9 @@ pub(crate) struct CurveArgs {
 
 pub(crate) fn run(a: CurveArgs) -> Result<()> {
     let model = a.model.load()?;
-    let at = Frame::from_position_rotvec(a.pose.at, a.pose.rotation());
+    let mut state = model.new_state();
+    let pose = a.pose.resolve(&model, &mut state)?;
+    let at = pose.frame();
     let control = match (a.wrench_direction, a.displacement_direction) {
         (Some(w), None) => Control::Force(w),
         (None, Some(d)) => Control::Displacement(d),
@@ -84,8 +86,10 @@ pub(crate) fn run(a: CurveArgs) -> Result<()> {
             format!("load factor up to {} times the displacement {} (mm, rad)", a.max, wrench_text(&d))
         }
     };
-    let title = a.model.title(&model, &format!("at ({}, {}, {}) mm, {what}", a.pose.at[0], a.pose.at[1], a.pose.at[2]));
-    let summary = run_curve(&model, &at, control, a.max, a.intervals, &mut |r| {
+    let title = a
+        .model
+        .title(&model, &format!("at ({}, {}, {}) mm, {what}", pose.position[0], pose.position[1], pose.position[2]));
+    let summary = run_curve_from(&model, &at, state, control, a.max, a.intervals, &mut |r| {
         line.clear();
         push_curve_row(&mut line, r);
         if let Some(p) = picture.as_mut() {

@@ -3,7 +3,7 @@
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{write_stdout, ModelArgs};
+use super::args::{write_stdout, ModelArgs, PoseArgs};
 use super::parse::parse_vec6;
 use crate::kinematics::frame::Vec6;
 use crate::model::grid::PosePoint;
@@ -22,21 +22,11 @@ pub(crate) const EXAMPLES: &str = "Examples:
 Exit status: 0 the pose has a compliance (status ok), 1 it has not (unreachable, singular, unstable, ...:\nthe report says why) or the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
-#[command(group = clap::ArgGroup::new("where").required(true).multiple(false).args(["at", "joints"]))]
 pub(crate) struct PointArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
-    /// Commanded platform reference point x,y,z in mm.
-    #[arg(long, value_parser = super::parse::parse_vec3, allow_hyphen_values = true)]
-    pub(crate) at: Option<crate::kinematics::frame::Vec3>,
-    /// Commanded orientation as a rotation vector rx,ry,rz in rad [default: 0,0,0].
-    #[arg(long, value_parser = super::parse::parse_vec3, allow_hyphen_values = true, requires = "at")]
-    pub(crate) orientation: Option<crate::kinematics::frame::Vec3>,
-    /// A serial arm's joint coordinates as its controller gives them (rad, or mm for a prismatic joint), one
-    /// per joint in the order the description's URDF chain lists them (the FANUC: J1,...,J6): the pose is
-    /// where forward kinematics puts the tool, and the arm is placed in exactly that configuration.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub(crate) joints: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub(crate) pose: PoseArgs,
     /// A wrench Fx,Fy,Fz,Mx,My,Mz (N, N mm): reports its linear deflection C w and the loaded equilibrium
     /// under it (displacement, tangent stiffness and its full inverse).
     #[arg(long, value_parser = parse_vec6, allow_hyphen_values = true)]
@@ -52,35 +42,7 @@ pub(crate) struct PointArgs {
 pub(crate) fn run(a: PointArgs) -> Result<()> {
     let model = a.model.load()?;
     let mut state = model.new_state();
-    let p = match (&a.joints, a.at) {
-        (Some(q), _) => {
-            let Some(space) = &model.joint_space else {
-                bail!("--joints: {} is not a serial arm read from URDF: give --at", model.name);
-            };
-            if q.len() != space.names.len() || q.iter().any(|v| !v.is_finite()) {
-                bail!(
-                    "--joints needs {} finite numbers, one per joint ({}), got {}",
-                    space.names.len(),
-                    space.names.join(", "),
-                    q.len()
-                );
-            }
-            let order: Vec<usize> = (0..q.len()).collect();
-            let given = PosePoint { wrench: a.wrench, joints: q.clone(), ..PosePoint::default() };
-            match crate::study::point::pose_of_joints(&model, &given, &order, &mut state) {
-                Some(p) => p.into_owned(),
-                None => bail!("--joints: these joint coordinates give no finite pose"),
-            }
-        }
-        (None, Some(at)) => PosePoint {
-            name: None,
-            position: at,
-            rotation: a.orientation.unwrap_or_else(crate::kinematics::frame::Vec3::zeros),
-            wrench: a.wrench,
-            joints: Vec::new(),
-        },
-        (None, None) => bail!("give --at or --joints"),
-    };
+    let p = PosePoint { wrench: a.wrench, ..a.pose.resolve(&model, &mut state)? };
     let r = unloaded_point(&model, &p, &mut state);
     let loaded = a.wrench.map(|w| loaded_point(&model, &p, &w, &mut state, &mut LoadedHistory::default()));
     let text = if a.json {

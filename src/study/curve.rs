@@ -371,9 +371,22 @@ pub fn run_curve(
     intervals: usize,
     emit: &mut dyn FnMut(&CurveRow) -> std::io::Result<()>,
 ) -> Result<CurveSummary, CurveError> {
+    run_curve_from(m, at, m.new_state(), control, max, intervals, emit)
+}
+
+/// `run_curve` from `state` (seeded at a serial arm's joint coordinates, so that the placement at `at` keeps
+/// that configuration).
+pub fn run_curve_from(
+    m: &Manipulator,
+    at: &Frame,
+    mut state: ManipulatorState,
+    control: Control,
+    max: f64,
+    intervals: usize,
+    emit: &mut dyn FnMut(&CurveRow) -> std::io::Result<()>,
+) -> Result<CurveSummary, CurveError> {
     assert!((1..=MAX_INTERVALS).contains(&intervals) && max.is_finite() && max > 0.0, "checked by the caller");
     let tracer = Tracer { m, at: *at, control };
-    let mut state = m.new_state();
     m.place(at, &mut state).map_err(CurveError::Unreachable)?;
     let mut rows = Window {
         recent: Vec::with_capacity(3),
