@@ -540,3 +540,44 @@ fn point_takes_a_serial_arms_joint_coordinates() {
     let along = Vec3::new(rows[2][0] - rows[0][0], rows[2][1] - rows[0][1], rows[2][2] - rows[0][2]);
     assert!((along - cable).norm() < 1e-6, "curve {along} vs point {cable}");
 }
+
+/// A six-joint arm given a pose has several inverse-kinematics branches: the wrist flipped, (q4 + pi, -q5,
+/// q6 + pi) in the model's angles, puts the tool at the same pose. A stated `seed` (the controller's angles)
+/// is where a cold inverse kinematics starts: seeds 0.2 rad away from either branch, given as
+/// controller's angles, each place the arm on its own branch (within 1e-6 rad), at the same pose.
+#[test]
+fn a_stated_seed_picks_the_branch_of_a_pose() {
+    let m = fanuc();
+    let t = [0.4, 0.2, -0.3, 0.7, -1.1, 0.5];
+    let mut state = m.new_state();
+    let pose = m.pose_at_joints(&t, &mut state).unwrap();
+    let a = model_angles(&t);
+    let pi = std::f64::consts::PI;
+    let b = [a[0], a[1], a[2], a[3] + pi, -a[4], a[5] + pi];
+    // The same tool pose from both branches (DH model computed here).
+    let (pa, fa) = dh_kinematics(&a);
+    let (pb, fb) = dh_kinematics(&b);
+    assert!((pa - pb).norm() < 1e-9 && (fa[5] - fb[5]).norm() < 1e-9, "both branches reach the pose");
+    // Controller angles of a model configuration: theta1 = q1, theta2 = q2, theta3 = -(q3 + q2), theta4..6 = -q.
+    let controller = |q: &[f64; 6]| [q[0], q[1], -(q[2] + q[1]), -q[3], -q[4], -q[5]];
+    let text = std::fs::read_to_string(FANUC).unwrap();
+    let urdf = std::env::current_dir().unwrap().join("manipulators/fanuc-r2000ic.urdf");
+    let dir = tempfile::tempdir().unwrap();
+    for branch in [a, b] {
+        let seed: Vec<String> =
+            controller(&branch).iter().enumerate().map(|(k, v)| format!("J{} = {}", k + 1, v + 0.2)).collect();
+        let model = text
+            .replace("file = \"fanuc-r2000ic.urdf\"", &format!("file = {:?}", urdf.display().to_string()))
+            .replace("controller = {", &format!("seed = {{ {} }}\ncontroller = {{", seed.join(", ")));
+        let path = dir.path().join("seeded.toml");
+        std::fs::write(&path, model).unwrap();
+        let seeded = stiff::model::load_manipulator(&path).unwrap();
+        let mut state = seeded.new_state();
+        seeded.unloaded(&pose, &mut state).unwrap();
+        let q = &state.legs[0].coords.actuated;
+        let wrap = |x: f64| (x + pi).rem_euclid(2.0 * pi) - pi;
+        for k in 0..6 {
+            assert!(wrap(q[k] - branch[k]).abs() < 1e-6, "seed near {branch:?}: reached {q:?}");
+        }
+    }
+}

@@ -207,6 +207,7 @@ impl ChainParts {
             attachment: Frame::IDENTITY,
             springs: self.springs,
             length_scale,
+            home: Vec::new(),
         })
     }
 
@@ -669,6 +670,9 @@ impl Builder<'_> {
         for (name, f) in &u.controller {
             named_joint(name, f.span(), "controller")?;
         }
+        for (name, v) in &u.seed {
+            named_joint(name, v.span(), "seed")?;
+        }
         // A mimic joint's ultimate master (a mimic of a mimic composed), its gain and offset.
         let master_of = |j: &super::urdf::UrdfJoint| -> Result<Option<(String, f64, f64)>, InputError> {
             let Some((mut master, mut gain, mut offset)) = j.mimic.clone() else { return Ok(None) };
@@ -785,7 +789,20 @@ impl Builder<'_> {
                     .transpose()
             })
             .collect::<Result<Vec<_>, InputError>>()?;
-        Ok((parts.into_leg(leg_name.to_string(), gravity), JointSpace { names, controller }))
+        let space = JointSpace { names, controller };
+        let mut leg = parts.into_leg(leg_name.to_string(), gravity);
+        if !u.seed.is_empty() {
+            // The seed is given in the controller's angles, like the points: mapped to the model's coordinates.
+            let angles = space
+                .names
+                .iter()
+                .map(|n| u.seed.get(n).map_or(Ok(0.0), |v| self.num(v)))
+                .collect::<Result<Vec<f64>, InputError>>()?;
+            if let Leg::Vjm(v) = &mut leg {
+                v.home = space.model_coordinates(&angles);
+            }
+        }
+        Ok((leg, space))
     }
 
     /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.

@@ -256,6 +256,10 @@ pub struct UrdfSpec {
     /// Per joint name: its model coordinate as a formula of the controller's angles (by joint name).
     #[serde(default)]
     pub controller: BTreeMap<String, Spanned<String>>,
+    /// Per joint name: the controller's angle a pose's inverse kinematics starts from when it has no
+    /// previous point to start from (the others 0), which picks the arm's elbow and wrist branch.
+    #[serde(default)]
+    pub seed: BTreeMap<String, Num>,
 }
 
 /// A URDF joint's spring: a stiffness (N mm/rad for a revolute joint, N/mm for a prismatic one) or a

@@ -31,6 +31,9 @@ pub struct VjmLeg {
     pub gravity: Vec3,
     /// mm per rad, to weigh rotations against translations.
     pub length_scale: f64,
+    /// The actuated coordinates a cold inverse kinematics starts from (a serial arm's stated seed, which
+    /// picks its elbow and wrist branch); empty: all zero.
+    pub home: Vec<f64>,
 }
 impl VjmLeg {
     pub(super) fn target(&self, platform: &Frame) -> Frame {
@@ -104,7 +107,11 @@ impl VjmLeg {
         }
         // Cold start from home.
         state.ik.invalidate();
-        state.coords.actuated.iter_mut().for_each(|t| *t = 0.0);
+        if self.home.len() == state.coords.actuated.len() {
+            state.coords.actuated.copy_from_slice(&self.home);
+        } else {
+            state.coords.actuated.iter_mut().for_each(|t| *t = 0.0);
+        }
         state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
         match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
             Ok(n) => {
