@@ -159,12 +159,12 @@ impl<'a> Problem<'a> {
 
     /// The linearisation of (loaded - C w) in ln(factor) about `centre`, for every row, for factor `i` of the
     /// spring scaling `e` (its values ignored; the other factors neutral): computed when first needed, and
-    /// kept. Returns its index in the cache.
-    fn linearisation(&self, e: &Effect, i: usize, centre: f64) -> Result<usize, PoseError> {
+    /// kept.
+    fn linearisation(&self, e: &Effect, i: usize, centre: f64) -> Result<(), PoseError> {
         let mut cache = self.slopes.lock().unwrap_or_else(|p| p.into_inner());
         let same = |s: &Slope| s.kind == e.kind && s.target == e.target && s.factor == i && s.centre == centre;
-        if let Some(k) = cache.iter().position(same) {
-            return Ok(k);
+        if cache.iter().any(same) {
+            return Ok(());
         }
         let part = |log_factor: f64| -> Result<Vec<Vec6>, PoseError> {
             let mut values = vec![1.0; e.values.len()];
@@ -200,7 +200,15 @@ impl<'a> Problem<'a> {
             per_row: plus.iter().zip(&minus).map(|(a, b)| (a - b) / (2.0 * h)).collect(),
             curvature: plus.iter().zip(&minus).zip(&at_centre).map(|((a, b), c)| (a + b - 2.0 * c) / (h * h)).collect(),
         });
-        Ok(cache.len() - 1)
+        Ok(())
+    }
+
+    /// Of the kept linearisations for factor `i` of `e`, the one whose centre is nearest log factor `x`.
+    fn nearest<'c>(cache: &'c [Slope], e: &Effect, i: usize, x: f64) -> Option<&'c Slope> {
+        cache
+            .iter()
+            .filter(|s| s.kind == e.kind && s.target == e.target && s.factor == i)
+            .min_by(|a, b| (a.centre - x).abs().total_cmp(&(b.centre - x).abs()))
     }
 
     /// The non-linear part's change, N(x) - N(0) per row, for factor `i` of `e` at log factor `x`, from the
@@ -208,12 +216,7 @@ impl<'a> Problem<'a> {
     fn nonlinear_change(&self, e: &Effect, i: usize, x: f64) -> Result<Vec<Vec6>, PoseError> {
         self.linearisation(e, i, 0.0)?;
         let cache = self.slopes.lock().unwrap_or_else(|p| p.into_inner());
-        let mine = |s: &&Slope| s.kind == e.kind && s.target == e.target && s.factor == i;
-        let s = cache
-            .iter()
-            .filter(mine)
-            .min_by(|a, b| (a.centre - x).abs().total_cmp(&(b.centre - x).abs()))
-            .expect("made above");
+        let s = Self::nearest(&cache, e, i, x).expect("made above");
         Ok(s.offset.iter().zip(&s.per_row).map(|(o, d)| o + d * (x - s.centre)).collect())
     }
 
@@ -229,12 +232,7 @@ impl<'a> Problem<'a> {
         for e in effects.iter().filter(|e| e.scales_springs()) {
             for (i, v) in e.values.iter().enumerate() {
                 let x = v.ln();
-                let mine = |s: &&Slope| s.kind == e.kind && s.target == e.target && s.factor == i;
-                let Some(s) =
-                    cache.iter().filter(mine).min_by(|a, b| (a.centre - x).abs().total_cmp(&(b.centre - x).abs()))
-                else {
-                    continue;
-                };
+                let Some(s) = Self::nearest(&cache, e, i, x) else { continue };
                 let gap = x - s.centre;
                 let neglected = s
                     .curvature

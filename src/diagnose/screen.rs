@@ -174,15 +174,15 @@ pub fn diagnose_screened(
     sigma: Option<f64>,
     options: &Options,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let (weights, _, source) = noise(data, sigma)?;
+    let (weights, sigma_all, source) = noise(data, sigma)?;
     // Weights of 1 / sigma: a row within a few standard deviations is never gross, whatever the median.
     let floor = if matches!(source, SigmaSource::Repeats { .. }) { 0.0 } else { 1.0 };
     let full = Problem::new(model, terms, data, weights, options.loaded, true)?;
     let mut left_out = gross_rows(&full, &[], &[], floor)?;
-    for round in 1..=MAX_ROUNDS {
+    let mut round = 1;
+    loop {
         let mut d = if left_out.is_empty() {
-            let (_, sigma_used, source) = noise(data, sigma)?;
-            diagnose(&full, sigma_used, source, options)?
+            diagnose(&full, sigma_all, source.clone(), options)?
         } else {
             let clean = without(data, &left_out);
             let (weights, sigma_used, source) = noise(&clean, sigma)?;
@@ -203,8 +203,8 @@ pub fn diagnose_screened(
             return Ok(d);
         }
         left_out = again;
+        round += 1;
     }
-    unreachable!("the loop returns at its last round")
 }
 
 #[cfg(test)]
