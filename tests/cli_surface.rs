@@ -440,13 +440,15 @@ fn compressed_outputs_hold_the_same_table() {
 }
 
 /// A Parquet output holds the CSV table's values: the same columns in the same order, every number bit for
-/// bit (read by the parquet crate's own reader, not by stiff), counts as integers, texts (a name holding a
-/// comma and quotes) as texts, empty cells as nulls, and each column's unit, the suffix of its name, in the
-/// field metadata. A picture drawn from the Parquet file is the picture drawn from the CSV.
+/// bit (read by the parquet crate's own reader, not by stiff), counts as unsigned integers, texts (a name
+/// holding a comma and quotes) as texts, empty cells as nulls, and each column's unit, the suffix of its
+/// name, in the field metadata of the Arrow schema Arrow readers take (`ARROW:schema`, decoded here by
+/// `arrow_fields` from Arrow's format). A picture drawn from the Parquet file is the picture drawn from the CSV.
 #[test]
 #[cfg(feature = "parquet")]
 fn a_parquet_map_holds_the_csv_values_with_their_units() {
-    use arrow_array::{Array, Float64Array, StringArray, UInt64Array};
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::Field;
     let dir = tempfile::tempdir().unwrap();
     let points = dir.path().join("p.csv");
     let rows = "name,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm\n\"a,\"\"b\"\"\",0,0,0,100,0,0,0,0,0\n\
@@ -477,52 +479,49 @@ fn a_parquet_map_holds_the_csv_values_with_their_units() {
     assert_eq!(rows[0][1], "a,\"b\"", "the quoted name read back by the csv crate");
     assert!(rows[1].iter().any(String::is_empty), "the unreachable point has empty cells");
 
-    let file = std::fs::File::open(&parquet_path).unwrap();
-    let batches: Vec<_> = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
-        .unwrap()
-        .build()
-        .unwrap()
-        .map(Result::unwrap)
-        .collect();
-    let schema = batches[0].schema();
-    let names: Vec<&str> = schema.fields().iter().map(|f| f.name().as_str()).collect();
+    let file = SerializedFileReader::new(std::fs::File::open(&parquet_path).unwrap()).unwrap();
+    let metadata = file.metadata().file_metadata();
+    let names: Vec<&str> = metadata.schema_descr().columns().iter().map(|c| c.name()).collect();
     assert_eq!(names, header);
+    let arrow = metadata.key_value_metadata().unwrap().iter().find(|kv| kv.key == "ARROW:schema").unwrap();
+    let fields = arrow_fields(arrow.value.as_deref().unwrap());
+    assert_eq!(fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(), header);
     let units = ["mm_per_Nmm", "mm_per_N", "rad_per_Nmm", "rad_per_N", "N_per_mm", "N_per_rad", "Nmm_per_mm"];
-    for field in schema.fields() {
-        let name = field.name();
+    for field in &fields {
+        let name = &field.name;
         let expected = units
             .iter()
             .chain(&["Nmm_per_rad", "mm", "rad", "Nmm", "N"])
             .find(|u| name.ends_with(&format!("_{u}")))
             .copied();
-        assert_eq!(field.metadata().get("unit").map(String::as_str), expected, "{name}");
+        assert_eq!(field.unit.as_deref(), expected, "{name}");
+        assert!(field.nullable, "{name}");
     }
+    let arrow_type = |name: &str| fields.iter().find(|f| f.name == name).unwrap().type_code;
+    // Arrow's Type union: Int 2 (here 64 bits, unsigned), FloatingPoint 3 (double), Utf8 5.
+    assert_eq!(arrow_type("iterations"), (2, Some(64), Some(false)));
+    assert_eq!(arrow_type("status"), (5, None, None));
+    assert_eq!(arrow_type("C21_mm_per_N"), (3, Some(2), None));
     let mut row = 0;
-    for batch in &batches {
-        for r in 0..batch.num_rows() {
-            for (k, column) in batch.columns().iter().enumerate() {
-                let cell = &rows[row][k];
-                let any = column.as_any();
-                if column.is_null(r) {
-                    assert_eq!(cell, "", "{} row {row}: null is an empty cell", names[k]);
-                } else if let Some(a) = any.downcast_ref::<Float64Array>() {
-                    assert_eq!(a.value(r).to_bits(), cell.parse::<f64>().unwrap().to_bits(), "{} row {row}", names[k]);
-                } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
-                    assert_eq!(a.value(r), cell.parse::<u64>().unwrap(), "{} row {row}", names[k]);
-                } else {
-                    let a = any.downcast_ref::<StringArray>().expect("f64, u64 or text");
-                    assert_eq!(a.value(r), cell, "{} row {row}", names[k]);
+    for record in file.get_row_iter(None).unwrap() {
+        let record = record.unwrap();
+        for (k, (name, value)) in record.get_column_iter().enumerate() {
+            assert_eq!(name, names[k]);
+            let cell = &rows[row][k];
+            match value {
+                Field::Null => assert_eq!(cell, "", "{name} row {row}: null is an empty cell"),
+                Field::Double(v) => {
+                    assert_eq!(v.to_bits(), cell.parse::<f64>().unwrap().to_bits(), "{name} row {row}")
                 }
+                Field::ULong(v) => assert_eq!(*v, cell.parse::<u64>().unwrap(), "{name} row {row}"),
+                Field::Str(v) => assert_eq!(v, cell, "{name} row {row}"),
+                other => panic!("{name}: {other:?} is not f64, u64 or text"),
             }
-            row += 1;
         }
+        row += 1;
     }
     assert_eq!(row, rows.len());
     assert!(names.contains(&"iterations") && names.contains(&"C21_mm_per_N"), "a loaded map's columns");
-    let kind = |name: &str| schema.field_with_name(name).unwrap().data_type().clone();
-    assert_eq!(kind("iterations"), arrow_schema::DataType::UInt64);
-    assert_eq!(kind("status"), arrow_schema::DataType::Utf8);
-    assert_eq!(kind("C21_mm_per_N"), arrow_schema::DataType::Float64);
 
     let picture = |table: &Path, svg: &str| {
         let svg = dir.path().join(svg);
@@ -530,6 +529,84 @@ fn a_parquet_map_holds_the_csv_values_with_their_units() {
         std::fs::read_to_string(svg).unwrap()
     };
     assert_eq!(picture(&parquet_path, "p.svg"), picture(&csv_path, "c.svg"));
+}
+
+/// One field of an Arrow schema: its name, nullability, type (union member, then bit width or precision,
+/// then signedness where the type has them) and `unit` metadata.
+#[cfg(feature = "parquet")]
+struct ArrowField {
+    name: String,
+    nullable: bool,
+    type_code: (u8, Option<i32>, Option<bool>),
+    unit: Option<String>,
+}
+
+/// The fields of an `ARROW:schema` value, read as Arrow's format defines it: base64 of an IPC message
+/// (0xFFFFFFFF, the flatbuffer's length, the flatbuffer) whose root `Message` (header slot 2) is a `Schema`
+/// (fields slot 1) of `Field` tables (name 0, nullable 1, type_type 2, type 3, children 5, custom_metadata 6).
+#[cfg(feature = "parquet")]
+fn arrow_fields(encoded: &str) -> Vec<ArrowField> {
+    let alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let sextets: Vec<u32> =
+        encoded.trim_end_matches('=').chars().map(|c| alphabet.find(c).expect("base64") as u32).collect();
+    let mut bytes = Vec::new();
+    for chunk in sextets.chunks(4) {
+        let n = chunk.iter().enumerate().fold(0u32, |n, (k, s)| n | s << (18 - 6 * k));
+        bytes.extend(n.to_be_bytes()[1..chunk.len()].iter().copied());
+    }
+    assert_eq!(&bytes[..4], &[0xFF; 4], "continuation marker");
+    let length = u32::from_le_bytes(bytes[4..8].try_into().unwrap()) as usize;
+    let fb = &bytes[8..8 + length];
+    let u32_at = |at: usize| u32::from_le_bytes(fb[at..at + 4].try_into().unwrap()) as usize;
+    let deref = |at: usize| at + u32_at(at);
+    // The position of a table's field `slot`, if present.
+    let slot = |table: usize, slot: usize| -> Option<usize> {
+        let vtable = (table as i64 - i32::from_le_bytes(fb[table..table + 4].try_into().unwrap()) as i64) as usize;
+        let vtable_size = u16::from_le_bytes(fb[vtable..vtable + 2].try_into().unwrap()) as usize;
+        let entry = 4 + 2 * slot;
+        if entry >= vtable_size {
+            return None;
+        }
+        let offset = u16::from_le_bytes(fb[vtable + entry..vtable + entry + 2].try_into().unwrap()) as usize;
+        (offset != 0).then_some(table + offset)
+    };
+    let string = |at: usize| {
+        let s = deref(at);
+        String::from_utf8(fb[s + 4..s + 4 + u32_at(s)].to_vec()).unwrap()
+    };
+    let vector = |at: usize| {
+        let v = deref(at);
+        (0..u32_at(v)).map(move |k| deref(v + 4 + 4 * k)).collect::<Vec<_>>()
+    };
+    let message = deref(0);
+    assert_eq!(fb[slot(message, 1).unwrap()], 1, "a Schema message");
+    let schema = deref(slot(message, 2).unwrap());
+    vector(slot(schema, 1).unwrap())
+        .into_iter()
+        .map(|field| {
+            let type_type = fb[slot(field, 2).unwrap()];
+            let type_table = deref(slot(field, 3).unwrap());
+            let int_at = |s| slot(type_table, s).map(|at| i32::from_le_bytes(fb[at..at + 4].try_into().unwrap()));
+            let type_code = match type_type {
+                2 => (2, int_at(0), Some(slot(type_table, 1).is_some_and(|at| fb[at] != 0))),
+                3 => (3, slot(type_table, 0).map(|at| i16::from_le_bytes([fb[at], fb[at + 1]]) as i32), None),
+                other => (other, None, None),
+            };
+            assert!(slot(field, 5).is_some(), "Arrow's C++ reader needs the children vector");
+            let unit = slot(field, 6).and_then(|m| {
+                vector(m)
+                    .into_iter()
+                    .find(|&kv| string(slot(kv, 0).unwrap()) == "unit")
+                    .map(|kv| string(slot(kv, 1).unwrap()))
+            });
+            ArrowField {
+                name: string(slot(field, 0).unwrap()),
+                nullable: slot(field, 1).is_some_and(|at| fb[at] != 0),
+                type_code,
+                unit,
+            }
+        })
+        .collect()
 }
 
 /// Parquet holds tables only: a picture or a report given a `.parquet` name, or a Parquet file given as

@@ -13,93 +13,118 @@
 use std::io::{self, Write};
 use std::sync::Arc;
 
-use arrow_array::builder::{Float64Builder, StringBuilder, UInt64Builder};
-use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch, StringArray, UInt64Array};
-use arrow_schema::{DataType, Field, Schema, SchemaRef};
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-use parquet::arrow::ArrowWriter;
-use parquet::basic::{Compression, ZstdLevel};
+use parquet::basic::{Compression, IntType, LogicalType, Repetition, Type as PhysicalType, ZstdLevel};
+use parquet::column::reader::ColumnReader;
+use parquet::column::writer::ColumnWriter;
+use parquet::data_type::ByteArray;
+use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
+use parquet::file::reader::{FileReader, SerializedFileReader};
+use parquet::file::writer::SerializedFileWriter;
+use parquet::schema::types::Type;
 
-use super::table::{header_line, unit_of, CellKind, Column};
+use super::table::{header_line, CellKind, Column};
 
-/// Rows per row group (and per batch handed to the Parquet writer): about 30 MB of a 60-column map.
+mod arrow_schema;
+
+/// Rows per row group: about 30 MB of a 60-column map.
 const ROWS_PER_GROUP: usize = 65_536;
 
 /// The field metadata key holding a column's unit.
 pub const UNIT_KEY: &str = "unit";
 
-/// The Arrow schema of a table: each column's type and unit.
-pub fn schema(columns: &[Column]) -> Schema {
-    Schema::new(
-        columns
-            .iter()
-            .map(|c| {
-                let data_type = match c.kind {
-                    CellKind::Number => DataType::Float64,
-                    CellKind::Count => DataType::UInt64,
-                    CellKind::Text => DataType::Utf8,
-                };
-                let field = Field::new(&c.name, data_type, true);
-                match unit_of(&c.name) {
-                    Some(unit) => field.with_metadata([(UNIT_KEY, unit)]),
-                    None => field,
+/// The Parquet schema of a table: each column optional (an empty cell is a null), f64 as DOUBLE, a count
+/// as an unsigned 64-bit INT64, text as UTF-8 BYTE_ARRAY (the types Arrow readers map to float64, uint64
+/// and string).
+fn parquet_schema(columns: &[Column]) -> io::Result<Type> {
+    let fields = columns
+        .iter()
+        .map(|c| {
+            let (physical, logical) = match c.kind {
+                CellKind::Number => (PhysicalType::DOUBLE, None),
+                CellKind::Count => {
+                    (PhysicalType::INT64, Some(LogicalType::Integer(IntType { bit_width: 64, is_signed: false })))
                 }
-            })
-            .collect::<Vec<_>>(),
-    )
+                CellKind::Text => (PhysicalType::BYTE_ARRAY, Some(LogicalType::String)),
+            };
+            Type::primitive_type_builder(&c.name, physical)
+                .with_repetition(Repetition::OPTIONAL)
+                .with_logical_type(logical)
+                .build()
+                .map(Arc::new)
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(parquet_error)?;
+    Type::group_type_builder("arrow_schema").with_fields(fields).build().map_err(parquet_error)
 }
 
-/// One column being filled.
-enum Builder {
-    Number(Float64Builder),
-    Count(UInt64Builder),
-    Text(StringBuilder),
+/// One column being filled: its non-null values and its definition levels (1 a value, 0 a null).
+enum Values {
+    Number(Vec<f64>),
+    Count(Vec<i64>),
+    Text(Vec<ByteArray>),
+}
+
+struct Builder {
+    values: Values,
+    defined: Vec<i16>,
 }
 
 impl Builder {
     fn new(kind: CellKind) -> Builder {
-        match kind {
-            CellKind::Number => Builder::Number(Float64Builder::with_capacity(ROWS_PER_GROUP)),
-            CellKind::Count => Builder::Count(UInt64Builder::with_capacity(ROWS_PER_GROUP)),
-            CellKind::Text => Builder::Text(StringBuilder::new()),
-        }
+        let values = match kind {
+            CellKind::Number => Values::Number(Vec::with_capacity(ROWS_PER_GROUP)),
+            CellKind::Count => Values::Count(Vec::with_capacity(ROWS_PER_GROUP)),
+            CellKind::Text => Values::Text(Vec::new()),
+        };
+        Builder { values, defined: Vec::with_capacity(ROWS_PER_GROUP) }
     }
 
     /// Appends one CSV cell (unquoted); empty is null.
     fn push(&mut self, cell: &str, column: &str) -> io::Result<()> {
         let bad =
             |what: &str| io::Error::new(io::ErrorKind::InvalidData, format!("column {column}: `{cell}` is not {what}"));
-        match self {
-            _ if cell.is_empty() => self.push_null(),
-            Builder::Number(b) => b.append_value(cell.parse().map_err(|_| bad("a number"))?),
-            Builder::Count(b) => b.append_value(cell.parse().map_err(|_| bad("a count"))?),
-            Builder::Text(b) => b.append_value(cell),
+        if cell.is_empty() {
+            self.defined.push(0);
+            return Ok(());
         }
+        match &mut self.values {
+            Values::Number(v) => v.push(cell.parse().map_err(|_| bad("a number"))?),
+            // An unsigned count is stored in INT64's bits, as Parquet's UINT_64 logical type says.
+            Values::Count(v) => v.push(cell.parse::<u64>().map_err(|_| bad("a count"))? as i64),
+            Values::Text(v) => v.push(ByteArray::from(cell)),
+        }
+        self.defined.push(1);
         Ok(())
     }
 
-    fn push_null(&mut self) {
-        match self {
-            Builder::Number(b) => b.append_null(),
-            Builder::Count(b) => b.append_null(),
-            Builder::Text(b) => b.append_null(),
+    /// Writes the column's rows gathered and empties it.
+    fn write(&mut self, writer: &mut ColumnWriter<'_>) -> parquet::errors::Result<()> {
+        let defined = Some(self.defined.as_slice());
+        match (&mut self.values, writer) {
+            (Values::Number(v), ColumnWriter::DoubleColumnWriter(w)) => {
+                w.write_batch(v, defined, None)?;
+                v.clear();
+            }
+            (Values::Count(v), ColumnWriter::Int64ColumnWriter(w)) => {
+                w.write_batch(v, defined, None)?;
+                v.clear();
+            }
+            (Values::Text(v), ColumnWriter::ByteArrayColumnWriter(w)) => {
+                w.write_batch(v, defined, None)?;
+                v.clear();
+            }
+            _ => return Err(parquet::errors::ParquetError::General("a column's type changed".into())),
         }
-    }
-
-    fn finish(&mut self) -> ArrayRef {
-        match self {
-            Builder::Number(b) => Arc::new(b.finish()),
-            Builder::Count(b) => Arc::new(b.finish()),
-            Builder::Text(b) => Arc::new(b.finish()),
-        }
+        self.defined.clear();
+        Ok(())
     }
 }
 
 /// A Parquet file being written from a study's CSV text (`Write`): the header line, then rows.
 pub struct ParquetTable<W: Write + Send> {
-    writer: ArrowWriter<W>,
-    schema: SchemaRef,
+    writer: SerializedFileWriter<W>,
+    names: Vec<String>,
     header: String,
     builders: Vec<Builder>,
     /// Bytes received that do not yet end a record.
@@ -118,16 +143,20 @@ fn parquet_error(e: parquet::errors::ParquetError) -> io::Error {
 impl<W: Write + Send> ParquetTable<W> {
     /// A table with these columns, written to `out`.
     pub fn new(out: W, columns: &[Column]) -> io::Result<Self> {
-        let schema = Arc::new(schema(columns));
+        // The Arrow schema rides along as Arrow's own writers store it, so pyarrow, pandas and polars read
+        // each column's unit as its field metadata.
+        let arrow = KeyValue::new(arrow_schema::KEY.to_string(), arrow_schema::encode(columns));
         let properties = WriterProperties::builder()
             .set_compression(Compression::ZSTD(ZstdLevel::default()))
             .set_max_row_group_row_count(Some(ROWS_PER_GROUP))
             .set_created_by(format!("stiff {}", env!("CARGO_PKG_VERSION")))
+            .set_key_value_metadata(Some(vec![arrow]))
             .build();
-        let writer = ArrowWriter::try_new(out, schema.clone(), Some(properties)).map_err(parquet_error)?;
+        let writer = SerializedFileWriter::new(out, Arc::new(parquet_schema(columns)?), Arc::new(properties))
+            .map_err(parquet_error)?;
         Ok(ParquetTable {
             writer,
-            schema,
+            names: columns.iter().map(|c| c.name.clone()).collect(),
             header: header_line(columns).trim_end().to_string(),
             builders: columns.iter().map(|c| Builder::new(c.kind)).collect(),
             pending: Vec::new(),
@@ -187,8 +216,8 @@ impl<W: Write + Send> ParquetTable<W> {
                 format!("a row has {} cells for {} columns", cells.len(), self.builders.len()),
             ));
         }
-        for ((builder, cell), field) in self.builders.iter_mut().zip(&cells).zip(self.schema.fields()) {
-            builder.push(cell, field.name())?;
+        for ((builder, cell), name) in self.builders.iter_mut().zip(&cells).zip(&self.names) {
+            builder.push(cell, name)?;
         }
         self.rows += 1;
         if self.rows == ROWS_PER_GROUP {
@@ -197,14 +226,19 @@ impl<W: Write + Send> ParquetTable<W> {
         Ok(())
     }
 
-    /// Hands the rows gathered to the Parquet writer.
+    /// Writes the rows gathered as one row group.
     fn flush_rows(&mut self) -> io::Result<()> {
         if self.rows == 0 {
             return Ok(());
         }
-        let arrays: Vec<ArrayRef> = self.builders.iter_mut().map(Builder::finish).collect();
-        let batch = RecordBatch::try_new(self.schema.clone(), arrays).map_err(|e| io::Error::other(e.to_string()))?;
-        self.writer.write(&batch).map_err(parquet_error)?;
+        let mut group = self.writer.next_row_group().map_err(parquet_error)?;
+        for builder in &mut self.builders {
+            let mut column =
+                group.next_column().map_err(parquet_error)?.ok_or_else(|| io::Error::other("a column too many"))?;
+            builder.write(column.untyped()).map_err(parquet_error)?;
+            column.close().map_err(parquet_error)?;
+        }
+        group.close().map_err(parquet_error)?;
         self.rows = 0;
         Ok(())
     }
@@ -276,48 +310,85 @@ pub fn read_columns(
     let invalid = |e: parquet::errors::ParquetError| {
         io::Error::new(io::ErrorKind::InvalidData, format!("not a Parquet table: {e}"))
     };
-    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(invalid)?;
-    let header: Vec<String> = builder.schema().fields().iter().map(|f| f.name().clone()).collect();
-    let keep: Vec<usize> =
-        (0..header.len()).filter(|&k| numbers(&header, &header[k]) || texts(&header, &header[k])).collect();
-    let mask = parquet::arrow::ProjectionMask::roots(builder.parquet_schema(), keep.iter().copied());
-    let reader = builder.with_projection(mask).build().map_err(invalid)?;
-    let kept: Vec<String> = keep.iter().map(|&k| header[k].clone()).collect();
-    let mut number_columns: Vec<(String, Vec<f64>)> =
-        kept.iter().filter(|c| numbers(&header, c)).map(|c| (c.clone(), Vec::new())).collect();
-    let mut text_columns: Vec<(String, Vec<String>)> =
-        kept.iter().filter(|c| texts(&header, c)).map(|c| (c.clone(), Vec::new())).collect();
-    let mut rows = 0;
-    for batch in reader {
-        let batch = batch.map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
-        for (name, values) in &mut number_columns {
-            let column = batch.column_by_name(name).ok_or_else(|| io::Error::other(format!("no column {name}")))?;
-            let any = column.as_any();
-            for r in 0..batch.num_rows() {
-                values.push(if column.is_null(r) {
-                    f64::NAN
-                } else if let Some(a) = any.downcast_ref::<Float64Array>() {
-                    a.value(r)
-                } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
-                    a.value(r) as f64
-                } else {
-                    f64::NAN
-                });
-            }
+    let reader = SerializedFileReader::new(file).map_err(invalid)?;
+    let metadata = reader.metadata();
+    let header: Vec<String> =
+        metadata.file_metadata().schema_descr().columns().iter().map(|c| c.name().to_string()).collect();
+    let mut number_columns: Vec<(usize, String, Vec<f64>)> = Vec::new();
+    let mut text_columns: Vec<(usize, String, Vec<String>)> = Vec::new();
+    for (k, name) in header.iter().enumerate() {
+        if numbers(&header, name) {
+            number_columns.push((k, name.clone(), Vec::new()));
+        } else if texts(&header, name) {
+            text_columns.push((k, name.clone(), Vec::new()));
         }
-        for (name, values) in &mut text_columns {
-            let column = batch.column_by_name(name).ok_or_else(|| io::Error::other(format!("no column {name}")))?;
-            let strings = column.as_any().downcast_ref::<StringArray>();
-            for r in 0..batch.num_rows() {
-                values.push(match strings {
-                    Some(a) if !a.is_null(r) => a.value(r).to_string(),
-                    _ => String::new(),
-                });
-            }
-        }
-        rows += batch.num_rows();
     }
-    Ok(ColumnsRead { header, rows, numbers: number_columns, texts: text_columns })
+    let rows = usize::try_from(metadata.file_metadata().num_rows()).map_err(|_| io::Error::other("negative rows"))?;
+    let mut defined: Vec<i16> = Vec::new();
+    for group in 0..reader.num_row_groups() {
+        let group = reader.get_row_group(group).map_err(invalid)?;
+        let group_rows = usize::try_from(group.metadata().num_rows()).unwrap_or(0);
+        for (k, name, values) in &mut number_columns {
+            let column = group.get_column_reader(*k).map_err(invalid)?;
+            let numbers: Vec<f64> = match column {
+                ColumnReader::DoubleColumnReader(mut r) => read_all(&mut r, group_rows, &mut defined)?,
+                ColumnReader::Int64ColumnReader(mut r) => {
+                    read_all(&mut r, group_rows, &mut defined)?.into_iter().map(|v| v as u64 as f64).collect()
+                }
+                _ => return Err(io::Error::new(io::ErrorKind::InvalidData, format!("column {name} is not numeric"))),
+            };
+            spread(values, numbers, &defined, f64::NAN);
+        }
+        for (k, name, values) in &mut text_columns {
+            let column = group.get_column_reader(*k).map_err(invalid)?;
+            let ColumnReader::ByteArrayColumnReader(mut r) = column else {
+                return Err(io::Error::new(io::ErrorKind::InvalidData, format!("column {name} is not text")));
+            };
+            let texts = read_all(&mut r, group_rows, &mut defined)?
+                .into_iter()
+                .map(|b| String::from_utf8_lossy(b.data()).into_owned())
+                .collect();
+            spread(values, texts, &defined, String::new());
+        }
+    }
+    Ok(ColumnsRead {
+        header,
+        rows,
+        numbers: number_columns.into_iter().map(|(_, n, v)| (n, v)).collect(),
+        texts: text_columns.into_iter().map(|(_, n, v)| (n, v)).collect(),
+    })
+}
+
+/// Every value of one column chunk of `rows` rows, its definition levels left in `defined`.
+fn read_all<T: parquet::data_type::DataType>(
+    reader: &mut parquet::column::reader::ColumnReaderImpl<T>,
+    rows: usize,
+    defined: &mut Vec<i16>,
+) -> io::Result<Vec<T::T>>
+where
+    T::T: Default + Clone,
+{
+    defined.clear();
+    let mut values = Vec::new();
+    let mut read = 0;
+    while read < rows {
+        let (records, _, _) = reader
+            .read_records(rows - read, Some(defined), None, &mut values)
+            .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
+        if records == 0 {
+            return Err(io::Error::new(io::ErrorKind::InvalidData, "a column chunk ends early"));
+        }
+        read += records;
+    }
+    Ok(values)
+}
+
+/// Appends a column chunk's rows: its values where defined, `null` where not.
+fn spread<T: Clone>(out: &mut Vec<T>, values: Vec<T>, defined: &[i16], null: T) {
+    let mut values = values.into_iter();
+    for &d in defined {
+        out.push(if d > 0 { values.next().unwrap_or_else(|| null.clone()) } else { null.clone() });
+    }
 }
 
 #[cfg(test)]
