@@ -28,6 +28,9 @@ pub const STABLE: &str = "stable";
 pub const EVENT: &str = "event";
 /// Assembly: the prefix of the non-linear assembly's displacement (marks an assembly for `stiff plot`).
 pub const NONLINEAR: &str = "nl";
+/// The prefix of a points file's or a measurement file's joint-coordinate columns: `q_<joint name>` (rad,
+/// or mm for a prismatic joint).
+pub const JOINT_PREFIX: &str = "q_";
 /// Measurements: the pose a row belongs to.
 pub const POSE_ID: &str = "pose_id";
 /// Measurements: the standard deviation of a measured coordinate.

@@ -14,11 +14,11 @@ use stiff::platform::manipulator::Manipulator;
 
 use crate::common::{rng, run_with_deadline};
 
-const FANUC: &str = "manipulators/fanuc-r2000ic.toml";
+pub(crate) const FANUC: &str = "manipulators/fanuc-r2000ic.toml";
 
 /// The source's modified DH rows (alpha(i-1), a(i-1) in mm, theta offset, d(i) in mm), its tool point in frame
 /// 6 (mm) and its identified joint stiffnesses (N mm/rad): tests/reference/fanuc-r2000ic/README.md.
-const DH: [(f64, f64, f64, f64); 6] = [
+pub(crate) const DH: [(f64, f64, f64, f64); 6] = [
     (0.0, 0.0, 0.0, 670.0),
     (-std::f64::consts::FRAC_PI_2, 312.0, -std::f64::consts::FRAC_PI_2, 0.0),
     (0.0, 1075.0, 0.0, 0.0),
@@ -26,8 +26,9 @@ const DH: [(f64, f64, f64, f64); 6] = [
     (std::f64::consts::FRAC_PI_2, 0.0, 0.0, 0.0),
     (-std::f64::consts::FRAC_PI_2, 0.0, 0.0, 215.0),
 ];
-const TOOL: [f64; 3] = [6.9, 245.3, 319.3];
-const K_JOINT: [f64; 6] = [9.339417645e8, 4.129256136e9, 1.907534091e9, 2.332046026e8, 4.043588275e8, 7.961815940e7];
+pub(crate) const TOOL: [f64; 3] = [6.9, 245.3, 319.3];
+pub(crate) const K_JOINT: [f64; 6] =
+    [9.339417645e8, 4.129256136e9, 1.907534091e9, 2.332046026e8, 4.043588275e8, 7.961815940e7];
 
 /// Craig's modified DH transform of one row: Rx(alpha) Tx(a) Rz(theta) Tz(d), as a 4x4 matrix.
 fn mdh(alpha: f64, a: f64, theta: f64, d: f64) -> nalgebra::Matrix4<f64> {
@@ -53,7 +54,7 @@ fn mdh(alpha: f64, a: f64, theta: f64, d: f64) -> nalgebra::Matrix4<f64> {
 }
 
 /// The tool point and each joint's frame (axis z, origin) from the DH table at model angles q.
-fn dh_kinematics(q: &[f64; 6]) -> (Vec3, Vec<nalgebra::Matrix4<f64>>) {
+pub(crate) fn dh_kinematics(q: &[f64; 6]) -> (Vec3, Vec<nalgebra::Matrix4<f64>>) {
     let mut m = nalgebra::Matrix4::identity();
     let mut frames = Vec::new();
     for (k, (alpha, a, offset, d)) in DH.iter().enumerate() {
@@ -65,7 +66,7 @@ fn dh_kinematics(q: &[f64; 6]) -> (Vec3, Vec<nalgebra::Matrix4<f64>>) {
 }
 
 /// The geometric Jacobian at the tool point (rows: translation mm/rad, rotation), from the DH frames.
-fn dh_jacobian(q: &[f64; 6]) -> Matrix6<f64> {
+pub(crate) fn dh_jacobian(q: &[f64; 6]) -> Matrix6<f64> {
     let (p, frames) = dh_kinematics(q);
     let mut j = Matrix6::zeros();
     for (k, f) in frames.iter().enumerate() {
@@ -78,7 +79,7 @@ fn dh_jacobian(q: &[f64; 6]) -> Matrix6<f64> {
 }
 
 /// The source's controller-to-model map: q1 = t1, q2 = t2, q3 = -(t2 + t3), q4 = -t4, q5 = -t5, q6 = -t6.
-fn model_angles(t: &[f64; 6]) -> [f64; 6] {
+pub(crate) fn model_angles(t: &[f64; 6]) -> [f64; 6] {
     [t[0], t[1], -(t[1] + t[2]), -t[3], -t[4], -t[5]]
 }
 
@@ -93,7 +94,7 @@ fn stiffness_at(m: &Manipulator, t: &[f64; 6]) -> (Frame, Mat6) {
     (frame, m.unloaded(&frame, &mut state).unwrap().stiffness)
 }
 
-fn random_angles(r: &mut rand::rngs::StdRng) -> [f64; 6] {
+pub(crate) fn random_angles(r: &mut rand::rngs::StdRng) -> [f64; 6] {
     // Within the joint limits, away from the wrist's singularity (q5 = 0).
     let t: [f64; 6] = std::array::from_fn(|k| match k {
         0 => r.random_range(-3.0..3.0),
@@ -222,24 +223,20 @@ fn the_fanuc_measurements_are_reproduced_with_the_sources_stiffnesses() {
     assert!((largest_component - 0.925).abs() < 5e-3, "largest component {largest_component}");
 }
 
-/// The links' own weight: with gravity set, a loaded map at zero wrench is the sag under self-weight. For the
-/// FANUC at its first measured configuration the sag equals, to first order, C_q applied to the gravity
-/// torques of the links computed here from the source's masses (tau = sum_i J_i(c_i)^T m_i g over the links
-/// beyond each joint): the tool point moves by J K^-1 tau, within 1% of the loaded equilibrium's sag.
-#[test]
-fn self_weight_sags_the_arm_as_its_gravity_torques_say() {
-    const MASSES: [(f64, [f64; 3]); 6] = [
-        (262.614, [-13.9, 76.5, -110.7]),
-        (156.154, [424.8, 42.87, 216.3]),
-        (149.341, [134.2, 241.5, 39.1]),
-        (10.190, [0.0, 1.9, -105.5]),
-        (17.698, [0.0, 54.3, -27.7]),
-        (41.450, [0.5, -33.6, 265.4]),
-    ];
-    let t = [-1.047040472, -0.291347812, -0.504923753, 0.066113072, -1.098335698, 2.529313699];
-    let q = model_angles(&t);
-    let (p, frames) = dh_kinematics(&q);
-    // Gravity torques tau_k = sum over links i >= k of (z_k x (c_i - o_k)) . (m_i g), g = -9.81 z (N, mm).
+/// The source's link masses (kg) and centres of mass in their DH frames (mm).
+const MASSES: [(f64, [f64; 3]); 6] = [
+    (262.614, [-13.9, 76.5, -110.7]),
+    (156.154, [424.8, 42.87, 216.3]),
+    (149.341, [134.2, 241.5, 39.1]),
+    (10.190, [0.0, 1.9, -105.5]),
+    (17.698, [0.0, 54.3, -27.7]),
+    (41.450, [0.5, -33.6, 265.4]),
+];
+
+/// The joints' gravity torques at model angles q (N mm, g = 9.81 m/s^2 along -z): tau_k = sum over links
+/// i >= k of (z_k x (c_i - o_k)) . (m_i g).
+pub(crate) fn dh_gravity_torques(q: &[f64; 6]) -> Vec6 {
+    let (_, frames) = dh_kinematics(q);
     let mut tau = Vec6::zeros();
     for (i, (kg, c)) in MASSES.iter().enumerate() {
         let f = frames[i];
@@ -252,6 +249,19 @@ fn self_weight_sags_the_arm_as_its_gravity_torques_say() {
             tau[k] += z.cross(&(centre - o)).dot(&weight);
         }
     }
+    tau
+}
+
+/// The links' own weight: with gravity set, a loaded map at zero wrench is the sag under self-weight. For the
+/// FANUC at its first measured configuration the sag equals, to first order, C_q applied to the gravity
+/// torques of the links computed here from the source's masses (tau = sum_i J_i(c_i)^T m_i g over the links
+/// beyond each joint): the tool point moves by J K^-1 tau, within 1% of the loaded equilibrium's sag.
+#[test]
+fn self_weight_sags_the_arm_as_its_gravity_torques_say() {
+    let t = [-1.047040472, -0.291347812, -0.504923753, 0.066113072, -1.098335698, 2.529313699];
+    let q = model_angles(&t);
+    let (p, _) = dh_kinematics(&q);
+    let tau = dh_gravity_torques(&q);
     let j = dh_jacobian(&q);
     let dq = Vec6::from_iterator((0..6).map(|k| tau[k] / K_JOINT[k]));
     let sag_first_order: Vec3 = (j * dq).fixed_rows::<3>(0).into();
@@ -310,6 +320,33 @@ fn a_urdf_tree_with_a_fixed_and_a_mimic_joint_gives_the_path_from_root_to_tip() 
         );
         assert!((f.pos - want).norm() < 1e-9, "{a}: {} vs {want}", f.pos);
     }
+}
+
+/// Regression: a fixed joint does not move, so its axis is never read; descriptions in use write
+/// `<axis xyz="0 0 0"/>` there (TIAGo's torso_fixed_joint), and such a file was refused for a zero axis.
+/// The fixed joint's origin still moves the tool (a planar arm: the tool at (L1 cos a + L2, L1 sin a)), and a
+/// moving joint with a zero axis is still refused, located.
+#[test]
+fn a_fixed_joints_zero_axis_is_not_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = |axis: &str| {
+        format!(
+            r#"<robot name="planar">
+  <link name="base"/><link name="a"/><link name="b"/>
+  <joint name="J1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="{axis}"/></joint>
+  <joint name="mount" type="fixed"><parent link="a"/><child link="b"/><origin xyz="0.4 0 0"/><axis xyz="0 0 0"/></joint>
+</robot>"#
+        )
+    };
+    let toml = "name = \"planar\"\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"planar.urdf\"\nroot = \"base\"\ntip = \"b\"\n";
+    std::fs::write(dir.path().join("planar.toml"), toml).unwrap();
+    std::fs::write(dir.path().join("planar.urdf"), urdf("0 0 1")).unwrap();
+    let m = stiff::model::load_manipulator(&dir.path().join("planar.toml")).unwrap();
+    let f = m.pose_at_joints(&[0.7], &mut m.new_state()).unwrap();
+    assert!((f.pos - Vec3::new(400.0 * 0.7f64.cos(), 400.0 * 0.7f64.sin(), 0.0)).norm() < 1e-9, "{}", f.pos);
+    std::fs::write(dir.path().join("planar.urdf"), urdf("0 0 0")).unwrap();
+    let e = stiff::model::load_manipulator(&dir.path().join("planar.toml")).unwrap_err().to_string();
+    assert!(e.contains("planar.urdf, line 3") && e.contains("joint `J1`: the axis must not be zero"), "{e}");
 }
 
 fn stiff_in(dir: &Path, args: &[&str]) -> (bool, String) {

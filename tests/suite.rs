@@ -7,6 +7,7 @@ mod common;
 mod allocation;
 mod architecture;
 mod assemble;
+mod calibrate;
 mod cli;
 mod cli_surface;
 mod closed_forms;

@@ -20,9 +20,27 @@ Exit status: 0 success whatever the verdict (unless --fail-on), 1 the run failed
 pub(crate) struct DiagnoseArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
-    /// Measurements (CSV): pose_id,x_mm,y_mm,z_mm,Fx_N,...,Mz_Nmm,dx_mm,dy_mm,dz_mm[,sigma_mm].
+    /// Measurements (CSV): pose_id,x_mm,y_mm,z_mm,Fx_N,...,Mz_Nmm,dx_mm,dy_mm,dz_mm[,sigma_mm]; or, for a
+    /// serial arm, as a lab records them: q_<joint> columns and the target's measured position in the
+    /// instrument's frame (mx_mm,my_mm,mz_mm or mx_m,...; several targets mx1_mm,... or a `target` column;
+    /// optional setup, set = fit|check, sigma_mm, Fx_N..Mz_Nmm), or dx_mm,dy_mm,dz_mm under the row's wrench.
     #[arg(long)]
     pub(crate) data: PathBuf,
+    /// Joint-space data: hold out this fraction of the configurations (drawn with --seed) as check rows,
+    /// never fitted.
+    #[arg(long, value_name = "F")]
+    pub(crate) check_fraction: Option<f64>,
+    /// Seed of --check-fraction's draw.
+    #[arg(long, default_value_t = 1, requires = "check_fraction")]
+    pub(crate) seed: u64,
+    /// Joint-space data: an effect always fitted, not selected (repeat; e.g. --fit joint-compliance:J2):
+    /// joint-offset:J, joint-compliance:J, backlash:J.
+    #[arg(long, value_name = "EFFECT")]
+    pub(crate) fit: Vec<String>,
+    /// Joint-space data: the candidates offered (comma-separated, as --fit); default every joint's offset
+    /// (positions only), compliance and backlash.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub(crate) candidates: Vec<String>,
     /// Measurement standard deviation, mm (when the data has no sigma_mm column).
     #[arg(long)]
     pub(crate) sigma: Option<f64>,
@@ -63,11 +81,20 @@ pub(crate) enum FailOn {
 
 pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
     use crate::diagnose::{data::Dataset, error::DiagnoseError, report, screen, select};
-    let model = a.model.load_model()?;
-    let data = Dataset::read(&a.data)?;
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         bail!("--alpha must lie in (0, 1)");
     }
+    let model = a.model.load_model()?;
+    if joint_space_data(&a.data) {
+        return run_calibration(&a, &model.manipulator);
+    }
+    if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() {
+        bail!(
+            "--check-fraction, --fit and --candidates are for joint-space data (q_<joint> columns); {} gives poses",
+            a.data.display()
+        );
+    }
+    let data = Dataset::read(&a.data)?;
     let loaded = !a.linear;
     let options = select::Options { alpha: a.alpha, loaded, max_effects: 3 };
     // The outputs are opened before the work, so an unwritable path fails at once.
@@ -118,6 +145,76 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
             d.verdict.as_str(),
             if a.fail_on == Some(FailOn::Effect) { "effect" } else { "unexplained" }
         );
+    }
+    Ok(())
+}
+
+/// True when the data file's header names joint coordinates (`q_<joint>`): it is calibration data.
+fn joint_space_data(path: &std::path::Path) -> bool {
+    let Ok(input) = crate::model::error::open_input(path) else { return false };
+    let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(input);
+    reader
+        .headers()
+        .is_ok_and(|h| crate::diagnose::positions::is_joint_space(&h.iter().map(String::from).collect::<Vec<_>>()))
+}
+
+/// A serial arm against joint-space measurements: registration fitted, effects selected, held-out rows
+/// reported.
+fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulator) -> Result<()> {
+    use crate::diagnose::calibrate::{self, ArmEffect};
+    use crate::diagnose::positions::PositionData;
+    if a.model_out.is_some() || a.plot.is_some() || a.linear {
+        bail!(
+            "--model-out, --plot and --linear are not available for joint-space data yet: the report and --json give the effects and errors"
+        );
+    }
+    let Some(space) = &m.joint_space else {
+        bail!(
+            "{} gives joint coordinates (q_<joint>), but {} is not a serial arm read from URDF",
+            a.data.display(),
+            m.name
+        );
+    };
+    let mut data = PositionData::read(&a.data, &space.names)?;
+    if let Some(f) = a.check_fraction {
+        if !(0.0..1.0).contains(&f) {
+            bail!("--check-fraction must lie in [0, 1), got {f}");
+        }
+        data.hold_out(f, a.seed);
+    }
+    if let Some(s) = a.sigma {
+        if !(crate::diagnose::data::MIN_SIGMA_MM..=crate::diagnose::data::MAX_MAGNITUDE).contains(&s) {
+            bail!(
+                "--sigma must lie in [{:e}, {:e}] mm, got {s}",
+                crate::diagnose::data::MIN_SIGMA_MM,
+                crate::diagnose::data::MAX_MAGNITUDE
+            );
+        }
+    }
+    let parse = |list: &[String], flag: &str| -> Result<Vec<ArmEffect>> {
+        list.iter()
+            .map(|e| ArmEffect::parse(e.trim(), &space.names).map_err(|why| anyhow::anyhow!("{flag}: {why}")))
+            .collect()
+    };
+    let options =
+        calibrate::Options { alpha: a.alpha, sigma: a.sigma, fitted: parse(&a.fit, "--fit")?, max_effects: 6 };
+    let candidates = parse(&a.candidates, "--candidates")?;
+    let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
+    let c = calibrate::calibrate(m, &data, &candidates, &options)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    let name = a.model.model.display().to_string();
+    write_stdout(&calibrate::text(&c, &name))?;
+    if let Some(mut sink) = json_sink {
+        serde_json::to_writer_pretty(&mut *sink.writer(), &serde_json::json!({ "model": name, "calibration": c }))?;
+        sink.finish()?;
+    }
+    let fails = match (a.fail_on, c.verdict) {
+        (None, _) | (_, calibrate::Verdict::None) => false,
+        (Some(FailOn::Effect), _) => true,
+        (Some(FailOn::Unexplained), v) => v == calibrate::Verdict::Unexplained,
+    };
+    if fails {
+        bail!("verdict `{:?}` (--fail-on)", c.verdict);
     }
     Ok(())
 }

@@ -239,6 +239,24 @@ impl ChainJacobians {
         }
     }
 
+    /// The loads on the actuated coordinates (N mm about a revolute joint, N along a prismatic one) of a
+    /// wrench `w` on the chain's end and of its masses' weights: what the joints' drives and springs carry,
+    /// `J_a^T w + sum_j J_aj^T G_j` (paper 000 eq 28-29 for the actuated columns). Added into `out`.
+    pub fn add_actuated_loads(&self, w: &Vec6, gravity: &Vec3, out: &mut [f64]) {
+        let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
+        let mut add = |x: &Vec3, f: &Vec3, m: &Vec3, upto: usize| {
+            for pj in self.placed[..upto].iter().filter(|pj| pj.joint.role == Role::Actuated) {
+                out[pj.joint.index] += pj.twist_at(x).dot(&Vec6::new(f.x, f.y, f.z, m.x, m.y, m.z));
+            }
+        };
+        add(&self.end.pos, &f, &m, self.placed.len());
+        if *gravity != Vec3::zeros() {
+            for pm in &self.masses {
+                add(&pm.point, &(gravity * pm.kg), &Vec3::zeros(), pm.upstream);
+            }
+        }
+    }
+
     fn add_point_forces(&self, x: &Vec3, f: &Vec3, m: &Vec3, upto: usize, n_passive: usize, out: &mut [f64]) {
         for pj in &self.placed[..upto] {
             let Some(k) = unknown_index(&pj.joint, n_passive) else { continue };

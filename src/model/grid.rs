@@ -10,10 +10,6 @@ use toml::Spanned;
 use super::error::{is_stdin, not_finite, open_input, read_text, InputError, Locator};
 use crate::kinematics::frame::{Frame, Vec3, Vec6};
 
-/// The prefix of a points file's joint-coordinate columns: `q_<joint name>` (rad, or mm for a prismatic
-/// joint).
-pub const JOINT_PREFIX: &str = "q_";
-
 /// One pose to evaluate.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PosePoint {
@@ -301,7 +297,7 @@ impl PointSet {
         let joint_columns: Vec<(usize, String)> = headers
             .iter()
             .enumerate()
-            .filter_map(|(i, h)| h.strip_prefix(JOINT_PREFIX).map(|n| (i, n.to_string())))
+            .filter_map(|(i, h)| h.strip_prefix(crate::columns::JOINT_PREFIX).map(|n| (i, n.to_string())))
             .collect();
         let xyz = if joint_columns.is_empty() || find(names::POSITION[0]).is_some() {
             Some([need(names::POSITION[0])?, need(names::POSITION[1])?, need(names::POSITION[2])?])

@@ -199,6 +199,8 @@ pub fn read_chain(path: &Path, text: &str, root: &str, tip: &str) -> Result<Urdf
             other => return Err(r.at(*j, format!("joint `{name}` has the unknown type `{other}`"))),
         };
         let axis = match child(*j, "axis") {
+            // A fixed joint does not move: its axis is never read (descriptions in use write `0 0 0` there).
+            _ if kind == UrdfJointKind::Fixed => Vec3::x(),
             Some(a) => {
                 let v = r.numbers(a, "xyz", 3, 0.0)?;
                 let v = Vec3::new(v[0], v[1], v[2]);

@@ -44,6 +44,19 @@ impl JointSpace {
     }
 }
 
+/// A serial arm's rigid statics at one configuration (`Manipulator::arm_statics`).
+#[derive(Clone, Debug)]
+pub struct ArmStatics {
+    /// The platform frame (the reference point's).
+    pub frame: Frame,
+    /// Per joint (in joint-space order), the twist of the reference point per unit of the joint's model
+    /// coordinate (rad or mm), base frame.
+    pub columns: Vec<Vec6>,
+    /// Per joint, the load it carries (N mm about a revolute joint, N along a prismatic one) from the
+    /// wrench, the links' weight and the payload: a spring there turns by its compliance times this.
+    pub loads: Vec<f64>,
+}
+
 /// Standard gravity (m/s^2) along -z: what a payload weighs under when the model gives no gravity.
 pub const STANDARD_GRAVITY: Vec3 = Vec3::new(0.0, 0.0, -9.81);
 
@@ -210,6 +223,43 @@ impl Manipulator {
             (Leg::Vjm(leg), Some(s)) => leg.pose_at_joints(&q, s),
             _ => None,
         }
+    }
+
+    /// A serial arm's rigid statics at the controller's angles (as `pose_at_joints`) under `wrench` (N, N mm
+    /// at the reference point) with the links' weight and the payload's: where the reference point is, how
+    /// each joint moves it, and what each joint carries. None as `pose_at_joints`.
+    pub fn arm_statics(&self, controller: &[f64], wrench: &Vec6, state: &mut ManipulatorState) -> Option<ArmStatics> {
+        let space = self.joint_space.as_ref()?;
+        if controller.len() != space.names.len() || self.legs.len() != 1 {
+            return None;
+        }
+        let q = space.model_coordinates(controller);
+        let (Leg::Vjm(leg), Some(s)) = (&self.legs[0], state.legs.first_mut()) else { return None };
+        let (end, columns, mut loads) = leg.statics(&q, s)?;
+        let platform = end.compose(&leg.attachment.inverse());
+        // The columns moved from the end point to the reference point: v_ref = v_end + w x (ref - end).
+        let arm = end.pos - platform.pos;
+        let columns: Vec<Vec6> = columns
+            .iter()
+            .map(|c| {
+                let (v, w) = (c.fixed_rows::<3>(0).into_owned(), c.fixed_rows::<3>(3).into_owned());
+                let v = v - w.cross(&arm);
+                Vec6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+            })
+            .collect();
+        // A wrench at the reference point loads each joint by its twist there (virtual work).
+        let total = *wrench + self.weight(&platform).0;
+        for (load, column) in loads.iter_mut().zip(&columns) {
+            *load += column.dot(&total);
+        }
+        Some(ArmStatics { frame: platform, columns, loads })
+    }
+
+    /// The compliance of a serial arm's joint `name` about (or along) its axis, rad/(N mm) or mm/N, where the
+    /// description gives it a spring; None where the joint is rigid or not a joint of the arm.
+    pub fn joint_compliance(&self, name: &str) -> Option<f64> {
+        let Some(Leg::Vjm(leg)) = self.legs.first() else { return None };
+        leg.springs.iter().find(|g| g.name == name && g.dim == 1).map(|g| g.compliance[(0, 0)])
     }
 
     /// Places every leg for the commanded pose (inverse kinematics).

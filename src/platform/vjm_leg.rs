@@ -58,6 +58,17 @@ impl VjmLeg {
         (platform.pos.iter().chain(platform.rot.iter()).all(|v| v.is_finite())).then_some(platform)
     }
 
+    /// The rigid chain at actuated coordinates `q` (springs at rest): its end frame, the twist of the end
+    /// point per unit of each actuated coordinate, and each actuated coordinate's load from the chain's
+    /// weight. None as `pose_at_joints`.
+    pub(super) fn statics(&self, q: &[f64], state: &mut LegState) -> Option<(Frame, Vec<Vec6>, Vec<f64>)> {
+        self.pose_at_joints(q, state)?;
+        self.chain.evaluate(&state.coords, &mut state.jac);
+        let mut loads = vec![0.0; q.len()];
+        state.jac.add_actuated_loads(&Vec6::zeros(), &self.gravity, &mut loads);
+        Some((state.jac.end, state.jac.actuated.clone(), loads))
+    }
+
     pub(super) fn has_masses(&self) -> bool {
         self.chain.elements().iter().any(|e| matches!(e, crate::kinematics::chain::Element::Mass { .. }))
     }

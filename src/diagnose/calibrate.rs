@@ -1,0 +1,1080 @@
+//! Calibration of a serial arm against what a lab measures (`positions.rs`): where a target on the tool was,
+//! in an instrument's frame, at configurations given by the controller's joint coordinates, under the arm's
+//! own weight and the rows' wrenches; or the tool point's displacement under a wrench.
+//!
+//! The set-up is fitted, not blamed: each instrument set-up's frame (a rotation and a translation) and each
+//! target's place on the tool are nuisance parameters of every fit. The effects a serial arm can miss are
+//! then offered one at a time and kept where the data need them (forward selection by F-tests at
+//! alpha / candidates, as the other diagnosis does with its tests):
+//! - `joint-offset:J`: the encoder's zero, added to the controller's angle (absolute data only: a
+//!   displacement does not see it);
+//! - `joint-compliance:J`: a compliance about (along) the joint's axis added to the model's, the joint
+//!   turning by it times the load it carries (the links' weight, the payload, the wrench);
+//! - `backlash:J`: play that follows the sign of the joint's load, the joint turning by b sign(load).
+//!
+//! Compliance and backlash act at first order about the model's own loaded equilibrium (the deflections of
+//! robots are a thousandth of their reach, so the second order is a millionth). A direction the data cannot
+//! see (a vertical first axis makes the base's yaw and joint 1's offset one parameter) is found from the
+//! rank of the fit's Jacobian and reported, never fitted. Gross rows (a misfit no plausible model gives,
+//! against a median-based scale) are named and left out. Rows marked `check` are never fitted; the report
+//! gives the position error of fit and check rows after the registration alone and after each effect.
+
+use nalgebra::{DMatrix, DVector};
+use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
+
+use super::positions::{Observed, PositionData, PositionRow};
+use crate::kinematics::frame::{rotation_from_vector, skew, Mat3, Vec3, Vec6};
+use crate::platform::manipulator::{ArmStatics, Manipulator, ManipulatorState};
+
+/// Relative singular value of the column-scaled Jacobian below which a direction is not identifiable.
+const IDENTIFIABLE: f64 = 1e-8;
+/// A row whose misfit exceeds this many robust standard deviations (per coordinate) is gross.
+const GROSS_FACTOR: f64 = 12.0;
+/// The median length of a 3-vector of unit-variance normal coordinates (the chi distribution's, 3 dof).
+const CHI3_MEDIAN: f64 = 1.5382;
+/// Step of the central differences of a joint offset, rad (mm).
+const OFFSET_STEP: f64 = 1e-6;
+
+/// What kind of effect a candidate is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ArmKind {
+    /// An encoder's zero offset.
+    JointOffset,
+    /// A compliance about the joint's axis.
+    JointCompliance,
+    /// Play following the sign of the joint's load.
+    Backlash,
+}
+
+/// A candidate effect on one joint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ArmEffect {
+    /// Its kind.
+    pub kind: ArmKind,
+    /// The joint (index in the arm's joint space).
+    pub joint: usize,
+}
+
+impl ArmEffect {
+    /// Its name as given on the command line (`joint-offset:J2`).
+    pub fn label(&self, joints: &[String]) -> String {
+        let kind = match self.kind {
+            ArmKind::JointOffset => "joint-offset",
+            ArmKind::JointCompliance => "joint-compliance",
+            ArmKind::Backlash => "backlash",
+        };
+        format!("{kind}:{}", joints[self.joint])
+    }
+
+    /// Reads `kind:JOINT`.
+    pub fn parse(text: &str, joints: &[String]) -> Result<ArmEffect, String> {
+        let (kind, joint) = text.split_once(':').ok_or_else(|| format!("`{text}`: give KIND:JOINT"))?;
+        let kind = match kind {
+            "joint-offset" => ArmKind::JointOffset,
+            "joint-compliance" => ArmKind::JointCompliance,
+            "backlash" => ArmKind::Backlash,
+            other => {
+                return Err(format!(
+                    "`{other}`: the effects of a serial arm are joint-offset, joint-compliance and backlash"
+                ))
+            }
+        };
+        let joint = joints
+            .iter()
+            .position(|j| j == joint)
+            .ok_or_else(|| format!("`{joint}` is not a joint of the arm ({})", joints.join(", ")))?;
+        Ok(ArmEffect { kind, joint })
+    }
+}
+
+/// Options of a calibration.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Significance level of the selection (each step tests at alpha / candidates).
+    pub alpha: f64,
+    /// Standard deviation of a measured coordinate, mm, where the rows do not give one.
+    pub sigma: Option<f64>,
+    /// Effects always fitted (a fixed list, as a geometric calibration fits its parameters).
+    pub fitted: Vec<ArmEffect>,
+    /// Most effects selected.
+    pub max_effects: usize,
+}
+
+/// The parameters of one fit.
+#[derive(Clone, Debug)]
+struct Params {
+    rotations: Vec<Mat3>,
+    translations: Vec<Vec3>,
+    targets: Vec<Vec3>,
+    effects: Vec<f64>,
+}
+
+/// A fit: its parameters, weighted residual sum of squares, rows, rank, covariance (unscaled) and the
+/// directions it could not see.
+#[derive(Clone, Debug)]
+struct Fit {
+    params: Params,
+    rss: f64,
+    observations: usize,
+    rank: usize,
+    /// (J^T J)^+ of the weighted Jacobian, in the parameters' order.
+    covariance: DMatrix<f64>,
+    /// Directions of the parameters the data cannot see: (parameter index, weight) of each, in the
+    /// column-scaled parameters.
+    hidden: Vec<Vec<(usize, f64)>>,
+}
+
+impl Fit {
+    fn dof(&self) -> usize {
+        self.observations.saturating_sub(self.rank).max(1)
+    }
+}
+
+/// An effect accepted, with its value and standard error.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Accepted {
+    /// `joint-offset:J2` and so on.
+    pub label: String,
+    /// Its kind.
+    pub kind: ArmKind,
+    /// The joint's name.
+    pub joint: String,
+    /// The fitted value: rad (mm) for an offset or backlash, rad/(N mm) (mm/N) added compliance.
+    pub value: f64,
+    /// Its standard error, same unit.
+    pub se: f64,
+    /// The value in the unit a user reads (mrad, mm, N m/rad ...), with its standard error.
+    pub shown: String,
+    /// For an effect selected where rows are held out: whether adding it lowered their RMS error (an
+    /// effect the fit rows need but the check rows do not confirm is named as such).
+    pub confirmed: Option<bool>,
+}
+
+/// One step of the selection: each candidate's test.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Tested {
+    /// The candidate.
+    pub label: String,
+    /// F statistic of adding it (null where not identifiable).
+    pub f: Option<f64>,
+    /// Its p-value.
+    pub p: Option<f64>,
+    /// Why it was not tested, where it was not.
+    pub note: Option<String>,
+}
+
+/// Position errors of a set of rows (mm): RMS per axis, RMS, 95th percentile and maximum of the length.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ErrorStats {
+    /// Rows.
+    pub rows: usize,
+    /// RMS of x, y, z.
+    pub rms_axis: [f64; 3],
+    /// RMS of the length.
+    pub rms: f64,
+    /// 95th percentile of the length.
+    pub p95: f64,
+    /// Largest length.
+    pub max: f64,
+    /// Largest magnitude of x, y, z.
+    pub max_axis: [f64; 3],
+}
+
+/// The errors after one stage of the model (the registration alone, then each accepted effect).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Stage {
+    /// `registration`, `+ joint-offset:J2` and so on.
+    pub model: String,
+    /// Fitted parameters.
+    pub parameters: usize,
+    /// On the rows fitted (gross rows left out).
+    pub fit: ErrorStats,
+    /// On the rows held out.
+    pub check: ErrorStats,
+}
+
+/// A nuisance parameter's fitted value.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Nuisance {
+    /// `setup A: translation` and so on.
+    pub name: String,
+    /// Values (mm, or mrad for a rotation vector).
+    pub value: [f64; 3],
+    /// Standard errors.
+    pub se: [f64; 3],
+}
+
+/// The verdict of a calibration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Verdict {
+    /// No effect needed: the registration explains the data (within the noise, where it is known).
+    None,
+    /// Effects named, and the rest within the noise (or the noise is not known).
+    Effect,
+    /// The rest is above the stated noise after the effects named.
+    Unexplained,
+}
+
+/// A calibration's outcome.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Calibration {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Effects always fitted, then those selected, with values.
+    pub accepted: Vec<Accepted>,
+    /// The selection's steps: at each, every candidate's test.
+    pub steps: Vec<Vec<Tested>>,
+    /// Registration and targets.
+    pub nuisance: Vec<Nuisance>,
+    /// Directions no fit could see, named by their parameters.
+    pub not_identifiable: Vec<String>,
+    /// Gross rows left out: name and misfit, mm.
+    pub left_out: Vec<(String, f64)>,
+    /// Errors per stage.
+    pub stages: Vec<Stage>,
+    /// RMS of the weighted residual per coordinate after the final fit (1 where sigma was right).
+    pub residual_scale: f64,
+    /// Whether the noise level was given (sigma_mm or --sigma).
+    pub sigma_known: bool,
+    /// Rows fitted and held out.
+    pub rows: (usize, usize),
+}
+
+/// What each row needs from the model, computed once: the model's own deflection (the twist of the
+/// reference point under the row's loads from its springs; for a displacement row, minus that at zero
+/// wrench).
+struct Problem<'a> {
+    m: &'a Manipulator,
+    data: &'a PositionData,
+    joints: &'a [String],
+    deflection: Vec<Vec6>,
+    weight: Vec<f64>,
+    absolute: bool,
+    prismatic: Vec<bool>,
+}
+
+/// The failures of a calibration.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrationError {
+    /// The model is not a serial arm with a joint space.
+    #[error("{0} is not a serial arm read from URDF: joint-space measurements need one")]
+    NotAnArm(String),
+    /// A row's configuration has no finite pose or no loaded equilibrium.
+    #[error("row {name} (line {line}): {why}")]
+    Row {
+        /// The row's name.
+        name: String,
+        /// Its line.
+        line: usize,
+        /// What failed.
+        why: String,
+    },
+    /// Too few rows to fit what must be fitted.
+    #[error("{0}")]
+    TooFew(String),
+}
+
+impl<'a> Problem<'a> {
+    fn new(m: &'a Manipulator, data: &'a PositionData, sigma: Option<f64>) -> Result<Self, CalibrationError> {
+        let space = m.joint_space.as_ref().ok_or_else(|| CalibrationError::NotAnArm(m.name.clone()))?;
+        let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
+        let mut state = m.new_state();
+        let mut deflection = Vec::with_capacity(data.rows.len());
+        let failed = |r: &PositionRow, why: String| CalibrationError::Row { name: r.name.clone(), line: r.line, why };
+        let under = |r: &PositionRow, wrench: &Vec6, state: &mut ManipulatorState| -> Result<Vec6, CalibrationError> {
+            let frame = m
+                .pose_at_joints(&r.joints, state)
+                .ok_or_else(|| failed(r, "the joint coordinates give no finite pose".into()))?;
+            m.place(&frame, state).map_err(|e| failed(r, e.to_string()))?;
+            let d = m.deflect(&frame, wrench, None, state).map_err(|e| failed(r, e.to_string()))?;
+            if !d.stable {
+                return Err(failed(r, "the loaded equilibrium is unstable".into()));
+            }
+            Ok(d.displacement)
+        };
+        for r in &data.rows {
+            deflection.push(match (compliant, r.observed) {
+                (false, _) => Vec6::zeros(),
+                (true, Observed::Position { .. }) => under(r, &r.wrench, &mut state)?,
+                (true, Observed::Displacement(_)) => {
+                    under(r, &r.wrench, &mut state)? - under(r, &Vec6::zeros(), &mut state)?
+                }
+            });
+        }
+        let weight = data.rows.iter().map(|r| 1.0 / r.sigma.or(sigma).unwrap_or(1.0)).collect();
+        let statics = m
+            .arm_statics(&data.rows[0].joints, &Vec6::zeros(), &mut state)
+            .ok_or_else(|| failed(&data.rows[0], "the joint coordinates give no finite pose".into()))?;
+        let prismatic = statics.columns.iter().map(|c| c.fixed_rows::<3>(3).norm() == 0.0).collect();
+        Ok(Problem { m, data, joints: &space.names, deflection, weight, absolute: data.absolute(), prismatic })
+    }
+
+    /// Nuisance parameters: per set-up a translation and a rotation, per target a place on the tool.
+    fn nuisance_count(&self) -> usize {
+        if self.absolute {
+            6 * self.data.setups.len() + 3 * self.data.targets.len()
+        } else {
+            0
+        }
+    }
+
+    /// The prediction of row `r` and its derivative in every parameter (3 x p, weighted by the row's weight
+    /// along with the residual).
+    fn predict(
+        &self,
+        r: usize,
+        effects: &[ArmEffect],
+        params: &Params,
+        state: &mut ManipulatorState,
+        jacobian: Option<&mut DMatrix<f64>>,
+    ) -> Option<Vec3> {
+        let row = &self.data.rows[r];
+        let mut joints = row.joints.clone();
+        for (e, v) in effects.iter().zip(&params.effects) {
+            if e.kind == ArmKind::JointOffset {
+                joints[e.joint] += v;
+            }
+        }
+        let at =
+            |joints: &[f64], state: &mut ManipulatorState| -> Option<(Vec3, Vec3, ArmStatics, Option<ArmStatics>)> {
+                let s = self.m.arm_statics(joints, &row.wrench, state)?;
+                let zero = match row.observed {
+                    Observed::Displacement(_) => Some(self.m.arm_statics(joints, &Vec6::zeros(), state)?),
+                    Observed::Position { .. } => None,
+                };
+                let (lever, tool) = match row.observed {
+                    Observed::Position { target, .. } => {
+                        let lever = s.frame.rot * params.targets[target];
+                        (lever, s.frame.pos + lever)
+                    }
+                    Observed::Displacement(_) => (Vec3::zeros(), Vec3::zeros()),
+                };
+                Some((lever, tool, s, zero))
+            };
+        let point = |c: &Vec6, lever: &Vec3| c.fixed_rows::<3>(0) + c.fixed_rows::<3>(3).cross(lever);
+        // The body's point (target, or the tool point of a displacement) under the loads, before registration.
+        let body = |lever: &Vec3, tool: &Vec3, s: &ArmStatics, zero: &Option<ArmStatics>| -> Vec3 {
+            let mut y = tool + point(&self.deflection[r], lever);
+            for (e, v) in effects.iter().zip(&params.effects) {
+                let column = point(&s.columns[e.joint], lever);
+                let load = s.loads[e.joint];
+                let zero_load = zero.as_ref().map(|z| z.loads[e.joint]);
+                y += column
+                    * *v
+                    * match (e.kind, zero_load) {
+                        (ArmKind::JointOffset, _) => 0.0,
+                        (ArmKind::JointCompliance, None) => load,
+                        (ArmKind::JointCompliance, Some(z)) => load - z,
+                        (ArmKind::Backlash, None) => load.signum(),
+                        (ArmKind::Backlash, Some(z)) => load.signum() - z.signum(),
+                    };
+            }
+            y
+        };
+        let (lever, tool, s, zero) = at(&joints, state)?;
+        let y = body(&lever, &tool, &s, &zero);
+        let (rotation, translation) = match row.observed {
+            Observed::Position { setup, .. } => (params.rotations[setup], params.translations[setup]),
+            Observed::Displacement(_) => (Mat3::identity(), Vec3::zeros()),
+        };
+        let prediction = rotation * y + translation;
+        if let Some(jac) = jacobian {
+            let w = self.weight[r];
+            jac.fill(0.0);
+            let mut k = 0;
+            if let Observed::Position { setup, target, .. } = row.observed {
+                let ry = rotation * y;
+                let base = 6 * setup;
+                for a in 0..3 {
+                    jac[(a, base + a)] = w;
+                }
+                // A small rotation d applied after R: d(R y) = d x (R y) = -[R y]x d.
+                let cross = -skew(&ry) * w;
+                jac.view_mut((0, base + 3), (3, 3)).copy_from(&cross);
+                let t = 6 * self.data.setups.len() + 3 * target;
+                jac.view_mut((0, t), (3, 3)).copy_from(&(rotation * s.frame.rot * w));
+                k = self.nuisance_count();
+            }
+            for (i, e) in effects.iter().enumerate() {
+                let column = match e.kind {
+                    ArmKind::JointOffset => {
+                        // Central differences of the whole prediction in the controller's angle (the offset
+                        // moves every coordinate the controller map ties to it).
+                        let mut shifted = joints.clone();
+                        shifted[e.joint] += OFFSET_STEP;
+                        let (lp, tp, sp, zp) = at(&shifted, state)?;
+                        shifted[e.joint] -= 2.0 * OFFSET_STEP;
+                        let (lm, tm, sm, zm) = at(&shifted, state)?;
+                        rotation * (body(&lp, &tp, &sp, &zp) - body(&lm, &tm, &sm, &zm)) / (2.0 * OFFSET_STEP)
+                    }
+                    ArmKind::JointCompliance | ArmKind::Backlash => {
+                        let column = point(&s.columns[e.joint], &lever);
+                        let (load, zero_load) = (s.loads[e.joint], zero.as_ref().map(|z| z.loads[e.joint]));
+                        let gain = match (e.kind, zero_load) {
+                            (ArmKind::JointCompliance, None) => load,
+                            (ArmKind::JointCompliance, Some(z)) => load - z,
+                            (_, None) => load.signum(),
+                            (_, Some(z)) => load.signum() - z.signum(),
+                        };
+                        rotation * column * gain
+                    }
+                };
+                jac.view_mut((0, k + i), (3, 1)).copy_from(&(column * w));
+            }
+        }
+        Some(prediction)
+    }
+
+    fn measured(&self, r: usize) -> Vec3 {
+        match self.data.rows[r].observed {
+            Observed::Position { at, .. } => at,
+            Observed::Displacement(d) => d,
+        }
+    }
+
+    /// The unweighted residual (measured minus predicted) of every row, None where a row has no pose.
+    fn residuals(&self, effects: &[ArmEffect], params: &Params) -> Vec<Option<Vec3>> {
+        let mut state = self.m.new_state();
+        (0..self.data.rows.len())
+            .map(|r| self.predict(r, effects, params, &mut state, None).map(|p| self.measured(r) - p))
+            .collect()
+    }
+
+    /// The starting parameters: each set-up's frame from the nominal tool points (Kabsch's fit of the
+    /// rotation), targets at the tool point, effects zero.
+    fn start(&self, rows: &[usize], effects: usize) -> Params {
+        let setups = self.data.setups.len();
+        let mut params = Params {
+            rotations: vec![Mat3::identity(); setups],
+            translations: vec![Vec3::zeros(); setups],
+            targets: vec![Vec3::zeros(); self.data.targets.len()],
+            effects: vec![0.0; effects],
+        };
+        if !self.absolute {
+            return params;
+        }
+        let mut state = self.m.new_state();
+        for s in 0..setups {
+            let pairs: Vec<(Vec3, Vec3)> = rows
+                .iter()
+                .filter(|&&r| matches!(self.data.rows[r].observed, Observed::Position { setup, .. } if setup == s))
+                .filter_map(|&r| {
+                    let f = self.m.pose_at_joints(&self.data.rows[r].joints, &mut state)?;
+                    Some((f.pos, self.measured(r)))
+                })
+                .collect();
+            if pairs.is_empty() {
+                continue;
+            }
+            let n = pairs.len() as f64;
+            let (ca, cb) = pairs.iter().fold((Vec3::zeros(), Vec3::zeros()), |(a, b), (p, q)| (a + p / n, b + q / n));
+            let h = pairs.iter().fold(Mat3::zeros(), |h, (p, q)| h + (p - ca) * (q - cb).transpose());
+            let svd = h.svd(true, true);
+            let (u, vt) = (svd.u.unwrap_or_else(Mat3::identity), svd.v_t.unwrap_or_else(Mat3::identity));
+            let mut d = Mat3::identity();
+            if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+                d[(2, 2)] = -1.0;
+            }
+            let rotation = vt.transpose() * d * u.transpose();
+            params.rotations[s] = rotation;
+            params.translations[s] = cb - rotation * ca;
+        }
+        params
+    }
+
+    /// Levenberg-Marquardt over the parameters on `rows`, from `start`.
+    fn fit(&self, rows: &[usize], effects: &[ArmEffect], start: &Params) -> Option<Fit> {
+        let p = self.nuisance_count() + effects.len();
+        let n = 3 * rows.len();
+        let mut params = start.clone();
+        let mut state = self.m.new_state();
+        let mut jac_row = DMatrix::zeros(3, p);
+        let evaluate =
+            |params: &Params, state: &mut ManipulatorState, jac_row: &mut DMatrix<f64>, with_jacobian: bool| {
+                let mut jac = DMatrix::zeros(if with_jacobian { n } else { 0 }, p);
+                let mut e = DVector::zeros(n);
+                for (i, &r) in rows.iter().enumerate() {
+                    let prediction = self.predict(r, effects, params, state, with_jacobian.then_some(&mut *jac_row))?;
+                    let residual = (self.measured(r) - prediction) * self.weight[r];
+                    e.fixed_rows_mut::<3>(3 * i).copy_from(&residual);
+                    if with_jacobian {
+                        jac.view_mut((3 * i, 0), (3, p)).copy_from(&*jac_row);
+                    }
+                }
+                Some((jac, e))
+            };
+        let mut lambda = 1e-3;
+        let (mut jac, mut e) = evaluate(&params, &mut state, &mut jac_row, true)?;
+        let mut rss = e.norm_squared();
+        if p == 0 {
+            // Nothing to fit (displacements, no effect): the model as it is.
+            return Some(Fit {
+                params,
+                rss,
+                observations: n,
+                rank: 0,
+                covariance: DMatrix::zeros(0, 0),
+                hidden: Vec::new(),
+            });
+        }
+        for _ in 0..100 {
+            let scale = DVector::from_iterator(p, jac.column_iter().map(|c| c.norm().max(1e-300)));
+            let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
+            let svd = scaled.clone().svd(true, true);
+            let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
+            let top = svd.singular_values.max();
+            let ue = u.transpose() * &e;
+            let mut improved = false;
+            while lambda < 1e12 {
+                let mut step = DVector::zeros(p);
+                for (k, &s) in svd.singular_values.iter().enumerate() {
+                    if s > IDENTIFIABLE * top {
+                        let damped = s / (s * s + lambda * top * top);
+                        step += v_t.row(k).transpose() * (ue[k] * damped);
+                    }
+                }
+                let step = step.component_div(&scale);
+                let trial = self.apply(&params, &step, effects.len());
+                if let Some((_, e_trial)) = evaluate(&trial, &mut state, &mut jac_row, false) {
+                    let rss_trial = e_trial.norm_squared();
+                    if rss_trial < rss {
+                        let converged = rss - rss_trial <= 1e-12 * rss.max(1e-300);
+                        params = trial;
+                        rss = rss_trial;
+                        lambda = (lambda / 10.0).max(1e-12);
+                        improved = !converged;
+                        break;
+                    }
+                }
+                lambda *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+            (jac, e) = evaluate(&params, &mut state, &mut jac_row, true)?;
+            rss = e.norm_squared();
+        }
+        // Rank and covariance at the solution, on the column-scaled Jacobian.
+        let scale = DVector::from_iterator(p, jac.column_iter().map(|c| c.norm().max(1e-300)));
+        let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
+        let svd = scaled.svd(false, true);
+        let v_t = svd.v_t.as_ref()?;
+        let top = svd.singular_values.max();
+        let mut covariance = DMatrix::zeros(p, p);
+        let mut hidden = Vec::new();
+        let mut rank = 0;
+        for (k, &s) in svd.singular_values.iter().enumerate() {
+            let v = v_t.row(k).transpose();
+            if s > IDENTIFIABLE * top {
+                rank += 1;
+                covariance += &v * v.transpose() / (s * s);
+            } else {
+                // Named in the column-scaled parameters (each column's effect on the points at unit norm), so
+                // that a rotation and a translation weigh alike.
+                hidden.push((0..p).filter(|&j| v[j].abs() > 0.05).map(|j| (j, v[j])).collect());
+            }
+        }
+        let covariance = DMatrix::from_fn(p, p, |i, j| covariance[(i, j)] / (scale[i] * scale[j]));
+        Some(Fit { params, rss, observations: n, rank, covariance, hidden })
+    }
+
+    fn apply(&self, params: &Params, step: &DVector<f64>, effects: usize) -> Params {
+        let mut next = params.clone();
+        let mut k = 0;
+        if self.absolute {
+            for s in 0..self.data.setups.len() {
+                next.translations[s] += Vec3::new(step[k], step[k + 1], step[k + 2]);
+                let turn = Vec3::new(step[k + 3], step[k + 4], step[k + 5]);
+                next.rotations[s] = rotation_from_vector(&turn) * params.rotations[s];
+                // A rotation built from products drifts off orthogonality: project it back.
+                let svd = next.rotations[s].svd(true, true);
+                if let (Some(u), Some(v_t)) = (svd.u, svd.v_t) {
+                    next.rotations[s] = u * v_t;
+                }
+                // The translation follows the rotation about the origin, as d(R y + t) = d x (R y) + dt says.
+                k += 6;
+            }
+            for t in 0..self.data.targets.len() {
+                next.targets[t] += Vec3::new(step[k], step[k + 1], step[k + 2]);
+                k += 3;
+            }
+        }
+        for e in 0..effects {
+            next.effects[e] += step[k + e];
+        }
+        next
+    }
+
+    /// The name of parameter `k` of a fit with `effects`.
+    fn parameter_name(&self, k: usize, effects: &[ArmEffect]) -> String {
+        let setups = if self.absolute { self.data.setups.len() } else { 0 };
+        let axis = ["x", "y", "z"];
+        let setup_name = |s: usize| match self.data.setups[s].as_str() {
+            "" => "the instrument".to_string(),
+            name => format!("set-up {name}"),
+        };
+        if k < 6 * setups {
+            let (s, a) = (k / 6, k % 6);
+            return if a < 3 {
+                format!("{}'s translation {}", setup_name(s), axis[a])
+            } else {
+                format!("{}'s rotation about {}", setup_name(s), axis[a - 3])
+            };
+        }
+        let k = k - 6 * setups;
+        let targets = if self.absolute { self.data.targets.len() } else { 0 };
+        if k < 3 * targets {
+            let name = match self.data.targets[k / 3].as_str() {
+                "" => "the target".to_string(),
+                t => format!("target {t}"),
+            };
+            return format!("{name}'s place {}", axis[k % 3]);
+        }
+        effects[k - 3 * targets].label(self.joints)
+    }
+
+    fn describe_hidden(&self, direction: &[(usize, f64)], effects: &[ArmEffect]) -> String {
+        direction
+            .iter()
+            .map(|(k, w)| format!("{w:+.3} {}", self.parameter_name(*k, effects)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The value of an accepted effect as a user reads it.
+    fn shown(&self, e: &ArmEffect, value: f64, se: f64) -> String {
+        let prismatic = self.prismatic[e.joint];
+        match e.kind {
+            ArmKind::JointOffset | ArmKind::Backlash if prismatic => format!("{value:.4} +- {se:.4} mm"),
+            ArmKind::JointOffset | ArmKind::Backlash => format!("{:.3} +- {:.3} mrad", value * 1e3, se * 1e3),
+            ArmKind::JointCompliance => {
+                let (unit, stiffness_unit, to_user) =
+                    if prismatic { ("mm/N", "N/mm", 1.0) } else { ("rad/(N m)", "N m/rad", 1e3) };
+                let added = format!("added compliance {:.4e} +- {:.4e} {unit}", value * to_user, se * to_user);
+                match self.m.joint_compliance(&self.joints[e.joint]) {
+                    Some(nominal) => {
+                        let total = nominal + value;
+                        let k = 1.0 / (total * to_user);
+                        format!(
+                            "{added}: stiffness {k:.4e} +- {:.4e} {stiffness_unit} (the model's {:.4e}; factor {:.3} +- {:.3} on its compliance)",
+                            se / (total * total * to_user),
+                            1.0 / (nominal * to_user),
+                            total / nominal,
+                            se / nominal
+                        )
+                    }
+                    None => {
+                        let k = 1.0 / (value * to_user);
+                        format!("{added}: stiffness {k:.4e} {stiffness_unit} (the model has it rigid)")
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The error statistics of `rows` (unweighted residuals, mm).
+fn stats(residuals: &[Option<Vec3>], rows: &[usize]) -> ErrorStats {
+    let r: Vec<Vec3> = rows.iter().filter_map(|&k| residuals[k]).collect();
+    if r.is_empty() {
+        return ErrorStats::default();
+    }
+    let n = r.len() as f64;
+    let mut lengths: Vec<f64> = r.iter().map(|v| v.norm()).collect();
+    lengths.sort_by(f64::total_cmp);
+    let rms_axis = [0, 1, 2].map(|a| (r.iter().map(|v| v[a] * v[a]).sum::<f64>() / n).sqrt());
+    // The 95th percentile by the nearest rank.
+    let p95 = lengths[((0.95 * n).ceil() as usize).clamp(1, lengths.len()) - 1];
+    ErrorStats {
+        rows: r.len(),
+        rms_axis,
+        rms: (lengths.iter().map(|l| l * l).sum::<f64>() / n).sqrt(),
+        p95,
+        max: *lengths.last().expect("not empty"),
+        max_axis: [0, 1, 2].map(|a| r.iter().map(|v| v[a].abs()).fold(0.0, f64::max)),
+    }
+}
+
+/// The gross rows among `rows`: weighted misfit beyond `GROSS_FACTOR` robust standard deviations.
+fn gross_rows(problem: &Problem, residuals: &[Option<Vec3>], rows: &[usize]) -> Vec<usize> {
+    let mut misfit: Vec<(usize, f64)> =
+        rows.iter().map(|&r| (r, residuals[r].map_or(f64::INFINITY, |v| v.norm() * problem.weight[r]))).collect();
+    let mut sorted: Vec<f64> = misfit.iter().map(|m| m.1).filter(|m| m.is_finite()).collect();
+    if sorted.len() < 5 {
+        return Vec::new();
+    }
+    sorted.sort_by(f64::total_cmp);
+    let scale = sorted[sorted.len() / 2] / CHI3_MEDIAN;
+    misfit.retain(|m| m.1 > GROSS_FACTOR * scale);
+    misfit.into_iter().map(|m| m.0).collect()
+}
+
+/// The test of adding one parameter to a fit of residual sum `rss0` (weighted), giving `with`: its F
+/// statistic against the residual's own scale, and its p-value; where the noise is known, the larger of the
+/// F test's and the chi-square test's of the drop (both must reject: the drop must stand out from what is
+/// left and from the noise, so that round-off on noise-free data is never a discovery).
+fn test(rss0: f64, with: &Fit, sigma_known: bool) -> (f64, f64) {
+    let drop = (rss0 - with.rss).max(0.0);
+    let statistic = drop / (with.rss / with.dof() as f64).max(1e-300);
+    let mut p = FisherSnedecor::new(1.0, with.dof() as f64).map_or(1.0, |d| 1.0 - d.cdf(statistic));
+    if sigma_known {
+        p = p.max(ChiSquared::new(1.0).map_or(1.0, |d| 1.0 - d.cdf(drop)));
+    }
+    (statistic, p)
+}
+
+/// What a selection ends with: the effects in the model (the fitted ones first, then in the order accepted),
+/// its fit, every step's tests and the directions found hidden.
+struct Selection {
+    model: Vec<ArmEffect>,
+    fit: Fit,
+    steps: Vec<Vec<Tested>>,
+    hidden: Vec<String>,
+}
+
+/// Forward selection on `rows`: effects offered one at a time, each step accepting the best one whose F
+/// test passes at alpha / the candidates tested.
+fn select(
+    problem: &Problem,
+    rows: &[usize],
+    candidates: &[ArmEffect],
+    options: &Options,
+    sigma_known: bool,
+) -> Result<Selection, CalibrationError> {
+    let mut model = options.fitted.clone();
+    let start = problem.start(rows, model.len());
+    let too_few =
+        || CalibrationError::TooFew("the fit found no pose for a row, or too few rows for the parameters".into());
+    let mut fit = problem.fit(rows, &model, &start).ok_or_else(too_few)?;
+    let mut steps = Vec::new();
+    let mut hidden: Vec<String> = fit.hidden.iter().map(|d| problem.describe_hidden(d, &model)).collect();
+    while model.len() < options.fitted.len() + options.max_effects {
+        let mut step = Vec::new();
+        let mut best: Option<(f64, f64, ArmEffect, Fit)> = None;
+        let untested: Vec<ArmEffect> = candidates.iter().filter(|c| !model.contains(c)).copied().collect();
+        let mut tested = 0;
+        for c in &untested {
+            let mut trial = model.clone();
+            trial.push(*c);
+            let mut start = fit.params.clone();
+            start.effects.push(0.0);
+            let label = c.label(problem.joints);
+            let Some(f) = problem.fit(rows, &trial, &start) else {
+                step.push(Tested { label, f: None, p: None, note: Some("a row has no pose with it".into()) });
+                continue;
+            };
+            if f.rank <= fit.rank {
+                let own = problem.nuisance_count() + trial.len() - 1;
+                let alone = f.hidden.iter().any(|d| d.len() == 1 && d[0].0 == own);
+                let note = if alone {
+                    // Its column is zero: a compliance or play whose joint carries no load (or the same sign of
+                    // load in every row, for play), or an offset that moves nothing measured.
+                    "moves no measured point in these rows (its joint's load is zero, or of one sign for play)".into()
+                } else {
+                    let with: Vec<String> = f.hidden.iter().map(|d| problem.describe_hidden(d, &trial)).collect();
+                    format!("not identifiable from these rows: one combination ({}) moves no point", with.join("; "))
+                };
+                step.push(Tested { label, f: None, p: None, note: Some(note) });
+                continue;
+            }
+            tested += 1;
+            let (statistic, p) = test(fit.rss, &f, sigma_known);
+            step.push(Tested { label, f: Some(statistic), p: Some(p), note: None });
+            // The largest F is the best (p-values of strong candidates all round to zero).
+            if best.as_ref().is_none_or(|b| statistic > b.0) {
+                best = Some((statistic, p, *c, f));
+            }
+        }
+        let threshold = options.alpha / tested.max(1) as f64;
+        let accept = best.filter(|(_, p, _, _)| *p < threshold).map(|(statistic, _, c, f)| (statistic, c, f));
+        steps.push(step);
+        match accept {
+            Some((_, c, f)) => {
+                model.push(c);
+                fit = f;
+            }
+            None => break,
+        }
+    }
+    // Backward elimination: an effect selected early that later ones make unnecessary (a proxy for the
+    // effect found after it) is dropped, the least needed first, while its removal's test does not reject.
+    loop {
+        let selected = options.fitted.len()..model.len();
+        let threshold = options.alpha / selected.len().max(1) as f64;
+        let mut weakest: Option<(f64, usize, Fit)> = None;
+        for k in selected {
+            let mut without = model.clone();
+            without.remove(k);
+            let mut start = fit.params.clone();
+            start.effects.remove(k);
+            let Some(f) = problem.fit(rows, &without, &start) else { continue };
+            let (_, p) = test(f.rss, &fit, sigma_known);
+            if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
+                weakest = Some((p, k, f));
+            }
+        }
+        match weakest {
+            Some((_, k, f)) => {
+                model.remove(k);
+                fit = f;
+            }
+            None => break,
+        }
+    }
+    // Each candidate's first reason once (a later step finds the same direction again).
+    for t in steps.iter().flatten() {
+        if let Some(note) = &t.note {
+            if !hidden.iter().any(|h| h.starts_with(&format!("{}: ", t.label))) {
+                hidden.push(format!("{}: {}", t.label, note));
+            }
+        }
+    }
+    Ok(Selection { model, fit, steps, hidden })
+}
+
+/// Calibrates the arm `m` against `data`: registration fitted, effects selected among `candidates` (all
+/// of the arm's joints' where empty), gross rows left out, check rows reported.
+pub fn calibrate(
+    m: &Manipulator,
+    data: &PositionData,
+    candidates: &[ArmEffect],
+    options: &Options,
+) -> Result<Calibration, CalibrationError> {
+    let problem = Problem::new(m, data, options.sigma)?;
+    let candidates: Vec<ArmEffect> = if candidates.is_empty() {
+        let kinds: &[ArmKind] = if problem.absolute {
+            &[ArmKind::JointOffset, ArmKind::JointCompliance, ArmKind::Backlash]
+        } else {
+            &[ArmKind::JointCompliance, ArmKind::Backlash]
+        };
+        (0..problem.joints.len()).flat_map(|j| kinds.iter().map(move |&kind| ArmEffect { kind, joint: j })).collect()
+    } else {
+        candidates.to_vec()
+    };
+    let sigma_known = data.rows.iter().all(|r| r.sigma.is_some()) || options.sigma.is_some();
+    let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).collect();
+    let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).collect();
+    let p = problem.nuisance_count() + options.fitted.len();
+    if 3 * fit_rows.len() <= p {
+        return Err(CalibrationError::TooFew(format!(
+            "{} fitted rows give {} coordinates, too few for the {p} parameters of the registration and the effects fitted",
+            fit_rows.len(),
+            3 * fit_rows.len()
+        )));
+    }
+    // Gross rows: screened against the registration alone (a fit that gross rows pull is screened again),
+    // then against the model selected, until the set stops changing.
+    let mut gross: Vec<usize> = Vec::new();
+    for _ in 0..3 {
+        let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
+        let start = problem.start(&kept, options.fitted.len());
+        let Some(f) = problem.fit(&kept, &options.fitted, &start) else { break };
+        let next = gross_rows(&problem, &problem.residuals(&options.fitted, &f.params), &fit_rows);
+        if next == gross {
+            break;
+        }
+        gross = next;
+    }
+    let mut outcome = None;
+    for _ in 0..3 {
+        let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
+        let selection = select(&problem, &kept, &candidates, options, sigma_known)?;
+        let next = gross_rows(&problem, &problem.residuals(&selection.model, &selection.fit.params), &fit_rows);
+        let settled = next == gross;
+        outcome = Some((kept, selection));
+        if settled {
+            break;
+        }
+        gross = next;
+    }
+    let (kept, Selection { model, fit, steps, hidden }) = outcome.expect("at least one selection");
+    let residuals = problem.residuals(&model, &fit.params);
+    let scale = (fit.rss / fit.dof() as f64).sqrt();
+    let variance = scale * scale;
+    let nuisance_count = problem.nuisance_count();
+    let mut accepted = model
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let k = nuisance_count + i;
+            let (value, se) = (fit.params.effects[i], (fit.covariance[(k, k)] * variance).sqrt());
+            Accepted {
+                label: e.label(problem.joints),
+                kind: e.kind,
+                joint: problem.joints[e.joint].clone(),
+                value,
+                se,
+                shown: problem.shown(e, value, se),
+                confirmed: None,
+            }
+        })
+        .collect::<Vec<Accepted>>();
+    let se3 = |k: usize, factor: f64| [0, 1, 2].map(|a| (fit.covariance[(k + a, k + a)] * variance).sqrt() * factor);
+    let mut nuisance = Vec::new();
+    if problem.absolute {
+        for (s, name) in data.setups.iter().enumerate() {
+            let label = if name.is_empty() { "instrument".to_string() } else { format!("set-up {name}") };
+            let rotation = crate::kinematics::frame::rotation_vector(&fit.params.rotations[s]);
+            nuisance.push(Nuisance {
+                name: format!("{label}: translation, mm"),
+                value: fit.params.translations[s].into(),
+                se: se3(6 * s, 1.0),
+            });
+            nuisance.push(Nuisance {
+                name: format!("{label}: rotation vector, mrad"),
+                value: (rotation * 1e3).into(),
+                se: se3(6 * s + 3, 1e3),
+            });
+        }
+        for (t, name) in data.targets.iter().enumerate() {
+            let label = if name.is_empty() { "target".to_string() } else { format!("target {name}") };
+            nuisance.push(Nuisance {
+                name: format!("{label}: place in the tool frame, mm"),
+                value: fit.params.targets[t].into(),
+                se: se3(6 * data.setups.len() + 3 * t, 1.0),
+            });
+        }
+    }
+    // Errors after the registration alone, then after each effect in the order accepted.
+    let mut stages = Vec::new();
+    let registration: Vec<ArmEffect> = options.fitted.clone();
+    let mut staged = registration.clone();
+    let order: Vec<ArmEffect> = model[options.fitted.len()..].to_vec();
+    for k in 0..=order.len() {
+        if k > 0 {
+            staged.push(order[k - 1]);
+        }
+        let label = if k == 0 {
+            let first = if problem.absolute { "registration" } else { "model" };
+            match options.fitted.len() {
+                0 => first.to_string(),
+                n => format!("{first} + {n} fitted"),
+            }
+        } else {
+            format!("+ {}", order[k - 1].label(problem.joints))
+        };
+        let f = if k == order.len() {
+            Some(fit.clone())
+        } else {
+            problem.fit(&kept, &staged, &problem.start(&kept, staged.len()))
+        };
+        let Some(f) = f else { continue };
+        let r = problem.residuals(&staged, &f.params);
+        stages.push(Stage {
+            model: label,
+            parameters: nuisance_count + staged.len(),
+            fit: stats(&r, &kept),
+            check: stats(&r, &check_rows),
+        });
+    }
+    if !check_rows.is_empty() && stages.len() == order.len() + 1 {
+        for (k, a) in accepted[options.fitted.len()..].iter_mut().enumerate() {
+            a.confirmed = Some(stages[k + 1].check.rms < stages[k].check.rms);
+        }
+    }
+    let noisy = sigma_known && ChiSquared::new(fit.dof() as f64).is_ok_and(|d| 1.0 - d.cdf(fit.rss) < options.alpha);
+    let verdict = match (noisy, model.len() > options.fitted.len()) {
+        (true, _) => Verdict::Unexplained,
+        (false, true) => Verdict::Effect,
+        (false, false) => Verdict::None,
+    };
+    Ok(Calibration {
+        verdict,
+        accepted,
+        steps,
+        nuisance,
+        not_identifiable: hidden,
+        left_out: gross
+            .iter()
+            .map(|&r| {
+                (
+                    format!("{} (line {})", data.rows[r].name, data.rows[r].line),
+                    residuals[r].map_or(f64::NAN, |v| v.norm()),
+                )
+            })
+            .collect(),
+        stages,
+        residual_scale: scale,
+        sigma_known,
+        rows: (kept.len(), check_rows.len()),
+    })
+}
+
+/// The calibration as text: the verdict, the effects with values, the registration, what could not be
+/// seen, the gross rows, and the errors of fit and check rows per stage.
+pub fn text(c: &Calibration, model: &str) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let verdict = match c.verdict {
+        Verdict::None => "none",
+        Verdict::Effect => "effect",
+        Verdict::Unexplained => "unexplained",
+    };
+    let _ = writeln!(s, "Calibration of {model}: {} rows fitted, {} held out", c.rows.0, c.rows.1);
+    let _ = writeln!(s, "verdict: {verdict}");
+    if c.accepted.is_empty() {
+        let _ = writeln!(s, "effects: none needed");
+    }
+    for a in &c.accepted {
+        let held_out = match a.confirmed {
+            Some(true) => "; the held-out rows confirm it (their RMS error falls)",
+            Some(false) => "; NOT confirmed: the held-out rows' RMS error grows with it",
+            None => "",
+        };
+        let _ = writeln!(s, "effect: {}: {}{held_out}", a.label, a.shown);
+    }
+    let _ = writeln!(
+        s,
+        "residual: {:.4} {} per coordinate after the fit{}",
+        c.residual_scale,
+        if c.sigma_known { "sigma" } else { "mm" },
+        if c.sigma_known { "" } else { " (the noise level was not given: no test of what is left)" }
+    );
+    for n in &c.nuisance {
+        let _ = writeln!(
+            s,
+            "fitted {}: {:.4} {:.4} {:.4} (+- {:.2e} {:.2e} {:.2e})",
+            n.name, n.value[0], n.value[1], n.value[2], n.se[0], n.se[1], n.se[2]
+        );
+    }
+    for h in &c.not_identifiable {
+        let _ = writeln!(s, "not identifiable: {h}");
+    }
+    for (row, misfit) in &c.left_out {
+        let _ = writeln!(s, "gross row left out: {row}: {misfit:.4} mm from the model");
+    }
+    for (k, step) in c.steps.iter().enumerate() {
+        let mut tested: Vec<&Tested> = step.iter().filter(|t| t.f.is_some()).collect();
+        tested.sort_by(|a, b| b.f.partial_cmp(&a.f).unwrap_or(std::cmp::Ordering::Equal));
+        let best: Vec<String> = tested
+            .iter()
+            .take(3)
+            .map(|t| format!("{} F {:.3} p {:.2e}", t.label, t.f.unwrap_or(f64::NAN), t.p.unwrap_or(f64::NAN)))
+            .collect();
+        let _ = writeln!(s, "step {}: {} candidates tested; best {}", k + 1, tested.len(), best.join(", "));
+    }
+    let _ = writeln!(s, "position error, mm:        rows      rms_x    rms_y    rms_z    rms      p95      max");
+    for st in &c.stages {
+        for (set, e) in [("fit", &st.fit), ("check", &st.check)] {
+            if e.rows == 0 {
+                continue;
+            }
+            let _ = writeln!(
+                s,
+                "  {:<28} {:<5} {:>5} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4}",
+                format!("{} ({} par.)", st.model, st.parameters),
+                set,
+                e.rows,
+                e.rms_axis[0],
+                e.rms_axis[1],
+                e.rms_axis[2],
+                e.rms,
+                e.p95,
+                e.max
+            );
+        }
+    }
+    s
+}
