@@ -32,6 +32,10 @@ const IDENTIFIABLE: f64 = 1e-8;
 const GROSS_FACTOR: f64 = 12.0;
 /// The median length of a 3-vector of unit-variance normal coordinates (the chi distribution's, 3 dof).
 const CHI3_MEDIAN: f64 = 1.5382;
+/// Rows each way of a joint's load that its play needs to be offered (`two_sided_play`).
+const MIN_PLAY_ROWS: usize = 3;
+/// A joint load below this fraction of the row's largest is round-off (`load_of`).
+const LOAD_ROUND_OFF: f64 = 1e-9;
 /// Step of the central differences of a joint offset, rad (mm).
 const OFFSET_STEP: f64 = 1e-6;
 
@@ -242,6 +246,33 @@ pub struct Calibration {
     pub rows: (usize, usize),
 }
 
+/// A joint's load as the effects read it: zero where it is round-off (below `LOAD_ROUND_OFF` of the row's
+/// largest joint load: a vertical first axis carries no weight, and the sign of its round-off is no play).
+fn load_of(s: &ArmStatics, joint: usize) -> f64 {
+    let largest = s.loads.iter().fold(0.0f64, |a, l| a.max(l.abs()));
+    let load = s.loads[joint];
+    if load.abs() <= LOAD_ROUND_OFF * largest {
+        0.0
+    } else {
+        load
+    }
+}
+
+/// How far a unit of effect `e` turns its joint in a row: nothing for an offset (it moves the configuration
+/// instead), the load for a compliance, the load's sign for play; for a displacement row, the difference
+/// between the row's wrench and zero wrench (`zero`).
+fn effect_gain(e: &ArmEffect, s: &ArmStatics, zero: &Option<ArmStatics>) -> f64 {
+    let sign = |l: f64| if l == 0.0 { 0.0 } else { l.signum() };
+    let (load, zero_load) = (load_of(s, e.joint), zero.as_ref().map(|z| load_of(z, e.joint)));
+    match (e.kind, zero_load) {
+        (ArmKind::JointOffset, _) => 0.0,
+        (ArmKind::JointCompliance, None) => load,
+        (ArmKind::JointCompliance, Some(z)) => load - z,
+        (ArmKind::Backlash, None) => sign(load),
+        (ArmKind::Backlash, Some(z)) => sign(load) - sign(z),
+    }
+}
+
 /// What each row needs from the model, computed once: the model's own deflection (the twist of the
 /// reference point under the row's loads from its springs; for a displacement row, minus that at zero
 /// wrench).
@@ -311,6 +342,49 @@ impl<'a> Problem<'a> {
         Ok(Problem { m, data, joints: &space.names, deflection, weight, absolute: data.absolute(), prismatic })
     }
 
+    /// The candidates without the play of a joint whose load keeps one sign in nearly every row of `rows`:
+    /// play is told from an offset (or from nothing, in a displacement) only by rows loading the joint both
+    /// ways, at least `MIN_PLAY_ROWS` and a tenth of the rows each way; with fewer it would fit a few rows'
+    /// misfit. Returns the candidates kept and a note for each left out.
+    fn two_sided_play(&self, candidates: Vec<ArmEffect>, rows: &[usize]) -> (Vec<ArmEffect>, Vec<String>) {
+        let mut state = self.m.new_state();
+        let mut notes = Vec::new();
+        let kept = candidates
+            .into_iter()
+            .filter(|e| {
+                if e.kind != ArmKind::Backlash {
+                    return true;
+                }
+                let (mut up, mut down) = (0, 0);
+                for &r in rows {
+                    let row = &self.data.rows[r];
+                    let Some(s) = self.m.arm_statics(&row.joints, &row.wrench, &mut state) else { continue };
+                    let zero = match row.observed {
+                        Observed::Displacement(_) => self.m.arm_statics(&row.joints, &Vec6::zeros(), &mut state),
+                        Observed::Position { .. } => None,
+                    };
+                    let g = effect_gain(e, &s, &zero);
+                    up += usize::from(g > 0.0);
+                    down += usize::from(g < 0.0);
+                }
+                let needed = MIN_PLAY_ROWS.max(rows.len().div_ceil(10));
+                let both = match self.absolute {
+                    true => up.min(down) >= needed,
+                    false => up + down >= needed,
+                };
+                if !both {
+                    notes.push(format!(
+                        "{}: its joint's load changes sign in too few rows ({up} one way, {down} the other; {needed} each needed) to tell play from {}",
+                        e.label(self.joints),
+                        if self.absolute { "an offset" } else { "noise" }
+                    ));
+                }
+                both
+            })
+            .collect();
+        (kept, notes)
+    }
+
     /// Nuisance parameters: per set-up a translation and a rotation, per target a place on the tool.
     fn nuisance_count(&self) -> usize {
         if self.absolute {
@@ -358,18 +432,7 @@ impl<'a> Problem<'a> {
         let body = |lever: &Vec3, tool: &Vec3, s: &ArmStatics, zero: &Option<ArmStatics>| -> Vec3 {
             let mut y = tool + point(&self.deflection[r], lever);
             for (e, v) in effects.iter().zip(&params.effects) {
-                let column = point(&s.columns[e.joint], lever);
-                let load = s.loads[e.joint];
-                let zero_load = zero.as_ref().map(|z| z.loads[e.joint]);
-                y += column
-                    * *v
-                    * match (e.kind, zero_load) {
-                        (ArmKind::JointOffset, _) => 0.0,
-                        (ArmKind::JointCompliance, None) => load,
-                        (ArmKind::JointCompliance, Some(z)) => load - z,
-                        (ArmKind::Backlash, None) => load.signum(),
-                        (ArmKind::Backlash, Some(z)) => load.signum() - z.signum(),
-                    };
+                y += point(&s.columns[e.joint], lever) * *v * effect_gain(e, s, zero);
             }
             y
         };
@@ -410,15 +473,7 @@ impl<'a> Problem<'a> {
                         rotation * (body(&lp, &tp, &sp, &zp) - body(&lm, &tm, &sm, &zm)) / (2.0 * OFFSET_STEP)
                     }
                     ArmKind::JointCompliance | ArmKind::Backlash => {
-                        let column = point(&s.columns[e.joint], &lever);
-                        let (load, zero_load) = (s.loads[e.joint], zero.as_ref().map(|z| z.loads[e.joint]));
-                        let gain = match (e.kind, zero_load) {
-                            (ArmKind::JointCompliance, None) => load,
-                            (ArmKind::JointCompliance, Some(z)) => load - z,
-                            (_, None) => load.signum(),
-                            (_, Some(z)) => load.signum() - z.signum(),
-                        };
-                        rotation * column * gain
+                        rotation * point(&s.columns[e.joint], &lever) * effect_gain(e, &s, &zero)
                     }
                 };
                 jac.view_mut((0, k + i), (3, 1)).copy_from(&(column * w));
@@ -856,6 +911,7 @@ pub fn calibrate(
     let sigma_known = data.rows.iter().all(|r| r.sigma.is_some()) || options.sigma.is_some();
     let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).collect();
     let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).collect();
+    let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
     let p = problem.nuisance_count() + options.fitted.len();
     if 3 * fit_rows.len() <= p {
         return Err(CalibrationError::TooFew(format!(
@@ -889,7 +945,8 @@ pub fn calibrate(
         }
         gross = next;
     }
-    let (kept, Selection { model, fit, steps, hidden }) = outcome.expect("at least one selection");
+    let (kept, Selection { model, fit, steps, mut hidden }) = outcome.expect("at least one selection");
+    hidden.extend(one_sided);
     let residuals = problem.residuals(&model, &fit.params);
     let scale = (fit.rss / fit.dof() as f64).sqrt();
     let variance = scale * scale;
