@@ -274,7 +274,8 @@ fn the_fanuc_deflections_give_the_independent_fits_stiffnesses_and_held_out_erro
 }
 
 /// The command line: joint-space data go to the calibration (its report and JSON, a held-out fraction drawn
-/// by configuration), and what it cannot do or read is refused with what to do, nothing written.
+/// by configuration; from a file or standard input, which the header's peek must not consume), and what it
+/// cannot do or read is refused with what to do, nothing written.
 #[test]
 fn diagnose_takes_joint_space_data_from_the_command_line() {
     let dir = tempfile::tempdir().unwrap();
@@ -297,6 +298,13 @@ fn diagnose_takes_joint_space_data_from_the_command_line() {
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(v["calibration"]["verdict"], "none");
     assert_eq!(v["calibration"]["stages"][0]["check"]["rows"], 9);
+    // From standard input too (read once: its header chooses the calibration).
+    let piped = assert_cmd::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["diagnose", FANUC, "--data", "-", "--sigma", "0.05"])
+        .write_stdin(std::fs::read(dir.path().join("d.csv")).unwrap())
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&piped.stdout).contains("30 rows fitted, 0 held out"), "{piped:?}");
     let refused = |args: &[&str], says: &str| {
         let out = stiff(args);
         let err = String::from_utf8_lossy(&out.stderr);

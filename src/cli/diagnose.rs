@@ -1,5 +1,6 @@
 //! `stiff diagnose`: where measurements and the model disagree, and the effect that explains it.
 
+use std::io::Read;
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
@@ -85,8 +86,13 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         bail!("--alpha must lie in (0, 1)");
     }
     let model = a.model.load_model()?;
-    if joint_space_data(&a.data) {
-        return run_calibration(&a, &model.manipulator);
+    // Read once (standard input cannot be read twice): its header says which kind of data it is.
+    let mut input = Vec::new();
+    crate::model::error::open_input(&a.data)?
+        .read_to_end(&mut input)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    if joint_space_data(&input) {
+        return run_calibration(&a, &model.manipulator, &input);
     }
     if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() {
         bail!(
@@ -94,7 +100,7 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
             a.data.display()
         );
     }
-    let data = Dataset::read(&a.data)?;
+    let data = Dataset::read_from(&a.data, input.as_slice())?;
     let loaded = !a.linear;
     let options = select::Options { alpha: a.alpha, loaded, max_effects: 3 };
     // The outputs are opened before the work, so an unwritable path fails at once.
@@ -149,9 +155,8 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
     Ok(())
 }
 
-/// True when the data file's header names joint coordinates (`q_<joint>`): it is calibration data.
-fn joint_space_data(path: &std::path::Path) -> bool {
-    let Ok(input) = crate::model::error::open_input(path) else { return false };
+/// True when the data's header names joint coordinates (`q_<joint>`): it is calibration data.
+fn joint_space_data(input: &[u8]) -> bool {
     let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(input);
     reader
         .headers()
@@ -160,7 +165,7 @@ fn joint_space_data(path: &std::path::Path) -> bool {
 
 /// A serial arm against joint-space measurements: registration fitted, effects selected, held-out rows
 /// reported.
-fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulator) -> Result<()> {
+fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulator, input: &[u8]) -> Result<()> {
     use crate::diagnose::calibrate::{self, ArmEffect};
     use crate::diagnose::positions::PositionData;
     if a.model_out.is_some() || a.plot.is_some() || a.linear {
@@ -175,7 +180,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
             m.name
         );
     };
-    let mut data = PositionData::read(&a.data, &space.names)?;
+    let mut data = PositionData::read_from(&a.data, input, &space.names)?;
     if let Some(f) = a.check_fraction {
         if !(0.0..1.0).contains(&f) {
             bail!("--check-fraction must lie in [0, 1), got {f}");

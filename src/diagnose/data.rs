@@ -63,13 +63,18 @@ pub struct Dataset {
 impl Dataset {
     /// Reads and checks a measurement CSV (columns by name, every number finite and bounded).
     pub fn read(path: &Path) -> Result<Dataset, InputError> {
+        Dataset::read_from(path, open_input(path)?)
+    }
+
+    /// As `read`, from `input` (the contents of `path`, named in messages).
+    pub fn read_from(path: &Path, input: impl std::io::Read) -> Result<Dataset, InputError> {
         let at = |line: usize, column: usize, message: String| InputError::At {
             path: path.to_path_buf(),
             line,
             column,
             message,
         };
-        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(open_input(path)?);
+        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(input);
         let header = reader.headers().map_err(|e| at(1, 1, e.to_string()))?.clone();
         let find = |name: &str| header.iter().position(|h| h == name);
         let mut columns = Vec::with_capacity(REQUIRED.len());

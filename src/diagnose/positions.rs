@@ -104,13 +104,18 @@ impl PositionData {
     /// Reads a joint-space measurement file; `joints` are the arm's joint names (the columns `q_<name>` must
     /// be exactly these).
     pub fn read(path: &Path, joints: &[String]) -> Result<PositionData, InputError> {
+        PositionData::read_from(path, open_input(path)?, joints)
+    }
+
+    /// As `read`, from `input` (the contents of `path`, named in messages).
+    pub fn read_from(path: &Path, input: impl std::io::Read, joints: &[String]) -> Result<PositionData, InputError> {
         let at = |line: usize, column: usize, message: String| InputError::At {
             path: path.to_path_buf(),
             line,
             column,
             message,
         };
-        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(open_input(path)?);
+        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(input);
         let header: Vec<String> =
             reader.headers().map_err(|e| at(1, 1, e.to_string()))?.iter().map(String::from).collect();
         let find = |name: &str| header.iter().position(|h| h == name);
