@@ -36,8 +36,6 @@ const CHI3_MEDIAN: f64 = 1.5382;
 const MIN_PLAY_ROWS: usize = 3;
 /// A joint load below this fraction of the row's largest is round-off (`load_of`).
 const LOAD_ROUND_OFF: f64 = 1e-9;
-/// Step of the central differences of a joint offset, rad (mm).
-const OFFSET_STEP: f64 = 1e-6;
 
 /// What kind of effect a candidate is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -49,6 +47,12 @@ pub enum ArmKind {
     JointCompliance,
     /// Play following the sign of the joint's load.
     Backlash,
+    /// A change of the fixed transform leading to the joint (3 translations, 3 rotations in the joint's
+    /// frame before its motion), fitted in the directions the data can see.
+    JointGeometry,
+    /// A mass carried at the tool (its mass and first moment in the tool frame), seen through the model's
+    /// compliance.
+    Payload,
 }
 
 /// A candidate effect on one joint.
@@ -61,26 +65,41 @@ pub struct ArmEffect {
 }
 
 impl ArmEffect {
-    /// Its name as given on the command line (`joint-offset:J2`).
+    /// Its name as given on the command line (`joint-offset:J2`, `payload`).
     pub fn label(&self, joints: &[String]) -> String {
         let kind = match self.kind {
             ArmKind::JointOffset => "joint-offset",
             ArmKind::JointCompliance => "joint-compliance",
             ArmKind::Backlash => "backlash",
+            ArmKind::JointGeometry => "joint-geometry",
+            ArmKind::Payload => return "payload".into(),
         };
         format!("{kind}:{}", joints[self.joint])
     }
 
-    /// Reads `kind:JOINT`.
+    /// How many parameters it has.
+    pub fn size(&self) -> usize {
+        match self.kind {
+            ArmKind::JointOffset | ArmKind::JointCompliance | ArmKind::Backlash => 1,
+            ArmKind::JointGeometry => 6,
+            ArmKind::Payload => 4,
+        }
+    }
+
+    /// Reads `KIND:JOINT` or `payload`.
     pub fn parse(text: &str, joints: &[String]) -> Result<ArmEffect, String> {
-        let (kind, joint) = text.split_once(':').ok_or_else(|| format!("`{text}`: give KIND:JOINT"))?;
+        if text == "payload" {
+            return Ok(ArmEffect { kind: ArmKind::Payload, joint: 0 });
+        }
+        let (kind, joint) = text.split_once(':').ok_or_else(|| format!("`{text}`: give KIND:JOINT or payload"))?;
         let kind = match kind {
             "joint-offset" => ArmKind::JointOffset,
             "joint-compliance" => ArmKind::JointCompliance,
             "backlash" => ArmKind::Backlash,
+            "joint-geometry" => ArmKind::JointGeometry,
             other => {
                 return Err(format!(
-                    "`{other}`: the effects of a serial arm are joint-offset, joint-compliance and backlash"
+                    "`{other}`: the effects of a serial arm are joint-offset, joint-compliance, backlash, joint-geometry (KIND:JOINT) and payload"
                 ))
             }
         };
@@ -111,7 +130,8 @@ struct Params {
     rotations: Vec<Mat3>,
     translations: Vec<Vec3>,
     targets: Vec<Vec3>,
-    effects: Vec<f64>,
+    /// Each effect's parameters.
+    effects: Vec<Vec<f64>>,
 }
 
 /// A fit: its parameters, weighted residual sum of squares, rows, rank, covariance (unscaled) and the
@@ -144,10 +164,12 @@ pub struct Accepted {
     pub kind: ArmKind,
     /// The joint's name.
     pub joint: String,
-    /// The fitted value: rad (mm) for an offset or backlash, rad/(N mm) (mm/N) added compliance.
-    pub value: f64,
-    /// Its standard error, same unit.
-    pub se: f64,
+    /// The fitted values: rad (mm) for an offset or backlash, rad/(N mm) (mm/N) added compliance; mm and
+    /// rad for a joint's geometry (translation, then rotation vector, in the joint's frame); kg and kg mm for a
+    /// payload (its mass, then its first moment in the tool frame).
+    pub values: Vec<f64>,
+    /// Their standard errors, same units (null for a direction the data cannot see).
+    pub se: Vec<f64>,
     /// The value in the unit a user reads (mrad, mm, N m/rad ...), with its standard error.
     pub shown: String,
     /// For an effect selected where rows are held out: whether adding it lowered their RMS error (an
@@ -190,7 +212,7 @@ pub struct ErrorStats {
 pub struct Stage {
     /// `registration`, `+ joint-offset:J2` and so on.
     pub model: String,
-    /// Fitted parameters.
+    /// Parameters the data see (the fit's rank: an effect's directions the data cannot see do not count).
     pub parameters: usize,
     /// On the rows fitted (gross rows left out).
     pub fit: ErrorStats,
@@ -259,13 +281,17 @@ fn load_of(s: &ArmStatics, joint: usize) -> f64 {
 }
 
 /// How far a unit of effect `e` turns its joint in a row: nothing for an offset (it moves the configuration
-/// instead), the load for a compliance, the load's sign for play; for a displacement row, the difference
-/// between the row's wrench and zero wrench (`zero`).
-fn effect_gain(e: &ArmEffect, s: &ArmStatics, zero: &Option<ArmStatics>) -> f64 {
+/// instead) nor for a geometry or payload (they act otherwise, `Problem::unit_moves`), the load for a
+/// compliance, the load's sign for play; for a displacement row, the difference between the row's wrench and
+/// zero wrench (`zero`). `payload` is the weight of a payload being fitted, at the reference point: the
+/// joints carry it too.
+fn effect_gain(e: &ArmEffect, s: &ArmStatics, zero: &Option<ArmStatics>, payload: &Vec6) -> f64 {
     let sign = |l: f64| if l == 0.0 { 0.0 } else { l.signum() };
-    let (load, zero_load) = (load_of(s, e.joint), zero.as_ref().map(|z| load_of(z, e.joint)));
+    let carried = s.columns[e.joint].dot(payload);
+    let load = load_of(s, e.joint) + carried;
+    let zero_load = zero.as_ref().map(|z| load_of(z, e.joint) + carried);
     match (e.kind, zero_load) {
-        (ArmKind::JointOffset, _) => 0.0,
+        (ArmKind::JointOffset | ArmKind::JointGeometry | ArmKind::Payload, _) => 0.0,
         (ArmKind::JointCompliance, None) => load,
         (ArmKind::JointCompliance, Some(z)) => load - z,
         (ArmKind::Backlash, None) => sign(load),
@@ -278,9 +304,14 @@ fn effect_gain(e: &ArmEffect, s: &ArmStatics, zero: &Option<ArmStatics>) -> f64 
 /// wrench).
 struct Problem<'a> {
     m: &'a Manipulator,
+    space: &'a crate::platform::manipulator::JointSpace,
     data: &'a PositionData,
     joints: &'a [String],
     deflection: Vec<Vec6>,
+    /// Per row, the arm's statics at its configuration (and at zero wrench for a displacement).
+    statics: Vec<(ArmStatics, Option<ArmStatics>)>,
+    /// Per row, the model's tangent compliance at its loaded equilibrium (positions of a compliant model).
+    compliance: Vec<Option<crate::kinematics::frame::Mat6>>,
     weight: Vec<f64>,
     absolute: bool,
     prismatic: Vec<bool>,
@@ -314,7 +345,11 @@ impl<'a> Problem<'a> {
         let mut state = m.new_state();
         let mut deflection = Vec::with_capacity(data.rows.len());
         let failed = |r: &PositionRow, why: String| CalibrationError::Row { name: r.name.clone(), line: r.line, why };
-        let under = |r: &PositionRow, wrench: &Vec6, state: &mut ManipulatorState| -> Result<Vec6, CalibrationError> {
+        let mut compliance = Vec::with_capacity(data.rows.len());
+        let under = |r: &PositionRow,
+                     wrench: &Vec6,
+                     state: &mut ManipulatorState|
+         -> Result<(Vec6, Option<crate::kinematics::frame::Mat6>), CalibrationError> {
             let frame = m
                 .pose_at_joints(&r.joints, state)
                 .ok_or_else(|| failed(r, "the joint coordinates give no finite pose".into()))?;
@@ -323,23 +358,47 @@ impl<'a> Problem<'a> {
             if !d.stable {
                 return Err(failed(r, "the loaded equilibrium is unstable".into()));
             }
-            Ok(d.displacement)
+            Ok((d.displacement, d.held.stiffness.try_inverse()))
         };
         for r in &data.rows {
-            deflection.push(match (compliant, r.observed) {
-                (false, _) => Vec6::zeros(),
+            let (d, c) = match (compliant, r.observed) {
+                (false, _) => (Vec6::zeros(), None),
                 (true, Observed::Position { .. }) => under(r, &r.wrench, &mut state)?,
                 (true, Observed::Displacement(_)) => {
-                    under(r, &r.wrench, &mut state)? - under(r, &Vec6::zeros(), &mut state)?
+                    (under(r, &r.wrench, &mut state)?.0 - under(r, &Vec6::zeros(), &mut state)?.0, None)
                 }
-            });
+            };
+            deflection.push(d);
+            compliance.push(c);
         }
         let weight = data.rows.iter().map(|r| 1.0 / r.sigma.or(sigma).unwrap_or(1.0)).collect();
-        let statics = m
-            .arm_statics(&data.rows[0].joints, &Vec6::zeros(), &mut state)
-            .ok_or_else(|| failed(&data.rows[0], "the joint coordinates give no finite pose".into()))?;
-        let prismatic = statics.columns.iter().map(|c| c.fixed_rows::<3>(3).norm() == 0.0).collect();
-        Ok(Problem { m, data, joints: &space.names, deflection, weight, absolute: data.absolute(), prismatic })
+        let mut statics = Vec::with_capacity(data.rows.len());
+        for r in &data.rows {
+            let zero = match r.observed {
+                Observed::Displacement(_) => Some(Vec6::zeros()),
+                Observed::Position { .. } => None,
+            };
+            let at = |w: &Vec6, state: &mut ManipulatorState| {
+                m.arm_statics(&r.joints, w, state)
+                    .ok_or_else(|| failed(r, "the joint coordinates give no finite pose".into()))
+            };
+            let s = at(&r.wrench, &mut state)?;
+            let z = zero.map(|w| at(&w, &mut state)).transpose()?;
+            statics.push((s, z));
+        }
+        let prismatic = statics[0].0.columns.iter().map(|c| c.fixed_rows::<3>(3).norm() == 0.0).collect();
+        Ok(Problem {
+            m,
+            space,
+            data,
+            joints: &space.names,
+            deflection,
+            statics,
+            compliance,
+            weight,
+            absolute: data.absolute(),
+            prismatic,
+        })
     }
 
     /// The candidates without the play of a joint whose load keeps one sign in nearly every row of `rows`:
@@ -363,7 +422,7 @@ impl<'a> Problem<'a> {
                         Observed::Displacement(_) => self.m.arm_statics(&row.joints, &Vec6::zeros(), &mut state),
                         Observed::Position { .. } => None,
                     };
-                    let g = effect_gain(e, &s, &zero);
+                    let g = effect_gain(e, &s, &zero, &Vec6::zeros());
                     up += usize::from(g > 0.0);
                     down += usize::from(g < 0.0);
                 }
@@ -408,36 +467,43 @@ impl<'a> Problem<'a> {
         let mut joints = row.joints.clone();
         for (e, v) in effects.iter().zip(&params.effects) {
             if e.kind == ArmKind::JointOffset {
-                joints[e.joint] += v;
+                joints[e.joint] += v[0];
             }
         }
-        let at =
-            |joints: &[f64], state: &mut ManipulatorState| -> Option<(Vec3, Vec3, ArmStatics, Option<ArmStatics>)> {
-                let s = self.m.arm_statics(joints, &row.wrench, state)?;
-                let zero = match row.observed {
-                    Observed::Displacement(_) => Some(self.m.arm_statics(joints, &Vec6::zeros(), state)?),
-                    Observed::Position { .. } => None,
-                };
-                let (lever, tool) = match row.observed {
-                    Observed::Position { target, .. } => {
-                        let lever = s.frame.rot * params.targets[target];
-                        (lever, s.frame.pos + lever)
-                    }
-                    Observed::Displacement(_) => (Vec3::zeros(), Vec3::zeros()),
-                };
-                Some((lever, tool, s, zero))
-            };
-        let point = |c: &Vec6, lever: &Vec3| c.fixed_rows::<3>(0) + c.fixed_rows::<3>(3).cross(lever);
-        // The body's point (target, or the tool point of a displacement) under the loads, before registration.
-        let body = |lever: &Vec3, tool: &Vec3, s: &ArmStatics, zero: &Option<ArmStatics>| -> Vec3 {
-            let mut y = tool + point(&self.deflection[r], lever);
-            for (e, v) in effects.iter().zip(&params.effects) {
-                y += point(&s.columns[e.joint], lever) * *v * effect_gain(e, s, zero);
-            }
-            y
+        // The arm's statics at the configuration: the row's own (computed once) unless offsets move it.
+        let fresh;
+        let (s, zero) = if joints == row.joints {
+            &self.statics[r]
+        } else {
+            fresh = self.statics_at(row, &joints, state)?;
+            &fresh
         };
-        let (lever, tool, s, zero) = at(&joints, state)?;
-        let y = body(&lever, &tool, &s, &zero);
+        let (lever, tool) = match row.observed {
+            Observed::Position { target, .. } => {
+                let lever = s.frame.rot * params.targets[target];
+                (lever, s.frame.pos + lever)
+            }
+            Observed::Displacement(_) => (Vec3::zeros(), Vec3::zeros()),
+        };
+        let point = |c: &Vec6, lever: &Vec3| c.fixed_rows::<3>(0) + c.fixed_rows::<3>(3).cross(lever);
+        // A payload being fitted weighs on every joint: its wrench at the reference point, (m g, (R s) x g).
+        let payload = |s: &ArmStatics| -> Vec6 {
+            let Some(k) = effects.iter().position(|e| e.kind == ArmKind::Payload) else { return Vec6::zeros() };
+            if !matches!(row.observed, Observed::Position { .. }) {
+                return Vec6::zeros();
+            }
+            let (v, g) = (&params.effects[k], self.m.weight_gravity());
+            let moment = (s.frame.rot * Vec3::new(v[1], v[2], v[3])).cross(&g);
+            let force = g * v[0];
+            Vec6::new(force.x, force.y, force.z, moment.x, moment.y, moment.z)
+        };
+        // The body's point (target, or the tool point of a displacement) under the loads, before registration.
+        let mut y = tool + point(&self.deflection[r], &lever);
+        for (e, v) in effects.iter().zip(&params.effects) {
+            for (unit, value) in self.unit_moves(r, e, s, zero, &lever, &payload(s)).iter().zip(v) {
+                y += unit * *value;
+            }
+        }
         let (rotation, translation) = match row.observed {
             Observed::Position { setup, .. } => (params.rotations[setup], params.translations[setup]),
             Observed::Displacement(_) => (Mat3::identity(), Vec3::zeros()),
@@ -460,26 +526,119 @@ impl<'a> Problem<'a> {
                 jac.view_mut((0, t), (3, 3)).copy_from(&(rotation * s.frame.rot * w));
                 k = self.nuisance_count();
             }
-            for (i, e) in effects.iter().enumerate() {
-                let column = match e.kind {
+            for e in effects {
+                let columns = match e.kind {
                     ArmKind::JointOffset => {
-                        // Central differences of the whole prediction in the controller's angle (the offset
-                        // moves every coordinate the controller map ties to it).
-                        let mut shifted = joints.clone();
-                        shifted[e.joint] += OFFSET_STEP;
-                        let (lp, tp, sp, zp) = at(&shifted, state)?;
-                        shifted[e.joint] -= 2.0 * OFFSET_STEP;
-                        let (lm, tm, sm, zm) = at(&shifted, state)?;
-                        rotation * (body(&lp, &tp, &sp, &zp) - body(&lm, &tm, &sm, &zm)) / (2.0 * OFFSET_STEP)
+                        // The offset turns every model coordinate the controller map ties to its angle; the
+                        // body's point moves with each by its twist column (the loads' change with it is of
+                        // second order, left to the iterations, which evaluate the prediction exactly).
+                        let rates = self.space.coordinate_rates(&joints, e.joint);
+                        let mut column = Vec3::zeros();
+                        for (rate, c) in rates.iter().zip(&s.columns) {
+                            if *rate != 0.0 && zero.is_none() {
+                                column += point(c, &lever) * *rate;
+                            }
+                        }
+                        vec![column]
                     }
-                    ArmKind::JointCompliance | ArmKind::Backlash => {
-                        rotation * point(&s.columns[e.joint], &lever) * effect_gain(e, &s, &zero)
+                    ArmKind::Payload => {
+                        // Its weight loads the compliances being fitted too (their term is the compliance
+                        // times the joint's load, payload included): the derivative has that part as well.
+                        let mut columns = self.unit_moves(r, e, s, zero, &lever, &payload(s));
+                        let g = self.m.weight_gravity();
+                        for (k, column) in columns.iter_mut().enumerate() {
+                            let unit = if k == 0 {
+                                Vec6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0)
+                            } else {
+                                let m = s.frame.rot.column(k - 1).into_owned().cross(&g);
+                                Vec6::new(0.0, 0.0, 0.0, m.x, m.y, m.z)
+                            };
+                            for (other, v) in effects.iter().zip(&params.effects) {
+                                if other.kind == ArmKind::JointCompliance && zero.is_none() {
+                                    let joint = &s.columns[other.joint];
+                                    *column += point(joint, &lever) * (v[0] * joint.dot(&unit));
+                                }
+                            }
+                        }
+                        columns
                     }
+                    _ => self.unit_moves(r, e, s, zero, &lever, &payload(s)),
                 };
-                jac.view_mut((0, k + i), (3, 1)).copy_from(&(column * w));
+                for column in columns {
+                    jac.view_mut((0, k), (3, 1)).copy_from(&(rotation * column * w));
+                    k += 1;
+                }
             }
         }
         Some(prediction)
+    }
+
+    /// How the body's point (before registration) moves per unit of each parameter of effect `e` in row `r`
+    /// (`s` the arm's statics there, `zero` at zero wrench for a displacement, `lever` the target from the
+    /// reference point, `payload` the weight of a payload being fitted); an offset's are found by differences
+    /// in `predict`.
+    fn unit_moves(
+        &self,
+        r: usize,
+        e: &ArmEffect,
+        s: &ArmStatics,
+        zero: &Option<ArmStatics>,
+        lever: &Vec3,
+        payload: &Vec6,
+    ) -> Vec<Vec3> {
+        let point = |c: &Vec6| c.fixed_rows::<3>(0) + c.fixed_rows::<3>(3).cross(lever);
+        match e.kind {
+            ArmKind::JointOffset => vec![Vec3::zeros()],
+            ArmKind::JointCompliance | ArmKind::Backlash => {
+                vec![point(&s.columns[e.joint]) * effect_gain(e, s, zero, payload)]
+            }
+            ArmKind::JointGeometry => {
+                // The fixed transform before the joint moved by (v, w) in the joint's frame: everything after it
+                // moves rigidly, R v + (R w) x (x - o) at the point x (a displacement does not see it).
+                if zero.is_some() {
+                    return vec![Vec3::zeros(); 6];
+                }
+                let f = &s.joint_frames[e.joint];
+                let x = s.frame.pos + lever;
+                (0..6)
+                    .map(|k| {
+                        let axis = f.rot.column(k % 3).into_owned();
+                        if k < 3 {
+                            axis
+                        } else {
+                            axis.cross(&(x - f.pos))
+                        }
+                    })
+                    .collect()
+            }
+            ArmKind::Payload => {
+                // Its weight at the reference point, (m g, (R s) x g) with s = m c its first moment, seen through
+                // the model's tangent compliance (a rigid model, or a displacement, does not see it).
+                let Some(c) = &self.compliance[r] else { return vec![Vec3::zeros(); 4] };
+                let g = self.m.weight_gravity();
+                let mut moves = vec![point(&(c * Vec6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0)))];
+                for k in 0..3 {
+                    let moment = (s.frame.rot.column(k).into_owned() * 1.0).cross(&g);
+                    moves.push(point(&(c * Vec6::new(0.0, 0.0, 0.0, moment.x, moment.y, moment.z))));
+                }
+                moves
+            }
+        }
+    }
+
+    /// A row's statics at controller angles `joints` under its wrench, and at zero wrench for a displacement.
+    fn statics_at(
+        &self,
+        row: &PositionRow,
+        joints: &[f64],
+        state: &mut ManipulatorState,
+    ) -> Option<(ArmStatics, Option<ArmStatics>)> {
+        let s = self.m.arm_statics(joints, &row.wrench, state)?;
+        let zero = match row.observed {
+            Observed::Displacement(_) => Some(self.m.arm_statics(joints, &Vec6::zeros(), state)?),
+            Observed::Position { .. } => None,
+        };
+        Some((s, zero))
     }
 
     fn measured(&self, r: usize) -> Vec3 {
@@ -499,13 +658,13 @@ impl<'a> Problem<'a> {
 
     /// The starting parameters: each set-up's frame from the nominal tool points (Kabsch's fit of the
     /// rotation), targets at the tool point, effects zero.
-    fn start(&self, rows: &[usize], effects: usize) -> Params {
+    fn start(&self, rows: &[usize], effects: &[ArmEffect]) -> Params {
         let setups = self.data.setups.len();
         let mut params = Params {
             rotations: vec![Mat3::identity(); setups],
             translations: vec![Vec3::zeros(); setups],
             targets: vec![Vec3::zeros(); self.data.targets.len()],
-            effects: vec![0.0; effects],
+            effects: effects.iter().map(|e| vec![0.0; e.size()]).collect(),
         };
         if !self.absolute {
             return params;
@@ -541,7 +700,7 @@ impl<'a> Problem<'a> {
 
     /// Levenberg-Marquardt over the parameters on `rows`, from `start`.
     fn fit(&self, rows: &[usize], effects: &[ArmEffect], start: &Params) -> Option<Fit> {
-        let p = self.nuisance_count() + effects.len();
+        let p = self.nuisance_count() + effects.iter().map(ArmEffect::size).sum::<usize>();
         let n = 3 * rows.len();
         let mut params = start.clone();
         let mut state = self.m.new_state();
@@ -560,7 +719,7 @@ impl<'a> Problem<'a> {
                 }
                 Some((jac, e))
             };
-        let mut lambda = 1e-3;
+        let mut lambda = 1e-6;
         let (mut jac, mut e) = evaluate(&params, &mut state, &mut jac_row, true)?;
         let mut rss = e.norm_squared();
         if p == 0 {
@@ -591,11 +750,11 @@ impl<'a> Problem<'a> {
                     }
                 }
                 let step = step.component_div(&scale);
-                let trial = self.apply(&params, &step, effects.len());
+                let trial = self.apply(&params, &step);
                 if let Some((_, e_trial)) = evaluate(&trial, &mut state, &mut jac_row, false) {
                     let rss_trial = e_trial.norm_squared();
                     if rss_trial < rss {
-                        let converged = rss - rss_trial <= 1e-12 * rss.max(1e-300);
+                        let converged = rss - rss_trial <= 1e-10 * rss.max(1e-300);
                         params = trial;
                         rss = rss_trial;
                         lambda = (lambda / 10.0).max(1e-12);
@@ -635,7 +794,7 @@ impl<'a> Problem<'a> {
         Some(Fit { params, rss, observations: n, rank, covariance, hidden })
     }
 
-    fn apply(&self, params: &Params, step: &DVector<f64>, effects: usize) -> Params {
+    fn apply(&self, params: &Params, step: &DVector<f64>) -> Params {
         let mut next = params.clone();
         let mut k = 0;
         if self.absolute {
@@ -656,8 +815,11 @@ impl<'a> Problem<'a> {
                 k += 3;
             }
         }
-        for e in 0..effects {
-            next.effects[e] += step[k + e];
+        for values in &mut next.effects {
+            for v in values {
+                *v += step[k];
+                k += 1;
+            }
         }
         next
     }
@@ -687,7 +849,29 @@ impl<'a> Problem<'a> {
             };
             return format!("{name}'s place {}", axis[k % 3]);
         }
-        effects[k - 3 * targets].label(self.joints)
+        let mut k = k - 3 * targets;
+        for e in effects {
+            if k < e.size() {
+                let part = match e.kind {
+                    ArmKind::JointGeometry => {
+                        let what = [
+                            "translation x",
+                            "translation y",
+                            "translation z",
+                            "rotation x",
+                            "rotation y",
+                            "rotation z",
+                        ];
+                        format!(" {}", what[k])
+                    }
+                    ArmKind::Payload => [" mass", " moment x", " moment y", " moment z"][k].to_string(),
+                    _ => String::new(),
+                };
+                return format!("{}{part}", e.label(self.joints));
+            }
+            k -= e.size();
+        }
+        "?".into()
     }
 
     fn describe_hidden(&self, direction: &[(usize, f64)], effects: &[ArmEffect]) -> String {
@@ -699,9 +883,34 @@ impl<'a> Problem<'a> {
     }
 
     /// The value of an accepted effect as a user reads it.
-    fn shown(&self, e: &ArmEffect, value: f64, se: f64) -> String {
+    fn shown(&self, e: &ArmEffect, values: &[f64], ses: &[f64]) -> String {
         let prismatic = self.prismatic[e.joint];
+        let (value, se) = (values[0], ses[0]);
+        let listed = |values: &[f64], ses: &[f64], scale: f64, digits: usize| {
+            let part = |v: f64, s: f64| {
+                if s.is_finite() {
+                    format!("{:.digits$} +- {:.digits$}", v * scale, s * scale)
+                } else {
+                    format!("{:.digits$} (not seen)", v * scale)
+                }
+            };
+            values.iter().zip(ses).map(|(v, s)| part(*v, *s)).collect::<Vec<_>>().join(", ")
+        };
         match e.kind {
+            ArmKind::JointGeometry => format!(
+                "translation ({}) mm, rotation ({}) mrad, in the joint's frame",
+                listed(&values[..3], &ses[..3], 1.0, 4),
+                listed(&values[3..], &ses[3..], 1e3, 3)
+            ),
+            ArmKind::Payload => {
+                let centre: Vec<f64> = values[1..].iter().map(|s| s / value).collect();
+                let centre_se: Vec<f64> = ses[1..].iter().map(|s| s / value.abs()).collect();
+                format!(
+                    "{} kg at ({}) mm in the tool frame",
+                    listed(&values[..1], &ses[..1], 1.0, 3),
+                    listed(&centre, &centre_se, 1.0, 1)
+                )
+            }
             ArmKind::JointOffset | ArmKind::Backlash if prismatic => format!("{value:.4} +- {se:.4} mm"),
             ArmKind::JointOffset | ArmKind::Backlash => format!("{:.3} +- {:.3} mrad", value * 1e3, se * 1e3),
             ArmKind::JointCompliance => {
@@ -766,16 +975,19 @@ fn gross_rows(problem: &Problem, residuals: &[Option<Vec3>], rows: &[usize]) -> 
     misfit.into_iter().map(|m| m.0).collect()
 }
 
-/// The test of adding one parameter to a fit of residual sum `rss0` (weighted), giving `with`: its F
+/// The test of adding an effect to a fit of residual sum `rss0` (weighted) and rank `rank0`, giving `with`: its F
 /// statistic against the residual's own scale, and its p-value; where the noise is known, the larger of the
 /// F test's and the chi-square test's of the drop (both must reject: the drop must stand out from what is
 /// left and from the noise, so that round-off on noise-free data is never a discovery).
-fn test(rss0: f64, with: &Fit, sigma_known: bool) -> (f64, f64) {
+fn test(rss0: f64, rank0: usize, with: &Fit, sigma_known: bool) -> (f64, f64) {
+    // The parameters the data see: an effect of several parameters counts the directions it adds.
+    let added = with.rank.saturating_sub(rank0).max(1) as f64;
     let drop = (rss0 - with.rss).max(0.0);
-    let statistic = drop / (with.rss / with.dof() as f64).max(1e-300);
-    let mut p = FisherSnedecor::new(1.0, with.dof() as f64).map_or(1.0, |d| 1.0 - d.cdf(statistic));
+    let statistic = drop / added / (with.rss / with.dof() as f64).max(1e-300);
+    // Survival functions, not 1 - cdf: strong candidates' p-values are far below 1e-16 and are compared.
+    let mut p = FisherSnedecor::new(added, with.dof() as f64).map_or(1.0, |d| d.sf(statistic));
     if sigma_known {
-        p = p.max(ChiSquared::new(1.0).map_or(1.0, |d| 1.0 - d.cdf(drop)));
+        p = p.max(ChiSquared::new(added).map_or(1.0, |d| d.sf(drop)));
     }
     (statistic, p)
 }
@@ -799,7 +1011,7 @@ fn select(
     sigma_known: bool,
 ) -> Result<Selection, CalibrationError> {
     let mut model = options.fitted.clone();
-    let start = problem.start(rows, model.len());
+    let start = problem.start(rows, &model);
     let too_few =
         || CalibrationError::TooFew("the fit found no pose for a row, or too few rows for the parameters".into());
     let mut fit = problem.fit(rows, &model, &start).ok_or_else(too_few)?;
@@ -814,7 +1026,7 @@ fn select(
             let mut trial = model.clone();
             trial.push(*c);
             let mut start = fit.params.clone();
-            start.effects.push(0.0);
+            start.effects.push(vec![0.0; c.size()]);
             let label = c.label(problem.joints);
             let Some(f) = problem.fit(rows, &trial, &start) else {
                 step.push(Tested { label, f: None, p: None, note: Some("a row has no pose with it".into()) });
@@ -835,10 +1047,11 @@ fn select(
                 continue;
             }
             tested += 1;
-            let (statistic, p) = test(fit.rss, &f, sigma_known);
+            let (statistic, p) = test(fit.rss, fit.rank, &f, sigma_known);
             step.push(Tested { label, f: Some(statistic), p: Some(p), note: None });
-            // The largest F is the best (p-values of strong candidates all round to zero).
-            if best.as_ref().is_none_or(|b| statistic > b.0) {
+            // The smallest p-value is the best (it weighs an effect's drop by the directions it adds); the
+            // larger F among equal p-values.
+            if best.as_ref().is_none_or(|b| p < b.1 || (p == b.1 && statistic > b.0)) {
                 best = Some((statistic, p, *c, f));
             }
         }
@@ -865,7 +1078,7 @@ fn select(
             let mut start = fit.params.clone();
             start.effects.remove(k);
             let Some(f) = problem.fit(rows, &without, &start) else { continue };
-            let (_, p) = test(f.rss, &fit, sigma_known);
+            let (_, p) = test(f.rss, f.rank, &fit, sigma_known);
             if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
                 weakest = Some((p, k, f));
             }
@@ -873,6 +1086,37 @@ fn select(
         match weakest {
             Some((_, k, f)) => {
                 model.remove(k);
+                fit = f;
+            }
+            None => break,
+        }
+    }
+    // Swaps: an effect chosen early, while the model still missed others, may do the work of a simpler one
+    // (a joint's geometry standing in for the offset of the joint before it): an accepted effect is replaced
+    // by the candidate with fewer parameters that lowers the BIC most (n ln(rss/n) + rank ln n), while one
+    // does. (Among effects of one parameter the forward steps' F tests already chose.)
+    for _ in 0..3 {
+        let bic = |f: &Fit| {
+            let n = f.observations as f64;
+            n * (f.rss / n).max(1e-300).ln() + f.rank as f64 * n.ln()
+        };
+        let mut best: Option<(f64, usize, ArmEffect, Fit)> = None;
+        for k in options.fitted.len()..model.len() {
+            for c in candidates.iter().filter(|c| !model.contains(c) && c.size() < model[k].size()) {
+                let mut swapped = model.clone();
+                swapped[k] = *c;
+                let mut start = fit.params.clone();
+                start.effects[k] = vec![0.0; c.size()];
+                let Some(f) = problem.fit(rows, &swapped, &start) else { continue };
+                let gain = bic(&fit) - bic(&f);
+                if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
+                    best = Some((gain, k, *c, f));
+                }
+            }
+        }
+        match best {
+            Some((_, k, c, f)) => {
+                model[k] = c;
                 fit = f;
             }
             None => break,
@@ -900,11 +1144,17 @@ pub fn calibrate(
     let problem = Problem::new(m, data, options.sigma)?;
     let candidates: Vec<ArmEffect> = if candidates.is_empty() {
         let kinds: &[ArmKind] = if problem.absolute {
-            &[ArmKind::JointOffset, ArmKind::JointCompliance, ArmKind::Backlash]
+            &[ArmKind::JointOffset, ArmKind::JointCompliance, ArmKind::Backlash, ArmKind::JointGeometry]
         } else {
             &[ArmKind::JointCompliance, ArmKind::Backlash]
         };
-        (0..problem.joints.len()).flat_map(|j| kinds.iter().map(move |&kind| ArmEffect { kind, joint: j })).collect()
+        let mut all: Vec<ArmEffect> = (0..problem.joints.len())
+            .flat_map(|j| kinds.iter().map(move |&kind| ArmEffect { kind, joint: j }))
+            .collect();
+        if problem.absolute {
+            all.push(ArmEffect { kind: ArmKind::Payload, joint: 0 });
+        }
+        all
     } else {
         candidates.to_vec()
     };
@@ -925,7 +1175,7 @@ pub fn calibrate(
     let mut gross: Vec<usize> = Vec::new();
     for _ in 0..3 {
         let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
-        let start = problem.start(&kept, options.fitted.len());
+        let start = problem.start(&kept, &options.fitted);
         let Some(f) = problem.fit(&kept, &options.fitted, &start) else { break };
         let next = gross_rows(&problem, &problem.residuals(&options.fitted, &f.params), &fit_rows);
         if next == gross {
@@ -951,23 +1201,26 @@ pub fn calibrate(
     let scale = (fit.rss / fit.dof() as f64).sqrt();
     let variance = scale * scale;
     let nuisance_count = problem.nuisance_count();
-    let mut accepted = model
-        .iter()
-        .enumerate()
-        .map(|(i, e)| {
-            let k = nuisance_count + i;
-            let (value, se) = (fit.params.effects[i], (fit.covariance[(k, k)] * variance).sqrt());
-            Accepted {
-                label: e.label(problem.joints),
-                kind: e.kind,
-                joint: problem.joints[e.joint].clone(),
-                value,
-                se,
-                shown: problem.shown(e, value, se),
-                confirmed: None,
-            }
-        })
-        .collect::<Vec<Accepted>>();
+    // A parameter in a direction the data cannot see has no standard error.
+    let seen = |k: usize| !fit.hidden.iter().any(|d| d.iter().any(|(j, _)| *j == k));
+    let mut k = nuisance_count;
+    let mut accepted = Vec::new();
+    for (i, e) in model.iter().enumerate() {
+        let values = fit.params.effects[i].clone();
+        let se: Vec<f64> = (k..k + e.size())
+            .map(|j| if seen(j) { (fit.covariance[(j, j)] * variance).sqrt() } else { f64::NAN })
+            .collect();
+        k += e.size();
+        accepted.push(Accepted {
+            label: e.label(problem.joints),
+            kind: e.kind,
+            joint: if e.kind == ArmKind::Payload { String::new() } else { problem.joints[e.joint].clone() },
+            shown: problem.shown(e, &values, &se),
+            values,
+            se,
+            confirmed: None,
+        });
+    }
     let se3 = |k: usize, factor: f64| [0, 1, 2].map(|a| (fit.covariance[(k + a, k + a)] * variance).sqrt() * factor);
     let mut nuisance = Vec::new();
     if problem.absolute {
@@ -1015,23 +1268,18 @@ pub fn calibrate(
         let f = if k == order.len() {
             Some(fit.clone())
         } else {
-            problem.fit(&kept, &staged, &problem.start(&kept, staged.len()))
+            problem.fit(&kept, &staged, &problem.start(&kept, &staged))
         };
         let Some(f) = f else { continue };
         let r = problem.residuals(&staged, &f.params);
-        stages.push(Stage {
-            model: label,
-            parameters: nuisance_count + staged.len(),
-            fit: stats(&r, &kept),
-            check: stats(&r, &check_rows),
-        });
+        stages.push(Stage { model: label, parameters: f.rank, fit: stats(&r, &kept), check: stats(&r, &check_rows) });
     }
     if !check_rows.is_empty() && stages.len() == order.len() + 1 {
         for (k, a) in accepted[options.fitted.len()..].iter_mut().enumerate() {
             a.confirmed = Some(stages[k + 1].check.rms < stages[k].check.rms);
         }
     }
-    let noisy = sigma_known && ChiSquared::new(fit.dof() as f64).is_ok_and(|d| 1.0 - d.cdf(fit.rss) < options.alpha);
+    let noisy = sigma_known && ChiSquared::new(fit.dof() as f64).is_ok_and(|d| d.sf(fit.rss) < options.alpha);
     let verdict = match (noisy, model.len() > options.fitted.len()) {
         (true, _) => Verdict::Unexplained,
         (false, true) => Verdict::Effect,
@@ -1104,7 +1352,7 @@ pub fn text(c: &Calibration, model: &str) -> String {
     }
     for (k, step) in c.steps.iter().enumerate() {
         let mut tested: Vec<&Tested> = step.iter().filter(|t| t.f.is_some()).collect();
-        tested.sort_by(|a, b| b.f.partial_cmp(&a.f).unwrap_or(std::cmp::Ordering::Equal));
+        tested.sort_by(|a, b| a.p.partial_cmp(&b.p).unwrap_or(std::cmp::Ordering::Equal));
         let best: Vec<String> = tested
             .iter()
             .take(3)

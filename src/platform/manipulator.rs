@@ -34,6 +34,18 @@ pub struct JointSpace {
 }
 
 impl JointSpace {
+    /// How the model's coordinates change per unit of the controller's angle `j` at `controller` (central
+    /// differences of the map: exact for the linear couplings of parallelograms and reversed joints).
+    pub fn coordinate_rates(&self, controller: &[f64], j: usize) -> Vec<f64> {
+        const STEP: f64 = 1e-6;
+        let mut shifted = controller.to_vec();
+        shifted[j] += STEP;
+        let up = self.model_coordinates(&shifted);
+        shifted[j] -= 2.0 * STEP;
+        let down = self.model_coordinates(&shifted);
+        up.iter().zip(&down).map(|(u, d)| (u - d) / (2.0 * STEP)).collect()
+    }
+
     /// The model's coordinates from the controller's angles (in the order of `names`).
     pub fn model_coordinates(&self, controller: &[f64]) -> Vec<f64> {
         self.controller
@@ -55,6 +67,9 @@ pub struct ArmStatics {
     /// Per joint, the load it carries (N mm about a revolute joint, N along a prismatic one) from the
     /// wrench, the links' weight and the payload: a spring there turns by its compliance times this.
     pub loads: Vec<f64>,
+    /// Per joint, its frame before its motion (base frame): a change of the fixed transform leading to the
+    /// joint moves everything after it as a rigid motion about this frame.
+    pub joint_frames: Vec<Frame>,
 }
 
 /// Standard gravity (m/s^2) along -z: what a payload weighs under when the model gives no gravity.
@@ -235,7 +250,7 @@ impl Manipulator {
         }
         let q = space.model_coordinates(controller);
         let (Leg::Vjm(leg), Some(s)) = (&self.legs[0], state.legs.first_mut()) else { return None };
-        let (end, columns, mut loads) = leg.statics(&q, s)?;
+        let ArmStatics { frame: end, columns, mut loads, joint_frames } = leg.statics(&q, s)?;
         let platform = end.compose(&leg.attachment.inverse());
         // The columns moved from the end point to the reference point: v_ref = v_end + w x (ref - end).
         let arm = end.pos - platform.pos;
@@ -252,7 +267,7 @@ impl Manipulator {
         for (load, column) in loads.iter_mut().zip(&columns) {
             *load += column.dot(&total);
         }
-        Some(ArmStatics { frame: platform, columns, loads })
+        Some(ArmStatics { frame: platform, columns, loads, joint_frames })
     }
 
     /// The compliance of a serial arm's joint `name` about (or along) its axis, rad/(N mm) or mm/N, where the

@@ -58,15 +58,32 @@ impl VjmLeg {
         (platform.pos.iter().chain(platform.rot.iter()).all(|v| v.is_finite())).then_some(platform)
     }
 
-    /// The rigid chain at actuated coordinates `q` (springs at rest): its end frame, the twist of the end
-    /// point per unit of each actuated coordinate, and each actuated coordinate's load from the chain's
-    /// weight. None as `pose_at_joints`.
-    pub(super) fn statics(&self, q: &[f64], state: &mut LegState) -> Option<(Frame, Vec<Vec6>, Vec<f64>)> {
-        self.pose_at_joints(q, state)?;
+    /// The rigid chain at actuated coordinates `q` (springs at rest), at its end point: its end frame, the
+    /// twist of the end point per unit of each actuated coordinate, each actuated coordinate's load from the chain's weight,
+    /// and each actuated joint's frame before its motion. None as `pose_at_joints`.
+    pub(super) fn statics(&self, q: &[f64], state: &mut LegState) -> Option<super::manipulator::ArmStatics> {
+        if q.len() != state.coords.actuated.len() {
+            return None;
+        }
+        // Seeded as `pose_at_joints` seeds it; the end frame comes from the evaluation.
+        state.coords.actuated.copy_from_slice(q);
+        state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
+        state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
+        state.ik.invalidate();
+        state.warm = true;
         self.chain.evaluate(&state.coords, &mut state.jac);
+        let end = state.jac.end;
+        if !end.pos.iter().chain(end.rot.iter()).all(|v| v.is_finite()) {
+            return None;
+        }
         let mut loads = vec![0.0; q.len()];
         state.jac.add_actuated_loads(&Vec6::zeros(), &self.gravity, &mut loads);
-        Some((state.jac.end, state.jac.actuated.clone(), loads))
+        Some(super::manipulator::ArmStatics {
+            frame: end,
+            columns: state.jac.actuated.clone(),
+            loads,
+            joint_frames: self.chain.actuated_joint_frames(&state.coords),
+        })
     }
 
     pub(super) fn has_masses(&self) -> bool {
