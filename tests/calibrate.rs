@@ -322,6 +322,21 @@ fn diagnose_takes_joint_space_data_from_the_command_line() {
         .output()
         .unwrap();
     assert!(String::from_utf8_lossy(&piped.stdout).contains("30 rows fitted, 0 held out"), "{piped:?}");
+    // Regression: a row at a singular configuration (every angle zero: the wrist straight and J4 and J6 on
+    // one axis, where the loaded equilibrium has no solution) failed the whole calibration; it is left out
+    // and named, the others fitted.
+    let rows = std::fs::read_to_string(dir.path().join("d.csv")).unwrap();
+    let (header, rest) = rows.split_once('\n').unwrap();
+    let with_singular = format!("{header}\nwrist,0,0,0,0,0,0,1000,0,1000,fit\n{rest}");
+    std::fs::write(dir.path().join("s.csv"), with_singular).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["diagnose", FANUC, "--sigma", "0.05", "--data"])
+        .arg(dir.path().join("s.csv"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("30 rows fitted") && text.contains("row left out, no prediction: wrist (line 2)"), "{text}");
     let refused = |args: &[&str], says: &str| {
         let out = stiff(args);
         let err = String::from_utf8_lossy(&out.stderr);

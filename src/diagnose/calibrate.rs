@@ -258,6 +258,8 @@ pub struct Calibration {
     pub not_identifiable: Vec<String>,
     /// Gross rows left out: name and misfit, mm.
     pub left_out: Vec<(String, f64)>,
+    /// Rows the model has no prediction for (no loaded equilibrium there), left out: the reason.
+    pub unusable: Vec<String>,
     /// Errors per stage.
     pub stages: Vec<Stage>,
     /// RMS of the weighted residual per coordinate after the final fit (1 where sigma was right).
@@ -308,6 +310,8 @@ struct Problem<'a> {
     data: &'a PositionData,
     joints: &'a [String],
     deflection: Vec<Vec6>,
+    /// Rows without a prediction (no loaded equilibrium there), and why.
+    unusable: Vec<(usize, String)>,
     /// Per row, the arm's statics at its configuration (and at zero wrench for a displacement).
     statics: Vec<(ArmStatics, Option<ArmStatics>)>,
     /// Per row, the model's tangent compliance at its loaded equilibrium (positions of a compliant model).
@@ -324,7 +328,7 @@ pub enum CalibrationError {
     #[error("{0} is not a serial arm read from URDF: joint-space measurements need one")]
     NotAnArm(String),
     /// A row's configuration has no finite pose or no loaded equilibrium.
-    #[error("row {name} (line {line}): {why}")]
+    #[error("{name} (line {line}): {why}")]
     Row {
         /// The row's name.
         name: String,
@@ -360,14 +364,20 @@ impl<'a> Problem<'a> {
             }
             Ok((d.displacement, d.held.stiffness.try_inverse()))
         };
-        for r in &data.rows {
-            let (d, c) = match (compliant, r.observed) {
-                (false, _) => (Vec6::zeros(), None),
-                (true, Observed::Position { .. }) => under(r, &r.wrench, &mut state)?,
-                (true, Observed::Displacement(_)) => {
-                    (under(r, &r.wrench, &mut state)?.0 - under(r, &Vec6::zeros(), &mut state)?.0, None)
-                }
+        // A row whose loaded equilibrium the model cannot find (a singular configuration, a load past a
+        // limit) is left out and named: the model has no prediction there.
+        let mut unusable = Vec::new();
+        for (k, r) in data.rows.iter().enumerate() {
+            let found = match (compliant, r.observed) {
+                (false, _) => Ok((Vec6::zeros(), None)),
+                (true, Observed::Position { .. }) => under(r, &r.wrench, &mut state),
+                (true, Observed::Displacement(_)) => under(r, &r.wrench, &mut state)
+                    .and_then(|(d, _)| Ok((d - under(r, &Vec6::zeros(), &mut state)?.0, None))),
             };
+            let (d, c) = found.unwrap_or_else(|e| {
+                unusable.push((k, e.to_string()));
+                (Vec6::zeros(), None)
+            });
             deflection.push(d);
             compliance.push(c);
         }
@@ -395,6 +405,7 @@ impl<'a> Problem<'a> {
             deflection,
             statics,
             compliance,
+            unusable,
             weight,
             absolute: data.absolute(),
             prismatic,
@@ -1159,10 +1170,43 @@ pub fn calibrate(
         candidates.to_vec()
     };
     let sigma_known = data.rows.iter().all(|r| r.sigma.is_some()) || options.sigma.is_some();
-    let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).collect();
-    let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).collect();
+    let usable = |r: &usize| !problem.unusable.iter().any(|(k, _)| k == r);
+    let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
+    let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).collect();
     let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
-    let p = problem.nuisance_count() + options.fitted.len();
+    if fit_rows.is_empty() {
+        let why: Vec<String> = problem.unusable.iter().map(|(_, why)| why.clone()).collect();
+        return Err(CalibrationError::TooFew(format!(
+            "no row to fit: every row is held out (set = check) or has no prediction{}",
+            if why.is_empty() { String::new() } else { format!(" ({})", why.join("; ")) }
+        )));
+    }
+    // A set-up or target seen only in held-out rows has no registration or place to predict them with.
+    for (names, what, of) in [
+        (
+            &data.setups,
+            "set-up",
+            (|o: &Observed| match o {
+                Observed::Position { setup, .. } => Some(*setup),
+                Observed::Displacement(_) => None,
+            }) as fn(&Observed) -> Option<usize>,
+        ),
+        (&data.targets, "target", |o: &Observed| match o {
+            Observed::Position { target, .. } => Some(*target),
+            Observed::Displacement(_) => None,
+        }),
+    ] {
+        for (k, name) in names.iter().enumerate() {
+            if !fit_rows.iter().any(|&r| of(&data.rows[r].observed) == Some(k)) {
+                let named = if name.is_empty() { format!("the {what}") } else { format!("{what} `{name}`") };
+                return Err(CalibrationError::TooFew(format!(
+                    "{named} has no fitted rows (only check rows, or rows without a prediction): its {} cannot be fitted; mark some of its rows `fit`",
+                    if what == "set-up" { "frame" } else { "place on the tool" }
+                )));
+            }
+        }
+    }
+    let p = problem.nuisance_count() + options.fitted.iter().map(ArmEffect::size).sum::<usize>();
     if 3 * fit_rows.len() <= p {
         return Err(CalibrationError::TooFew(format!(
             "{} fitted rows give {} coordinates, too few for the {p} parameters of the registration and the effects fitted",
@@ -1301,6 +1345,7 @@ pub fn calibrate(
             })
             .collect(),
         stages,
+        unusable: problem.unusable.iter().map(|(_, why)| why.clone()).collect(),
         residual_scale: scale,
         sigma_known,
         rows: (kept.len(), check_rows.len()),
@@ -1346,6 +1391,9 @@ pub fn text(c: &Calibration, model: &str) -> String {
     }
     for h in &c.not_identifiable {
         let _ = writeln!(s, "not identifiable: {h}");
+    }
+    for why in &c.unusable {
+        let _ = writeln!(s, "row left out, no prediction: {why}");
     }
     for (row, misfit) in &c.left_out {
         let _ = writeln!(s, "gross row left out: {row}: {misfit:.4} mm from the model");

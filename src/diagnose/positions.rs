@@ -220,8 +220,10 @@ impl PositionData {
                     ))
                 }
             };
-            let name =
-                id_column.map(text).filter(|t| !t.is_empty()).map_or_else(|| format!("line {line}"), String::from);
+            let name = id_column
+                .map(text)
+                .filter(|t| !t.is_empty())
+                .map_or_else(|| format!("row {}", data.rows.len() + 1), String::from);
             let configuration = match configurations.iter().position(|c| *c == joints) {
                 Some(k) => k,
                 None => {
