@@ -343,9 +343,9 @@ fn diagnose_takes_joint_space_data_from_the_command_line() {
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(err.contains(says), "{args:?}: {err}");
     };
-    let model_out = dir.path().join("m.toml");
-    refused(&["--model-out", model_out.to_str().unwrap()], "not available for joint-space data");
-    assert!(!model_out.exists());
+    let picture = dir.path().join("p.svg");
+    refused(&["--plot", picture.to_str().unwrap()], "not available for joint-space data");
+    assert!(!picture.exists());
     refused(&["--fit", "joint-offset:J9"], "`J9` is not a joint of the arm (J1, J2, J3, J4, J5, J6)");
     refused(&["--candidates", "stretch:J1"], "the effects of a serial arm are");
     refused(&["--check-fraction", "1.5"], "--check-fraction must lie in [0, 1)");
@@ -353,4 +353,89 @@ fn diagnose_takes_joint_space_data_from_the_command_line() {
     refused(&[], "missing q_J3, q_J4, q_J5, q_J6");
     std::fs::write(dir.path().join("d.csv"), "q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,x\n0,0,0,0,0,0,1\n").unwrap();
     refused(&[], "no measured columns");
+}
+
+/// `--model-out` writes what the calibration found into the description (`[[joint_correction]]` offsets and
+/// compliances, `[[payload]]`), so that every study sees it: the corrected arm at the controller's angles is
+/// the nominal arm at those angles plus the offsets (forward kinematics, exactly), its joint's compliance is
+/// the nominal plus the added one, it carries the payload, and the same data calibrate to `none` against it,
+/// with the held-out rows at the noise.
+#[test]
+fn the_corrections_written_by_model_out_are_what_every_study_sees() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut h = Hidden::registration_only();
+    h.offsets[1] = 1.5e-3;
+    h.offsets[4] = -2.0e-3;
+    h.compliance[2] = 1.8;
+    h.payload = (20.0, Vec3::new(30.0, 0.0, 100.0));
+    let data = dir.path().join("d.csv");
+    std::fs::write(&data, synthetic(&h, 60, 0.05, &[], true, 77)).unwrap();
+    let corrected = dir.path().join("corrected.toml");
+    let run = |model: &Path, extra: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .arg("diagnose")
+            .arg(model)
+            .args(["--sigma", "0.05", "--data"])
+            .arg(&data)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let first = run(Path::new(FANUC), &["--model-out", corrected.to_str().unwrap()]);
+    assert!(first.contains("verdict: effect"), "{first}");
+    let text = std::fs::read_to_string(&corrected).unwrap();
+    assert!(text.contains("[[joint_correction]]") && text.contains("[[payload]]"), "{text}");
+    let nominal = fanuc(false, dir.path());
+    let m = stiff::model::load_manipulator(&corrected).unwrap();
+    // The offsets found, read back from the file, move the arm as the controller's angles plus them do.
+    let offset = |joint: &str| -> f64 {
+        let at = text.find(&format!("joint = \"{joint}\"\noffset = ")).unwrap_or_else(|| panic!("{joint}: {text}"));
+        let rest = &text[at..];
+        rest.lines().nth(1).unwrap().trim_start_matches("offset = ").parse().unwrap()
+    };
+    let (d2, d5) = (offset("J2"), offset("J5"));
+    assert!((d2 - 1.5e-3).abs() < 1e-4 && (d5 + 2.0e-3).abs() < 1e-4, "{d2} {d5}");
+    let t = [0.3, 0.2, -0.4, 0.5, 1.1, -0.7];
+    let shifted = [t[0], t[1] + d2, t[2], t[3], t[4] + d5, t[5]];
+    let a = m.pose_at_joints(&t, &mut m.new_state()).unwrap();
+    let b = nominal.pose_at_joints(&shifted, &mut nominal.new_state()).unwrap();
+    assert!((a.pos - b.pos).norm() < 1e-9 && (a.rot - b.rot).norm() < 1e-12);
+    let added = m.joint_compliance("J3").unwrap() - nominal.joint_compliance("J3").unwrap();
+    assert!((added / (0.8 / K_JOINT[2]) - 1.0).abs() < 0.05, "{added}");
+    // The mass written is the one reported, within 4 of its standard errors of the hidden 20 kg.
+    let payload = m.payload.unwrap();
+    let line = first.lines().find(|l| l.starts_with("effect: payload: ")).unwrap();
+    let numbers: Vec<f64> = line["effect: payload: ".len()..].split(' ').filter_map(|w| w.parse().ok()).collect();
+    assert!((payload.mass_kg - numbers[0]).abs() < 1e-3 && (numbers[0] - 20.0).abs() < 4.0 * numbers[1], "{line}");
+    let again = run(&corrected, &[]);
+    assert!(again.contains("verdict: none"), "{again}");
+}
+
+/// A `[[joint_correction]]` the description cannot hold is a located error: a joint not on the arm, a
+/// compliance that leaves the joint's negative, a file with no URDF arm to correct.
+#[test]
+fn joint_corrections_that_cannot_apply_are_located_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = std::fs::read_to_string(FANUC).unwrap();
+    let urdf = std::fs::canonicalize("manipulators/fanuc-r2000ic.urdf").unwrap();
+    let source = source.replace("file = \"fanuc-r2000ic.urdf\"", &format!("file = {:?}", urdf.display().to_string()));
+    let error = |extra: &str| {
+        let path = dir.path().join("m.toml");
+        std::fs::write(&path, format!("{source}\n{extra}")).unwrap();
+        stiff::model::load_manipulator(&path).unwrap_err().to_string()
+    };
+    let e = error("[[joint_correction]]\njoint = \"J9\"\noffset = 0.001\n");
+    assert!(e.contains("m.toml, line") && e.contains("joint `J9` in `joint_correction` is not on the chain"), "{e}");
+    let e = error("[[joint_correction]]\njoint = \"J3\"\ncompliance = -1e-6\n");
+    assert!(e.contains("joint `J3`: its compliance with the correction added is") && e.contains("not positive"), "{e}");
+    let parallel = std::fs::read_to_string("manipulators/orthoglide-3puu.toml").unwrap();
+    std::fs::write(
+        dir.path().join("chain.toml"),
+        format!("{parallel}\n[[joint_correction]]\njoint = \"J1\"\noffset = 0.1\n"),
+    )
+    .unwrap();
+    let e = stiff::model::load_manipulator(&dir.path().join("chain.toml")).unwrap_err().to_string();
+    assert!(e.contains("corrects the joints of a serial arm read from URDF"), "{e}");
 }

@@ -168,10 +168,8 @@ fn joint_space_data(input: &[u8]) -> bool {
 fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulator, input: &[u8]) -> Result<()> {
     use crate::diagnose::calibrate::{self, ArmEffect};
     use crate::diagnose::positions::PositionData;
-    if a.model_out.is_some() || a.plot.is_some() || a.linear {
-        bail!(
-            "--model-out, --plot and --linear are not available for joint-space data yet: the report and --json give the effects and errors"
-        );
+    if a.plot.is_some() || a.linear {
+        bail!("--plot and --linear are not available for joint-space data yet: the report and --json give the effects and errors");
     }
     let Some(space) = &m.joint_space else {
         bail!(
@@ -205,12 +203,20 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         calibrate::Options { alpha: a.alpha, sigma: a.sigma, fitted: parse(&a.fit, "--fit")?, max_effects: 6 };
     let candidates = parse(&a.candidates, "--candidates")?;
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
+    let model_sink = a.model_out.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let c = calibrate::calibrate(m, &data, &candidates, &options)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
     write_stdout(&calibrate::text(&c, &name))?;
     if let Some(mut sink) = json_sink {
         serde_json::to_writer_pretty(&mut *sink.writer(), &serde_json::json!({ "model": name, "calibration": c }))?;
+        sink.finish()?;
+    }
+    if let Some(mut sink) = model_sink {
+        let source = read_text(&a.model.model)?;
+        let dir = a.model.model.parent().map(|p| p.to_path_buf()).unwrap_or_default();
+        let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+        sink.writer().write_all(calibrate::corrected_model(&source, &dir, &c).as_bytes())?;
         sink.finish()?;
     }
     let fails = match (a.fail_on, c.verdict) {

@@ -1352,16 +1352,75 @@ pub fn calibrate(
     })
 }
 
+/// The description (`source`, read from `model_dir`) with the calibration's corrections added, so that every
+/// study of the corrected file sees them: offsets, compliances and geometry as `[[joint_correction]]` tables,
+/// a payload as `[[payload]]`; play, which no model holds, as a comment.
+pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibration) -> String {
+    use std::fmt::Write;
+    let mut out = super::report::with_absolute_references(source, model_dir);
+    let _ = writeln!(
+        out,
+        "\n# Added by stiff diagnose (calibration, verdict {}): {}",
+        verdict_word(c.verdict),
+        if c.accepted.is_empty() {
+            "no effect".to_string()
+        } else {
+            c.accepted.iter().map(|a| a.label.clone()).collect::<Vec<_>>().join(", ")
+        }
+    );
+    for a in &c.accepted {
+        let v = &a.values;
+        match a.kind {
+            ArmKind::JointOffset => {
+                let _ = writeln!(out, "\n[[joint_correction]]\njoint = {:?}\noffset = {:?}", a.joint, v[0]);
+            }
+            ArmKind::JointCompliance => {
+                let _ = writeln!(out, "\n[[joint_correction]]\njoint = {:?}\ncompliance = {:?}", a.joint, v[0]);
+            }
+            ArmKind::JointGeometry => {
+                let _ = writeln!(
+                    out,
+                    "\n# The directions the data did not see are kept at the fit's smallest change.\n[[joint_correction]]\njoint = {:?}\ngeometry = [{}]",
+                    a.joint,
+                    v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ")
+                );
+            }
+            ArmKind::Payload => {
+                let _ = writeln!(
+                    out,
+                    "\n[[payload]]\nmass_kg = {:?}\ncentre = [{:?}, {:?}, {:?}]",
+                    v[0],
+                    v[1] / v[0],
+                    v[2] / v[0],
+                    v[3] / v[0]
+                );
+            }
+            ArmKind::Backlash => {
+                let _ = writeln!(
+                    out,
+                    "\n# {}: {} (play follows the sign of the joint's load; no description holds it, not written)",
+                    a.label, a.shown
+                );
+            }
+        }
+    }
+    out
+}
+
+fn verdict_word(v: Verdict) -> &'static str {
+    match v {
+        Verdict::None => "none",
+        Verdict::Effect => "effect",
+        Verdict::Unexplained => "unexplained",
+    }
+}
+
 /// The calibration as text: the verdict, the effects with values, the registration, what could not be
 /// seen, the gross rows, and the errors of fit and check rows per stage.
 pub fn text(c: &Calibration, model: &str) -> String {
     use std::fmt::Write;
     let mut s = String::new();
-    let verdict = match c.verdict {
-        Verdict::None => "none",
-        Verdict::Effect => "effect",
-        Verdict::Unexplained => "unexplained",
-    };
+    let verdict = verdict_word(c.verdict);
     let _ = writeln!(s, "Calibration of {model}: {} rows fitted, {} held out", c.rows.0, c.rows.1);
     let _ = writeln!(s, "verdict: {verdict}");
     if c.accepted.is_empty() {

@@ -290,10 +290,21 @@ pub fn json(d: &Diagnosis, model: &str) -> DiagnosisReport {
 /// The description with the accepted effects appended as `[[effect]]` tables; file references made
 /// absolute so the corrected file works from anywhere.
 pub fn corrected_model(source: &str, model_dir: &std::path::Path, d: &Diagnosis) -> String {
+    let mut out = with_absolute_references(source, model_dir);
+    let _ = writeln!(out, "\n# Added by stiff diagnose: {}", sentence(d));
+    for a in &d.accepted {
+        write_correction(&mut out, &a.effect);
+    }
+    out
+}
+
+/// The description's text with its references to other files (`from`, `parameters_from`, a URDF `file`)
+/// made absolute from `model_dir`, so that the text still reads them wherever it is written.
+pub fn with_absolute_references(source: &str, model_dir: &std::path::Path) -> String {
     let mut out = String::with_capacity(source.len() + 400);
     for line in source.lines() {
         let trimmed = line.trim_start();
-        let reference = ["from", "parameters_from"].iter().find_map(|k| {
+        let reference = ["from", "parameters_from", "file"].iter().find_map(|k| {
             let rest = trimmed.strip_prefix(k)?.trim_start().strip_prefix('=')?.trim();
             let path = rest.strip_prefix('"')?.split('"').next()?;
             Some((k, path))
@@ -308,10 +319,6 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, d: &Diagnosis)
                 out.push('\n');
             }
         }
-    }
-    let _ = writeln!(out, "\n# Added by stiff diagnose: {}", sentence(d));
-    for a in &d.accepted {
-        write_correction(&mut out, &a.effect);
     }
     out
 }

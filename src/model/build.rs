@@ -9,8 +9,8 @@ use toml::Spanned;
 use super::effect::{with_model_effects, Effect, EffectError, Form, Kind};
 use super::error::{read_text, InputError, Locator};
 use super::schema::{
-    AxisSpec, BeamSpec, ElementSpec, JointStiffnessSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec,
-    UrdfSpec,
+    AxisSpec, BeamSpec, ElementSpec, JointCorrectionSpec, JointStiffnessSpec, LegSpec, ModelFile, Num,
+    ParallelogramSpec, TransformSpec, UrdfSpec,
 };
 use super::urdf::UrdfJointKind;
 use crate::beam::{beam_compliance, BeamSection};
@@ -639,6 +639,7 @@ impl Builder<'_> {
         leg_name: &str,
         spec: &Spanned<UrdfSpec>,
         gravity: Vec3,
+        corrections: &[Spanned<JointCorrectionSpec>],
     ) -> Result<(Leg, JointSpace), InputError> {
         let u = spec.get_ref();
         let path = super::urdf::resolve(self.loc.path, u.file.get_ref());
@@ -673,6 +674,34 @@ impl Builder<'_> {
         for (name, v) in &u.seed {
             named_joint(name, v.span(), "seed")?;
         }
+        for c in corrections {
+            let joint = &c.get_ref().joint;
+            named_joint(joint.get_ref(), joint.span(), "joint_correction")?;
+        }
+        // A joint's corrections: its added compliance and the change of the fixed transform leading to it.
+        let added_compliance = |name: &str| -> Result<f64, InputError> {
+            let mut sum = 0.0;
+            for c in corrections.iter().filter(|c| c.get_ref().joint.get_ref() == name) {
+                if let Some(v) = &c.get_ref().compliance {
+                    sum += self.num(v)?;
+                }
+            }
+            Ok(sum)
+        };
+        let geometry = |name: &str| -> Result<Option<Frame>, InputError> {
+            let mut moved: Option<Frame> = None;
+            for c in corrections.iter().filter(|c| c.get_ref().joint.get_ref() == name) {
+                if let Some(g) = &c.get_ref().geometry {
+                    let v: Vec<f64> = g.iter().map(|n| self.num(n)).collect::<Result<_, _>>()?;
+                    let change = Frame::new(
+                        crate::kinematics::frame::rotation_from_vector(&Vec3::new(v[3], v[4], v[5])),
+                        Vec3::new(v[0], v[1], v[2]),
+                    );
+                    moved = Some(moved.map_or(change, |m| m.compose(&change)));
+                }
+            }
+            Ok(moved)
+        };
         // A mimic joint's ultimate master (a mimic of a mimic composed), its gain and offset.
         let master_of = |j: &super::urdf::UrdfJoint| -> Result<Option<(String, f64, f64)>, InputError> {
             let Some((mut master, mut gain, mut offset)) = j.mimic.clone() else { return Ok(None) };
@@ -734,12 +763,22 @@ impl Builder<'_> {
                     }
                     None => {
                         names.push(j.name.clone());
+                        if let Some(change) = geometry(&j.name)? {
+                            parts.elements.push(Element::Fixed(change));
+                        }
                         parts.joint(jk, j.axis, Role::Actuated);
-                        if let Some(k) = u.joints.get(&j.name) {
-                            let k = self.joint_stiffness(k)?;
+                        let given = u.joints.get(&j.name).map(|k| self.joint_stiffness(k)).transpose()?;
+                        let compliance = given.map_or(0.0, |k| 1.0 / k) + added_compliance(&j.name)?;
+                        if compliance < 0.0 || (compliance == 0.0 && given.is_some()) {
+                            return Err(self.loc.at(
+                                spec.span(),
+                                format!("joint `{}`: its compliance with the correction added is {compliance:e}, not positive", j.name),
+                            ));
+                        }
+                        if compliance > 0.0 {
                             let (mut km, mut cm) = (Mat6::zeros(), Mat6::zeros());
-                            km[(0, 0)] = k;
-                            cm[(0, 0)] = 1.0 / k;
+                            km[(0, 0)] = 1.0 / compliance;
+                            cm[(0, 0)] = compliance;
                             parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
                         }
                     }
@@ -789,7 +828,14 @@ impl Builder<'_> {
                     .transpose()
             })
             .collect::<Result<Vec<_>, InputError>>()?;
-        let space = JointSpace { names, controller };
+        let mut offsets = vec![0.0; names.len()];
+        for c in corrections {
+            if let Some(o) = &c.get_ref().offset {
+                let k = names.iter().position(|n| n == c.get_ref().joint.get_ref()).expect("checked on the path");
+                offsets[k] += self.num(o)?;
+            }
+        }
+        let space = JointSpace { names, controller, offsets };
         let mut leg = parts.into_leg(leg_name.to_string(), gravity);
         if !u.seed.is_empty() {
             // The seed is given in the controller's angles, like the points: mapped to the model's coordinates.
@@ -824,9 +870,17 @@ impl Builder<'_> {
             return Err(self.loc.at(file.legs.span(), "a manipulator needs at least one [[leg]]"));
         }
         let mut joint_space = None;
+        if let Some(first) = file.joint_corrections.first() {
+            if !file.legs.get_ref().iter().any(|l| l.get_ref().urdf.is_some()) {
+                return Err(self.loc.at(
+                    first.span(),
+                    "`[[joint_correction]]` corrects the joints of a serial arm read from URDF: this file has no `[leg.urdf]`",
+                ));
+            }
+        }
         for leg_spec in file.legs.get_ref() {
             let spec = leg_spec.get_ref();
-            let (body, space) = self.leg_body(leg_spec, gravity, depth)?;
+            let (body, space) = self.leg_body(leg_spec, gravity, depth, &file.joint_corrections)?;
             // A serial arm (one leg, read from URDF, not copied) takes poses as its joint angles too.
             if file.legs.get_ref().len() == 1 && spec.copies.is_empty() {
                 joint_space = space;
@@ -909,6 +963,7 @@ impl Builder<'_> {
         leg_spec: &Spanned<LegSpec>,
         gravity: Vec3,
         depth: usize,
+        corrections: &[Spanned<JointCorrectionSpec>],
     ) -> Result<(Leg, Option<JointSpace>), InputError> {
         let spec = leg_spec.get_ref();
         let given = [spec.chain.is_some(), spec.msa.is_some(), spec.from.is_some(), spec.urdf.is_some()];
@@ -919,7 +974,7 @@ impl Builder<'_> {
             ));
         }
         if let Some(urdf) = &spec.urdf {
-            let (leg, space) = self.urdf_leg(&spec.name, urdf, gravity)?;
+            let (leg, space) = self.urdf_leg(&spec.name, urdf, gravity, corrections)?;
             return Ok((leg, Some(space)));
         }
         if !spec.parameters.is_empty() && spec.from.is_none() {

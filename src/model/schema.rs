@@ -46,6 +46,29 @@ pub struct ModelFile {
     /// --model-out` writes them.
     #[serde(default, rename = "effect")]
     pub effects: Vec<Spanned<EffectSpec>>,
+    /// Corrections of a serial arm's joints (`[[joint_correction]]`), as a calibration finds them and
+    /// `stiff diagnose --model-out` writes them for joint-space data.
+    #[serde(default, rename = "joint_correction")]
+    pub joint_corrections: Vec<Spanned<JointCorrectionSpec>>,
+}
+
+/// What a calibration found at one joint of a serial arm read from URDF.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointCorrectionSpec {
+    /// The joint's name (a joint of the `[leg.urdf]` chain with a coordinate of its own).
+    pub joint: Spanned<String>,
+    /// Added to the controller's angle before its map to the model's coordinates (an encoder's zero), rad
+    /// (mm for a prismatic joint).
+    #[serde(default)]
+    pub offset: Option<Num>,
+    /// Added to the joint's compliance (a spring where `joints` gives none), rad/(N mm) or mm/N.
+    #[serde(default)]
+    pub compliance: Option<Num>,
+    /// The fixed transform leading to the joint, moved by a translation (mm) and then turned by a rotation
+    /// vector (rad), in the joint's frame: `[dx, dy, dz, rx, ry, rz]`.
+    #[serde(default)]
+    pub geometry: Option<[Num; 6]>,
 }
 
 /// A mass carried by the platform.

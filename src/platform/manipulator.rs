@@ -31,6 +31,9 @@ pub struct JointSpace {
     /// controller gives it), or None for the angle itself (a coupling such as a parallelogram's
     /// q3 = -(theta2 + theta3)).
     pub controller: Vec<Option<crate::expr::Expr>>,
+    /// Per joint, added to the controller's angle before the map (an encoder's zero offset found by
+    /// calibration, `[[joint_correction]]`).
+    pub offsets: Vec<f64>,
 }
 
 impl JointSpace {
@@ -48,10 +51,11 @@ impl JointSpace {
 
     /// The model's coordinates from the controller's angles (in the order of `names`).
     pub fn model_coordinates(&self, controller: &[f64]) -> Vec<f64> {
+        let corrected: Vec<f64> = controller.iter().zip(&self.offsets).map(|(a, o)| a + o).collect();
         self.controller
             .iter()
             .enumerate()
-            .map(|(i, f)| f.as_ref().map_or(controller[i], |f| f.eval(controller)))
+            .map(|(i, f)| f.as_ref().map_or(corrected[i], |f| f.eval(&corrected)))
             .collect()
     }
 }
