@@ -19,6 +19,10 @@ pub(crate) struct SynthArgs {
     #[command(flatten)]
     pub(crate) model: ModelArgs,
     /// A hidden effect NAME[:TARGET]=V1,V2,... (repeatable), e.g. actuator-compliance:2=1.5, tool-offset=0.05,0,0.
+    /// For a serial arm's joint-space points (q_<joint> columns): joint-offset:J=RAD, joint-compliance:J=ADDED,
+    /// joint-geometry:J=DX,DY,DZ,RX,RY,RZ (mm, rad), payload=KG,CX,CY,CZ (tool frame, mm), and the set-up:
+    /// registration=RX,RY,RZ,TX,TY,TZ (the instrument sees a base point p at R p + t; rad, mm),
+    /// target=X,Y,Z (on the tool, mm), gross=FRACTION,MM.
     #[arg(long = "effect", value_name = "NAME[:TARGET]=VALUES")]
     pub(crate) effects: Vec<String>,
     #[command(flatten)]
@@ -35,6 +39,9 @@ pub(crate) struct SynthArgs {
     /// Measurements per pose and wrench.
     #[arg(long, default_value_t = 1)]
     pub(crate) repeats: usize,
+    /// Joint-space points: every N-th configuration is held out (`set` = check; 0: none).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub(crate) check_every: usize,
     /// Measure the linear response C w with every effect as a first-order term, instead of the loaded
     /// equilibrium of the model with the hidden robot changes (payload, actuator offset, spring scalings)
     /// built in (the default: what a real robot shows, deflecting non-linearly under ordinary loads).
@@ -52,6 +59,12 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     use crate::diagnose::synth;
     use crate::model::effect::Effect;
     let model = a.model.load_model()?;
+    if model.manipulator.joint_space.is_some() {
+        let (points, order) = a.points.load_joints(&model.manipulator)?;
+        if !points.joint_names.is_empty() {
+            return run_joint_space(&a, &model.manipulator, points, &order);
+        }
+    }
     let effects = a
         .effects
         .iter()
@@ -90,6 +103,132 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     bar.finish_and_clear();
     if summary.skipped > 0 {
         eprintln!("{} poses left out (unreachable, singular, or without a loaded equilibrium)", summary.skipped);
+    }
+    Ok(())
+}
+
+/// Joint-space measurements of a serial arm as a lab records them: the robot with the hidden changes built
+/// into its description, its target seen by an instrument, with noise, gross rows and held-out rows.
+fn run_joint_space(
+    a: &SynthArgs,
+    nominal: &crate::platform::manipulator::Manipulator,
+    mut points: crate::model::grid::PointSet,
+    order: &[usize],
+) -> Result<()> {
+    use crate::diagnose::calibrate::{correction_table, synthesize_positions, ArmEffect, ArmKind, PositionSynth};
+    use crate::kinematics::frame::Vec3;
+    use crate::output::table::{CellKind, Column};
+    if a.wrenches.is_some() || a.linear || a.repeats != 1 || a.shard.shard.is_some() {
+        bail!("--wrenches, --linear, --repeats and --shard are not for joint-space points: the arm is measured under its own weight");
+    }
+    if !(a.noise >= 0.0 && a.noise.is_finite()) {
+        bail!("--noise must be >= 0 (mm)");
+    }
+    let names = &nominal.joint_space.as_ref().expect("a serial arm").names;
+    let mut hidden = PositionSynth {
+        rotation: Vec3::zeros(),
+        translation: Vec3::zeros(),
+        target: Vec3::zeros(),
+        noise: a.noise,
+        gross: (0.0, 0.0),
+        check_every: a.check_every,
+        seed: a.seed,
+    };
+    let mut tables = String::new();
+    for e in &a.effects {
+        let (name, values) = e.split_once('=').ok_or_else(|| anyhow::anyhow!("--effect `{e}`: give NAME=VALUES"))?;
+        let values: Vec<f64> = values
+            .split(',')
+            .map(|v| v.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<_>>()
+            .ok_or_else(|| anyhow::anyhow!("--effect `{e}`: the values must be finite numbers"))?;
+        let count = |n: usize| {
+            if values.len() == n {
+                Ok(())
+            } else {
+                Err(anyhow::anyhow!("--effect `{e}`: {name} takes {n} values"))
+            }
+        };
+        match name {
+            "registration" => {
+                count(6)?;
+                hidden.rotation = Vec3::new(values[0], values[1], values[2]);
+                hidden.translation = Vec3::new(values[3], values[4], values[5]);
+            }
+            "target" => {
+                count(3)?;
+                hidden.target = Vec3::new(values[0], values[1], values[2]);
+            }
+            "gross" => {
+                count(2)?;
+                if !(0.0..=1.0).contains(&values[0]) {
+                    bail!("--effect `{e}`: the fraction of gross rows lies in [0, 1]");
+                }
+                hidden.gross = (values[0], values[1]);
+            }
+            _ => {
+                let effect = ArmEffect::parse(name, names).map_err(|why| anyhow::anyhow!("--effect `{e}`: {why}"))?;
+                let joint = names[effect.joint].as_str();
+                match effect.kind {
+                    ArmKind::Backlash => {
+                        bail!("--effect `{e}`: play cannot be built into a description; synth makes the others")
+                    }
+                    ArmKind::Payload => {
+                        count(4)?;
+                        let moment: Vec<f64> = values[1..].iter().map(|c| c * values[0]).collect();
+                        tables += &correction_table(ArmKind::Payload, joint, &[&values[..1], &moment[..]].concat());
+                    }
+                    kind => {
+                        count(effect.size())?;
+                        tables += &correction_table(kind, joint, &values);
+                    }
+                }
+            }
+        }
+    }
+    let source = crate::model::error::read_text(&a.model.model)?;
+    let overrides = a.model.set.iter().cloned().collect();
+    let real = crate::model::parse_with(&a.model.model, &format!("{source}\n{tables}"), &overrides, 0)?.manipulator;
+    let mut read = Vec::new();
+    while points.next_block(4096, &mut read)? > 0 {}
+    let configurations: Vec<(String, Vec<f64>)> = read
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
+            (name, order.iter().map(|&i| p.joints[i]).collect())
+        })
+        .collect();
+    let (rows, skipped) = synthesize_positions(&real, &configurations, &hidden).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut columns = vec![Column { name: "pose_id".into(), kind: CellKind::Text }];
+    columns.extend(
+        names.iter().map(|n| Column { name: format!("{}{n}", crate::columns::JOINT_PREFIX), kind: CellKind::Number }),
+    );
+    for c in ["mx_mm", "my_mm", "mz_mm", crate::columns::SIGMA] {
+        columns.push(Column { name: c.into(), kind: CellKind::Number });
+    }
+    columns.push(Column { name: crate::diagnose::positions::SET.into(), kind: CellKind::Text });
+    columns.push(Column { name: "hidden_gross".into(), kind: CellKind::Count });
+    let mut sink = a.output.open(&columns)?;
+    let mut text = crate::output::table::header_line(&columns);
+    for (k, (name, joints, at, gross)) in rows.iter().enumerate() {
+        let held = hidden.check_every > 0 && k % hidden.check_every == hidden.check_every - 1;
+        let q: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
+        text += &format!(
+            "{name},{},{:?},{:?},{:?},{:?},{},{}\n",
+            q.join(","),
+            at.x,
+            at.y,
+            at.z,
+            a.noise.max(crate::diagnose::data::MIN_SIGMA_MM),
+            if held { "check" } else { "fit" },
+            u8::from(*gross)
+        );
+    }
+    sink.writer().write_all(text.as_bytes())?;
+    sink.finish()?;
+    if skipped > 0 {
+        eprintln!("{skipped} configurations left out (no finite pose or no loaded equilibrium)");
     }
     Ok(())
 }

@@ -974,16 +974,20 @@ fn stats(residuals: &[Option<Vec3>], rows: &[usize]) -> ErrorStats {
 
 /// The gross rows among `rows`: weighted misfit beyond `GROSS_FACTOR` robust standard deviations.
 fn gross_rows(problem: &Problem, residuals: &[Option<Vec3>], rows: &[usize]) -> Vec<usize> {
-    let mut misfit: Vec<(usize, f64)> =
-        rows.iter().map(|&r| (r, residuals[r].map_or(f64::INFINITY, |v| v.norm() * problem.weight[r]))).collect();
-    let mut sorted: Vec<f64> = misfit.iter().map(|m| m.1).filter(|m| m.is_finite()).collect();
+    gross_rows_against(problem, residuals, rows, rows)
+}
+
+/// The gross rows among `tested`, against the robust scale of the rows `scaled` (a held-out row is judged
+/// by the fitted rows' scale).
+fn gross_rows_against(problem: &Problem, residuals: &[Option<Vec3>], scaled: &[usize], tested: &[usize]) -> Vec<usize> {
+    let misfit = |r: usize| residuals[r].map_or(f64::INFINITY, |v| v.norm() * problem.weight[r]);
+    let mut sorted: Vec<f64> = scaled.iter().map(|&r| misfit(r)).filter(|m| m.is_finite()).collect();
     if sorted.len() < 5 {
         return Vec::new();
     }
     sorted.sort_by(f64::total_cmp);
     let scale = sorted[sorted.len() / 2] / CHI3_MEDIAN;
-    misfit.retain(|m| m.1 > GROSS_FACTOR * scale);
-    misfit.into_iter().map(|m| m.0).collect()
+    tested.iter().copied().filter(|&r| misfit(r) > GROSS_FACTOR * scale).collect()
 }
 
 /// The test of adding an effect to a fit of residual sum `rss0` (weighted) and rank `rank0`, giving `with`: its F
@@ -1242,6 +1246,11 @@ pub fn calibrate(
     let (kept, Selection { model, fit, steps, mut hidden }) = outcome.expect("at least one selection");
     hidden.extend(one_sided);
     let residuals = problem.residuals(&model, &fit.params);
+    // Held-out rows are judged by the same rule against the fitted rows' scale: a gross one is named and left
+    // out of the held-out errors too.
+    let gross_checks = gross_rows_against(&problem, &residuals, &kept, &check_rows);
+    let check_rows: Vec<usize> = check_rows.into_iter().filter(|r| !gross_checks.contains(r)).collect();
+    gross.extend(&gross_checks);
     let scale = (fit.rss / fit.dof() as f64).sqrt();
     let variance = scale * scale;
     let nuisance_count = problem.nuisance_count();
@@ -1339,7 +1348,12 @@ pub fn calibrate(
             .iter()
             .map(|&r| {
                 (
-                    format!("{} (line {})", data.rows[r].name, data.rows[r].line),
+                    format!(
+                        "{} (line {}{})",
+                        data.rows[r].name,
+                        data.rows[r].line,
+                        if data.rows[r].check { ", held out" } else { "" }
+                    ),
                     residuals[r].map_or(f64::NAN, |v| v.norm()),
                 )
             })
@@ -1369,32 +1383,7 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibratio
         }
     );
     for a in &c.accepted {
-        let v = &a.values;
         match a.kind {
-            ArmKind::JointOffset => {
-                let _ = writeln!(out, "\n[[joint_correction]]\njoint = {:?}\noffset = {:?}", a.joint, v[0]);
-            }
-            ArmKind::JointCompliance => {
-                let _ = writeln!(out, "\n[[joint_correction]]\njoint = {:?}\ncompliance = {:?}", a.joint, v[0]);
-            }
-            ArmKind::JointGeometry => {
-                let _ = writeln!(
-                    out,
-                    "\n# The directions the data did not see are kept at the fit's smallest change.\n[[joint_correction]]\njoint = {:?}\ngeometry = [{}]",
-                    a.joint,
-                    v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ")
-                );
-            }
-            ArmKind::Payload => {
-                let _ = writeln!(
-                    out,
-                    "\n[[payload]]\nmass_kg = {:?}\ncentre = [{:?}, {:?}, {:?}]",
-                    v[0],
-                    v[1] / v[0],
-                    v[2] / v[0],
-                    v[3] / v[0]
-                );
-            }
             ArmKind::Backlash => {
                 let _ = writeln!(
                     out,
@@ -1402,9 +1391,29 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibratio
                     a.label, a.shown
                 );
             }
+            kind => out.push_str(&correction_table(kind, &a.joint, &a.values)),
         }
     }
     out
+}
+
+/// One effect as the description's table: `[[joint_correction]]` for an offset, compliance or geometry,
+/// `[[payload]]` for a payload (`values` its mass and first moment in the tool frame); play has none.
+pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
+    let list = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
+    match kind {
+        ArmKind::JointOffset => format!("\n[[joint_correction]]\njoint = {joint:?}\noffset = {:?}\n", values[0]),
+        ArmKind::JointCompliance => format!("\n[[joint_correction]]\njoint = {joint:?}\ncompliance = {:?}\n", values[0]),
+        ArmKind::JointGeometry => format!(
+            "\n# The directions the data did not see are kept at the fit's smallest change.\n[[joint_correction]]\njoint = {joint:?}\ngeometry = [{}]\n",
+            list(values)
+        ),
+        ArmKind::Payload => {
+            let centre: Vec<f64> = values[1..].iter().map(|s| s / values[0]).collect();
+            format!("\n[[payload]]\nmass_kg = {:?}\ncentre = [{}]\n", values[0], list(&centre))
+        }
+        ArmKind::Backlash => String::new(),
+    }
 }
 
 fn verdict_word(v: Verdict) -> &'static str {
@@ -1489,4 +1498,82 @@ pub fn text(c: &Calibration, model: &str) -> String {
         }
     }
     s
+}
+
+/// What `stiff synth` hides in joint-space data beyond the robot's changes (which the model it is given
+/// carries, as `[[joint_correction]]` and `[[payload]]`): the instrument's frame, the target, noise, gross
+/// rows and held-out rows.
+#[derive(Clone, Debug)]
+pub struct PositionSynth {
+    /// The instrument's frame: a base point p is seen at R p + t, R from this rotation vector (rad).
+    pub rotation: Vec3,
+    /// Its translation t, mm.
+    pub translation: Vec3,
+    /// The target in the tool frame, mm.
+    pub target: Vec3,
+    /// Standard deviation of the noise per coordinate, mm.
+    pub noise: f64,
+    /// The fraction of rows made gross, and by how far (mm, along a random direction).
+    pub gross: (f64, f64),
+    /// Every this many configurations is a `check` row (0: none).
+    pub check_every: usize,
+    /// The seed of the noise, gross rows and directions.
+    pub seed: u64,
+}
+
+/// One synthetic row: the configuration's name and controller angles, the measured target (mm) and whether
+/// it was made gross.
+type SynthRow = (String, Vec<f64>, Vec3, bool);
+
+/// Joint-space measurements of `m` (the robot as it really is: its offsets, compliances, geometry and payload
+/// built into the description) at the controller's angles of each configuration: the target where the arm's
+/// loaded equilibrium under its own weight puts it, seen in the instrument's frame, with noise and gross
+/// rows. A configuration without a loaded equilibrium is left out and counted.
+pub fn synthesize_positions(
+    m: &Manipulator,
+    configurations: &[(String, Vec<f64>)],
+    s: &PositionSynth,
+) -> Result<(Vec<SynthRow>, usize), CalibrationError> {
+    use super::synth::normal as standard_normal;
+    use rand::{Rng, SeedableRng};
+    if m.joint_space.is_none() {
+        return Err(CalibrationError::NotAnArm(m.name.clone()));
+    }
+    let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
+    let rotation = rotation_from_vector(&s.rotation);
+    let mut state = m.new_state();
+    let (mut rows, mut skipped) = (Vec::new(), 0);
+    for (k, (name, joints)) in configurations.iter().enumerate() {
+        let mut r = rand::rngs::StdRng::seed_from_u64(crate::batch::point_seed(s.seed, k as u64));
+        let Some(frame) = m.pose_at_joints(joints, &mut state) else {
+            skipped += 1;
+            continue;
+        };
+        let loaded = if compliant {
+            if m.place(&frame, &mut state).is_err() {
+                skipped += 1;
+                continue;
+            }
+            match m.deflect(&frame, &Vec6::zeros(), None, &mut state) {
+                Ok(d) if d.stable => d.pose,
+                _ => {
+                    skipped += 1;
+                    continue;
+                }
+            }
+        } else {
+            frame
+        };
+        let mut at = rotation * (loaded.pos + loaded.rot * s.target) + s.translation;
+        for a in 0..3 {
+            at[a] += s.noise * standard_normal(&mut r);
+        }
+        let gross = r.random_bool(s.gross.0.clamp(0.0, 1.0));
+        if gross {
+            let d = Vec3::new(standard_normal(&mut r), standard_normal(&mut r), standard_normal(&mut r));
+            at += d.normalize() * s.gross.1;
+        }
+        rows.push((name.clone(), joints.clone(), at, gross));
+    }
+    Ok((rows, skipped))
 }
