@@ -14,6 +14,8 @@ use crate::output::sink::Sink;
 pub(crate) const EXAMPLES: &str = "Examples:
   stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --effect actuator-compliance:2=1.5 --wrenches \"200,0,0,0,0,0;0,200,0,0,0,0;0,0,-200,0,0,0\" --noise 0.002 --seed 1 -o data.csv
   stiff diagnose manipulators/orthoglide-3puu.toml --data data.csv --json verdict.json --model-out corrected.toml --plot verdict.svg
+  stiff synth manipulators/fanuc-r2000ic.toml --points manipulators/grids/fanuc-r2000ic-cable-tests.csv --effect registration=0.1,0,0.2,1500,0,300 --effect target=20,0,30 --effect joint-offset:J2=0.001 --noise 0.05 --seed 1 --check-every 3 -o positions.csv
+  stiff diagnose manipulators/fanuc-r2000ic.toml --data positions.csv --model-out calibrated.toml
 
 Exit status: 0 success whatever the verdict (unless --fail-on), 1 the run failed or --fail-on matched the\nverdict, 2 usage error.";
 

@@ -9,6 +9,7 @@ use super::shard::{write_shard_preamble, ShardArgs};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
+  stiff synth manipulators/fanuc-r2000ic.toml --points manipulators/grids/fanuc-r2000ic-cable-tests.csv --effect registration=0.1,0,0.2,1500,0,300 --effect target=20,0,30 --effect joint-offset:J2=0.001 --noise 0.05 --seed 1 --check-every 3 -o positions.csv
   stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --effect tool-offset=0.05,0,0 --wrenches \"200,0,0,0,0,0;0,200,0,0,0,0\" --noise 0.002 --seed 7 -o data.csv
   stiff synth manipulators/orthoglide-3prpar.toml --grid manipulators/grids/orthoglide-small.toml --effect link-compliance:parallelogram=2 --wrenches \"0,0,-300,0,0,0\" --noise 0.001 --seed 1 --repeats 3 -o repeats.csv
 
@@ -191,19 +192,27 @@ fn run_joint_space(
     let real = crate::model::parse_with(&a.model.model, &format!("{source}\n{tables}"), &overrides, 0)?.manipulator;
     let mut read = Vec::new();
     while points.next_block(4096, &mut read)? > 0 {}
-    let configurations: Vec<(String, Vec<f64>)> = read
+    let configurations: Vec<crate::diagnose::calibrate::Configuration> = read
         .iter()
         .enumerate()
         .map(|(k, p)| {
             let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
-            (name, order.iter().map(|&i| p.joints[i]).collect())
+            (
+                name,
+                order.iter().map(|&i| p.joints[i]).collect(),
+                p.wrench.unwrap_or_else(crate::kinematics::frame::Vec6::zeros),
+            )
         })
         .collect();
+    let loaded = read.iter().any(|p| p.wrench.is_some_and(|w| w != crate::kinematics::frame::Vec6::zeros()));
     let (rows, skipped) = synthesize_positions(&real, &configurations, &hidden).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut columns = vec![Column { name: "pose_id".into(), kind: CellKind::Text }];
     columns.extend(
         names.iter().map(|n| Column { name: format!("{}{n}", crate::columns::JOINT_PREFIX), kind: CellKind::Number }),
     );
+    if loaded {
+        columns.extend(crate::columns::WRENCH.iter().map(|c| Column { name: c.to_string(), kind: CellKind::Number }));
+    }
     for c in ["mx_mm", "my_mm", "mz_mm", crate::columns::SIGMA] {
         columns.push(Column { name: c.into(), kind: CellKind::Number });
     }
@@ -211,9 +220,12 @@ fn run_joint_space(
     columns.push(Column { name: "hidden_gross".into(), kind: CellKind::Count });
     let mut sink = a.output.open(&columns)?;
     let mut text = crate::output::table::header_line(&columns);
-    for (k, (name, joints, at, gross)) in rows.iter().enumerate() {
+    for (k, ((name, joints, wrench), at, gross)) in rows.iter().enumerate() {
         let held = hidden.check_every > 0 && k % hidden.check_every == hidden.check_every - 1;
-        let q: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
+        let mut q: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
+        if loaded {
+            q.extend(wrench.iter().map(|v| format!("{v:?}")));
+        }
         text += &format!(
             "{name},{},{:?},{:?},{:?},{:?},{},{}\n",
             q.join(","),

@@ -1521,17 +1521,19 @@ pub struct PositionSynth {
     pub seed: u64,
 }
 
-/// One synthetic row: the configuration's name and controller angles, the measured target (mm) and whether
-/// it was made gross.
-type SynthRow = (String, Vec<f64>, Vec3, bool);
+/// One configuration to measure: its name, the controller's angles and the wrench at the reference point.
+pub type Configuration = (String, Vec<f64>, Vec6);
+
+/// One synthetic row: the configuration, the measured target (mm) and whether it was made gross.
+type SynthRow = (Configuration, Vec3, bool);
 
 /// Joint-space measurements of `m` (the robot as it really is: its offsets, compliances, geometry and payload
 /// built into the description) at the controller's angles of each configuration: the target where the arm's
-/// loaded equilibrium under its own weight puts it, seen in the instrument's frame, with noise and gross
-/// rows. A configuration without a loaded equilibrium is left out and counted.
+/// loaded equilibrium under its own weight and the configuration's wrench puts it, seen in the instrument's
+/// frame, with noise and gross rows. A configuration without a loaded equilibrium is left out and counted.
 pub fn synthesize_positions(
     m: &Manipulator,
-    configurations: &[(String, Vec<f64>)],
+    configurations: &[Configuration],
     s: &PositionSynth,
 ) -> Result<(Vec<SynthRow>, usize), CalibrationError> {
     use super::synth::normal as standard_normal;
@@ -1543,7 +1545,8 @@ pub fn synthesize_positions(
     let rotation = rotation_from_vector(&s.rotation);
     let mut state = m.new_state();
     let (mut rows, mut skipped) = (Vec::new(), 0);
-    for (k, (name, joints)) in configurations.iter().enumerate() {
+    for (k, configuration) in configurations.iter().enumerate() {
+        let (_, joints, wrench) = configuration;
         let mut r = rand::rngs::StdRng::seed_from_u64(crate::batch::point_seed(s.seed, k as u64));
         let Some(frame) = m.pose_at_joints(joints, &mut state) else {
             skipped += 1;
@@ -1554,7 +1557,7 @@ pub fn synthesize_positions(
                 skipped += 1;
                 continue;
             }
-            match m.deflect(&frame, &Vec6::zeros(), None, &mut state) {
+            match m.deflect(&frame, wrench, None, &mut state) {
                 Ok(d) if d.stable => d.pose,
                 _ => {
                     skipped += 1;
@@ -1573,7 +1576,7 @@ pub fn synthesize_positions(
             let d = Vec3::new(standard_normal(&mut r), standard_normal(&mut r), standard_normal(&mut r));
             at += d.normalize() * s.gross.1;
         }
-        rows.push((name.clone(), joints.clone(), at, gross));
+        rows.push((configuration.clone(), at, gross));
     }
     Ok((rows, skipped))
 }
