@@ -1081,40 +1081,42 @@ fn select(
             None => break,
         }
     }
-    // Backward elimination: an effect selected early that later ones make unnecessary (a proxy for the
-    // effect found after it) is dropped, the least needed first, while its removal's test does not reject.
-    loop {
-        let selected = options.fitted.len()..model.len();
-        let threshold = options.alpha / selected.len().max(1) as f64;
-        let mut weakest: Option<(f64, usize, Fit)> = None;
-        for k in selected {
-            let mut without = model.clone();
-            without.remove(k);
-            let mut start = fit.params.clone();
-            start.effects.remove(k);
-            let Some(f) = problem.fit(rows, &without, &start) else { continue };
-            let (_, p) = test(f.rss, f.rank, &fit, sigma_known);
-            if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
-                weakest = Some((p, k, f));
-            }
-        }
-        match weakest {
-            Some((_, k, f)) => {
-                model.remove(k);
-                fit = f;
-            }
-            None => break,
-        }
-    }
-    // Swaps: an effect chosen early, while the model still missed others, may do the work of a simpler one
-    // (a joint's geometry standing in for the offset of the joint before it): an accepted effect is replaced
-    // by the candidate with fewer parameters that lowers the BIC most (n ln(rss/n) + rank ln n), while one
-    // does. (Among effects of one parameter the forward steps' F tests already chose.)
+    // Backward elimination and swaps, until the swaps change nothing (a swap may leave an effect that the
+    // others make unnecessary, which the next elimination drops).
+    let bic = |f: &Fit| {
+        let n = f.observations as f64;
+        n * (f.rss / n).max(1e-300).ln() + f.rank as f64 * n.ln()
+    };
     for _ in 0..3 {
-        let bic = |f: &Fit| {
-            let n = f.observations as f64;
-            n * (f.rss / n).max(1e-300).ln() + f.rank as f64 * n.ln()
-        };
+        // Backward elimination: an effect selected early that later ones make unnecessary (a proxy for the
+        // effect found after it) is dropped, the least needed first, while its removal's test does not reject.
+        loop {
+            let selected = options.fitted.len()..model.len();
+            let threshold = options.alpha / selected.len().max(1) as f64;
+            let mut weakest: Option<(f64, usize, Fit)> = None;
+            for k in selected {
+                let mut without = model.clone();
+                without.remove(k);
+                let mut start = fit.params.clone();
+                start.effects.remove(k);
+                let Some(f) = problem.fit(rows, &without, &start) else { continue };
+                let (_, p) = test(f.rss, f.rank, &fit, sigma_known);
+                if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
+                    weakest = Some((p, k, f));
+                }
+            }
+            match weakest {
+                Some((_, k, f)) => {
+                    model.remove(k);
+                    fit = f;
+                }
+                None => break,
+            }
+        }
+        // Swaps: an effect chosen early, while the model still missed others, may do the work of a simpler
+        // one (a joint's geometry standing in for the offset of the joint before it): the accepted effect
+        // whose replacement by a candidate with fewer parameters lowers the BIC (n ln(rss/n) + rank ln n)
+        // most is replaced. (Among effects of one parameter the forward steps' tests already chose.)
         let mut best: Option<(f64, usize, ArmEffect, Fit)> = None;
         for k in options.fitted.len()..model.len() {
             for c in candidates.iter().filter(|c| !model.contains(c) && c.size() < model[k].size()) {
