@@ -135,12 +135,8 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         sink.writer().write_all(&picture_bytes(&svg, path)?)?;
         sink.finish()?;
     }
-    if let Some(mut sink) = model_sink {
-        let source = read_text(&a.model.model)?;
-        let dir = a.model.model.parent().map(|p| p.to_path_buf()).unwrap_or_default();
-        let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
-        sink.writer().write_all(report::corrected_model(&source, &dir, &d).as_bytes())?;
-        sink.finish()?;
+    if let Some(sink) = model_sink {
+        write_corrected(sink, &a.model.model, |source, dir| report::corrected_model(source, dir, &d))?;
     }
     let fails = match (a.fail_on, d.verdict) {
         (None, _) | (_, select::Verdict::None) => false,
@@ -188,13 +184,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         data.hold_out(f, a.seed);
     }
     if let Some(s) = a.sigma {
-        if !(crate::diagnose::data::MIN_SIGMA_MM..=crate::diagnose::data::MAX_MAGNITUDE).contains(&s) {
-            bail!(
-                "--sigma must lie in [{:e}, {:e}] mm, got {s}",
-                crate::diagnose::data::MIN_SIGMA_MM,
-                crate::diagnose::data::MAX_MAGNITUDE
-            );
-        }
+        crate::diagnose::data::checked_sigma(s).map_err(|e| anyhow::anyhow!("--sigma: {e}"))?;
     }
     let parse = |list: &[String], flag: &str| -> Result<Vec<ArmEffect>> {
         list.iter()
@@ -214,12 +204,8 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         serde_json::to_writer_pretty(&mut *sink.writer(), &serde_json::json!({ "model": name, "calibration": c }))?;
         sink.finish()?;
     }
-    if let Some(mut sink) = model_sink {
-        let source = read_text(&a.model.model)?;
-        let dir = a.model.model.parent().map(|p| p.to_path_buf()).unwrap_or_default();
-        let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
-        sink.writer().write_all(calibrate::corrected_model(&source, &dir, &c).as_bytes())?;
-        sink.finish()?;
+    if let Some(sink) = model_sink {
+        write_corrected(sink, &a.model.model, |source, dir| calibrate::corrected_model(source, dir, &c))?;
     }
     let fails = match (a.fail_on, c.verdict) {
         (None, _) | (_, calibrate::Verdict::None) => false,
@@ -229,5 +215,20 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     if fails {
         bail!("verdict `{:?}` (--fail-on)", c.verdict);
     }
+    Ok(())
+}
+
+/// Writes the description `model` corrected by `correct` (its text and its folder, from which the corrected
+/// text's references to other files are made absolute) to `sink`.
+fn write_corrected(
+    mut sink: Sink,
+    model: &std::path::Path,
+    correct: impl FnOnce(&str, &std::path::Path) -> String,
+) -> Result<()> {
+    let source = read_text(model)?;
+    let dir = model.parent().map(|p| p.to_path_buf()).unwrap_or_default();
+    let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+    sink.writer().write_all(correct(&source, &dir).as_bytes())?;
+    sink.finish()?;
     Ok(())
 }

@@ -21,6 +21,15 @@ pub const MAX_MAGNITUDE: f64 = 1e100;
 /// makes weights whose squares overflow).
 pub const MIN_SIGMA_MM: f64 = 1e-9;
 
+/// A row's `sigma_mm`, or why it is not one.
+pub fn checked_sigma(s: f64) -> Result<f64, String> {
+    if (MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&s) {
+        Ok(s)
+    } else {
+        Err(format!("sigma_mm must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mm, got {s}"))
+    }
+}
+
 /// One measured row: a commanded pose, the wrench applied there and the measured displacement.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Measurement {
@@ -116,15 +125,7 @@ impl Dataset {
             let v: Vec<f64> = columns[1..].iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
             let sigma = match sigma_column {
                 Some(c) if !record.get(c).unwrap_or("").is_empty() => {
-                    let s = number(c)?;
-                    if !(MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&s) {
-                        return Err(at(
-                            line,
-                            c + 1,
-                            format!("sigma_mm must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mm, got {s}"),
-                        ));
-                    }
-                    Some(s)
+                    Some(checked_sigma(number(c)?).map_err(|e| at(line, c + 1, e))?)
                 }
                 _ => None,
             };

@@ -13,7 +13,7 @@ use crate::columns::{DISPLACEMENT, JOINT_PREFIX, POSE_ID, SIGMA, WRENCH};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::error::{not_finite, open_input, InputError};
 
-use super::data::{MAX_MAGNITUDE, MIN_SIGMA_MM};
+use super::data::{checked_sigma, MAX_MAGNITUDE};
 
 /// The column naming a row's instrument set-up.
 pub const SETUP: &str = "setup";
@@ -196,17 +196,7 @@ impl PositionData {
                 }
             }
             let sigma = match sigma_column {
-                Some(c) if !text(c).is_empty() => {
-                    let s = number(c)?;
-                    if !(MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&s) {
-                        return Err(at(
-                            line,
-                            c + 1,
-                            format!("sigma_mm must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mm, got {s}"),
-                        ));
-                    }
-                    Some(s)
-                }
+                Some(c) if !text(c).is_empty() => Some(checked_sigma(number(c)?).map_err(|e| at(line, c + 1, e))?),
                 _ => None,
             };
             let check = match set_column.map(text) {

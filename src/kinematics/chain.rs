@@ -445,33 +445,29 @@ impl Chain {
     /// `c`: where a change of the fixed transform leading to that joint acts.
     pub fn actuated_joint_frames(&self, c: &Coordinates) -> Vec<Frame> {
         let mut frames = vec![None; self.n_actuated];
-        let mut f = Frame::IDENTITY;
-        for e in &self.elements {
-            match e {
-                Element::Fixed(t) => f = f.compose(t),
-                Element::Mass { .. } => {}
-                Element::Joint(j) => {
-                    if j.role == Role::Actuated && frames[j.index].is_none() {
-                        frames[j.index] = Some(f);
-                    }
-                    let v = j.gain * c.get(j.role, j.index);
-                    if v != 0.0 {
-                        f = j.apply(&f, v);
-                    }
-                }
+        self.walk(c, |j, f| {
+            if j.role == Role::Actuated && frames[j.index].is_none() {
+                frames[j.index] = Some(*f);
             }
-        }
+        });
         frames.into_iter().map(|f| f.unwrap_or(Frame::IDENTITY)).collect()
     }
 
     /// Forward kinematics: the end frame for the given coordinates.
     pub fn end_frame(&self, c: &Coordinates) -> Frame {
+        self.walk(c, |_, _| {})
+    }
+
+    /// The end frame, showing `at_joint` each joint and the frame just before its motion.
+    #[inline(always)]
+    fn walk(&self, c: &Coordinates, mut at_joint: impl FnMut(&Joint, &Frame)) -> Frame {
         let mut f = Frame::IDENTITY;
         for e in &self.elements {
             match e {
                 Element::Fixed(t) => f = f.compose(t),
                 Element::Mass { .. } => {}
                 Element::Joint(j) => {
+                    at_joint(j, &f);
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
                         f = j.apply(&f, v);

@@ -35,6 +35,21 @@ pub struct VjmLeg {
     /// picks its elbow and wrist branch); empty: all zero.
     pub home: Vec<f64>,
 }
+/// Puts the state at actuated coordinates `q` with the springs at rest and no passive joint moved, as the
+/// warm start of the next placement (which then keeps `q`'s branch); false where `q` is not one value per
+/// actuated coordinate.
+fn seed_at(q: &[f64], state: &mut LegState) -> bool {
+    if q.len() != state.coords.actuated.len() {
+        return false;
+    }
+    state.coords.actuated.copy_from_slice(q);
+    state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
+    state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
+    state.ik.invalidate();
+    state.warm = true;
+    true
+}
+
 impl VjmLeg {
     pub(super) fn target(&self, platform: &Frame) -> Frame {
         platform.compose(&self.attachment)
@@ -45,14 +60,9 @@ impl VjmLeg {
     /// keeps its branch (a serial arm's elbow and wrist). None where `q` is not one value per actuated
     /// coordinate or the frame is not finite.
     pub(super) fn pose_at_joints(&self, q: &[f64], state: &mut LegState) -> Option<Frame> {
-        if q.len() != state.coords.actuated.len() {
+        if !seed_at(q, state) {
             return None;
         }
-        state.coords.actuated.copy_from_slice(q);
-        state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
-        state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
-        state.ik.invalidate();
-        state.warm = true;
         let end = self.chain.end_frame(&state.coords);
         let platform = end.compose(&self.attachment.inverse());
         (platform.pos.iter().chain(platform.rot.iter()).all(|v| v.is_finite())).then_some(platform)
@@ -62,15 +72,9 @@ impl VjmLeg {
     /// twist of the end point per unit of each actuated coordinate, each actuated coordinate's load from the chain's weight,
     /// and each actuated joint's frame before its motion. None as `pose_at_joints`.
     pub(super) fn statics(&self, q: &[f64], state: &mut LegState) -> Option<super::manipulator::ArmStatics> {
-        if q.len() != state.coords.actuated.len() {
+        if !seed_at(q, state) {
             return None;
         }
-        // Seeded as `pose_at_joints` seeds it; the end frame comes from the evaluation.
-        state.coords.actuated.copy_from_slice(q);
-        state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
-        state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
-        state.ik.invalidate();
-        state.warm = true;
         self.chain.evaluate(&state.coords, &mut state.jac);
         let end = state.jac.end;
         if !end.pos.iter().chain(end.rot.iter()).all(|v| v.is_finite()) {
