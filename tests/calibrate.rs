@@ -528,3 +528,30 @@ fn a_swap_does_not_leave_an_effect_the_others_make_unnecessary() {
         calibrate::text(&c, "FANUC")
     );
 }
+
+/// A compliance at the frame leading to a joint, about that frame's z axis (the joint's own axis), is the
+/// joint's compliance: the moment about the axis through the frame is the load the joint carries. Data made
+/// by `stiff synth` with J2 0.5 times more compliant than the source says (its loaded equilibrium), fitted
+/// with `frame-compliance:J2` alone: its rotation about z recovers the added compliance within 4 standard
+/// errors, through the wrench transmitted by the links beyond J2 rather than through the joint's load.
+#[test]
+fn a_frame_compliance_about_the_joints_axis_is_the_joints_compliance() {
+    let dir = tempfile::tempdir().unwrap();
+    let added = 0.5 / K_JOINT[1];
+    let data = dir.path().join("data.csv");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["synth", FANUC, "--points", "tests/reference/calibration/fanuc-configurations-2008.csv"])
+        .args(["--effect", "registration=0.1,-0.2,0.3,1500,-300,200", "--effect", "target=20,-10,30"])
+        .args(["--effect", &format!("joint-compliance:J2={added}"), "--noise", "0.01", "--seed", "3", "-o"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let m = fanuc(false, dir.path());
+    let d = PositionData::read(&data, &m.joint_space.as_ref().unwrap().names).unwrap();
+    let fitted = vec![effect(ArmKind::FrameCompliance, "J2")];
+    let c = calibrate::calibrate(&m, &d, &[], &Options { fitted, max_effects: 0, ..options(Some(0.01)) }).unwrap();
+    let a = &c.accepted[0];
+    assert!(a.se[5].is_finite() && (a.values[5] - added).abs() < 4.0 * a.se[5], "{}", calibrate::text(&c, "FANUC"));
+    assert!(a.se[5] < 0.1 * added, "{}", a.shown);
+}

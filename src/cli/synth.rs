@@ -171,8 +171,8 @@ fn run_joint_space(
                 let effect = ArmEffect::parse(name, names).map_err(|why| anyhow::anyhow!("--effect `{e}`: {why}"))?;
                 let joint = names[effect.joint].as_str();
                 match effect.kind {
-                    ArmKind::Backlash => {
-                        bail!("--effect `{e}`: play cannot be built into a description; synth makes the others")
+                    ArmKind::Backlash | ArmKind::FrameCompliance => {
+                        bail!("--effect `{e}`: a description of a URDF arm cannot hold it yet; synth makes offsets, compliances, geometry and payload")
                     }
                     ArmKind::Payload => {
                         count(4)?;

@@ -257,6 +257,25 @@ impl ChainJacobians {
         }
     }
 
+    /// The wrench the chain's masses beyond each actuated coordinate's first joint put through that joint
+    /// (force, and moment about the joint's origin; base frame): what the link leading to the joint carries.
+    pub fn actuated_transmitted_weights(&self, gravity: &Vec3, n_actuated: usize) -> Vec<Vec6> {
+        let mut out = vec![Vec6::zeros(); n_actuated];
+        let mut seen = vec![false; n_actuated];
+        for (p, pj) in self.placed.iter().enumerate() {
+            if pj.joint.role != Role::Actuated || seen[pj.joint.index] {
+                continue;
+            }
+            seen[pj.joint.index] = true;
+            for pm in self.masses.iter().filter(|pm| pm.upstream > p) {
+                let f = gravity * pm.kg;
+                let m = (pm.point - pj.origin_world).cross(&f);
+                out[pj.joint.index] += Vec6::new(f.x, f.y, f.z, m.x, m.y, m.z);
+            }
+        }
+        out
+    }
+
     fn add_point_forces(&self, x: &Vec3, f: &Vec3, m: &Vec3, upto: usize, n_passive: usize, out: &mut [f64]) {
         for pj in &self.placed[..upto] {
             let Some(k) = unknown_index(&pj.joint, n_passive) else { continue };

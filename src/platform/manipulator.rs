@@ -74,6 +74,17 @@ pub struct ArmStatics {
     /// Per joint, its frame before its motion (base frame): a change of the fixed transform leading to the
     /// joint moves everything after it as a rigid motion about this frame.
     pub joint_frames: Vec<Frame>,
+    /// Per joint, the wrench everything beyond it puts through its frame (the links' weight, the payload and
+    /// the wrench; force, then moment about the frame's origin; base frame): what bends the link there.
+    pub transmitted: Vec<Vec6>,
+}
+
+/// A wrench `w` (force, moment) acting at a point `arm` from another point, as the wrench at that other point:
+/// the same force, the moment plus arm x force.
+pub fn moved_wrench(w: &Vec6, arm: &Vec3) -> Vec6 {
+    let f = w.fixed_rows::<3>(0).into_owned();
+    let m = w.fixed_rows::<3>(3) + arm.cross(&f);
+    Vec6::new(f.x, f.y, f.z, m.x, m.y, m.z)
 }
 
 /// Standard gravity (m/s^2) along -z: what a payload weighs under when the model gives no gravity.
@@ -254,7 +265,7 @@ impl Manipulator {
         }
         let q = space.model_coordinates(controller);
         let (Leg::Vjm(leg), Some(s)) = (&self.legs[0], state.legs.first_mut()) else { return None };
-        let ArmStatics { frame: end, columns, mut loads, joint_frames } = leg.statics(&q, s)?;
+        let ArmStatics { frame: end, columns, mut loads, joint_frames, mut transmitted } = leg.statics(&q, s)?;
         let platform = end.compose(&leg.attachment.inverse());
         // The columns moved from the end point to the reference point: v_ref = v_end + w x (ref - end).
         let arm = end.pos - platform.pos;
@@ -271,7 +282,10 @@ impl Manipulator {
         for (load, column) in loads.iter_mut().zip(&columns) {
             *load += column.dot(&total);
         }
-        Some(ArmStatics { frame: platform, columns, loads, joint_frames })
+        for (through, joint) in transmitted.iter_mut().zip(&joint_frames) {
+            *through += moved_wrench(&total, &(platform.pos - joint.pos));
+        }
+        Some(ArmStatics { frame: platform, columns, loads, joint_frames, transmitted })
     }
 
     /// The compliance of a serial arm's joint `name` about (or along) its axis, rad/(N mm) or mm/N, where the

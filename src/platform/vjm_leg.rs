@@ -87,6 +87,7 @@ impl VjmLeg {
             columns: state.jac.actuated.clone(),
             loads,
             joint_frames: self.chain.actuated_joint_frames(&state.coords),
+            transmitted: state.jac.actuated_transmitted_weights(&self.gravity, q.len()),
         })
     }
 
