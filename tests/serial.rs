@@ -236,13 +236,18 @@ const MASSES: [(f64, [f64; 3]); 6] = [
 /// The joints' gravity torques at model angles q (N mm, g = 9.81 m/s^2 along -z): tau_k = sum over links
 /// i >= k of (z_k x (c_i - o_k)) . (m_i g).
 pub(crate) fn dh_gravity_torques(q: &[f64; 6]) -> Vec6 {
+    dh_gravity_torques_along(q, &Vec3::new(0.0, 0.0, -9.81))
+}
+
+/// As `dh_gravity_torques`, under gravity `g` (m/s^2, base frame).
+pub(crate) fn dh_gravity_torques_along(q: &[f64; 6], g: &Vec3) -> Vec6 {
     let (_, frames) = dh_kinematics(q);
     let mut tau = Vec6::zeros();
     for (i, (kg, c)) in MASSES.iter().enumerate() {
         let f = frames[i];
         let centre = f * nalgebra::Vector4::new(c[0], c[1], c[2], 1.0);
         let centre = Vec3::new(centre.x, centre.y, centre.z);
-        let weight = Vec3::new(0.0, 0.0, -9.81 * kg);
+        let weight = g * *kg;
         for k in 0..=i {
             let fk = frames[k];
             let (z, o) = (Vec3::new(fk[(0, 2)], fk[(1, 2)], fk[(2, 2)]), Vec3::new(fk[(0, 3)], fk[(1, 3)], fk[(2, 3)]));

@@ -319,6 +319,10 @@ fn effect_gain(e: &ArmEffect, s: &ArmStatics, zero: &Option<ArmStatics>, payload
 /// wrench).
 struct Problem<'a> {
     m: &'a Manipulator,
+    /// The manipulator under each gravity direction the rows give (a base that is not level), and which of
+    /// them each row is measured under (None: `m`).
+    tilted: Vec<(Vec3, Manipulator)>,
+    tilt_of: Vec<Option<usize>>,
     space: &'a crate::platform::manipulator::JointSpace,
     data: &'a PositionData,
     joints: &'a [String],
@@ -359,11 +363,27 @@ impl<'a> Problem<'a> {
     fn new(m: &'a Manipulator, data: &'a PositionData, sigma: Option<f64>) -> Result<Self, CalibrationError> {
         let space = m.joint_space.as_ref().ok_or_else(|| CalibrationError::NotAnArm(m.name.clone()))?;
         let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
+        let mut tilted: Vec<(Vec3, Manipulator)> = Vec::new();
+        let tilt_of: Vec<Option<usize>> = data
+            .rows
+            .iter()
+            .map(|r| {
+                r.gravity.map(|g| match tilted.iter().position(|(d, _)| *d == g) {
+                    Some(k) => k,
+                    None => {
+                        tilted.push((g, m.with_gravity_direction(&g)));
+                        tilted.len() - 1
+                    }
+                })
+            })
+            .collect();
+        let arm_of = |k: usize| tilt_of[k].map_or(m, |t| &tilted[t].1);
         let mut state = m.new_state();
         let mut deflection = Vec::with_capacity(data.rows.len());
         let failed = |r: &PositionRow, why: String| CalibrationError::Row { name: r.name.clone(), line: r.line, why };
         let mut compliance = Vec::with_capacity(data.rows.len());
-        let under = |r: &PositionRow,
+        let under = |m: &Manipulator,
+                     r: &PositionRow,
                      wrench: &Vec6,
                      state: &mut ManipulatorState|
          -> Result<(Vec6, Option<crate::kinematics::frame::Mat6>), CalibrationError> {
@@ -381,11 +401,12 @@ impl<'a> Problem<'a> {
         // limit) is left out and named: the model has no prediction there.
         let mut unusable = Vec::new();
         for (k, r) in data.rows.iter().enumerate() {
+            let arm = arm_of(k);
             let found = match (compliant, r.observed) {
                 (false, _) => Ok((Vec6::zeros(), None)),
-                (true, Observed::Position { .. }) => under(r, &r.wrench, &mut state),
-                (true, Observed::Displacement(_)) => under(r, &r.wrench, &mut state)
-                    .and_then(|(d, _)| Ok((d - under(r, &Vec6::zeros(), &mut state)?.0, None))),
+                (true, Observed::Position { .. }) => under(arm, r, &r.wrench, &mut state),
+                (true, Observed::Displacement(_)) => under(arm, r, &r.wrench, &mut state)
+                    .and_then(|(d, _)| Ok((d - under(arm, r, &Vec6::zeros(), &mut state)?.0, None))),
             };
             let (d, c) = found.unwrap_or_else(|e| {
                 unusable.push((k, e.to_string()));
@@ -396,7 +417,8 @@ impl<'a> Problem<'a> {
         }
         let weight = data.rows.iter().map(|r| 1.0 / r.sigma.or(sigma).unwrap_or(1.0)).collect();
         let mut statics = Vec::with_capacity(data.rows.len());
-        for r in &data.rows {
+        for (k, r) in data.rows.iter().enumerate() {
+            let m = arm_of(k);
             let zero = match r.observed {
                 Observed::Displacement(_) => Some(Vec6::zeros()),
                 Observed::Position { .. } => None,
@@ -412,6 +434,8 @@ impl<'a> Problem<'a> {
         let prismatic = statics[0].0.columns.iter().map(|c| c.fixed_rows::<3>(3).norm() == 0.0).collect();
         Ok(Problem {
             m,
+            tilted,
+            tilt_of,
             space,
             data,
             joints: &space.names,
@@ -430,7 +454,6 @@ impl<'a> Problem<'a> {
     /// ways, at least `MIN_PLAY_ROWS` and a tenth of the rows each way; with fewer it would fit a few rows'
     /// misfit. Returns the candidates kept and a note for each left out.
     fn two_sided_play(&self, candidates: Vec<ArmEffect>, rows: &[usize]) -> (Vec<ArmEffect>, Vec<String>) {
-        let mut state = self.m.new_state();
         let mut notes = Vec::new();
         let kept = candidates
             .into_iter()
@@ -440,13 +463,8 @@ impl<'a> Problem<'a> {
                 }
                 let (mut up, mut down) = (0, 0);
                 for &r in rows {
-                    let row = &self.data.rows[r];
-                    let Some(s) = self.m.arm_statics(&row.joints, &row.wrench, &mut state) else { continue };
-                    let zero = match row.observed {
-                        Observed::Displacement(_) => self.m.arm_statics(&row.joints, &Vec6::zeros(), &mut state),
-                        Observed::Position { .. } => None,
-                    };
-                    let g = effect_gain(e, &s, &zero, &Vec6::zeros());
+                    let (s, zero) = &self.statics[r];
+                    let g = effect_gain(e, s, zero, &Vec6::zeros());
                     up += usize::from(g > 0.0);
                     down += usize::from(g < 0.0);
                 }
@@ -466,6 +484,11 @@ impl<'a> Problem<'a> {
             })
             .collect();
         (kept, notes)
+    }
+
+    /// The manipulator row `r` was measured under (its gravity's direction).
+    fn arm(&self, r: usize) -> &Manipulator {
+        self.tilt_of[r].map_or(self.m, |t| &self.tilted[t].1)
     }
 
     /// Nuisance parameters: per set-up a translation and a rotation, per target a place on the tool.
@@ -499,7 +522,7 @@ impl<'a> Problem<'a> {
         let (s, zero) = if joints == row.joints {
             &self.statics[r]
         } else {
-            fresh = self.statics_at(row, &joints, state)?;
+            fresh = self.statics_at(r, row, &joints, state)?;
             &fresh
         };
         let (lever, tool) = match row.observed {
@@ -516,7 +539,7 @@ impl<'a> Problem<'a> {
             if !matches!(row.observed, Observed::Position { .. }) {
                 return Vec6::zeros();
             }
-            let (v, g) = (&params.effects[k], self.m.weight_gravity());
+            let (v, g) = (&params.effects[k], self.arm(r).weight_gravity());
             let moment = (s.frame.rot * Vec3::new(v[1], v[2], v[3])).cross(&g);
             let force = g * v[0];
             Vec6::new(force.x, force.y, force.z, moment.x, moment.y, moment.z)
@@ -569,7 +592,7 @@ impl<'a> Problem<'a> {
                         // Its weight loads the compliances being fitted too (their term is the compliance
                         // times the joint's load, payload included): the derivative has that part as well.
                         let mut columns = self.unit_moves(r, e, s, zero, &lever, &payload(s));
-                        let g = self.m.weight_gravity();
+                        let g = self.arm(r).weight_gravity();
                         for (k, column) in columns.iter_mut().enumerate() {
                             let unit = if k == 0 {
                                 Vec6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0)
@@ -664,7 +687,7 @@ impl<'a> Problem<'a> {
                 // Its weight at the reference point, (m g, (R s) x g) with s = m c its first moment, seen through
                 // the model's tangent compliance (a rigid model, or a displacement, does not see it).
                 let Some(c) = &self.compliance[r] else { return vec![Vec3::zeros(); 4] };
-                let g = self.m.weight_gravity();
+                let g = self.arm(r).weight_gravity();
                 let mut moves = vec![point(&(c * Vec6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0)))];
                 for k in 0..3 {
                     let moment = (s.frame.rot.column(k).into_owned() * 1.0).cross(&g);
@@ -678,13 +701,15 @@ impl<'a> Problem<'a> {
     /// A row's statics at controller angles `joints` under its wrench, and at zero wrench for a displacement.
     fn statics_at(
         &self,
+        r: usize,
         row: &PositionRow,
         joints: &[f64],
         state: &mut ManipulatorState,
     ) -> Option<(ArmStatics, Option<ArmStatics>)> {
-        let s = self.m.arm_statics(joints, &row.wrench, state)?;
+        let arm = self.arm(r);
+        let s = arm.arm_statics(joints, &row.wrench, state)?;
         let zero = match row.observed {
-            Observed::Displacement(_) => Some(self.m.arm_statics(joints, &Vec6::zeros(), state)?),
+            Observed::Displacement(_) => Some(arm.arm_statics(joints, &Vec6::zeros(), state)?),
             Observed::Position { .. } => None,
         };
         Some((s, zero))

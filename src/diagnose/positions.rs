@@ -5,7 +5,7 @@
 //! (`dx_mm,dy_mm,dz_mm`: a differential measurement, the wrench's effect alone). Optional: the wrench at the
 //! reference point (`Fx_N .. Mz_Nmm`, zero where absent), `sigma_mm`, `setup` (the instrument was moved: one
 //! registration per set-up), `set` (`fit` or `check`: check rows are never fitted), `pose_id` (the row's
-//! name). Every error is located.
+//! name), `gravity_x,gravity_y,gravity_z` (gravity's direction in the base frame: a base that is not level). Every error is located.
 
 use std::path::Path;
 
@@ -21,6 +21,8 @@ pub const SETUP: &str = "setup";
 pub const SET: &str = "set";
 /// The column naming the row's target, where one group of measured columns holds several targets.
 pub const TARGET: &str = "target";
+/// Gravity's direction in the base frame at a row (any length: an accelerometer's reading).
+pub const GRAVITY: [&str; 3] = ["gravity_x", "gravity_y", "gravity_z"];
 
 /// What a row measured.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,6 +57,9 @@ pub struct PositionRow {
     pub sigma: Option<f64>,
     /// Held out (`set` = `check`): never fitted.
     pub check: bool,
+    /// Gravity's direction in the base frame at this row (an accelerometer on a base that is not level),
+    /// where given; the model's otherwise.
+    pub gravity: Option<Vec3>,
     /// The configuration (distinct joint coordinates, in order of appearance) the row was measured at.
     pub configuration: usize,
 }
@@ -169,6 +174,7 @@ impl PositionData {
         }
         let wrench_columns: Vec<Option<usize>> = WRENCH.iter().map(|c| find(c)).collect();
         let (sigma_column, setup_column, set_column, id_column) = (find(SIGMA), find(SETUP), find(SET), find(POSE_ID));
+        let gravity_columns: Option<Vec<usize>> = GRAVITY.iter().map(|c| find(c)).collect();
         let mut data = PositionData { rows: Vec::new(), targets: Vec::new(), setups: Vec::new(), configurations: 0 };
         let mut configurations: Vec<Vec<f64>> = Vec::new();
         for record in reader.records() {
@@ -210,6 +216,20 @@ impl PositionData {
                     ))
                 }
             };
+            let gravity = match &gravity_columns {
+                Some(g) => {
+                    let v = Vec3::new(number(g[0])?, number(g[1])?, number(g[2])?);
+                    if v.norm() == 0.0 {
+                        return Err(at(
+                            line,
+                            g[0] + 1,
+                            "the gravity direction (gravity_x,gravity_y,gravity_z) is zero".into(),
+                        ));
+                    }
+                    Some(v.normalize())
+                }
+                None => None,
+            };
             let name = id_column
                 .map(text)
                 .filter(|t| !t.is_empty())
@@ -230,6 +250,7 @@ impl PositionData {
                     observed,
                     sigma,
                     check,
+                    gravity,
                     configuration,
                 })
             };

@@ -214,6 +214,20 @@ impl Manipulator {
         self.payload.is_some() || !self.legs.iter().all(Leg::unloaded_at_placement)
     }
 
+    /// The same manipulator under gravity along `direction` (base frame; its magnitude is the model's, or
+    /// standard gravity's): a base that is not level, as an accelerometer on it reads the tilt.
+    pub fn with_gravity_direction(&self, direction: &Vec3) -> Manipulator {
+        let g = direction.normalize() * self.weight_gravity().norm();
+        let mut tilted = self.clone();
+        tilted.gravity = Some(g);
+        for leg in &mut tilted.legs {
+            if let Leg::Vjm(v) = leg {
+                v.gravity = g;
+            }
+        }
+        tilted
+    }
+
     /// The gravity a payload weighs under: the model's, or standard gravity along -z.
     pub fn weight_gravity(&self) -> Vec3 {
         self.gravity.unwrap_or(STANDARD_GRAVITY)
