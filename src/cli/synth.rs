@@ -220,8 +220,7 @@ fn run_joint_space(
     columns.push(Column { name: "hidden_gross".into(), kind: CellKind::Count });
     let mut sink = a.output.open(&columns)?;
     let mut text = crate::output::table::header_line(&columns);
-    for (k, ((name, joints, wrench), at, gross)) in rows.iter().enumerate() {
-        let held = hidden.check_every > 0 && k % hidden.check_every == hidden.check_every - 1;
+    for ((name, joints, wrench), at, gross, held) in &rows {
         let mut q: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
         if loaded {
             q.extend(wrench.iter().map(|v| format!("{v:?}")));
@@ -233,7 +232,7 @@ fn run_joint_space(
             at.y,
             at.z,
             a.noise.max(crate::diagnose::data::MIN_SIGMA_MM),
-            if held { "check" } else { "fit" },
+            if *held { "check" } else { "fit" },
             u8::from(*gross)
         );
     }

@@ -1647,8 +1647,9 @@ pub struct PositionSynth {
 /// One configuration to measure: its name, the controller's angles and the wrench at the reference point.
 pub type Configuration = (String, Vec<f64>, Vec6);
 
-/// One synthetic row: the configuration, the measured target (mm) and whether it was made gross.
-type SynthRow = (Configuration, Vec3, bool);
+/// One synthetic row: the configuration, the measured target (mm), whether it was made gross and whether it
+/// is held out.
+type SynthRow = (Configuration, Vec3, bool, bool);
 
 /// Joint-space measurements of `m` (the robot as it really is: its offsets, compliances, geometry and payload
 /// built into the description) at the controller's angles of each configuration: the target where the arm's
@@ -1699,7 +1700,8 @@ pub fn synthesize_positions(
             let d = Vec3::new(standard_normal(&mut r), standard_normal(&mut r), standard_normal(&mut r));
             at += d.normalize() * s.gross.1;
         }
-        rows.push((configuration.clone(), at, gross));
+        let held = s.check_every > 0 && k % s.check_every == s.check_every - 1;
+        rows.push((configuration.clone(), at, gross, held));
     }
     Ok((rows, skipped))
 }
