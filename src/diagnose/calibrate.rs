@@ -831,9 +831,8 @@ impl<'a> Problem<'a> {
                         let converged = rss - rss_trial <= 1e-10 * rss.max(1e-300);
                         params = trial;
                         rss = rss_trial;
-                        // A floor on the damping: a direction the data barely see (below a hundredth of a
-                        // percent of the best seen) moves slowly, so it stays near where it started rather
-                        // than wander to values only its vast standard error allows.
+                        // A floor on the damping: steps along directions the data barely see (below a
+                        // hundredth of a percent of the best seen) stay damped.
                         lambda = (lambda / 10.0).max(1e-8);
                         improved = !converged;
                         break;

@@ -21,6 +21,20 @@ pub const MAX_MAGNITUDE: f64 = 1e100;
 /// makes weights whose squares overflow).
 pub const MIN_SIGMA_MM: f64 = 1e-9;
 
+/// A measured number read from `text` in `column`, or why it is not one: finite and within
+/// `MAX_MAGNITUDE` (residuals are squared and weighted: a value beyond 1e100 overflows there, and is no
+/// measurement of a robot in mm, N or N mm).
+pub fn checked_number(text: &str, column: &str) -> Result<f64, String> {
+    let v: f64 = text.parse().map_err(|_| format!("`{text}` in column `{column}` is not a number"))?;
+    if !v.is_finite() {
+        return Err(format!("column `{column}`: {}", crate::model::error::not_finite(text)));
+    }
+    if v.abs() > MAX_MAGNITUDE {
+        return Err(format!("column `{column}`: {text} is beyond {MAX_MAGNITUDE:e}, not a measurement"));
+    }
+    Ok(v)
+}
+
 /// A row's `sigma_mm`, or why it is not one.
 pub fn checked_sigma(s: f64) -> Result<f64, String> {
     if (MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&s) {
@@ -100,27 +114,7 @@ impl Dataset {
             let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
             let line = record.position().map_or(0, |p| p.line() as usize);
             let number = |c: usize| -> Result<f64, InputError> {
-                let text = record.get(c).unwrap_or("");
-                let v: f64 = text
-                    .parse()
-                    .map_err(|_| at(line, c + 1, format!("`{text}` in column `{}` is not a number", &header[c])))?;
-                if !v.is_finite() {
-                    return Err(at(
-                        line,
-                        c + 1,
-                        format!("column `{}`: {}", &header[c], crate::model::error::not_finite(text)),
-                    ));
-                }
-                // Residuals are squared and weighted: a value beyond 1e100 overflows there (and is no
-                // measurement of a robot in mm, N or N mm).
-                if v.abs() > MAX_MAGNITUDE {
-                    return Err(at(
-                        line,
-                        c + 1,
-                        format!("column `{}`: {text} is beyond {MAX_MAGNITUDE:e}, not a measurement", &header[c]),
-                    ));
-                }
-                Ok(v)
+                checked_number(record.get(c).unwrap_or(""), &header[c]).map_err(|e| at(line, c + 1, e))
             };
             let v: Vec<f64> = columns[1..].iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
             let sigma = match sigma_column {

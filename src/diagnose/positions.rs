@@ -11,9 +11,9 @@ use std::path::Path;
 
 use crate::columns::{DISPLACEMENT, JOINT_PREFIX, POSE_ID, SIGMA, WRENCH};
 use crate::kinematics::frame::{Vec3, Vec6};
-use crate::model::error::{not_finite, open_input, InputError};
+use crate::model::error::{open_input, InputError};
 
-use super::data::{checked_sigma, MAX_MAGNITUDE};
+use super::data::{checked_number, checked_sigma};
 
 /// The column naming a row's instrument set-up.
 pub const SETUP: &str = "setup";
@@ -182,17 +182,7 @@ impl PositionData {
             let line = record.position().map_or(0, |p| p.line() as usize);
             let text = |c: usize| record.get(c).unwrap_or("");
             let number = |c: usize| -> Result<f64, InputError> {
-                let t = text(c);
-                let v: f64 = t
-                    .parse()
-                    .map_err(|_| at(line, c + 1, format!("`{t}` in column `{}` is not a number", header[c])))?;
-                if !v.is_finite() {
-                    return Err(at(line, c + 1, format!("column `{}`: {}", header[c], not_finite(t))));
-                }
-                if v.abs() > MAX_MAGNITUDE {
-                    return Err(at(line, c + 1, format!("column `{}`: {t} is beyond {MAX_MAGNITUDE:e}", header[c])));
-                }
-                Ok(v)
+                checked_number(text(c), &header[c]).map_err(|e| at(line, c + 1, e))
             };
             let joints: Vec<f64> = joint_columns.iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
             let mut wrench = Vec6::zeros();
