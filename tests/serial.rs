@@ -623,3 +623,76 @@ fn a_stated_seed_picks_the_branch_of_a_pose() {
         }
     }
 }
+
+/// Every batch study takes a serial arm's joint coordinates and keeps the configuration given: two rows
+/// reach the same tool pose on the two wrist branches (the second flipped, (q4 + pi, -q5, q6 + pi) in the
+/// model's angles), which a pose alone cannot tell apart.
+/// - `compensate` (the arm's own weight is the load): each row's pose is the DH table's for its angles
+///   (1e-9 mm) and its command keeps the row's branch (within 0.01 rad of the given angles).
+/// - `assemble` with the base moved 1 mm along x: the rigid-body translation of the whole arm, linear and
+///   non-linear (within 1e-9 mm), although the arm sags under its weight: a regression test, the non-linear
+///   columns once held the sag (1.4 mm) as well.
+/// - `sweep` of one design: its summary is the map's over the same joint rows (largest c_tran_max and where).
+#[test]
+fn batch_studies_take_joint_coordinates_and_keep_the_configuration() {
+    let a = [0.4, 0.2, -0.3, 0.7, -1.1, 0.5];
+    let pi = std::f64::consts::PI;
+    let q = model_angles(&a);
+    let flipped = [q[0], q[1], q[2], q[3] + pi, -q[4], q[5] + pi];
+    // Controller angles of a model configuration (the inverse of `model_angles`).
+    let controller = |q: &[f64; 6]| [q[0], q[1], -(q[2] + q[1]), -q[3], -q[4], -q[5]];
+    let rows = [controller(&q), controller(&flipped)];
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("name,q_J6,q_J5,q_J4,q_J3,q_J2,q_J1\n");
+    for (k, t) in rows.iter().enumerate() {
+        let cells: Vec<String> = t.iter().rev().map(|v| v.to_string()).collect();
+        text.push_str(&format!("r{k},{}\n", cells.join(",")));
+    }
+    let points = dir.path().join("joints.csv");
+    std::fs::write(&points, text).unwrap();
+    let fanuc = std::env::current_dir().unwrap().join(FANUC);
+    let run = |args: &[&str]| -> String {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .arg(args[0])
+            .arg(&fanuc)
+            .args(["--points", points.to_str().unwrap(), "-q"])
+            .args(&args[1..])
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let wrap = |x: f64| (x + pi).rem_euclid(2.0 * pi) - pi;
+
+    let compensated = run(&["compensate"]);
+    let actuators: Vec<String> = (1..=6).map(|k| format!("leg1_actuator{k}_rad")).collect();
+    let columns: Vec<&str> =
+        ["x_mm", "y_mm", "z_mm"].into_iter().chain(actuators.iter().map(String::as_str)).collect();
+    let found = crate::common::csv_columns(&compensated, &columns);
+    assert!(compensated.contains(",ok,"), "{compensated}");
+    for (given, row) in [q, flipped].iter().zip(&found) {
+        let (p, _) = dh_kinematics(given);
+        assert!((Vec3::new(row[0], row[1], row[2]) - p).norm() < 1e-9, "pose {row:?} vs {p}");
+        for k in 0..6 {
+            assert!(wrap(row[3 + k] - given[k]).abs() < 0.01, "command {:?} left the branch {given:?}", &row[3..]);
+        }
+    }
+
+    std::fs::write(dir.path().join("base.toml"), "[[leg]]\nname = \"arm\"\nbase = { translation_mm = [1, 0, 0] }\n")
+        .unwrap();
+    let assembled = run(&["assemble", "--errors", "base.toml"]);
+    let names = ["dx_mm", "dy_mm", "dz_mm", "nl_dx_mm", "nl_dy_mm", "nl_dz_mm"];
+    for row in crate::common::csv_columns(&assembled, &names) {
+        for (k, v) in row.iter().enumerate() {
+            let expected = if k % 3 == 0 { 1.0 } else { 0.0 };
+            assert!((v - expected).abs() < 1e-9, "{}: {v}", names[k]);
+        }
+    }
+
+    let mapped = crate::common::csv_columns(&run(&["map"]), &["x_mm", "y_mm", "z_mm", "c_tran_max_mm_per_N"]);
+    let swept = run(&["sweep", "--vary", "k2=4129256136:4129256136:1"]);
+    let summary = crate::common::csv_columns(&swept, &["max_c_tran_max_mm_per_N", "worst_x_mm", "worst_y_mm"]);
+    let worst = mapped.iter().max_by(|a, b| a[3].total_cmp(&b[3])).unwrap();
+    assert_eq!(summary[0], vec![worst[3], worst[0], worst[1]], "{swept}");
+}

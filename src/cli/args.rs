@@ -200,9 +200,8 @@ impl PoseArgs {
                         q.len()
                     );
                 }
-                let order: Vec<usize> = (0..q.len()).collect();
                 let given = PosePoint { joints: q.clone(), ..PosePoint::default() };
-                match crate::study::point::pose_of_joints(m, &given, &order, state) {
+                match crate::study::point::pose_of_joints(m, &given, state) {
                     Some(p) => Ok(PosePoint { joints: Vec::new(), ..p.into_owned() }),
                     None => bail!("--joints: these joint coordinates give no finite pose"),
                 }
@@ -231,33 +230,34 @@ pub(crate) struct PointsArgs {
 }
 
 impl PointsArgs {
-    /// The poses of `--grid` or `--points` (as poses: joint coordinates are refused, see `load_joints`).
-    pub(crate) fn load(&self) -> Result<PointSet> {
-        point_set(&self.grid, &self.points)
+    /// The points of `--grid` or `--points` for `m`: poses, or a serial arm's joint coordinates (`q_<joint>`
+    /// columns), checked against its joints and read in its order.
+    pub(crate) fn load(&self, m: &Manipulator) -> Result<PointSet> {
+        arm_points(m, point_set_any(&self.grid, &self.points)?, self.points.as_deref())
     }
+}
 
-    /// The poses of `--grid` or `--points`, which may give a serial arm's joint coordinates (`q_<joint>`
-    /// columns) instead of poses: checked against `m`'s joints; returns the points and each joint's column.
-    pub(crate) fn load_joints(&self, m: &crate::platform::manipulator::Manipulator) -> Result<(PointSet, Vec<usize>)> {
-        let mut points = point_set_any(&self.grid, &self.points)?;
-        let file = self.points.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
-        let order = if points.joint_names.is_empty() {
-            if let Some(space) = m.joint_space.as_ref().filter(|s| s.names.len() > 6) {
-                bail!(
-                    "{} has {} joint coordinates ({}): a pose does not fix them; give the points as joint coordinates, one column q_<joint> each",
-                    m.name,
-                    space.names.len(),
-                    space.names.join(", ")
-                );
-            }
-            Vec::new()
-        } else {
-            // Rows carry the whole pose forward kinematics gives, orientation included.
-            points.has_orientation = true;
-            crate::study::point::joint_order(m, &points.joint_names).map_err(|e| anyhow::anyhow!("{file}: {e}"))?
-        };
-        Ok((points, order))
+/// `points` as `m` takes them: joint coordinates checked against `m`'s joints and put in its order (each
+/// row then carries the whole pose forward kinematics gives, orientation included); poses refused where
+/// they cannot fix the arm's configuration (more than six joint coordinates). `file` names the points file
+/// in messages.
+fn arm_points(m: &Manipulator, mut points: PointSet, file: Option<&Path>) -> Result<PointSet> {
+    let file = file.map(|p| format!("{}: ", p.display())).unwrap_or_default();
+    if points.joint_names.is_empty() {
+        if let Some(space) = m.joint_space.as_ref().filter(|s| s.names.len() > 6) {
+            bail!(
+                "{file}{} has {} joint coordinates ({}): a pose does not fix them; give the points as joint coordinates, one column q_<joint> each",
+                m.name,
+                space.names.len(),
+                space.names.join(", ")
+            );
+        }
+    } else {
+        let order = crate::study::point::joint_order(m, &points.joint_names).map_err(|e| anyhow::anyhow!("{file}{e}"))?;
+        points.order_joints(&order);
+        points.has_orientation = true;
     }
+    Ok(points)
 }
 
 /// Where the poses come from, a straight path included (assemble, compensate): exactly one of a grid, a
@@ -278,9 +278,11 @@ pub(crate) struct PosesArgs {
 }
 
 impl PosesArgs {
-    /// The poses of `--grid`, `--points` or `--path`.
-    pub(crate) fn load(&self) -> Result<PointSet> {
-        let Some(path) = &self.path else { return point_set(&self.grid, &self.points) };
+    /// The points of `--grid`, `--points` or `--path` for `m` (joint coordinates as `PointsArgs::load`).
+    pub(crate) fn load(&self, m: &Manipulator) -> Result<PointSet> {
+        let Some(path) = &self.path else {
+            return arm_points(m, point_set_any(&self.grid, &self.points)?, self.points.as_deref());
+        };
         let from = parse_vec3(&path[0]).map_err(|e| anyhow::anyhow!("--path FROM: {e}"))?;
         let to = parse_vec3(&path[1]).map_err(|e| anyhow::anyhow!("--path TO: {e}"))?;
         let count: usize =
@@ -291,7 +293,7 @@ impl PosesArgs {
         if count > MAX_PATH_POINTS {
             bail!("--path POINTS: {count} is more than a path takes ({MAX_PATH_POINTS}); split the path");
         }
-        Ok(PointSet::from_points(crate::model::grid::path_points(&from, &to, count)))
+        arm_points(m, PointSet::from_points(crate::model::grid::path_points(&from, &to, count)), None)
     }
 }
 
@@ -321,7 +323,6 @@ impl LoadArgs {
             wrench: self.wrench,
             use_point_wrench: self.loaded,
             selection: None,
-            joint_order: Vec::new(),
         })
     }
 }

@@ -73,7 +73,7 @@ pub(crate) fn run(a: AssembleArgs, matches: &ArgMatches) -> Result<()> {
         bail!("--scale must be a finite number");
     }
     let perturbed = set.perturbed_legs(a.scale)?;
-    let mut points = a.poses.load()?;
+    let mut points = a.poses.load(&model)?;
     let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
     let mut options =

@@ -103,7 +103,7 @@ pub(crate) fn run(a: CompensateArgs, matches: &ArgMatches) -> Result<()> {
         Some(s) => s.perturbed_legs(a.scale)?,
         None => Vec::new(),
     };
-    let mut points = a.poses.load()?;
+    let mut points = a.poses.load(m)?;
     let shard = a.shard.split_points(&mut points, COMPENSATE_RUN, &a.output, a.plot.as_ref())?;
     if a.wrench.is_some() && points.has_wrench {
         bail!(

@@ -52,11 +52,10 @@ pub(crate) struct MapArgs {
 
 pub(crate) fn run(a: MapArgs, matches: &ArgMatches) -> Result<()> {
     let model = a.model.load()?;
-    let (mut points, joint_order) = a.points.load_joints(&model)?;
+    let mut points = a.points.load(&model)?;
     let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
     let mut options = a.load.map_options(&points, a.stiffness)?;
-    options.joint_order = joint_order;
     let columns = map_columns(&points, &options);
     options.selection = select_columns(&a.columns, |w| map_selection(&columns, w))?;
     let table = map_table(&columns, options.selection.as_ref());

@@ -69,7 +69,7 @@ pub(crate) struct SweepArgs {
 pub(crate) fn run(a: SweepArgs, matches: &ArgMatches) -> Result<()> {
     // The description with --set must build: a file that never builds is an error, not a sweep of
     // invalid designs.
-    a.model.load_model()?;
+    let nominal = a.model.load_model()?;
     let source = read_text(&a.model.model)?;
     let known = parameter_values(&a.model.model, &source)?;
     let mut designs = match (&a.designs, a.sample) {
@@ -91,7 +91,7 @@ pub(crate) fn run(a: SweepArgs, matches: &ArgMatches) -> Result<()> {
             bail!("--threshold must be a positive compliance (mm/N), got {c}");
         }
     }
-    let mut points = a.points.load()?;
+    let mut points = a.points.load(&nominal.manipulator)?;
     let map = a.load.map_options(&points, false)?;
     let shard = a.shard.plan(|| Ok(designs.len()), 1, &a.output, None)?;
     if let Some(s) = &shard {

@@ -60,11 +60,9 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     use crate::diagnose::synth;
     use crate::model::effect::Effect;
     let model = a.model.load_model()?;
-    if model.manipulator.joint_space.is_some() {
-        let (points, order) = a.points.load_joints(&model.manipulator)?;
-        if !points.joint_names.is_empty() {
-            return run_joint_space(&a, &model.manipulator, points, &order);
-        }
+    let mut points = a.points.load(&model.manipulator)?;
+    if !points.joint_names.is_empty() {
+        return run_joint_space(&a, &model.manipulator, points);
     }
     let effects = a
         .effects
@@ -83,7 +81,6 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     if !(a.noise >= 0.0 && a.noise.is_finite()) {
         bail!("--noise must be >= 0 (mm)");
     }
-    let mut points = a.points.load()?;
     let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, None)?;
     let options = synth::SynthOptions {
         effects,
@@ -114,7 +111,6 @@ fn run_joint_space(
     a: &SynthArgs,
     nominal: &crate::platform::manipulator::Manipulator,
     mut points: crate::model::grid::PointSet,
-    order: &[usize],
 ) -> Result<()> {
     use crate::diagnose::calibrate::{correction_table, synthesize_positions, ArmEffect, ArmKind, PositionSynth};
     use crate::kinematics::frame::Vec3;
@@ -199,7 +195,7 @@ fn run_joint_space(
             let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
             (
                 name,
-                order.iter().map(|&i| p.joints[i]).collect(),
+                p.joints.clone(),
                 p.wrench.unwrap_or_else(crate::kinematics::frame::Vec6::zeros),
             )
         })

@@ -22,8 +22,8 @@ pub struct PosePoint {
     /// Reference wrench (N, N mm) at the reference point, if the input gives one.
     pub wrench: Option<Vec6>,
     /// A serial arm's joint coordinates as its controller gives them (rad, or mm for a prismatic joint), in
-    /// the order of the points file's `q_<joint>` columns (`PointSet::joint_names`); empty where the pose
-    /// is given as a pose. The study puts the pose where forward kinematics puts it.
+    /// the order of `PointSet::joint_names` (the arm's own order once `PointSet::order_joints` has run); empty
+    /// where the pose is given as a pose. The study puts the pose where forward kinematics puts it.
     pub joints: Vec<f64>,
 }
 
@@ -326,6 +326,15 @@ impl PointSet {
             next_index: 0,
             end_index: None,
         })
+    }
+
+    /// Reads the joint coordinates in the order `order` gives (`order[k]`: the position among today's
+    /// `joint_names` of the k-th joint wanted), so that every point's `joints` follows an arm's own order.
+    pub fn order_joints(&mut self, order: &[usize]) {
+        self.joint_names = order.iter().map(|&i| self.joint_names[i].clone()).collect();
+        if let Source::Csv { columns, .. } = &mut self.source {
+            columns.joints = order.iter().map(|&i| columns.joints[i]).collect();
+        }
     }
 
     /// The volume each point of a box grid stands for (mm^3: the product of its three spacings), where the

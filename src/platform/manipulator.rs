@@ -233,6 +233,11 @@ impl Manipulator {
         self.gravity.unwrap_or(STANDARD_GRAVITY)
     }
 
+    /// True where the robot carries weight in loaded studies: its links' (gravity set) or a payload's.
+    pub fn carries_weight(&self) -> bool {
+        self.gravity.is_some() || self.payload.is_some()
+    }
+
     /// The payload's weight as a wrench at the reference point with the platform at `platform` (N, N mm;
     /// the mass in kg times m/s^2 is N, its lever arm in mm), and its derivative with respect to the
     /// platform's displacement (dp, dphi): the force is fixed in the base frame and its arm r = R c turns

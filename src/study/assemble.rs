@@ -321,15 +321,23 @@ pub fn assemble_point(
     let errors = LegErrors { set, perturbed };
     let (perturbed_m, mut perturbed_state) = with_errors(m, &errors, &pose, o.scale, &placed, state);
     let zero = Vec6::zeros();
-    let nl = perturbed_m.deflect(&pose, &zero, Some(&pose), &mut perturbed_state);
-    let nonlinear = nl.as_ref().ok().map(|d| d.displacement);
+    // A robot that carries weight (its links', a payload) sags without errors too: the non-linear
+    // displacements are measured from that sag, so that they are the errors' and the load's own, as the
+    // linear assembly's are.
+    let reference = match m.carries_weight() {
+        true => m.deflect(&pose, &zero, None, state).map_err(deflection_status)?.pose,
+        false => pose,
+    };
+    let nl = perturbed_m.deflect(&pose, &zero, Some(&reference), &mut perturbed_state);
+    let nonlinear = nl.as_ref().ok().map(|d| reference.error_to(&d.pose));
     let loaded = match (&o.wrench, &nl) {
         (Some(w), Ok(assembled)) => {
-            let load = m.deflect(&pose, w, None, state).map_err(deflection_status)?.displacement;
+            let load = reference.error_to(&m.deflect(&pose, w, None, state).map_err(deflection_status)?.pose);
             let total = perturbed_m
                 .deflect(&pose, w, Some(&assembled.pose), &mut perturbed_state)
                 .map_err(deflection_status)?;
-            Some((load, total.displacement, load + assembled.displacement))
+            let assembled = reference.error_to(&assembled.pose);
+            Some((load, reference.error_to(&total.pose), load + assembled))
         }
         (Some(_), Err(e)) => return Err(deflection_status(*e)),
         (None, _) => None,
@@ -467,6 +475,12 @@ impl Study for AssembleStudy<'_> {
         out: &mut String,
     ) {
         let (m, o, LegErrors { set, perturbed }) = (self.m, self.o, self.errors);
+        let Some(placed) = super::point::pose_of_joints(m, p, state) else {
+            tally.points += 1;
+            let row = AssemblyRow { index, point: p, outcome: AssemblyOutcome::Failed(Status::Unreachable) };
+            return write_selected_row(&row, &self.layout, self.o.selection.as_ref(), out);
+        };
+        let p = placed.as_ref();
         let outcome = if o.samples > 0 {
             match sample_point(m, set, perturbed, index, p, o, state) {
                 Ok((mean, stats)) => AssemblyOutcome::Sampled(mean, stats),

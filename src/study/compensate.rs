@@ -328,6 +328,20 @@ impl<'a> Compensator<'a> {
         (wrench, result)
     }
 
+    /// The target as a pose: `p` itself, or where a serial arm's joint coordinates put its tool, with every
+    /// nominal placement of `st` seeded there, so that the controller's inverse kinematics keeps the
+    /// configuration given (a wrist flip reaches the same pose). None where the angles give no finite pose.
+    pub fn target_of_joints<'p>(&self, p: &'p PosePoint, st: &mut CompensateState) -> Option<Cow<'p, PosePoint>> {
+        let nominal = self.robot.nominal;
+        let target = crate::study::point::pose_of_joints(nominal, p, &mut st.directions)?;
+        if !p.joints.is_empty() {
+            for c in [&mut st.uncompensated, &mut st.mirror, &mut st.compensated, &mut st.check] {
+                nominal.pose_at_joints(&p.joints, &mut c.nominal)?;
+            }
+        }
+        Some(target)
+    }
+
     /// A fresh state (no warm start).
     pub fn start(&self) -> CompensateState {
         let m = self.robot.nominal;
@@ -415,6 +429,14 @@ impl Study for Compensator<'_> {
         tally: &mut CompensateSummary,
         out: &mut String,
     ) {
+        let Some(p) = self.target_of_joints(p, st) else {
+            tally.statuses.add(Status::Unreachable);
+            let result = Compensation::failed(Status::Unreachable);
+            let wrench = self.o.wrench.or(p.wrench).unwrap_or_else(Vec6::zeros);
+            let row = CompensationRow { index, point: p, wrench, method: self.o.method, result: &result };
+            return crate::output::table::write_row(&row, &self.layout, out);
+        };
+        let p = p.as_ref();
         let (wrench, result) = self.next(p, st);
         tally.statuses.add(result.status);
         tally.iterations += result.iterations.unwrap_or(0) as u64;

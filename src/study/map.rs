@@ -1,5 +1,6 @@
 //! `stiff map`: the manipulator's unloaded stiffness at every point of a grid, as CSV rows in input order.
 
+use std::borrow::Cow;
 use std::io::Write;
 
 use anyhow::Result;
@@ -28,9 +29,6 @@ pub struct MapOptions {
     pub use_point_wrench: bool,
     /// The columns written (`--columns`), all where None.
     pub selection: Option<Selection>,
-    /// For points given by joint coordinates: for each of the arm's joints (`JointSpace::names`), the index
-    /// of its value in a point's `joints` (`point::joint_order`).
-    pub joint_order: Vec<usize>,
 }
 
 /// The groups `--columns` knows, in table order.
@@ -209,6 +207,24 @@ pub fn map_columns(points: &PointSet, options: &MapOptions) -> MapColumns {
     }
 }
 
+/// A map's row at a point as its input gives it (a pose, or a serial arm's joint coordinates): the pose
+/// (forward kinematics' where joints are given) and what the map finds there; `unreachable` where the
+/// joint coordinates give no finite pose.
+pub fn map_given_point<'a>(
+    m: &Manipulator,
+    p: &'a PosePoint,
+    options: &MapOptions,
+    state: &mut (ManipulatorState, LoadedHistory),
+) -> (Cow<'a, PosePoint>, PointResult) {
+    match super::point::pose_of_joints(m, p, &mut state.0) {
+        Some(placed) => {
+            let r = map_point(m, &placed, options, state);
+            (placed, r)
+        }
+        None => (Cow::Borrowed(p), PointResult::failed(Status::Unreachable)),
+    }
+}
+
 /// What the map finds at `p` (unloaded, or loaded as `options` say), warm-started from `state`.
 pub fn map_point(
     m: &Manipulator,
@@ -246,13 +262,9 @@ impl Study for MapStudy<'_> {
     }
 
     fn solve(&self, index: u64, p: &PosePoint, state: &mut Self::State, tally: &mut MapSummary, out: &mut String) {
-        let placed = super::point::pose_of_joints(self.m, p, &self.options.joint_order, &mut state.0);
-        let (p, r) = match &placed {
-            Some(p) => (p.as_ref(), map_point(self.m, p, &self.options, state)),
-            None => (p, PointResult::failed(Status::Unreachable)),
-        };
+        let (p, r) = map_given_point(self.m, p, &self.options, state);
         tally.add(r.status);
-        let row = MapRow { index, point: p, result: &r };
+        let row = MapRow { index, point: &p, result: &r };
         write_selected_row(&row, &self.columns, self.options.selection.as_ref(), out);
     }
 }

@@ -198,20 +198,18 @@ pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorSta
 }
 
 /// A point as a pose: itself where it is given as a pose; where it is given by a serial arm's joint
-/// coordinates (`PosePoint::joints`, `order` mapping the arm's joints to them), the pose forward kinematics
-/// puts its tool at, with `state` seeded at those coordinates (so the placement keeps the configuration
-/// given). None where the angles give no finite pose (the row is then `unreachable`).
+/// coordinates (`PosePoint::joints`, in the arm's order: `PointSet::order_joints`), the pose forward
+/// kinematics puts its tool at, with `state` seeded at those coordinates (so the placement keeps the
+/// configuration given). None where the angles give no finite pose (the row is then `unreachable`).
 pub fn pose_of_joints<'a>(
     m: &Manipulator,
     p: &'a PosePoint,
-    order: &[usize],
     state: &mut ManipulatorState,
 ) -> Option<std::borrow::Cow<'a, PosePoint>> {
     if p.joints.is_empty() {
         return Some(std::borrow::Cow::Borrowed(p));
     }
-    let angles: Vec<f64> = order.iter().map(|&i| p.joints[i]).collect();
-    let f = m.pose_at_joints(&angles, state)?;
+    let f = m.pose_at_joints(&p.joints, state)?;
     Some(std::borrow::Cow::Owned(PosePoint {
         position: f.pos,
         rotation: crate::kinematics::frame::rotation_vector(&f.rot),

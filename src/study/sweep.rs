@@ -6,6 +6,7 @@
 //! solved in order by the worker that has it, warm-started from point to point as `stiff map` does, so a
 //! design's figures are its map's figures whatever the thread count.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::ops::Range;
@@ -16,7 +17,7 @@ use indicatif::ProgressBar;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 
-use super::map::{map_columns, map_point, map_table, MapColumns, MapOptions, MapRow};
+use super::map::{map_columns, map_given_point, map_table, MapColumns, MapOptions, MapRow};
 use super::point::{LoadedHistory, PointResult, Status};
 use crate::batch::{stream, Source, Study, Tally};
 use crate::model::error::{open_input, InputError};
@@ -301,7 +302,7 @@ pub struct DesignSummary {
 
 impl DesignSummary {
     /// Reduces the map results of `points` (in order).
-    pub fn of(points: &[PosePoint], results: &[PointResult], threshold: Option<f64>) -> DesignSummary {
+    pub fn of(points: &[Cow<PosePoint>], results: &[PointResult], threshold: Option<f64>) -> DesignSummary {
         let mut s = DesignSummary { points: points.len() as u64, ..DesignSummary::default() };
         let (mut tran, mut rot, mut deflection) = (Vec::new(), Vec::new(), Vec::new());
         let mut worst: Option<(f64, usize)> = None;
@@ -334,7 +335,7 @@ impl DesignSummary {
         s.c_tran = Statistics::of(&mut tran);
         s.c_rot = Statistics::of(&mut rot);
         s.deflection = Statistics::of(&mut deflection);
-        s.worst = worst.map(|(_, i)| points[i].clone());
+        s.worst = worst.map(|(_, i)| points[i].clone().into_owned());
         s
     }
 }
@@ -499,24 +500,25 @@ impl SweepStudy<'_> {
         };
         let m = &model.manipulator;
         let mut state = (m.new_state(), LoadedHistory::default());
-        let results: Vec<PointResult> =
-            self.workspace.points.iter().map(|p| map_point(m, p, &self.options.map, &mut state)).collect();
+        // Joint coordinates are placed by each design's own forward kinematics (its tool may differ).
+        let (points, results): (Vec<Cow<PosePoint>>, Vec<PointResult>) =
+            self.workspace.points.iter().map(|p| map_given_point(m, p, &self.options.map, &mut state)).unzip();
         if let Some(dir) = &self.options.maps {
-            if let Err(e) = self.write_map(dir, index, &results) {
+            if let Err(e) = self.write_map(dir, index, &points, &results) {
                 if tally.map_error.is_none() {
                     tally.map_error = Some(format!("design {index}'s map: {e:#}"));
                 }
             }
         }
         tally.points += results.len() as u64;
-        DesignOutcome::Mapped(Box::new(DesignSummary::of(&self.workspace.points, &results, self.options.threshold)))
+        DesignOutcome::Mapped(Box::new(DesignSummary::of(&points, &results, self.options.threshold)))
     }
 
-    fn write_map(&self, dir: &Path, index: u64, results: &[PointResult]) -> Result<()> {
+    fn write_map(&self, dir: &Path, index: u64, points: &[Cow<PosePoint>], results: &[PointResult]) -> Result<()> {
         let columns = &self.workspace.columns;
         let mut sink = Sink::table(Some(&map_file(dir, index)), &map_table(columns, None))?;
         let mut text = crate::output::table::header_line(&map_table(columns, None));
-        for (i, (p, r)) in self.workspace.points.iter().zip(results).enumerate() {
+        for (i, (p, r)) in points.iter().zip(results).enumerate() {
             write_selected_row(&MapRow { index: i as u64, point: p, result: r }, columns, None, &mut text);
             if text.len() > 1 << 20 {
                 sink.writer().write_all(text.as_bytes())?;
