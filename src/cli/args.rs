@@ -241,7 +241,7 @@ impl PointsArgs {
 /// row then carries the whole pose forward kinematics gives, orientation included); poses refused where
 /// they cannot fix the arm's configuration (more than six joint coordinates). `file` names the points file
 /// in messages.
-fn arm_points(m: &Manipulator, mut points: PointSet, file: Option<&Path>) -> Result<PointSet> {
+pub(crate) fn arm_points(m: &Manipulator, mut points: PointSet, file: Option<&Path>) -> Result<PointSet> {
     let file = file.map(|p| format!("{}: ", p.display())).unwrap_or_default();
     if points.joint_names.is_empty() {
         if let Some(space) = m.joint_space.as_ref().filter(|s| s.names.len() > 6) {
@@ -432,22 +432,8 @@ fn rate_text(per_second: f64) -> String {
     format!("{}/s", indicatif::HumanCount(whole))
 }
 
-/// The poses of `--grid` or `--points` (clap keeps the two exclusive). Joint coordinates (`q_<joint>`
-/// columns) are read by `map` only, so far: refused here with what to do.
-pub(crate) fn point_set(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Result<PointSet> {
-    let set = point_set_any(grid, points)?;
-    if !set.joint_names.is_empty() {
-        bail!(
-            "{}: joint coordinates (q_{}) are read by `stiff map` only in this version: give poses (x_mm, y_mm, z_mm), or map the joint coordinates first (its rows carry the pose)",
-            points.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
-            set.joint_names.join(", q_")
-        );
-    }
-    Ok(set)
-}
-
 /// The points of `--grid` or `--points`, poses or joint coordinates.
-fn point_set_any(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Result<PointSet> {
+pub(crate) fn point_set_any(grid: &Option<PathBuf>, points: &Option<PathBuf>) -> Result<PointSet> {
     Ok(match (grid, points) {
         (Some(g), None) => PointSet::from_grid_file(g)?,
         (None, Some(p)) => PointSet::from_points_csv(p)?,

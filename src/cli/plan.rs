@@ -6,14 +6,15 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use super::args::{point_set, write_stdout, ModelArgs, OutputArgs};
+use super::args::{arm_points, point_set_any, write_stdout, ModelArgs, OutputArgs};
 use super::parse::parse_vec6;
-use crate::diagnose::plan::{plan, plan_table, write_plan, Plan, PlanOptions};
+use crate::diagnose::plan::{plan, plan_arm, plan_table, write_plan, Plan, PlanOptions};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
 pub(crate) const EXAMPLES: &str = "Examples:
   stiff plan manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --loads \"200,0,0,0,0,0;-200,0,0,0,0,0;0,200,0,0,0,0;0,-200,0,0,0,0;0,0,200,0,0,0;0,0,-200,0,0,0\" --budget 30 --noise 0.002 -o plan.csv
   stiff synth manipulators/orthoglide-3puu.toml --points plan.csv --effect backlash:1=0.01 --noise 0.002 --seed 1 -o planned.csv
+  stiff plan manipulators/fanuc-r2000ic.toml --candidates manipulators/grids/fanuc-r2000ic-cable-tests.csv --budget 15 --noise 0.05 -o arm-plan.csv
 
 Exit status: 0 success, 1 the run failed, 2 usage error.";
 
@@ -23,9 +24,10 @@ pub(crate) struct PlanArgs {
     pub(crate) model: ModelArgs,
     #[command(flatten)]
     pub(crate) poses: CandidateArgs,
-    /// The loads to choose from: Fx,Fy,Fz,Mx,My,Mz (N, N mm) separated by `;`.
+    /// The loads to choose from: Fx,Fy,Fz,Mx,My,Mz (N, N mm) separated by `;` (for a serial arm's
+    /// configurations, optional: the arm's own weight alone where not given).
     #[arg(long, allow_hyphen_values = true)]
-    pub(crate) loads: String,
+    pub(crate) loads: Option<String>,
     /// Measurements to choose (pose and load pairs, each at most once).
     #[arg(long)]
     pub(crate) budget: usize,
@@ -47,7 +49,8 @@ pub(crate) struct PlanArgs {
 #[derive(Args, Debug)]
 #[group(required = true, multiple = false)]
 pub(crate) struct CandidateArgs {
-    /// Candidate poses (CSV with x_mm,y_mm,z_mm, optional name).
+    /// Candidate poses (CSV with x_mm,y_mm,z_mm, optional name), or a serial arm's configurations (one
+    /// column q_<joint> per joint: the plan is then for the calibration of joint-space data).
     #[arg(long)]
     pub(crate) candidates: Option<PathBuf>,
     /// Candidate poses from a grid file (TOML).
@@ -57,12 +60,14 @@ pub(crate) struct CandidateArgs {
 
 pub(crate) fn run(a: PlanArgs) -> Result<()> {
     let model = a.model.load_model()?;
-    let loads = a
-        .loads
-        .split(';')
-        .map(|w| parse_vec6(w.trim()))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| anyhow::anyhow!("--loads: {e}"))?;
+    let loads = match &a.loads {
+        Some(text) => text
+            .split(';')
+            .map(|w| parse_vec6(w.trim()))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| anyhow::anyhow!("--loads: {e}"))?,
+        None => Vec::new(),
+    };
     // The same bounds as a measurement's sigma in diagnose: below a picometre the weights' squares overflow.
     use crate::diagnose::data::{MAX_MAGNITUDE, MIN_SIGMA_MM};
     if !(MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&a.noise) {
@@ -72,12 +77,35 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
     if a.budget == 0 {
         bail!("--budget must be at least 1");
     }
-    let mut set = point_set(&a.poses.grid, &a.poses.candidates)?;
+    let m = &model.manipulator;
+    let mut set = arm_points(m, point_set_any(&a.poses.grid, &a.poses.candidates)?, a.poses.candidates.as_deref())?;
     let mut poses = Vec::new();
     while set.next_block(4096, &mut poses)? > 0 {}
+    let arm = !set.joint_names.is_empty();
+    if !arm && m.joint_space.is_some() {
+        bail!(
+            "{} is a serial arm: its plan is for calibration data, from candidate configurations (--candidates with one column q_<joint> per joint)",
+            m.name
+        );
+    }
+    if !arm && loads.is_empty() {
+        bail!("give --loads: the loads the measurements may be taken under");
+    }
     let o = PlanOptions { loads, budget: a.budget, effects: a.effects.clone(), noise: a.noise, random: a.random };
-    let mut sink = a.output.open(&plan_table())?;
-    let p = plan(&model, &poses, &o)?;
+    let mut sink = a.output.open(&plan_table(&set.joint_names))?;
+    let p = if arm {
+        let configurations: Vec<crate::diagnose::calibrate::Configuration> = poses
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
+                (name, p.joints.clone(), p.wrench.unwrap_or_else(crate::kinematics::frame::Vec6::zeros))
+            })
+            .collect();
+        plan_arm(m, &configurations, &o)?
+    } else {
+        plan(&model, &poses, &o)?
+    };
     let mut rows = String::new();
     write_plan(&p, &mut rows);
     sink.writer().write_all(rows.as_bytes())?;
@@ -96,10 +124,17 @@ fn report(p: &Plan, how: &str, noise: f64) -> String {
         p.candidates,
         p.log_det
     );
-    let _ = writeln!(s, "smallest size detectable at 5 sigma (weakest direction; factor - 1 for compliance factors):");
+    let units = match p.joint_names.is_empty() {
+        true => "factor - 1 for compliance factors",
+        false => "rad or mm for offsets and play, rad/(N mm) or mm/N added to a joint's compliance, mm and rad for geometry, kg and kg mm for the payload",
+    };
+    let _ = writeln!(s, "smallest size detectable at 5 sigma (weakest direction; {units}):");
     let _ = writeln!(s, "  {:<26} {:>4} {:>14} {:>18}", "effect", "dim", "alone", "beside the others");
     for d in &p.detectable {
         let _ = writeln!(s, "  {:<26} {:>4} {:>14.4e} {:>18.4e}", d.label, d.dim, d.alone, d.beside_others);
+    }
+    if !p.unseen.is_empty() {
+        let _ = writeln!(s, "not seen by any candidate (not planned for): {}", p.unseen.join(", "));
     }
     if p.inseparable.is_empty() {
         let _ = writeln!(s, "every pair of effects is separable on this plan");

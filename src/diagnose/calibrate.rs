@@ -492,6 +492,25 @@ impl<'a> Problem<'a> {
     }
 
     /// Nuisance parameters: per set-up a translation and a rotation, per target a place on the tool.
+    /// The effects offered where none are named: every joint's offset, compliance, play and geometry and the
+    /// payload for positions; compliance and play for displacements (which see no geometry).
+    fn default_candidates(&self) -> Vec<ArmEffect> {
+        let kinds: &[ArmKind] = if self.absolute {
+            &[ArmKind::JointOffset, ArmKind::JointCompliance, ArmKind::Backlash, ArmKind::JointGeometry]
+        } else {
+            &[ArmKind::JointCompliance, ArmKind::Backlash]
+        };
+        // A compliance at a link's frame (six parameters, many of them tied to the registration and to the
+        // joints' compliances) is offered when asked for (`--candidates`, `--fit`): offered by default on the
+        // TIAGo's 37 training postures, three of them were accepted and the held-out error grew.
+        let mut all: Vec<ArmEffect> =
+            (0..self.joints.len()).flat_map(|j| kinds.iter().map(move |&kind| ArmEffect { kind, joint: j })).collect();
+        if self.absolute {
+            all.push(ArmEffect { kind: ArmKind::Payload, joint: 0 });
+        }
+        all
+    }
+
     fn nuisance_count(&self) -> usize {
         if self.absolute {
             6 * self.data.setups.len() + 3 * self.data.targets.len()
@@ -1264,25 +1283,8 @@ pub fn calibrate(
     options: &Options,
 ) -> Result<Calibration, CalibrationError> {
     let problem = Problem::new(m, data, options.sigma)?;
-    let candidates: Vec<ArmEffect> = if candidates.is_empty() {
-        let kinds: &[ArmKind] = if problem.absolute {
-            &[ArmKind::JointOffset, ArmKind::JointCompliance, ArmKind::Backlash, ArmKind::JointGeometry]
-        } else {
-            &[ArmKind::JointCompliance, ArmKind::Backlash]
-        };
-        // A compliance at a link's frame (six parameters, many of them tied to the registration and to the
-        // joints' compliances) is offered when asked for (`--candidates`, `--fit`): offered by default on the
-        // TIAGo's 37 training postures, three of them were accepted and the held-out error grew.
-        let mut all: Vec<ArmEffect> = (0..problem.joints.len())
-            .flat_map(|j| kinds.iter().map(move |&kind| ArmEffect { kind, joint: j }))
-            .collect();
-        if problem.absolute {
-            all.push(ArmEffect { kind: ArmKind::Payload, joint: 0 });
-        }
-        all
-    } else {
-        candidates.to_vec()
-    };
+    let candidates: Vec<ArmEffect> =
+        if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
     let sigma_known = data.rows.iter().all(|r| r.sigma.is_some()) || options.sigma.is_some();
     let usable = |r: &usize| !problem.unusable.iter().any(|(k, _)| k == r);
     let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
@@ -1645,6 +1647,80 @@ pub struct PositionSynth {
 
 /// One configuration to measure: its name, the controller's angles and the wrench at the reference point.
 pub type Configuration = (String, Vec<f64>, Vec6);
+
+/// What measuring a target's position at each candidate configuration would tell a calibration, to first
+/// order about the nominal arm: the derivative of the three coordinates in every parameter, weighted by
+/// 1/noise.
+pub struct Signatures {
+    /// The candidates with a prediction (the others have no loaded equilibrium), as indices into the
+    /// configurations given.
+    pub usable: Vec<usize>,
+    /// The registration's and the target's columns (9): fitted in every calibration.
+    pub nuisance: DMatrix<f64>,
+    /// Each effect's label and columns.
+    pub effects: Vec<(String, DMatrix<f64>)>,
+}
+
+/// The signatures (`Signatures`) of `effects` (where empty: the effects `calibrate` offers by default, play
+/// where the candidates load its joint both ways) at `configurations`, one instrument and one target.
+pub fn signatures(
+    m: &Manipulator,
+    configurations: &[Configuration],
+    effects: &[ArmEffect],
+    noise: f64,
+) -> Result<Signatures, CalibrationError> {
+    let mut state = m.new_state();
+    let mut rows = Vec::with_capacity(configurations.len());
+    for (k, (name, joints, wrench)) in configurations.iter().enumerate() {
+        // Where the nominal arm puts the target (its tool point): the registration's start is then the
+        // identity, the point about which the first order is taken.
+        let at = m.pose_at_joints(joints, &mut state).map_or(Vec3::zeros(), |f| f.pos);
+        rows.push(PositionRow {
+            name: name.clone(),
+            line: k + 2,
+            joints: joints.clone(),
+            wrench: *wrench,
+            observed: Observed::Position { target: 0, setup: 0, at },
+            sigma: Some(noise),
+            check: false,
+            gravity: None,
+            configuration: k,
+        });
+    }
+    let data = PositionData {
+        rows,
+        targets: vec![String::new()],
+        setups: vec![String::new()],
+        configurations: configurations.len(),
+    };
+    let problem = Problem::new(m, &data, Some(noise))?;
+    let usable: Vec<usize> =
+        (0..data.rows.len()).filter(|r| !problem.unusable.iter().any(|(k, _)| k == r)).collect();
+    let effects = if effects.is_empty() { problem.two_sided_play(problem.default_candidates(), &usable).0 } else { effects.to_vec() };
+    let params = problem.start(&usable, &effects);
+    let p = problem.nuisance_count() + effects.iter().map(ArmEffect::size).sum::<usize>();
+    let mut all = DMatrix::zeros(3 * usable.len(), p);
+    let mut row = DMatrix::zeros(3, p);
+    for (i, &r) in usable.iter().enumerate() {
+        problem.predict(r, &effects, &params, &mut state, Some(&mut row)).ok_or_else(|| CalibrationError::Row {
+            name: data.rows[r].name.clone(),
+            line: data.rows[r].line,
+            why: "the joint coordinates give no finite pose".into(),
+        })?;
+        all.view_mut((3 * i, 0), (3, p)).copy_from(&row);
+    }
+    let nuisance = problem.nuisance_count();
+    let mut at = nuisance;
+    let effects = effects
+        .iter()
+        .map(|e| {
+            let block = all.columns(at, e.size()).into_owned();
+            at += e.size();
+            (e.label(problem.joints), block)
+        })
+        .collect();
+    Ok(Signatures { usable, nuisance: all.columns(0, nuisance).into_owned(), effects })
+}
 
 /// One synthetic row: the configuration, the measured target (mm), whether it was made gross and whether it
 /// is held out.

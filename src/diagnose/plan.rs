@@ -24,6 +24,7 @@ use crate::model::effect::Kind;
 use crate::model::grid::PosePoint;
 use crate::model::Model;
 use crate::output::table::{header_line, names, selected_columns, write_row, Column, Record, Row};
+use crate::platform::manipulator::Manipulator;
 
 /// How to plan.
 pub struct PlanOptions {
@@ -48,14 +49,20 @@ pub struct Planned {
     pub position: Vec3,
     /// The load, N and N mm.
     pub wrench: Vec6,
+    /// A serial arm's configuration: the controller's angles (`Plan::joint_names`); empty for a pose.
+    pub joints: Vec<f64>,
 }
 
 impl Row for Planned {
-    type Layout = ();
+    /// The joint columns' names (`q_<joint>`): empty for poses.
+    type Layout = Vec<String>;
 
     /// A points file `synth --points` measures, each row with its own load.
-    fn record(&self, _: &(), r: &mut impl Record) {
+    fn record(&self, joints: &Vec<String>, r: &mut impl Record) {
         r.text(names::NAME, &self.pose);
+        for (name, q) in joints.iter().zip(self.joints.iter().chain(std::iter::repeat(&0.0))) {
+            r.number(name, *q);
+        }
         for k in 0..3 {
             r.number(names::POSITION[k], self.position[k]);
         }
@@ -65,17 +72,23 @@ impl Row for Planned {
     }
 }
 
-/// The columns of a plan, in order.
-pub fn plan_table() -> Vec<Column> {
-    let blank = Planned { pose: String::new(), position: Vec3::zeros(), wrench: Vec6::zeros() };
-    selected_columns(&blank, &(), None)
+/// The columns of a plan, in order: `q_<joint>` for each of `joint_names` (a serial arm's plan), then the
+/// position and the load.
+pub fn plan_table(joint_names: &[String]) -> Vec<Column> {
+    let blank = Planned { pose: String::new(), position: Vec3::zeros(), wrench: Vec6::zeros(), joints: Vec::new() };
+    selected_columns(&blank, &joint_columns(joint_names), None)
+}
+
+fn joint_columns(joint_names: &[String]) -> Vec<String> {
+    joint_names.iter().map(|n| format!("{}{n}", crate::columns::JOINT_PREFIX)).collect()
 }
 
 /// Writes the plan's measurements as a CSV table (header and rows).
 pub fn write_plan(p: &Plan, out: &mut String) {
-    out.push_str(&header_line(&plan_table()));
+    out.push_str(&header_line(&plan_table(&p.joint_names)));
+    let layout = joint_columns(&p.joint_names);
     for m in &p.measurements {
-        write_row(m, &(), out);
+        write_row(m, &layout, out);
     }
 }
 
@@ -98,11 +111,15 @@ pub struct Detectable {
 pub struct Plan {
     /// The chosen measurements, in the order chosen.
     pub measurements: Vec<Planned>,
+    /// A serial arm's joints (the plan's configurations give their angles); empty for poses.
+    pub joint_names: Vec<String>,
     /// Per effect, the smallest detectable size.
     pub detectable: Vec<Detectable>,
     /// Pairs whose signatures on the plan are closer than `SEPARABLE_SINE`: (a, b, sine of the smallest
     /// angle between them).
     pub inseparable: Vec<(String, String, f64)>,
+    /// Effects no candidate measurement sees (left out of the plan).
+    pub unseen: Vec<String>,
     /// Candidate measurements considered (poses with a loaded equilibrium under the load).
     pub candidates: usize,
     /// log det of the information matrix of the plan (parameters in typical-size units).
@@ -130,6 +147,8 @@ pub enum PlanError {
     },
     /// The model could not predict at the candidates.
     Model(DiagnoseError),
+    /// A serial arm's plan could not be made (why).
+    Arm(String),
 }
 
 impl std::fmt::Display for PlanError {
@@ -145,6 +164,7 @@ impl std::fmt::Display for PlanError {
                 write!(f, "`{name}` is not a candidate effect here (candidates: {})", known.join(", "))
             }
             PlanError::Model(e) => write!(f, "{e}"),
+            PlanError::Arm(why) => f.write_str(why),
         }
     }
 }
@@ -192,15 +212,134 @@ pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan,
     let offered: Vec<Candidate> = candidates(&problem, true).into_iter().filter(|c| c.kind != Kind::Drift).collect();
     let chosen = choose_effects(offered, &o.effects)?;
     let rows: Vec<usize> = (0..n).collect();
-    let signatures: Vec<DMatrix<f64>> = chosen
+    let effects: Vec<Signature> = chosen
         .iter()
         .map(|c| {
+            let probe = probe_step(c.kind);
             jacobian(&problem, std::slice::from_ref(c), &c.neutral(), 0, &rows)
-                .map(|j| j * probe_step(c.kind))
+                .map(|j| Signature { label: c.label(), signature: j * probe, probe, log_factor: c.kind.scales_springs() })
                 .map_err(|e| PlanError::Model(e.into()))
         })
         .collect::<Result<_, _>>()?;
-    let all = hstack(&signatures);
+    let chosen = choose(&effects, None, n, o);
+    let measurements = chosen
+        .picks
+        .iter()
+        .map(|&r| {
+            let row = &data.rows[r];
+            Planned { pose: row.pose_id.clone(), position: row.position, wrench: row.wrench, joints: Vec::new() }
+        })
+        .collect();
+    Ok(Plan { measurements, joint_names: Vec::new(), ..chosen.plan(n) })
+}
+
+/// Plans `o.budget` measurements of a serial arm's target position (in an instrument's frame) among
+/// `configurations` (a name, the controller's angles and the row's load) x `o.loads` (where none are given,
+/// each configuration under its own load: zero, the arm's own weight, where its row gives none), for the calibration `stiff diagnose` makes of joint-space data: the effects it
+/// offers by default (or `o.effects`, named as its `--candidates`), beside the instrument's frame and the
+/// target's place that every calibration fits.
+pub fn plan_arm(
+    m: &Manipulator,
+    configurations: &[super::calibrate::Configuration],
+    o: &PlanOptions,
+) -> Result<Plan, PlanError> {
+    use super::calibrate::{signatures, ArmEffect};
+    let not_an_arm = || PlanError::Arm(format!("{} is not a serial arm read from URDF", m.name));
+    let names = &m.joint_space.as_ref().ok_or_else(not_an_arm)?.names;
+    let candidates: Vec<super::calibrate::Configuration> = match o.loads.is_empty() {
+        true => configurations.to_vec(),
+        false => configurations
+            .iter()
+            .flat_map(|(name, q, _)| o.loads.iter().map(move |w| (name.clone(), q.clone(), *w)))
+            .collect(),
+    };
+    let effects = o
+        .effects
+        .iter()
+        .map(|e| ArmEffect::parse(e, names))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|why| PlanError::Arm(format!("--effects {why}")))?;
+    let found = signatures(m, &candidates, &effects, o.noise).map_err(|e| PlanError::Arm(e.to_string()))?;
+    let n = found.usable.len();
+    if n == 0 {
+        return Err(PlanError::NoCandidates);
+    }
+    if o.budget > n {
+        return Err(PlanError::BudgetTooLarge { budget: o.budget, candidates: n });
+    }
+    // Each effect in units of the size that moves the candidates' points by one noise RMS: the choice does
+    // not depend on units, the ridge that orders the first choices does.
+    let scaled = |j: &DMatrix<f64>| {
+        let probe = (j.ncols() as f64 * n as f64).sqrt() / j.norm().max(1e-300);
+        (j * probe, probe)
+    };
+    // By default, the effects the candidates cannot see at all (a vertical first axis's compliance under
+    // the arm's weight alone) are named, not planned for.
+    let (seen, unseen): (Vec<_>, Vec<_>) =
+        found.effects.iter().partition(|(_, j)| !o.effects.is_empty() || j.norm() > 0.0);
+    let effects: Vec<Signature> = seen
+        .into_iter()
+        .map(|(label, j)| {
+            let (signature, probe) = scaled(j);
+            Signature { label: label.clone(), signature, probe, log_factor: false }
+        })
+        .collect();
+    let nuisance = DMatrix::from_fn(found.nuisance.nrows(), found.nuisance.ncols(), |r, c| {
+        let column = found.nuisance.column(c);
+        column[r] * (n as f64).sqrt() / column.norm().max(1e-300)
+    });
+    let chosen = choose(&effects, Some(&nuisance), n, o);
+    let mut state = m.new_state();
+    let measurements = chosen
+        .picks
+        .iter()
+        .map(|&k| {
+            let (pose, joints, wrench) = &candidates[found.usable[k]];
+            let position = m.pose_at_joints(joints, &mut state).map_or(Vec3::zeros(), |f| f.pos);
+            Planned { pose: pose.clone(), position, wrench: *wrench, joints: joints.clone() }
+        })
+        .collect();
+    let unseen = unseen.into_iter().map(|(label, _)| label.clone()).collect();
+    Ok(Plan { measurements, joint_names: names.clone(), unseen, ..chosen.plan(n) })
+}
+
+/// One effect's signature over the candidate measurements, in units of a typical size (`probe` of its own
+/// units; a compliance factor's logarithm where `log_factor`).
+struct Signature {
+    label: String,
+    signature: DMatrix<f64>,
+    probe: f64,
+    log_factor: bool,
+}
+
+/// A plan's choice and what it achieves.
+struct Chosen {
+    picks: Vec<usize>,
+    detectable: Vec<Detectable>,
+    inseparable: Vec<(String, String, f64)>,
+    log_det: f64,
+}
+
+impl Chosen {
+    fn plan(self, candidates: usize) -> Plan {
+        let Chosen { detectable, inseparable, log_det, .. } = self;
+        Plan {
+            measurements: Vec::new(),
+            joint_names: Vec::new(),
+            detectable,
+            inseparable,
+            unseen: Vec::new(),
+            candidates,
+            log_det,
+        }
+    }
+}
+
+/// Chooses `o.budget` of the `n` candidate measurements for `effects` (and the parameters fitted beside
+/// them, `nuisance`, which are not reported), greedy D-optimal or at random.
+fn choose(effects: &[Signature], nuisance: Option<&DMatrix<f64>>, n: usize, o: &PlanOptions) -> Chosen {
+    let signatures: Vec<DMatrix<f64>> = effects.iter().map(|e| e.signature.clone()).collect();
+    let all = hstack(&[signatures.clone(), nuisance.into_iter().cloned().collect()].concat());
     let picks = match o.random {
         Some(seed) => {
             let mut order: Vec<usize> = (0..n).collect();
@@ -212,43 +351,40 @@ pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan,
     };
     let on_plan = |j: &DMatrix<f64>| rows_of(j, &picks);
     let planned: Vec<DMatrix<f64>> = signatures.iter().map(on_plan).collect();
+    let fitted_beside = nuisance.map(on_plan);
     // Nested pairs (one effect's signature inside a larger one's: gravity in gravity-offset, an actuator
     // offset in its leg's geometry) are told apart by parsimony, not by the data: a larger effect that
     // contains this one is left out of "the others", and nested pairs are not called inseparable.
     let contains = |big: usize, small: usize| {
-        chosen[big].dim() > chosen[small].dim() && share_outside(&planned[small], &planned[big]) < NESTED
+        planned[big].ncols() > planned[small].ncols() && share_outside(&planned[small], &planned[big]) < NESTED
     };
-    let detectable = chosen
+    let detectable = effects
         .iter()
         .enumerate()
-        .map(|(i, c)| {
-            let others: Vec<DMatrix<f64>> =
-                (0..chosen.len()).filter(|&k| k != i && !contains(k, i)).map(|k| planned[k].clone()).collect();
+        .map(|(i, e)| {
+            let others: Vec<DMatrix<f64>> = (0..effects.len())
+                .filter(|&k| k != i && !contains(k, i))
+                .map(|k| planned[k].clone())
+                .chain(fitted_beside.clone())
+                .collect();
             let own = &planned[i];
             let rest = outside_span(own, &hstack(&others)).unwrap_or_else(|| own * 0.0);
-            let size = |j: &DMatrix<f64>| to_units(c, 5.0 * probe_step(c.kind) / smallest_singular(j));
-            Detectable { label: c.label(), dim: c.dim(), alone: size(own), beside_others: size(&rest) }
+            let size = |j: &DMatrix<f64>| to_units(e, 5.0 * e.probe / smallest_singular(j));
+            Detectable { label: e.label.clone(), dim: own.ncols(), alone: size(own), beside_others: size(&rest) }
         })
         .collect();
     let mut inseparable = Vec::new();
-    for a in 0..chosen.len() {
-        for b in a + 1..chosen.len() {
+    for a in 0..effects.len() {
+        for b in a + 1..effects.len() {
             let sine = smallest_angle_sine(&planned[a], &planned[b]);
             if sine < SEPARABLE_SINE && !contains(a, b) && !contains(b, a) {
-                inseparable.push((chosen[a].label(), chosen[b].label(), sine));
+                inseparable.push((effects[a].label.clone(), effects[b].label.clone(), sine));
             }
         }
     }
     let information = on_plan(&all);
     let log_det = log_det_regularised(&(information.transpose() * &information), &all);
-    let measurements = picks
-        .iter()
-        .map(|&r| {
-            let row = &data.rows[r];
-            Planned { pose: row.pose_id.clone(), position: row.position, wrench: row.wrench }
-        })
-        .collect();
-    Ok(Plan { measurements, detectable, inseparable, candidates: n, log_det })
+    Chosen { picks, detectable, inseparable, log_det }
 }
 
 /// The listed effects among those offered: `NAME` takes every target, `NAME:TARGET` one.
@@ -326,13 +462,12 @@ fn smallest_angle_sine(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
     smallest_singular(&residual).min(smallest_singular(&rb))
 }
 
-/// A size in typical-size units (one probe step) turned into the effect's own: a compliance factor's
-/// logarithm to `factor - 1`.
-fn to_units(c: &Candidate, size: f64) -> f64 {
+/// A size in the effect's own units: a compliance factor's logarithm to `factor - 1`.
+fn to_units(e: &Signature, size: f64) -> f64 {
     if !size.is_finite() {
         return f64::INFINITY;
     }
-    if c.kind.scales_springs() {
+    if e.log_factor {
         size.exp() - 1.0
     } else {
         size
