@@ -613,8 +613,12 @@ fn the_plans_signatures_are_finite_differences_of_the_measured_target() {
     let found = calibrate::signatures(&m, &configurations, &effects, noise).unwrap();
     assert_eq!(found.usable.len(), 8);
     assert_eq!(found.nuisance.ncols(), 9, "an instrument's frame and a target's place");
-    let level =
-        Hidden { rotation: Vec3::zeros(), translation: Vec3::zeros(), target: Vec3::zeros(), ..Hidden::registration_only() };
+    let level = Hidden {
+        rotation: Vec3::zeros(),
+        translation: Vec3::zeros(),
+        target: Vec3::zeros(),
+        ..Hidden::registration_only()
+    };
     let difference = |change: &dyn Fn(&mut Hidden, f64), h: f64, t: &[f64; 6]| -> Vec3 {
         let (mut up, mut down) = (level.clone(), level.clone());
         change(&mut up, h);
@@ -624,7 +628,9 @@ fn the_plans_signatures_are_finite_differences_of_the_measured_target() {
     let offset = |h: &mut Hidden, d: f64| h.offsets[1] = d;
     // The hidden compliance is a factor on the source's: an added compliance c is the factor 1 + c k3.
     let compliance = |h: &mut Hidden, c: f64| h.compliance[2] = 1.0 + c * K_JOINT[2];
-    for (e, (change, step)) in [(&offset as &dyn Fn(&mut Hidden, f64), 1e-6), (&compliance, 1e-12)].into_iter().enumerate() {
+    for (e, (change, step)) in
+        [(&offset as &dyn Fn(&mut Hidden, f64), 1e-6), (&compliance, 1e-12)].into_iter().enumerate()
+    {
         let signature = &found.effects[e].1;
         let mut sign = 0.0;
         for (i, t) in angles.iter().enumerate() {
@@ -657,14 +663,13 @@ fn plan_chooses_calibration_configurations_of_a_serial_arm() {
         assert!(done.status.success(), "{}", String::from_utf8_lossy(&done.stderr));
         (String::from_utf8(done.stdout).unwrap(), std::fs::read_to_string(&out).unwrap())
     };
-    let log_det = |report: &str| -> f64 {
-        report.lines().next().unwrap().rsplit(' ').next().unwrap().parse().unwrap()
-    };
+    let log_det = |report: &str| -> f64 { report.lines().next().unwrap().rsplit(' ').next().unwrap().parse().unwrap() };
     let (report, table) = run(&[]);
     assert!(report.contains("not seen by any candidate (not planned for): joint-compliance:J1"), "{report}");
     assert!(table.starts_with("name,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,x_mm,y_mm,z_mm,"), "{table}");
     let candidates = std::fs::read_to_string("manipulators/grids/fanuc-r2000ic-cable-tests.csv").unwrap();
-    let rows = crate::common::csv_columns(&table, &["q_J1", "q_J2", "q_J3", "q_J4", "q_J5", "q_J6", "x_mm", "y_mm", "z_mm"]);
+    let rows =
+        crate::common::csv_columns(&table, &["q_J1", "q_J2", "q_J3", "q_J4", "q_J5", "q_J6", "x_mm", "y_mm", "z_mm"]);
     assert_eq!(rows.len(), 15);
     for row in &rows {
         let t: [f64; 6] = std::array::from_fn(|k| row[k]);

@@ -145,7 +145,7 @@ fn schur_form_equals_bordered_inverse_and_null_space_route() {
         let mut j = ChainJacobians::default();
         chain.evaluate(&c, &mut j);
         j.fill_virtual();
-        let s = spring_compliance_at_end(&j.virtual_, &b.springs, &c.passive);
+        let s = spring_compliance_at_end(&j.virtual_, &b.springs, &c);
         let range = passive_range(&j.passive, 300.0);
         let hot = leg_stiffness(&s, &range).unwrap();
         let bordered = leg_stiffness_bordered(&s, &range).unwrap();

@@ -253,7 +253,8 @@ pub(crate) fn arm_points(m: &Manipulator, mut points: PointSet, file: Option<&Pa
             );
         }
     } else {
-        let order = crate::study::point::joint_order(m, &points.joint_names).map_err(|e| anyhow::anyhow!("{file}{e}"))?;
+        let order =
+            crate::study::point::joint_order(m, &points.joint_names).map_err(|e| anyhow::anyhow!("{file}{e}"))?;
         points.order_joints(&order);
         points.has_orientation = true;
     }

@@ -193,11 +193,7 @@ fn run_joint_space(
         .enumerate()
         .map(|(k, p)| {
             let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
-            (
-                name,
-                p.joints.clone(),
-                p.wrench.unwrap_or_else(crate::kinematics::frame::Vec6::zeros),
-            )
+            (name, p.joints.clone(), p.wrench.unwrap_or_else(crate::kinematics::frame::Vec6::zeros))
         })
         .collect();
     let loaded = read.iter().any(|p| p.wrench.is_some_and(|w| w != crate::kinematics::frame::Vec6::zeros()));

@@ -1694,9 +1694,12 @@ pub fn signatures(
         configurations: configurations.len(),
     };
     let problem = Problem::new(m, &data, Some(noise))?;
-    let usable: Vec<usize> =
-        (0..data.rows.len()).filter(|r| !problem.unusable.iter().any(|(k, _)| k == r)).collect();
-    let effects = if effects.is_empty() { problem.two_sided_play(problem.default_candidates(), &usable).0 } else { effects.to_vec() };
+    let usable: Vec<usize> = (0..data.rows.len()).filter(|r| !problem.unusable.iter().any(|(k, _)| k == r)).collect();
+    let effects = if effects.is_empty() {
+        problem.two_sided_play(problem.default_candidates(), &usable).0
+    } else {
+        effects.to_vec()
+    };
     let params = problem.start(&usable, &effects);
     let p = problem.nuisance_count() + effects.iter().map(ArmEffect::size).sum::<usize>();
     let mut all = DMatrix::zeros(3 * usable.len(), p);

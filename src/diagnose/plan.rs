@@ -217,7 +217,12 @@ pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan,
         .map(|c| {
             let probe = probe_step(c.kind);
             jacobian(&problem, std::slice::from_ref(c), &c.neutral(), 0, &rows)
-                .map(|j| Signature { label: c.label(), signature: j * probe, probe, log_factor: c.kind.scales_springs() })
+                .map(|j| Signature {
+                    label: c.label(),
+                    signature: j * probe,
+                    probe,
+                    log_factor: c.kind.scales_springs(),
+                })
                 .map_err(|e| PlanError::Model(e.into()))
         })
         .collect::<Result<_, _>>()?;

@@ -14,15 +14,15 @@ use super::schema::{
 };
 use super::urdf::UrdfJointKind;
 use crate::beam::{beam_compliance, BeamSection};
-use crate::expr::ExprSrc;
 use crate::expr::Scope;
+use crate::expr::{Expr, ExprSrc};
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::{JointSpace, Manipulator, Payload};
 use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
-use crate::vjm::spring::{SpringGroup, SIX_DOF};
+use crate::vjm::spring::{CoordinateStiffness, SpringGroup, SIX_DOF};
 
 /// A description as built: the manipulator (with the spring scalings of its `[[effect]]` entries applied)
 /// and, side by side, the effects that are terms of the measurement model (used by diagnose and synth).
@@ -244,7 +244,17 @@ impl ChainParts {
         let actuator =
             matches!(self.elements.iter().rev().nth(joints.len()), Some(Element::Joint(j)) if j.role == Role::Actuated);
         let dim = joints.len();
-        self.springs.push(SpringGroup { name, actuator, first, dim, stiffness, compliance, posture, beam_axis: None });
+        self.springs.push(SpringGroup {
+            name,
+            actuator,
+            first,
+            dim,
+            stiffness,
+            compliance,
+            posture,
+            of_coordinate: None,
+            beam_axis: None,
+        });
     }
 }
 
@@ -767,19 +777,39 @@ impl Builder<'_> {
                             parts.elements.push(Element::Fixed(change));
                         }
                         parts.joint(jk, j.axis, Role::Actuated);
-                        let given = u.joints.get(&j.name).map(|k| self.joint_stiffness(k)).transpose()?;
-                        let compliance = given.map_or(0.0, |k| 1.0 / k) + added_compliance(&j.name)?;
-                        if compliance < 0.0 || (compliance == 0.0 && given.is_some()) {
-                            return Err(self.loc.at(
-                                spec.span(),
-                                format!("joint `{}`: its compliance with the correction added is {compliance:e}, not positive", j.name),
-                            ));
-                        }
-                        if compliance > 0.0 {
+                        let joint_spec = u.joints.get(&j.name);
+                        if let Some(formula) = joint_spec.map(|k| self.coordinate_stiffness(k)).transpose()?.flatten() {
+                            let coordinate = names.len() - 1;
+                            let added_compliance = added_compliance(&j.name)?;
+                            let spring = CoordinateStiffness {
+                                coordinate,
+                                stiffness: formula.0,
+                                formula: formula.1,
+                                added_compliance,
+                                compliance_factor: 1.0,
+                            };
+                            // Its value at the coordinate's zero stands for it where one number is asked.
+                            let at_zero = spring.compliance(&Default::default());
                             let (mut km, mut cm) = (Mat6::zeros(), Mat6::zeros());
-                            km[(0, 0)] = 1.0 / compliance;
-                            cm[(0, 0)] = compliance;
+                            km[(0, 0)] = 1.0 / at_zero;
+                            cm[(0, 0)] = at_zero;
                             parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
+                            parts.springs.last_mut().expect("just pushed").of_coordinate = Some(spring);
+                        } else {
+                            let given = joint_spec.map(|k| self.joint_stiffness(k)).transpose()?;
+                            let compliance = given.map_or(0.0, |k| 1.0 / k) + added_compliance(&j.name)?;
+                            if compliance < 0.0 || (compliance == 0.0 && given.is_some()) {
+                                return Err(self.loc.at(
+                                    spec.span(),
+                                    format!("joint `{}`: its compliance with the correction added is {compliance:e}, not positive", j.name),
+                                ));
+                            }
+                            if compliance > 0.0 {
+                                let (mut km, mut cm) = (Mat6::zeros(), Mat6::zeros());
+                                km[(0, 0)] = 1.0 / compliance;
+                                cm[(0, 0)] = compliance;
+                                parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
+                            }
                         }
                     }
                 }
@@ -852,6 +882,40 @@ impl Builder<'_> {
     }
 
     /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.
+    /// A joint's stiffness given as a formula of its own coordinate `q` (rad, or mm for a prismatic joint;
+    /// a gravity compensator's joint), compiled with the parameters' values as constants, with the text
+    /// it was written as: None where the spring is a number.
+    fn coordinate_stiffness(&self, k: &Spanned<JointStiffnessSpec>) -> Result<Option<(Expr, String)>, InputError> {
+        let spec = k.get_ref();
+        let (n, inverted) = match (&spec.stiffness, &spec.compliance) {
+            (Some(s), None) => (s, false),
+            (None, Some(c)) => (c, true),
+            _ => return Ok(None),
+        };
+        let ExprSrc::Formula(text) = n.get_ref() else { return Ok(None) };
+        let mut uses_q = false;
+        let mut resolve = |name: &str| -> Result<Expr, String> {
+            match self.params.get(name) {
+                Some(v) => Ok(Expr::Const(*v)),
+                None if name == "q" => {
+                    uses_q = true;
+                    Ok(Expr::Slot(0))
+                }
+                None => Err(format!("unknown parameter `{name}` (`q` is the joint's own coordinate)")),
+            }
+        };
+        let formula = n.get_ref().compile(&mut resolve).map_err(|e| self.loc.at(n.span(), e))?;
+        if !uses_q {
+            return Ok(None);
+        }
+        let formula = match inverted {
+            true => Expr::Binary(crate::expr::Op::Div, Box::new(Expr::Const(1.0)), Box::new(formula)),
+            false => formula,
+        };
+        let written = if inverted { format!("1 / ({text})") } else { text.clone() };
+        Ok(Some((formula, written)))
+    }
+
     fn joint_stiffness(&self, k: &Spanned<JointStiffnessSpec>) -> Result<f64, InputError> {
         match (&k.get_ref().stiffness, &k.get_ref().compliance) {
             (Some(s), None) => self.positive(s, "stiffness"),

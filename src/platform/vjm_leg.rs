@@ -160,11 +160,11 @@ impl VjmLeg {
     }
 
     pub(super) fn respond_unloaded(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
-        // A posture-dependent spring (a parallelogram) needs the passive coordinates; others do not (no copy).
-        let passive =
-            if self.springs.iter().any(|s| s.posture.is_some()) { state.coords.passive.clone() } else { Vec::new() };
+        // A posture-dependent spring (a parallelogram, a formula of a joint's coordinate) needs the
+        // coordinates; others do not (no copy).
+        let coords = if self.springs.iter().any(|s| s.varies()) { state.coords.clone() } else { Default::default() };
         let jac = self.evaluation(state);
-        let s = spring_compliance_at_end(&jac.virtual_, &self.springs, &passive);
+        let s = spring_compliance_at_end(&jac.virtual_, &self.springs, &coords);
         let range = passive_range(&jac.passive, self.length_scale);
         let k_end = leg_stiffness(&s, &range).ok_or(LegFailure::SingularChain)?;
         // Move from the leg's end point EP to the reference point RP: K_RP = A^T K_EP A, v = EP - RP.

@@ -190,7 +190,7 @@ impl LoadedChain<'_> {
         }
         jac.add_load_hessian(wrench, &self.gravity, n, w);
         for s in self.springs {
-            let stiffness = s.stiffness_at(&coords.passive);
+            let stiffness = s.stiffness_at(coords);
             for i in 0..s.dim {
                 for j in 0..s.dim {
                     w[(n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
@@ -238,7 +238,7 @@ impl LoadedChain<'_> {
             out[6 + k] = -g;
         }
         for s in self.springs {
-            let stiffness = s.stiffness_at(&coords.passive);
+            let stiffness = s.stiffness_at(coords);
             let deflection = |j: usize| coords.virtual_[s.first + j] - self.preload[s.first + j];
             for i in 0..s.dim {
                 out[6 + n + s.first + i] += (0..s.dim).map(|j| stiffness[(i, j)] * deflection(j)).sum::<f64>();

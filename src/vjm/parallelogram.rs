@@ -184,6 +184,7 @@ fn bar_spring(compliance: Mat6) -> Option<SpringGroup> {
         stiffness,
         compliance,
         posture: None,
+        of_coordinate: None,
         beam_axis: None,
     })
 }
@@ -199,7 +200,7 @@ fn chain_stiffness(elements: Vec<Element>, spring: &SpringGroup, length: f64) ->
     let mut j = ChainJacobians::default();
     chain.evaluate(&Coordinates::zeros(&chain), &mut j);
     j.fill_virtual();
-    let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(spring), &[]);
+    let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(spring), &Default::default());
     leg_stiffness(&s, &passive_range(&j.passive, length))
 }
 
@@ -274,6 +275,7 @@ mod tests {
                 stiffness: k,
                 compliance: c,
                 posture: None,
+                of_coordinate: None,
                 beam_axis: None,
             };
             let z = Vec3::z();
@@ -290,7 +292,7 @@ mod tests {
             let mut j = ChainJacobians::default();
             chain.evaluate(&coords, &mut j);
             j.fill_virtual();
-            let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(&spring), &[]);
+            let s = spring_compliance_at_end(&j.virtual_, std::slice::from_ref(&spring), &Default::default());
             leg_stiffness(&s, &passive_range(&j.passive, 300.0)).unwrap()
         };
         let k = p.stiffness(q).unwrap();

@@ -1,7 +1,8 @@
 //! Virtual springs: a group of virtual coordinates with a stiffness matrix K_theta block (paper 001 eq 6).
 //! A link's 6-dof spring usually comes from a beam's compliance (`crate::beam`, paper 001 s. 4.2).
 
-use crate::kinematics::chain::{Element, Joint, JointKind, Role};
+use crate::expr::Expr;
+use crate::kinematics::chain::{Coordinates, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{Mat6, Vec3};
 use crate::linalg::spd_inverse6;
 
@@ -23,6 +24,9 @@ pub struct SpringGroup {
     /// Where the spring depends on the posture (a parallelogram's angle), how; `stiffness` and
     /// `compliance` then hold its value at the nominal posture.
     pub posture: Option<super::parallelogram::Parallelogram>,
+    /// Where the stiffness is a formula of one of the chain's actuated coordinates (a joint with a gravity
+    /// compensator), how; `stiffness` and `compliance` then hold its value at that coordinate's zero.
+    pub of_coordinate: Option<CoordinateStiffness>,
     /// For a spring derived from a straight beam: its axis (unit, in the spring's coordinates), along
     /// which the translation is the beam's axial compliance L/EA, uncoupled from bending and torsion.
     pub beam_axis: Option<Vec3>,
@@ -37,6 +41,14 @@ impl SpringGroup {
         if let Some(p) = &mut self.posture {
             p.compliance_factor *= factor;
         }
+        if let Some(c) = &mut self.of_coordinate {
+            c.compliance_factor *= factor;
+        }
+    }
+
+    /// True where the stiffness depends on the chain's coordinates (`at` then needs them).
+    pub fn varies(&self) -> bool {
+        self.posture.is_some() || self.of_coordinate.is_some()
     }
 
     /// Multiplies a beam spring's axial compliance (L/EA) by `axial` and the rest (bending L^3/3EI and
@@ -54,27 +66,35 @@ impl SpringGroup {
         }
     }
 
-    /// Stiffness and compliance at the given passive coordinates. Where a posture-dependent spring has no
-    /// finite value (`Parallelogram::stiffness`), both are NaN: the leg's answer is then not finite and
-    /// its point is reported as `overflow` (statuses in README), never a panic.
-    pub fn at(&self, passive: &[f64]) -> (Mat6, Mat6) {
+    /// Stiffness and compliance at the given coordinates. Where a posture-dependent spring has no
+    /// finite value (`Parallelogram::stiffness`, a formula's), both are NaN: the leg's answer is then not
+    /// finite and its point is reported as `overflow` (statuses in README), never a panic.
+    pub fn at(&self, coords: &Coordinates) -> (Mat6, Mat6) {
+        if let Some(c) = &self.of_coordinate {
+            let compliance = c.compliance(coords);
+            let (mut k, mut cm) = (Mat6::zeros(), Mat6::zeros());
+            k[(0, 0)] = 1.0 / compliance;
+            cm[(0, 0)] = compliance;
+            return (k, cm);
+        }
         if self.posture.is_none() {
             return (self.stiffness, self.compliance);
         }
-        let k = self.stiffness_at(passive);
+        let k = self.stiffness_at(coords);
         // Positive definite as built (the regularised parallelogram); LU where round-off says not.
         let c = spd_inverse6(&k).or_else(|| k.try_inverse().map(|c| (c + c.transpose()) * 0.5));
         (k, c.unwrap_or(Mat6::from_element(f64::NAN)))
     }
 
-    /// The stiffness alone at the given passive coordinates (`at` without the compliance).
-    pub fn stiffness_at(&self, passive: &[f64]) -> Mat6 {
-        match &self.posture {
-            None => self.stiffness,
-            Some(p) => {
-                let q = passive.get(p.angle).copied().unwrap_or(0.0);
+    /// The stiffness alone at the given coordinates (`at` without the compliance).
+    pub fn stiffness_at(&self, coords: &Coordinates) -> Mat6 {
+        match (&self.posture, &self.of_coordinate) {
+            (Some(p), _) => {
+                let q = coords.passive.get(p.angle).copied().unwrap_or(0.0);
                 p.stiffness(q).unwrap_or(Mat6::from_element(f64::NAN))
             }
+            (None, Some(_)) => self.at(coords).0,
+            (None, None) => self.stiffness,
         }
     }
 
@@ -89,6 +109,45 @@ impl SpringGroup {
         let not_finite = Mat6::from_element(f64::NAN);
         let [_, first, second] = p.stiffness_derivatives(q).unwrap_or([not_finite; 3]);
         Some((p.angle, first, second))
+    }
+}
+
+/// A one-coordinate spring whose stiffness is a formula of an actuated coordinate of its chain: a joint
+/// with a gravity compensator, whose equivalent stiffness depends on the configuration (paper 000 s. 5). The
+/// actuators hold that coordinate in a loaded equilibrium, so the stiffness is constant there: the
+/// equilibrium needs no derivative of it.
+#[derive(Clone, Debug)]
+pub struct CoordinateStiffness {
+    /// The actuated coordinate (index among the chain's actuated coordinates).
+    pub coordinate: usize,
+    /// The stiffness (N mm/rad, or N/mm along a prismatic axis) as a formula of the coordinate (slot 0).
+    pub stiffness: Expr,
+    /// The formula as written (two springs are equal when their formulas read alike).
+    pub formula: String,
+    /// A compliance in series with it (a calibration's correction).
+    pub added_compliance: f64,
+    /// A factor on the whole compliance (a spring scaling).
+    pub compliance_factor: f64,
+}
+
+impl PartialEq for CoordinateStiffness {
+    fn eq(&self, other: &Self) -> bool {
+        (self.coordinate, &self.formula, self.added_compliance, self.compliance_factor)
+            == (other.coordinate, &other.formula, other.added_compliance, other.compliance_factor)
+    }
+}
+
+impl CoordinateStiffness {
+    /// The compliance at `coords`; NaN where the formula gives no positive finite stiffness there.
+    pub fn compliance(&self, coords: &Coordinates) -> f64 {
+        let q = coords.actuated.get(self.coordinate).copied().unwrap_or(0.0);
+        let k = self.stiffness.eval(&[q]);
+        let c = (1.0 / k + self.added_compliance) * self.compliance_factor;
+        if k > 0.0 && c.is_finite() && c > 0.0 {
+            c
+        } else {
+            f64::NAN
+        }
     }
 }
 

@@ -3,6 +3,7 @@
 use nalgebra::{Matrix6xX, SMatrix};
 
 use super::spring::SpringGroup;
+use crate::kinematics::chain::Coordinates;
 use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec3, Vec6};
 use crate::linalg::{small_cholesky, small_forward};
 
@@ -10,14 +11,14 @@ use crate::linalg::{small_cholesky, small_forward};
 pub const PASSIVE_RANK_TOLERANCE: f64 = 1e-9;
 
 /// `S_theta = J_theta K_theta^-1 J_theta^T`: the springs' compliance seen at the end point (paper 001 eq 9).
-/// `passive` holds the passive coordinates, on which a posture-dependent spring depends.
-pub fn spring_compliance_at_end(j_virtual: &[Vec6], springs: &[SpringGroup], passive: &[f64]) -> Mat6 {
+/// `coords` holds the coordinates on which a posture-dependent spring depends (`SpringGroup::varies`).
+pub fn spring_compliance_at_end(j_virtual: &[Vec6], springs: &[SpringGroup], coords: &Coordinates) -> Mat6 {
     let mut s = Mat6::zeros();
     for g in springs {
         let cols = &j_virtual[g.first..g.first + g.dim];
         let varying;
-        let compliance = if g.posture.is_some() {
-            varying = g.at(passive).1;
+        let compliance = if g.varies() {
+            varying = g.at(coords).1;
             &varying
         } else {
             &g.compliance

@@ -81,6 +81,7 @@ impl ChainBuilder {
             stiffness: km,
             compliance: cm,
             posture: None,
+            of_coordinate: None,
             beam_axis: None,
         });
         self
@@ -107,6 +108,7 @@ impl ChainBuilder {
             stiffness: k,
             compliance: c,
             posture: None,
+            of_coordinate: None,
             beam_axis: None,
         });
         self
@@ -130,7 +132,7 @@ pub fn chain_stiffness(chain: &Chain, springs: &[SpringGroup], c: &Coordinates, 
     let mut j = ChainJacobians::default();
     chain.evaluate(c, &mut j);
     j.fill_virtual();
-    let s = spring_compliance_at_end(&j.virtual_, springs, &c.passive);
+    let s = spring_compliance_at_end(&j.virtual_, springs, c);
     leg_stiffness(&s, &passive_range(&j.passive, length_scale))
 }
 
