@@ -747,3 +747,57 @@ fn batch_studies_take_joint_coordinates_and_keep_the_configuration() {
     let worst = mapped.iter().max_by(|a, b| a[3].total_cmp(&b[3])).unwrap();
     assert_eq!(summary[0], vec![worst[3], worst[0], worst[1]], "{swept}");
 }
+
+/// A 6-dof spring at a named link (`[leg.urdf] links`): a link that bends, in the link's frame. With a
+/// compliance C_L at the root link (the base's mounting) and a stiffness K_L at link_3 (the upper arm), the
+/// compliance at the tool point is Salisbury's plus, per link, A C_L A^T with A the motion of the tool by
+/// the link frame's deflection (v = R t + (R phi) x (p - o), w = R phi; o, R the link frame from the DH
+/// table: link i's frame is DH frame i), computed here, at 30 random configurations (1e-10 relative). A link
+/// off the chain is a located error naming the chain's links.
+#[test]
+fn a_six_dof_spring_at_a_named_link_adds_its_compliance_through_the_links_frame() {
+    let mut r = rng(48);
+    let (k_base, k_arm) = (crate::common::random_spring(&mut r) * 10.0, crate::common::random_spring(&mut r) * 10.0);
+    let c_base = k_base.try_inverse().unwrap();
+    let rows = |m: &Mat6| {
+        let rows: Vec<String> = (0..6)
+            .map(|i| format!("[{}]", (0..6).map(|j| format!("{:?}", m[(i, j)])).collect::<Vec<_>>().join(", ")))
+            .collect();
+        format!("[{}]", rows.join(", "))
+    };
+    let links = format!(
+        "links = {{ base_link = {{ compliance_matrix = {} }}, link_3 = {{ stiffness_matrix = {} }} }}\ncontroller = {{",
+        rows(&c_base),
+        rows(&k_arm)
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let (_, m) = fanuc_changed(dir.path(), |t| t.replace("controller = {", &links));
+    let k_inv = Matrix6::from_diagonal(&Vec6::from_iterator(K_JOINT.iter().map(|k| 1.0 / k)));
+    // The tool's motion by a deflection (t, phi) of a spring at frame (R, o).
+    let motion = |frame: &nalgebra::Matrix4<f64>, tool: &Vec3| -> Mat6 {
+        let rot = frame.fixed_view::<3, 3>(0, 0).into_owned();
+        let o = Vec3::new(frame[(0, 3)], frame[(1, 3)], frame[(2, 3)]);
+        let mut a = Mat6::zeros();
+        a.fixed_view_mut::<3, 3>(0, 0).copy_from(&rot);
+        a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-(tool - o).cross_matrix() * rot));
+        a.fixed_view_mut::<3, 3>(3, 3).copy_from(&rot);
+        a
+    };
+    for _ in 0..30 {
+        let t = random_angles(&mut r);
+        let q = model_angles(&t);
+        let (tool, frames) = dh_kinematics(&q);
+        let j = dh_jacobian(&q);
+        let (a_base, a_arm) = (motion(&nalgebra::Matrix4::identity(), &tool), motion(&frames[2], &tool));
+        let expected = j * k_inv * j.transpose()
+            + a_base * c_base * a_base.transpose()
+            + a_arm * k_arm.try_inverse().unwrap() * a_arm.transpose();
+        let (_, stiffness) = stiffness_at(&m, &t);
+        assert_compliance_close(&stiffness.try_inverse().unwrap(), &expected, &format!("{t:?}"));
+    }
+    let (path, _) = fanuc_changed(dir.path(), |t| t.replace("controller = {", &links));
+    let text = std::fs::read_to_string(&path).unwrap().replace("link_3 = {", "forearm = {");
+    std::fs::write(&path, text).unwrap();
+    let e = stiff::model::load_manipulator(&path).unwrap_err().to_string();
+    assert!(e.contains("link `forearm` in `links` is not on the chain") && e.contains("link_3"), "{e}");
+}

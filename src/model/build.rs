@@ -9,7 +9,7 @@ use toml::Spanned;
 use super::effect::{with_model_effects, Effect, EffectError, Form, Kind};
 use super::error::{read_text, InputError, Locator};
 use super::schema::{
-    AxisSpec, BeamSpec, ElementSpec, JointCorrectionSpec, JointStiffnessSpec, LegSpec, ModelFile, Num,
+    AxisSpec, BeamSpec, ElementSpec, JointCorrectionSpec, JointStiffnessSpec, LegSpec, LinkSpringSpec, ModelFile, Num,
     ParallelogramSpec, TransformSpec, UrdfSpec,
 };
 use super::urdf::UrdfJointKind;
@@ -594,13 +594,13 @@ impl Builder<'_> {
         let s = e.get_ref();
         let mut posture = None;
         let mut beam_axis = None;
+        let exactly_one =
+            "a spring6 needs exactly one of `stiffness_matrix`, `compliance_matrix`, `beam` and `parallelogram`";
         let compliance = match (&s.stiffness_matrix, &s.compliance_matrix, &s.beam, &s.parallelogram) {
-            (Some(k), None, None, None) => self.matrix6(k, "stiffness_matrix")?.try_inverse(),
-            (None, Some(c), None, None) => Some(self.matrix6(c, "compliance_matrix")?),
-            (None, None, Some(b), None) => {
-                let (c, axis) = self.beam(b)?;
-                beam_axis = Some(axis);
-                Some(c)
+            (k, c, b, None) => {
+                let (c, axis) = self.six_dof_compliance(e.span(), k, c, b, exactly_one)?;
+                beam_axis = axis;
+                c
             }
             (None, None, None, Some(p)) => {
                 let spec = self.parallelogram(p, parts)?;
@@ -614,30 +614,45 @@ impl Builder<'_> {
                 posture = Some(spec);
                 k.try_inverse()
             }
-            _ => return Err(self.loc.at(
-                e.span(),
-                "a spring6 needs exactly one of `stiffness_matrix`, `compliance_matrix`, `beam` and `parallelogram`",
-            )),
+            _ => return Err(self.loc.at(e.span(), exactly_one)),
         };
-        let finite = |m: &Mat6| m.iter().all(|v| v.is_finite());
-        let compliance = compliance.filter(finite).ok_or_else(|| {
-            self.loc.at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
-        })?;
-        let stiffness = compliance.try_inverse().filter(finite).ok_or_else(|| {
-            self.loc.at(e.span(), "the spring's matrix cannot be inverted (or is not finite: check its numbers)")
-        })?;
-        parts.spring(
-            name,
-            &SIX_DOF,
-            (stiffness + stiffness.transpose()) * 0.5,
-            compliance,
-            &self.preload(s, 6)?,
-            posture,
-        );
+        let (stiffness, compliance) = self.invertible(e.span(), compliance)?;
+        parts.spring(name, &SIX_DOF, stiffness, compliance, &self.preload(s, 6)?, posture);
         if let Some(spring) = parts.springs.last_mut() {
             spring.beam_axis = beam_axis;
         }
         Ok(())
+    }
+
+    /// A 6-dof spring's compliance from exactly one of a stiffness matrix, a compliance matrix and a beam
+    /// (with the beam's axis); `exactly_one` says what to give otherwise. None where a stiffness matrix
+    /// cannot be inverted.
+    fn six_dof_compliance(
+        &self,
+        span: std::ops::Range<usize>,
+        stiffness_matrix: &Option<Spanned<Vec<Vec<Num>>>>,
+        compliance_matrix: &Option<Spanned<Vec<Vec<Num>>>>,
+        beam: &Option<Spanned<BeamSpec>>,
+        exactly_one: &str,
+    ) -> Result<(Option<Mat6>, Option<Vec3>), InputError> {
+        Ok(match (stiffness_matrix, compliance_matrix, beam) {
+            (Some(k), None, None) => (self.matrix6(k, "stiffness_matrix")?.try_inverse(), None),
+            (None, Some(c), None) => (Some(self.matrix6(c, "compliance_matrix")?), None),
+            (None, None, Some(b)) => {
+                let (c, axis) = self.beam(b)?;
+                (Some(c), Some(axis))
+            }
+            _ => return Err(self.loc.at(span, exactly_one)),
+        })
+    }
+
+    /// A spring's symmetric stiffness and its compliance, both finite, or a located error.
+    fn invertible(&self, span: std::ops::Range<usize>, compliance: Option<Mat6>) -> Result<(Mat6, Mat6), InputError> {
+        let finite = |m: &Mat6| m.iter().all(|v| v.is_finite());
+        let not_invertible = "the spring's matrix cannot be inverted (or is not finite: check its numbers)";
+        let compliance = compliance.filter(finite).ok_or_else(|| self.loc.at(span.clone(), not_invertible))?;
+        let stiffness = compliance.try_inverse().filter(finite).ok_or_else(|| self.loc.at(span, not_invertible))?;
+        Ok(((stiffness + stiffness.transpose()) * 0.5, compliance))
     }
 
     /// A leg read from URDF (`crate::model::urdf`): per joint on the path, its fixed origin, then the joint
@@ -688,6 +703,36 @@ impl Builder<'_> {
             let joint = &c.get_ref().joint;
             named_joint(joint.get_ref(), joint.span(), "joint_correction")?;
         }
+        let links: Vec<&str> =
+            std::iter::once(u.root.get_ref().as_str()).chain(read.joints.iter().map(|j| j.child.as_str())).collect();
+        for (name, l) in &u.links {
+            if !links.contains(&name.as_str()) {
+                return Err(self.loc.at(
+                    l.span(),
+                    format!(
+                        "link `{name}` in `links` is not on the chain from `{}` to `{}` of {} (links: {})",
+                        u.root.get_ref(),
+                        u.tip.get_ref(),
+                        path.display(),
+                        links.join(", ")
+                    ),
+                ));
+            }
+        }
+        // A link's 6-dof spring at its frame, where `links` gives one.
+        let link_spring = |name: &str, parts: &mut ChainParts| -> Result<(), InputError> {
+            let Some(l) = u.links.get(name) else { return Ok(()) };
+            let LinkSpringSpec { stiffness_matrix, compliance_matrix, beam } = l.get_ref();
+            let exactly_one = "a link's spring needs exactly one of `stiffness_matrix`, `compliance_matrix` and `beam`";
+            let (compliance, axis) =
+                self.six_dof_compliance(l.span(), stiffness_matrix, compliance_matrix, beam, exactly_one)?;
+            let (stiffness, compliance) = self.invertible(l.span(), compliance)?;
+            parts.spring(name.to_string(), &SIX_DOF, stiffness, compliance, &[0.0; 6], None);
+            if let Some(spring) = parts.springs.last_mut() {
+                spring.beam_axis = axis;
+            }
+            Ok(())
+        };
         // A joint's corrections: its added compliance and the change of the fixed transform leading to it.
         let added_compliance = |name: &str| -> Result<f64, InputError> {
             let mut sum = 0.0;
@@ -744,6 +789,7 @@ impl Builder<'_> {
         let mut parts = ChainParts::default();
         let mut names: Vec<String> = Vec::new();
         let mut pending: Vec<(usize, String, f64)> = Vec::new();
+        link_spring(u.root.get_ref(), &mut parts)?;
         for j in &read.joints {
             parts.elements.push(Element::Fixed(j.origin));
             let kind = match j.kind {
@@ -814,6 +860,7 @@ impl Builder<'_> {
                     }
                 }
             }
+            link_spring(&j.child, &mut parts)?;
             if let Some((kg, centre)) = j.child_mass {
                 parts.elements.push(Element::Mass { kg, centre });
             }

@@ -283,6 +283,26 @@ pub struct UrdfSpec {
     /// previous point to start from (the others 0), which picks the arm's elbow and wrist branch.
     #[serde(default)]
     pub seed: BTreeMap<String, Num>,
+    /// Per link name: a 6-dof spring at the link's frame (the link bends; its own weight and everything
+    /// beyond load it).
+    #[serde(default)]
+    pub links: BTreeMap<String, Spanned<LinkSpringSpec>>,
+}
+
+/// A link's 6-dof spring, in the link's frame (N, mm, rad): exactly one of its stiffness matrix, its
+/// compliance matrix or a clamped-free beam.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkSpringSpec {
+    /// Stiffness matrix (translations along, then rotations about, the link frame's x, y, z).
+    #[serde(default)]
+    pub stiffness_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+    /// Compliance matrix.
+    #[serde(default)]
+    pub compliance_matrix: Option<Spanned<Vec<Vec<Num>>>>,
+    /// A clamped-free beam from the link's frame.
+    #[serde(default)]
+    pub beam: Option<Spanned<BeamSpec>>,
 }
 
 /// A URDF joint's spring: a stiffness (N mm/rad for a revolute joint, N/mm for a prismatic one) or a

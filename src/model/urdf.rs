@@ -39,6 +39,8 @@ pub struct UrdfJoint {
     pub mimic: Option<(String, f64, f64)>,
     /// The child link's mass (kg) and centre in the joint frame (mm), where it has an `<inertial>`.
     pub child_mass: Option<(f64, Vec3)>,
+    /// The child link's name.
+    pub child: String,
 }
 
 /// The chain from a root link to a tip link of a URDF file.
@@ -223,7 +225,16 @@ pub fn read_chain(path: &Path, text: &str, root: &str, tip: &str) -> Result<Urdf
         };
         let offset_unit = if kind == UrdfJointKind::Prismatic { MM_PER_M } else { 1.0 };
         let mimic = mimic.map(|(m, k, o)| (m, k, o * offset_unit));
-        out.push(UrdfJoint { name, kind, origin: r.origin(*j)?, axis, mimic, child_mass: inertial(child_link)? });
+        let child = child_link.clone();
+        out.push(UrdfJoint {
+            name,
+            kind,
+            origin: r.origin(*j)?,
+            axis,
+            mimic,
+            child_mass: inertial(child_link)?,
+            child,
+        });
     }
     Ok(UrdfChain { joints: out, root_mass: inertial(root)? })
 }
