@@ -22,8 +22,9 @@ pub(crate) struct SynthArgs {
     /// A hidden effect NAME[:TARGET]=V1,V2,... (repeatable), e.g. actuator-compliance:2=1.5, tool-offset=0.05,0,0.
     /// For a serial arm's joint-space points (q_<joint> columns): joint-offset:J=RAD, joint-compliance:J=ADDED,
     /// joint-geometry:J=DX,DY,DZ,RX,RY,RZ (mm, rad), payload=KG,CX,CY,CZ (tool frame, mm), and the set-up:
-    /// registration=RX,RY,RZ,TX,TY,TZ (the instrument sees a base point p at R p + t; rad, mm),
-    /// target=X,Y,Z (on the tool, mm), gross=FRACTION,MM.
+    /// registration=RX,RY,RZ,TX,TY,TZ (the instrument sees a base point p at R p + t; rad, mm; repeated: one
+    /// set-up each, the configurations measured in that many blocks), target=X,Y,Z (on the tool, mm),
+    /// gross=FRACTION,MM.
     #[arg(long = "effect", value_name = "NAME[:TARGET]=VALUES")]
     pub(crate) effects: Vec<String>,
     #[command(flatten)]
@@ -123,8 +124,7 @@ fn run_joint_space(
     }
     let names = &nominal.joint_space.as_ref().expect("a serial arm").names;
     let mut hidden = PositionSynth {
-        rotation: Vec3::zeros(),
-        translation: Vec3::zeros(),
+        setups: Vec::new(),
         target: Vec3::zeros(),
         noise: a.noise,
         gross: (0.0, 0.0),
@@ -149,8 +149,8 @@ fn run_joint_space(
         match name {
             "registration" => {
                 count(6)?;
-                hidden.rotation = Vec3::new(values[0], values[1], values[2]);
-                hidden.translation = Vec3::new(values[3], values[4], values[5]);
+                let rotation = Vec3::new(values[0], values[1], values[2]);
+                hidden.setups.push((rotation, Vec3::new(values[3], values[4], values[5])));
             }
             "target" => {
                 count(3)?;
@@ -209,22 +209,27 @@ fn run_joint_space(
         columns.push(Column { name: c.into(), kind: CellKind::Number });
     }
     columns.push(Column { name: crate::diagnose::positions::SET.into(), kind: CellKind::Text });
+    let several = hidden.setups.len() > 1;
+    if several {
+        columns.push(Column { name: crate::diagnose::positions::SETUP.into(), kind: CellKind::Text });
+    }
     columns.push(Column { name: "hidden_gross".into(), kind: CellKind::Count });
     let mut sink = a.output.open(&columns)?;
     let mut text = crate::output::table::header_line(&columns);
-    for ((name, joints, wrench), at, gross, held) in &rows {
+    for ((name, joints, wrench), at, gross, held, setup) in &rows {
         let mut q: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
         if loaded {
             q.extend(wrench.iter().map(|v| format!("{v:?}")));
         }
         text += &format!(
-            "{name},{},{:?},{:?},{:?},{:?},{},{}\n",
+            "{name},{},{:?},{:?},{:?},{:?},{}{},{}\n",
             q.join(","),
             at.x,
             at.y,
             at.z,
             a.noise.max(crate::diagnose::data::MIN_SIGMA_MM),
             if *held { "check" } else { "fit" },
+            if several { format!(",s{}", setup + 1) } else { String::new() },
             u8::from(*gross)
         );
     }

@@ -1629,10 +1629,10 @@ pub fn text(c: &Calibration, model: &str) -> String {
 /// rows and held-out rows.
 #[derive(Clone, Debug)]
 pub struct PositionSynth {
-    /// The instrument's frame: a base point p is seen at R p + t, R from this rotation vector (rad).
-    pub rotation: Vec3,
-    /// Its translation t, mm.
-    pub translation: Vec3,
+    /// The instrument's frame in each set-up (it is moved between them): a base point p is seen at R p + t,
+    /// R from the rotation vector (rad), t in mm. The configurations are measured in that many contiguous
+    /// blocks, one per set-up; none: the base frame itself.
+    pub setups: Vec<(Vec3, Vec3)>,
     /// The target in the tool frame, mm.
     pub target: Vec3,
     /// Standard deviation of the noise per coordinate, mm.
@@ -1725,9 +1725,9 @@ pub fn signatures(
     Ok(Signatures { usable, nuisance: all.columns(0, nuisance).into_owned(), effects })
 }
 
-/// One synthetic row: the configuration, the measured target (mm), whether it was made gross and whether it
-/// is held out.
-type SynthRow = (Configuration, Vec3, bool, bool);
+/// One synthetic row: the configuration, the measured target (mm), whether it was made gross, whether it
+/// is held out, and its set-up.
+type SynthRow = (Configuration, Vec3, bool, bool, usize);
 
 /// Joint-space measurements of `m` (the robot as it really is: its offsets, compliances, geometry and payload
 /// built into the description) at the controller's angles of each configuration: the target where the arm's
@@ -1744,7 +1744,10 @@ pub fn synthesize_positions(
         return Err(CalibrationError::NotAnArm(m.name.clone()));
     }
     let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
-    let rotation = rotation_from_vector(&s.rotation);
+    let setups: Vec<(Mat3, Vec3)> = match s.setups.is_empty() {
+        true => vec![(Mat3::identity(), Vec3::zeros())],
+        false => s.setups.iter().map(|(r, t)| (rotation_from_vector(r), *t)).collect(),
+    };
     let mut state = m.new_state();
     let (mut rows, mut skipped) = (Vec::new(), 0);
     for (k, configuration) in configurations.iter().enumerate() {
@@ -1769,7 +1772,9 @@ pub fn synthesize_positions(
         } else {
             frame
         };
-        let mut at = rotation * (loaded.pos + loaded.rot * s.target) + s.translation;
+        let setup = k * setups.len() / configurations.len();
+        let (rotation, translation) = setups[setup];
+        let mut at = rotation * (loaded.pos + loaded.rot * s.target) + translation;
         for a in 0..3 {
             at[a] += s.noise * standard_normal(&mut r);
         }
@@ -1779,7 +1784,7 @@ pub fn synthesize_positions(
             at += d.normalize() * s.gross.1;
         }
         let held = s.check_every > 0 && k % s.check_every == s.check_every - 1;
-        rows.push((configuration.clone(), at, gross, held));
+        rows.push((configuration.clone(), at, gross, held, setup));
     }
     Ok((rows, skipped))
 }
