@@ -724,3 +724,56 @@ fn synth_with_two_setups_gives_each_its_own_registration() {
         }
     }
 }
+
+/// A compliance at the frame leading to J3 (the upper arm bending about the frame's y under its weight),
+/// hidden by `stiff synth` (which builds it into the description as `frame_compliance`): the calibration
+/// offered it names it, its value about y within four standard errors of the hidden 2e-9 rad/(N mm),
+/// `--model-out` writes it as a spring (a component below zero within two standard errors written as
+/// rigid), and the corrected description leaves nothing to name on the same data.
+#[test]
+fn a_frame_compliance_found_by_the_calibration_is_written_as_a_spring() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, fixed) = (dir.path().join("fc.csv"), dir.path().join("fixed.toml"));
+    let stiff = |args: &[&str]| -> String {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff")).args(args).output().unwrap();
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let (d, f) = (data.to_str().unwrap(), fixed.to_str().unwrap());
+    stiff(
+        &[
+            "synth",
+            FANUC,
+            "--points",
+            "manipulators/grids/fanuc-r2000ic-cable-tests.csv",
+            "--effect",
+            "registration=0.1,0,0.2,1500,0,300",
+        ]
+        .into_iter()
+        .chain(["--effect", "target=20,0,30", "--effect", "frame-compliance:J3=0,0,0,0,2e-9,0", "--noise", "0.02"])
+        .chain(["--seed", "2", "-q", "-o", d])
+        .collect::<Vec<_>>(),
+    );
+    let json = dir.path().join("c.json");
+    stiff(
+        &[
+            "diagnose",
+            FANUC,
+            "--data",
+            d,
+            "--candidates",
+            "frame-compliance:J3,joint-compliance:J2,joint-compliance:J3",
+        ]
+        .into_iter()
+        .chain(["--model-out", f, "--json", json.to_str().unwrap()])
+        .collect::<Vec<_>>(),
+    );
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let accepted = &v["calibration"]["accepted"][0];
+    assert_eq!(accepted["label"], "frame-compliance:J3", "{v}");
+    let (value, se) = (accepted["values"][4].as_f64().unwrap(), accepted["se"][4].as_f64().unwrap());
+    assert!((value - 2e-9).abs() < 4.0 * se, "{value} +- {se}");
+    let corrected = std::fs::read_to_string(&fixed).unwrap();
+    assert!(corrected.contains("joint = \"J3\"\nframe_compliance = ["), "{corrected}");
+    assert!(stiff(&["diagnose", f, "--data", d]).contains("verdict: none"));
+}

@@ -21,7 +21,8 @@ pub(crate) struct SynthArgs {
     pub(crate) model: ModelArgs,
     /// A hidden effect NAME[:TARGET]=V1,V2,... (repeatable), e.g. actuator-compliance:2=1.5, tool-offset=0.05,0,0.
     /// For a serial arm's joint-space points (q_<joint> columns): joint-offset:J=RAD, joint-compliance:J=ADDED,
-    /// joint-geometry:J=DX,DY,DZ,RX,RY,RZ (mm, rad), payload=KG,CX,CY,CZ (tool frame, mm), and the set-up:
+    /// joint-geometry:J=DX,DY,DZ,RX,RY,RZ (mm, rad), frame-compliance:J=CX,CY,CZ,CRX,CRY,CRZ (mm/N, rad/(N mm)),
+    /// payload=KG,CX,CY,CZ (tool frame, mm), and the set-up:
     /// registration=RX,RY,RZ,TX,TY,TZ (the instrument sees a base point p at R p + t; rad, mm; repeated: one
     /// set-up each, the configurations measured in that many blocks), target=X,Y,Z (on the tool, mm),
     /// gross=FRACTION,MM.
@@ -167,8 +168,8 @@ fn run_joint_space(
                 let effect = ArmEffect::parse(name, names).map_err(|why| anyhow::anyhow!("--effect `{e}`: {why}"))?;
                 let joint = names[effect.joint].as_str();
                 match effect.kind {
-                    ArmKind::Backlash | ArmKind::FrameCompliance => {
-                        bail!("--effect `{e}`: a description of a URDF arm cannot hold it yet; synth makes offsets, compliances, geometry and payload")
+                    ArmKind::Backlash => {
+                        bail!("--effect `{e}`: a description of a URDF arm cannot hold play yet; synth makes offsets, compliances, geometry, frame compliances and payload")
                     }
                     ArmKind::Payload => {
                         count(4)?;

@@ -1503,23 +1503,57 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibratio
     );
     for a in &c.accepted {
         match a.kind {
-            ArmKind::Backlash | ArmKind::FrameCompliance => {
+            ArmKind::Backlash => {
                 let _ = writeln!(
                     out,
-                    "\n# {}: {} (not written: a description of a URDF arm holds no {} yet)",
-                    a.label,
-                    a.shown,
-                    if a.kind == ArmKind::Backlash { "play" } else { "compliance at a link's frame" }
+                    "\n# {}: {} (not written: a description of a URDF arm holds no play yet)",
+                    a.label, a.shown
                 );
             }
+            ArmKind::FrameCompliance => match spring_compliances(&a.values, &a.se) {
+                Some(values) => {
+                    if a.values.iter().any(|v| *v < 0.0) {
+                        let _ = writeln!(
+                            out,
+                            "\n# {}: {} (below zero within two standard errors: rigid)",
+                            a.label, a.shown
+                        );
+                    }
+                    out.push_str(&correction_table(a.kind, &a.joint, &values));
+                }
+                None => {
+                    let _ = writeln!(
+                        out,
+                        "\n# {}: {} (not written: a compliance below zero by more than two standard errors is no \
+                         spring; fit it with --fit naming fewer effects, or measure more configurations)",
+                        a.label, a.shown
+                    );
+                }
+            },
             kind => out.push_str(&correction_table(kind, &a.joint, &a.values)),
         }
     }
     out
 }
 
-/// One effect as the description's table: `[[joint_correction]]` for an offset, compliance or geometry,
-/// `[[payload]]` for a payload (`values` its mass and first moment in the tool frame); play has none.
+/// Fitted compliances as a spring's: a value below zero within two standard errors (or not seen) is zero,
+/// rigid in that direction; None where one is below zero by more.
+fn spring_compliances(values: &[f64], se: &[f64]) -> Option<Vec<f64>> {
+    values
+        .iter()
+        .zip(se.iter().map(Some).chain(std::iter::repeat(None)))
+        .map(|(v, se)| match (*v >= 0.0, se.filter(|s| s.is_finite())) {
+            (true, _) => Some(*v),
+            (false, Some(s)) if *v >= -2.0 * s => Some(0.0),
+            (false, None) => Some(0.0),
+            _ => None,
+        })
+        .collect()
+}
+
+/// One effect as the description's table: `[[joint_correction]]` for an offset, compliance, geometry or
+/// frame compliance, `[[payload]]` for a payload (`values` its mass and first moment in the tool frame);
+/// play has none.
 pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
     let list = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
     match kind {
@@ -1533,7 +1567,10 @@ pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
             let centre: Vec<f64> = values[1..].iter().map(|s| s / values[0]).collect();
             format!("\n[[payload]]\nmass_kg = {:?}\ncentre = [{}]\n", values[0], list(&centre))
         }
-        ArmKind::Backlash | ArmKind::FrameCompliance => String::new(),
+        ArmKind::FrameCompliance => {
+            format!("\n[[joint_correction]]\njoint = {joint:?}\nframe_compliance = [{}]\n", list(values))
+        }
+        ArmKind::Backlash => String::new(),
     }
 }
 

@@ -757,6 +757,38 @@ impl Builder<'_> {
             }
             Ok(moved)
         };
+        // A joint's frame compliance: the directions the corrections make compliant (summed), each a virtual
+        // joint of one spring at the frame leading to the joint.
+        let frame_compliance = |name: &str, parts: &mut ChainParts| -> Result<(), InputError> {
+            let mut sum = [0.0; 6];
+            let mut span = None;
+            for c in corrections.iter().filter(|c| c.get_ref().joint.get_ref() == name) {
+                if let Some(v) = &c.get_ref().frame_compliance {
+                    for (s, n) in sum.iter_mut().zip(v.get_ref()) {
+                        *s += self.num(n)?;
+                    }
+                    span = Some(v.span());
+                }
+            }
+            let Some(span) = span else { return Ok(()) };
+            if sum.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
+                return Err(self.loc.at(
+                    span,
+                    format!("joint `{name}`: its frame compliance {sum:?} must be finite and >= 0 in every direction (0: rigid)"),
+                ));
+            }
+            let directions: Vec<usize> = (0..6).filter(|&k| sum[k] > 0.0).collect();
+            let (mut stiffness, mut compliance) = (Mat6::zeros(), Mat6::zeros());
+            for (i, &k) in directions.iter().enumerate() {
+                compliance[(i, i)] = sum[k];
+                stiffness[(i, i)] = 1.0 / sum[k];
+            }
+            let joints: Vec<(JointKind, Vec3)> = directions.iter().map(|&k| SIX_DOF[k]).collect();
+            if !joints.is_empty() {
+                parts.spring(format!("{name} frame"), &joints, stiffness, compliance, &vec![0.0; joints.len()], None);
+            }
+            Ok(())
+        };
         // A mimic joint's ultimate master (a mimic of a mimic composed), its gain and offset.
         let master_of = |j: &super::urdf::UrdfJoint| -> Result<Option<(String, f64, f64)>, InputError> {
             let Some((mut master, mut gain, mut offset)) = j.mimic.clone() else { return Ok(None) };
@@ -822,6 +854,7 @@ impl Builder<'_> {
                         if let Some(change) = geometry(&j.name)? {
                             parts.elements.push(Element::Fixed(change));
                         }
+                        frame_compliance(&j.name, &mut parts)?;
                         parts.joint(jk, j.axis, Role::Actuated);
                         let joint_spec = u.joints.get(&j.name);
                         if let Some(formula) = joint_spec.map(|k| self.coordinate_stiffness(k)).transpose()?.flatten() {

@@ -69,6 +69,11 @@ pub struct JointCorrectionSpec {
     /// vector (rad), in the joint's frame: `[dx, dy, dz, rx, ry, rz]`.
     #[serde(default)]
     pub geometry: Option<[Num; 6]>,
+    /// A compliance at the frame leading to the joint (before its motion), where the chain is otherwise
+    /// rigid: along its x, y, z (mm/N) and about them (rad/(N mm)), `[cx, cy, cz, crx, cry, crz]`; zero is
+    /// rigid in that direction.
+    #[serde(default)]
+    pub frame_compliance: Option<Spanned<[Num; 6]>>,
 }
 
 /// A mass carried by the platform.
