@@ -94,15 +94,7 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
     let o = PlanOptions { loads, budget: a.budget, effects: a.effects.clone(), noise: a.noise, random: a.random };
     let mut sink = a.output.open(&plan_table(&set.joint_names))?;
     let p = if arm {
-        let configurations: Vec<crate::diagnose::calibrate::Configuration> = poses
-            .iter()
-            .enumerate()
-            .map(|(k, p)| {
-                let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
-                (name, p.joints.clone(), p.wrench.unwrap_or_else(crate::kinematics::frame::Vec6::zeros))
-            })
-            .collect();
-        plan_arm(m, &configurations, &o)?
+        plan_arm(m, &crate::diagnose::calibrate::configurations(&poses), &o)?
     } else {
         plan(&model, &poses, &o)?
     };

@@ -189,14 +189,7 @@ fn run_joint_space(
     let real = crate::model::parse_with(&a.model.model, &format!("{source}\n{tables}"), &overrides, 0)?.manipulator;
     let mut read = Vec::new();
     while points.next_block(4096, &mut read)? > 0 {}
-    let configurations: Vec<crate::diagnose::calibrate::Configuration> = read
-        .iter()
-        .enumerate()
-        .map(|(k, p)| {
-            let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
-            (name, p.joints.clone(), p.wrench.unwrap_or_else(crate::kinematics::frame::Vec6::zeros))
-        })
-        .collect();
+    let configurations = crate::diagnose::calibrate::configurations(&read);
     let loaded = read.iter().any(|p| p.wrench.is_some_and(|w| w != crate::kinematics::frame::Vec6::zeros()));
     let (rows, skipped) = synthesize_positions(&real, &configurations, &hidden).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut columns = vec![Column { name: "pose_id".into(), kind: CellKind::Text }];

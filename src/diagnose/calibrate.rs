@@ -1685,6 +1685,19 @@ pub struct PositionSynth {
 /// One configuration to measure: its name, the controller's angles and the wrench at the reference point.
 pub type Configuration = (String, Vec<f64>, Vec6);
 
+/// The configurations of a points file's joint rows (in the arm's order): each row's name (`c` and its
+/// index where it has none), angles and wrench (zero where it gives none).
+pub fn configurations(points: &[crate::model::grid::PosePoint]) -> Vec<Configuration> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let name = p.name.clone().filter(|n| !n.is_empty()).unwrap_or_else(|| format!("c{k}"));
+            (name, p.joints.clone(), p.wrench.unwrap_or_else(Vec6::zeros))
+        })
+        .collect()
+}
+
 /// What measuring a target's position at each candidate configuration would tell a calibration, to first
 /// order about the nominal arm: the derivative of the three coordinates in every parameter, weighted by
 /// 1/noise.
