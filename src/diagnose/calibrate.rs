@@ -1282,6 +1282,13 @@ pub fn calibrate(
     candidates: &[ArmEffect],
     options: &Options,
 ) -> Result<Calibration, CalibrationError> {
+    let weighed;
+    let data = if data.rows.iter().any(|r| r.payload.is_some()) {
+        weighed = data.with_payload_weights(m);
+        &weighed
+    } else {
+        data
+    };
     let problem = Problem::new(m, data, options.sigma)?;
     let candidates: Vec<ArmEffect> =
         if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
@@ -1735,6 +1742,7 @@ pub fn signatures(
             check: false,
             gravity: None,
             configuration: k,
+            payload: None,
         });
     }
     let data = PositionData {

@@ -5,13 +5,16 @@
 //! (`dx_mm,dy_mm,dz_mm`: a differential measurement, the wrench's effect alone). Optional: the wrench at the
 //! reference point (`Fx_N .. Mz_Nmm`, zero where absent), `sigma_mm`, `setup` (the instrument was moved: one
 //! registration per set-up), `set` (`fit` or `check`: check rows are never fitted), `pose_id` (the row's
-//! name), `gravity_x,gravity_y,gravity_z` (gravity's direction in the base frame: a base that is not level). Every error is located.
+//! name), `gravity_x,gravity_y,gravity_z` (gravity's direction in the base frame: a base that is not level),
+//! `payload_kg` with optional `payload_cx_mm,payload_cy_mm,payload_cz_mm` (a mass the tool carries at that
+//! row, its centre in the tool frame: its weight joins the row's wrench). Every error is located.
 
 use std::path::Path;
 
 use crate::columns::{DISPLACEMENT, JOINT_PREFIX, POSE_ID, SIGMA, WRENCH};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::error::{open_input, InputError};
+use crate::platform::manipulator::Manipulator;
 
 use super::data::{checked_number, checked_sigma};
 
@@ -23,6 +26,10 @@ pub const SET: &str = "set";
 pub const TARGET: &str = "target";
 /// Gravity's direction in the base frame at a row (any length: an accelerometer's reading).
 pub const GRAVITY: [&str; 3] = ["gravity_x", "gravity_y", "gravity_z"];
+/// A mass carried by the tool at a row, kg.
+pub const PAYLOAD_KG: &str = "payload_kg";
+/// Its centre in the tool frame, mm (the reference point where absent).
+pub const PAYLOAD_CENTRE: [&str; 3] = ["payload_cx_mm", "payload_cy_mm", "payload_cz_mm"];
 
 /// What a row measured.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,6 +69,9 @@ pub struct PositionRow {
     pub gravity: Option<Vec3>,
     /// The configuration (distinct joint coordinates, in order of appearance) the row was measured at.
     pub configuration: usize,
+    /// A mass the tool carries at this row (kg) and its centre in the tool frame (mm), whose weight is not
+    /// yet in `wrench` (`PositionData::with_payload_weights` puts it there).
+    pub payload: Option<(f64, Vec3)>,
 }
 
 /// A file of measured rows.
@@ -175,6 +185,15 @@ impl PositionData {
         let wrench_columns: Vec<Option<usize>> = WRENCH.iter().map(|c| find(c)).collect();
         let (sigma_column, setup_column, set_column, id_column) = (find(SIGMA), find(SETUP), find(SET), find(POSE_ID));
         let gravity_columns: Option<Vec<usize>> = GRAVITY.iter().map(|c| find(c)).collect();
+        let payload_column = find(PAYLOAD_KG);
+        let centre_columns: Vec<Option<usize>> = PAYLOAD_CENTRE.iter().map(|c| find(c)).collect();
+        if payload_column.is_none() && centre_columns.iter().any(Option::is_some) {
+            return Err(at(
+                1,
+                1,
+                format!("a payload's centre ({}) needs its mass ({PAYLOAD_KG})", PAYLOAD_CENTRE.join(",")),
+            ));
+        }
         let mut data = PositionData { rows: Vec::new(), targets: Vec::new(), setups: Vec::new(), configurations: 0 };
         let mut configurations: Vec<Vec<f64>> = Vec::new();
         for record in reader.records() {
@@ -220,6 +239,22 @@ impl PositionData {
                 }
                 None => None,
             };
+            let payload = match payload_column {
+                Some(c) if !text(c).is_empty() => {
+                    let kg = number(c)?;
+                    if kg < 0.0 {
+                        return Err(at(line, c + 1, format!("{PAYLOAD_KG} is a mass: >= 0, not {kg}")));
+                    }
+                    let mut centre = Vec3::zeros();
+                    for (k, column) in centre_columns.iter().enumerate() {
+                        if let Some(column) = *column {
+                            centre[k] = if text(column).is_empty() { 0.0 } else { number(column)? };
+                        }
+                    }
+                    (kg > 0.0).then_some((kg, centre))
+                }
+                _ => None,
+            };
             let name = id_column
                 .map(text)
                 .filter(|t| !t.is_empty())
@@ -242,6 +277,7 @@ impl PositionData {
                     check,
                     gravity,
                     configuration,
+                    payload,
                 })
             };
             if let Some(d) = &displacement {
@@ -282,6 +318,23 @@ impl PositionData {
         for r in &mut self.rows {
             r.check |= held.contains(&r.configuration);
         }
+    }
+
+    /// The data with each row's payload weighed into its wrench: the weight m g (g the row's gravity
+    /// direction with `m`'s magnitude, or `m`'s gravity) at the reference point, with its moment (R c) x F
+    /// about it, R the tool's orientation at the row's configuration (nominal kinematics).
+    pub fn with_payload_weights(&self, m: &Manipulator) -> PositionData {
+        let mut out = self.clone();
+        let mut state = m.new_state();
+        let g = m.weight_gravity();
+        for r in &mut out.rows {
+            let Some((kg, centre)) = r.payload.take() else { continue };
+            let Some(frame) = m.pose_at_joints(&r.joints, &mut state) else { continue };
+            let force = r.gravity.map_or(g, |d| d * g.norm()) * kg;
+            let moment = (frame.rot * centre).cross(&force);
+            r.wrench += Vec6::new(force.x, force.y, force.z, moment.x, moment.y, moment.z);
+        }
+        out
     }
 
     /// True when the rows are positions in an instrument's frame (registration fitted), false when they are
