@@ -727,3 +727,67 @@ fn an_unwritable_picture_is_refused_before_the_work() {
         "the folder missing does not exist",
     );
 }
+
+/// A serial arm's calibration (`diagnose --plot` on joint-space data, and `stiff plot` of its JSON): one RMS
+/// bar per stage for the fitted rows and one for the held-out rows, each as tall as the JSON's RMS (heights
+/// in proportion to 1e-3, the SVG's hundredth of a pixel), the stages named, the axis in mm, no text on
+/// another.
+#[test]
+fn a_calibration_plot_has_a_bar_per_stage_and_row_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let synth = stiff_in(
+        dir.path(),
+        &["synth", "manipulators/fanuc-r2000ic.toml", "--points", "manipulators/grids/fanuc-r2000ic-cable-tests.csv"]
+            .into_iter()
+            .chain(["--effect", "registration=0.1,0,0.2,1500,0,300", "--effect", "joint-offset:J2=0.002"])
+            .chain(["--noise", "0.05", "--seed", "1", "--check-every", "3", "-o", "cal.csv"])
+            .collect::<Vec<_>>(),
+    );
+    assert!(synth.status.success(), "{}", String::from_utf8_lossy(&synth.stderr));
+    let diagnose = stiff_in(
+        dir.path(),
+        &[
+            "diagnose",
+            "manipulators/fanuc-r2000ic.toml",
+            "--data",
+            "cal.csv",
+            "--plot",
+            "cal.svg",
+            "--json",
+            "cal.json",
+        ],
+    );
+    assert!(diagnose.status.success(), "{}", String::from_utf8_lossy(&diagnose.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("cal.json")).unwrap()).unwrap();
+    let stages = json["calibration"]["stages"].as_array().unwrap();
+    assert!(stages.len() >= 2, "{json}");
+    let replotted = stiff_in(dir.path(), &["plot", "cal.json", "-o", "again.svg"]);
+    assert!(replotted.status.success(), "{}", String::from_utf8_lossy(&replotted.stderr));
+    for file in ["cal.svg", "again.svg"] {
+        let svg = std::fs::read_to_string(dir.path().join(file)).unwrap();
+        let doc = parse(&svg);
+        let bars: Vec<f64> = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("rect") && n.attribute("class") == Some("rms-bar"))
+            .map(|n| n.attribute("height").unwrap().parse().unwrap())
+            .collect();
+        let rms: Vec<f64> = stages
+            .iter()
+            .flat_map(|s| [s["fit"]["rms"].as_f64().unwrap(), s["check"]["rms"].as_f64().unwrap()])
+            .collect();
+        assert_eq!(bars.len(), rms.len(), "{file}");
+        for (h, r) in bars.iter().zip(&rms) {
+            assert!(
+                (h / bars[0] - r / rms[0]).abs() < 1e-3,
+                "{file}: bar {h} px for {r} mm (first {} px for {} mm)",
+                bars[0],
+                rms[0]
+            );
+        }
+        let t = texts(&doc);
+        assert!(t.iter().any(|x| x == "position error [mm]"), "{t:?}");
+        assert!(t.iter().any(|x| x.starts_with("+ joint-offset:J2")), "{t:?}");
+        assert_no_text_overlaps(&svg, file);
+    }
+}

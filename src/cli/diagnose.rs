@@ -166,8 +166,8 @@ fn joint_space_data(input: &[u8]) -> bool {
 fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulator, input: &[u8]) -> Result<()> {
     use crate::diagnose::calibrate::{self, ArmEffect};
     use crate::diagnose::positions::PositionData;
-    if a.plot.is_some() || a.linear {
-        bail!("--plot and --linear are not available for joint-space data yet: the report and --json give the effects and errors");
+    if a.linear {
+        bail!("--linear is not available for joint-space data: the calibration's predictions are first order about each row's loaded equilibrium");
     }
     let Some(space) = &m.joint_space else {
         bail!(
@@ -196,12 +196,23 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     let candidates = parse(&a.candidates, "--candidates")?;
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let model_sink = a.model_out.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
+    let plot_sink = a.plot.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let c = calibrate::calibrate(m, &data, &candidates, &options)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
     write_stdout(&calibrate::text(&c, &name))?;
+    let json = serde_json::json!({ "model": name, "calibration": c });
     if let Some(mut sink) = json_sink {
-        serde_json::to_writer_pretty(&mut *sink.writer(), &serde_json::json!({ "model": name, "calibration": c }))?;
+        serde_json::to_writer_pretty(&mut *sink.writer(), &json)?;
+        sink.finish()?;
+    }
+    if let Some(mut sink) = plot_sink {
+        let report: crate::plot::calibration::CalibrationReport = serde_json::from_value(json)?;
+        let title = format!("{}, data {}", a.model.model.display(), a.data.display());
+        let options = crate::plot::PlotOptions { title: Some(title), ..Default::default() };
+        let svg = crate::plot::calibration::calibration(&report, &options)?;
+        let path = a.plot.as_deref().expect("a sink only with --plot");
+        sink.writer().write_all(&picture_bytes(&svg, path)?)?;
         sink.finish()?;
     }
     if let Some(sink) = model_sink {

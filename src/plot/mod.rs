@@ -3,6 +3,7 @@
 //! sections, a force-deflection curve with its events, the displacements along an assembly path (paper 000
 //! Figures 10-11) and the errors along a compensated one, and a diagnosis (residual arrows before and after, per-axis RMS, the candidates' delta BIC).
 pub mod assembly;
+pub mod calibration;
 pub mod compensation;
 pub mod curve;
 pub mod diagnosis;
@@ -60,8 +61,14 @@ pub fn plot_reader(input: impl std::io::Read, o: &PlotOptions) -> Result<String>
         }
     };
     if starts_json {
-        let report: DiagnosisReport =
-            serde_json::from_reader(input).context("reading the diagnosis JSON (written by stiff diagnose --json?)")?;
+        let what = "reading the diagnosis JSON (written by stiff diagnose --json?)";
+        let value: serde_json::Value = serde_json::from_reader(input).context(what)?;
+        // A serial arm's calibration (joint-space data) or a diagnosis of displacements at poses.
+        if value.get("calibration").is_some() {
+            let report: calibration::CalibrationReport = serde_json::from_value(value).context(what)?;
+            return calibration::calibration(&report, o);
+        }
+        let report: DiagnosisReport = serde_json::from_value(value).context(what)?;
         return diagnosis(&report, o);
     }
     let (header, reader) = Table::header_of(input)?;
