@@ -68,6 +68,14 @@ impl IkWorkspace {
         self.current_is_valid = false;
     }
 
+    /// Evaluates `chain` at `coords` as the start of the next solve (the coordinates it will be handed): a
+    /// solve at the pose they reach then converges on this evaluation without a new one.
+    pub fn evaluate_at(&mut self, chain: &Chain, coords: &Coordinates) -> &ChainJacobians {
+        chain.evaluate(coords, &mut self.current);
+        self.current_is_valid = true;
+        &self.current
+    }
+
     /// The evaluation at the last solution (virtual columns included), while the coordinates have not
     /// changed since.
     pub fn solution(&mut self) -> Option<&ChainJacobians> {

@@ -63,7 +63,9 @@ impl VjmLeg {
         if !seed_at(q, state) {
             return None;
         }
-        let end = self.chain.end_frame(&state.coords);
+        // Evaluated whole, as inverse kinematics would at its start: placing the leg at this frame then
+        // converges on this evaluation, and the leg's answer uses it.
+        let end = state.ik.evaluate_at(&self.chain, &state.coords).end;
         let platform = end.compose(&self.attachment.inverse());
         (platform.pos.iter().chain(platform.rot.iter()).all(|v| v.is_finite())).then_some(platform)
     }

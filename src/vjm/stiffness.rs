@@ -83,6 +83,13 @@ pub struct PassiveRange {
 /// Modified Gram-Schmidt with column pivoting (a rank-revealing QR) in the weighted metric, then completed
 /// to an orthonormal basis of R^6 whose last 6 - rank vectors give the transmitted wrenches.
 pub fn passive_range(j_passive: &[Vec6], length_scale: f64) -> PassiveRange {
+    if j_passive.is_empty() {
+        // No passive joint (a serial arm): every wrench is transmitted, and the completion below would
+        // take the unit vectors in order; they are written directly.
+        let transmitted =
+            std::array::from_fn(|k| weigh_rotations(&Vec6::from_fn(|i, _| f64::from(i == k)), length_scale));
+        return PassiveRange { basis: [Vec6::zeros(); 6], transmitted, rank: 0 };
+    }
     let mut stack = [Vec6::zeros(); 16];
     let mut heap = Vec::new();
     let cols: &mut [Vec6] = if j_passive.len() <= stack.len() {
