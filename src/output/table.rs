@@ -191,7 +191,7 @@ impl Record for Header {
         self.push(name, CellKind::Text);
     }
     fn matrix(&mut self, which: Matrix, _: Option<&Mat6>, part: Triangle) {
-        for (i, j) in matrix_entries(part) {
+        for &(i, j) in matrix_entries(part) {
             match which {
                 Matrix::Compliance => self.push(format_args!("C{i}{j}_{}", compliance_unit(i, j)), CellKind::Number),
                 Matrix::Stiffness => self.push(format_args!("K{i}{j}_{}", stiffness_unit(i, j)), CellKind::Number),
@@ -250,7 +250,7 @@ impl Record for Cells<'_> {
         }
     }
     fn matrix(&mut self, _: Matrix, m: Option<&Mat6>, part: Triangle) {
-        for (i, j) in matrix_entries(part) {
+        for &(i, j) in matrix_entries(part) {
             if let (Some(out), Some(m)) = (self.next(), m) {
                 push_number(out, m[(i - 1, j - 1)]);
             }
@@ -299,12 +299,41 @@ pub enum Triangle {
     Lower,
 }
 
-/// The entries of a triangle, row by row.
-pub fn matrix_entries(part: Triangle) -> Vec<(usize, usize)> {
+/// The entries of a triangle, row by row (1-based): a fixed table, since every row of a map writes them.
+pub fn matrix_entries(part: Triangle) -> &'static [(usize, usize)] {
+    const UPPER: [(usize, usize); 21] = triangle(true);
+    const LOWER: [(usize, usize); 15] = {
+        let all = triangle(false);
+        let mut out = [(0, 0); 15];
+        let mut k = 0;
+        while k < 15 {
+            out[k] = all[k];
+            k += 1;
+        }
+        out
+    };
     match part {
-        Triangle::Upper => upper_triangle().collect(),
-        Triangle::Lower => (2..=6).flat_map(|i| (1..i).map(move |j| (i, j))).collect(),
+        Triangle::Upper => &UPPER,
+        Triangle::Lower => &LOWER,
     }
+}
+
+/// The upper triangle with its diagonal (21 entries), or the strict lower triangle in its first 15.
+const fn triangle(upper: bool) -> [(usize, usize); 21] {
+    let mut out = [(0, 0); 21];
+    let (mut i, mut k) = (1, 0);
+    while i <= 6 {
+        let mut j = 1;
+        while j <= 6 {
+            if (upper && j >= i) || (!upper && j < i) {
+                out[k] = (i, j);
+                k += 1;
+            }
+            j += 1;
+        }
+        i += 1;
+    }
+    out
 }
 
 /// Appends one number in shortest round-trip form; nothing for a non-finite one (one rule for missing

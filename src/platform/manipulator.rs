@@ -51,12 +51,34 @@ impl JointSpace {
 
     /// The model's coordinates from the controller's angles (in the order of `names`).
     pub fn model_coordinates(&self, controller: &[f64]) -> Vec<f64> {
-        let corrected: Vec<f64> = controller.iter().zip(&self.offsets).map(|(a, o)| a + o).collect();
-        self.controller
-            .iter()
-            .enumerate()
-            .map(|(i, f)| f.as_ref().map_or(corrected[i], |f| f.eval(&corrected)))
-            .collect()
+        let mut q = vec![0.0; controller.len()];
+        self.model_coordinates_into(controller, &mut q);
+        q
+    }
+
+    /// As `model_coordinates`, into `q` (as long as `controller`), allocation-free for up to
+    /// `STACK_JOINTS` joints: a map in joint space calls it at every point.
+    pub fn model_coordinates_into(&self, controller: &[f64], q: &mut [f64]) {
+        with_scratch(controller.len(), |corrected| {
+            for ((c, a), o) in corrected.iter_mut().zip(controller).zip(&self.offsets) {
+                *c = a + o;
+            }
+            for (i, (out, f)) in q.iter_mut().zip(&self.controller).enumerate() {
+                *out = f.as_ref().map_or(corrected[i], |f| f.eval(corrected));
+            }
+        })
+    }
+}
+
+/// Joints a scratch buffer holds on the stack (`with_scratch`).
+const STACK_JOINTS: usize = 16;
+
+/// Runs `f` on a zeroed buffer of `n` numbers: on the stack up to `STACK_JOINTS`, else on the heap.
+fn with_scratch<T>(n: usize, f: impl FnOnce(&mut [f64]) -> T) -> T {
+    let mut stack = [0.0; STACK_JOINTS];
+    match n <= STACK_JOINTS {
+        true => f(&mut stack[..n]),
+        false => f(&mut vec![0.0; n]),
     }
 }
 
@@ -267,11 +289,13 @@ impl Manipulator {
         if controller.len() != space.names.len() || self.legs.len() != 1 {
             return None;
         }
-        let q = space.model_coordinates(controller);
-        match (&self.legs[0], state.legs.first_mut()) {
-            (Leg::Vjm(leg), Some(s)) => leg.pose_at_joints(&q, s),
-            _ => None,
-        }
+        with_scratch(controller.len(), |q| {
+            space.model_coordinates_into(controller, q);
+            match (&self.legs[0], state.legs.first_mut()) {
+                (Leg::Vjm(leg), Some(s)) => leg.pose_at_joints(q, s),
+                _ => None,
+            }
+        })
     }
 
     /// A serial arm's rigid statics at the controller's angles (as `pose_at_joints`) under `wrench` (N, N mm

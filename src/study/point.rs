@@ -210,10 +210,13 @@ pub fn pose_of_joints<'a>(
         return Some(std::borrow::Cow::Borrowed(p));
     }
     let f = m.pose_at_joints(&p.joints, state)?;
+    // The joints are not copied: the placed point is a pose.
     Some(std::borrow::Cow::Owned(PosePoint {
+        name: p.name.clone(),
         position: f.pos,
         rotation: crate::kinematics::frame::rotation_vector(&f.rot),
-        ..p.clone()
+        wrench: p.wrench,
+        joints: Vec::new(),
     }))
 }
 
