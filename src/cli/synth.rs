@@ -25,7 +25,7 @@ pub(crate) struct SynthArgs {
     /// payload=KG,CX,CY,CZ (tool frame, mm), and the set-up:
     /// registration=RX,RY,RZ,TX,TY,TZ (the instrument sees a base point p at R p + t; rad, mm; repeated: one
     /// set-up each, the configurations measured in that many blocks), target=X,Y,Z (on the tool, mm),
-    /// gross=FRACTION,MM.
+    /// gross=FRACTION,MM, drift=DX,DY,DZ (mm per row written, base frame axes).
     #[arg(long = "effect", value_name = "NAME[:TARGET]=VALUES")]
     pub(crate) effects: Vec<String>,
     #[command(flatten)]
@@ -131,6 +131,7 @@ fn run_joint_space(
         gross: (0.0, 0.0),
         check_every: a.check_every,
         seed: a.seed,
+        drift: Vec3::zeros(),
     };
     let mut tables = String::new();
     for e in &a.effects {
@@ -156,6 +157,10 @@ fn run_joint_space(
             "target" => {
                 count(3)?;
                 hidden.target = Vec3::new(values[0], values[1], values[2]);
+            }
+            "drift" => {
+                count(3)?;
+                hidden.drift = Vec3::new(values[0], values[1], values[2]);
             }
             "gross" => {
                 count(2)?;
