@@ -841,3 +841,26 @@ fn a_drift_over_the_measurements_order_is_named() {
     let corrected = calibrate::corrected_model("name = \"x\"\n", dir.path(), &c);
     assert!(corrected.contains("# drift: ") && !corrected.contains("[[joint_correction]]"), "{corrected}");
 }
+
+/// A column no rule reads (a target's orientation, a timestamp) is named in the report, so that nobody
+/// takes a measurement as used that was not; the columns read are not named.
+#[test]
+fn columns_the_calibration_does_not_read_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = Hidden::registration_only();
+    let csv = synthetic(&h, 20, 0.05, &[], true, 12);
+    let mut lines = csv.lines();
+    let mut text = format!("{},mrx_rad,stamp\n", lines.next().unwrap());
+    for (k, l) in lines.enumerate() {
+        text += &format!("{l},0.1,{k}\n");
+    }
+    std::fs::write(dir.path().join("o.csv"), text).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["diagnose", FANUC, "--data"])
+        .arg(dir.path().join("o.csv"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report = String::from_utf8(out.stdout).unwrap();
+    assert!(report.contains("columns not read (no rule uses them): mrx_rad, stamp\n"), "{report}");
+}

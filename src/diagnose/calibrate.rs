@@ -289,6 +289,8 @@ pub struct Calibration {
     pub sigma_known: bool,
     /// Rows fitted and held out.
     pub rows: (usize, usize),
+    /// The data's columns no rule read.
+    pub unread: Vec<String>,
 }
 
 /// A joint's load as the effects read it: zero where it is round-off (below `LOAD_ROUND_OFF` of the row's
@@ -1518,6 +1520,7 @@ pub fn calibrate(
         residual_scale: scale,
         sigma_known,
         rows: (kept.len(), check_rows.len()),
+        unread: data.unread.clone(),
     })
 }
 
@@ -1632,6 +1635,9 @@ pub fn text(c: &Calibration, model: &str) -> String {
     let mut s = String::new();
     let verdict = verdict_word(c.verdict);
     let _ = writeln!(s, "Calibration of {model}: {} rows fitted, {} held out", c.rows.0, c.rows.1);
+    if !c.unread.is_empty() {
+        let _ = writeln!(s, "columns not read (no rule uses them): {}", c.unread.join(", "));
+    }
     let _ = writeln!(s, "verdict: {verdict}");
     if c.accepted.is_empty() {
         let _ = writeln!(s, "effects: none needed");
@@ -1788,6 +1794,7 @@ pub fn signatures(
         targets: vec![String::new()],
         setups: vec![String::new()],
         configurations: configurations.len(),
+        unread: Vec::new(),
     };
     let problem = Problem::new(m, &data, Some(noise))?;
     let usable: Vec<usize> = (0..data.rows.len()).filter(|r| !problem.unusable.iter().any(|(k, _)| k == r)).collect();

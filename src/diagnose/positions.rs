@@ -85,6 +85,9 @@ pub struct PositionData {
     pub setups: Vec<String>,
     /// Distinct configurations.
     pub configurations: usize,
+    /// Columns of the file that no rule reads (an orientation, a timestamp): named in the report, so that
+    /// a measurement is not taken as used when it was not.
+    pub unread: Vec<String>,
 }
 
 /// True when a measurement file's header names joint coordinates: it is read by `PositionData::read`.
@@ -194,7 +197,18 @@ impl PositionData {
                 format!("a payload's centre ({}) needs its mass ({PAYLOAD_KG})", PAYLOAD_CENTRE.join(",")),
             ));
         }
-        let mut data = PositionData { rows: Vec::new(), targets: Vec::new(), setups: Vec::new(), configurations: 0 };
+        let mut read: Vec<usize> = joint_columns.clone();
+        read.extend(groups.iter().flat_map(|g| g.columns));
+        read.extend(displacement.iter().flatten());
+        read.extend(wrench_columns.iter().flatten());
+        read.extend(
+            [sigma_column, setup_column, set_column, id_column, target_column, payload_column].iter().flatten(),
+        );
+        read.extend(gravity_columns.iter().flatten());
+        read.extend(centre_columns.iter().flatten());
+        let unread = (0..header.len()).filter(|c| !read.contains(c)).map(|c| header[c].clone()).collect();
+        let mut data =
+            PositionData { rows: Vec::new(), targets: Vec::new(), setups: Vec::new(), configurations: 0, unread };
         let mut configurations: Vec<Vec<f64>> = Vec::new();
         for record in reader.records() {
             let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
