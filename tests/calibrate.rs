@@ -864,3 +864,37 @@ fn columns_the_calibration_does_not_read_are_named() {
     let report = String::from_utf8(out.stdout).unwrap();
     assert!(report.contains("columns not read (no rule uses them): mrx_rad, stamp\n"), "{report}");
 }
+
+/// A compliance at the tool (a tool holder): this file's generator carries 80 kg at the tool on every
+/// second configuration (given per row, `payload_kg`) and moves the target by 3e-4 mm/N times the force
+/// along the flange frame's z. Offered (`--candidates`), `tool-compliance` alone is named, its z compliance
+/// within four standard errors of the hidden one, x and y within four of zero.
+#[test]
+fn a_compliance_at_the_tool_is_named_from_the_force_it_carries() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let mut r = rng(52);
+    let h = Hidden::registration_only();
+    let mut csv = String::from("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,payload_kg\n");
+    for c in 0..60 {
+        let t = random_angles(&mut r);
+        let kg = if c % 2 == 1 { 80.0 } else { 0.0 };
+        let loaded = Hidden { payload: (kg, Vec3::zeros()), ..Hidden::registration_only() };
+        let (_, frames) = dh_kinematics(&model_angles(&t));
+        let z = Vec3::new(frames[5][(0, 2)], frames[5][(1, 2)], frames[5][(2, 2)]);
+        let holder = z * (3e-4 * z.dot(&(h.gravity * kg)));
+        let noise = Vec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0)) * 0.02;
+        let p = measured_target(&loaded, &t, true) + rotation_from_vector(&h.rotation) * holder + noise;
+        let q: Vec<String> = t.iter().map(|v| format!("{v:?}")).collect();
+        csv += &format!("c{c},{},{:?},{:?},{:?},{kg}\n", q.join(","), p.x, p.y, p.z);
+    }
+    let mut offered: Vec<ArmEffect> = JOINTS.iter().map(|j| effect(ArmKind::JointCompliance, j)).collect();
+    offered.push(ArmEffect { kind: ArmKind::ToolCompliance, joint: 0 });
+    let (_, c) = calibrate_text(&m, &csv, dir.path(), &offered, &options(Some(0.02 / 3f64.sqrt())));
+    let names: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+    assert_eq!(names, ["tool-compliance"], "{:?}", c.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
+    let a = &c.accepted[0];
+    for (k, hidden) in [0.0, 0.0, 3e-4].iter().enumerate() {
+        assert!((a.values[k] - hidden).abs() < 4.0 * a.se[k], "{}", a.shown);
+    }
+}

@@ -173,8 +173,8 @@ fn run_joint_space(
                 let effect = ArmEffect::parse(name, names).map_err(|why| anyhow::anyhow!("--effect `{e}`: {why}"))?;
                 let joint = names[effect.joint].as_str();
                 match effect.kind {
-                    ArmKind::Backlash => {
-                        bail!("--effect `{e}`: a description of a URDF arm cannot hold play yet; synth makes offsets, compliances, geometry, frame compliances and payload")
+                    ArmKind::Backlash | ArmKind::ToolCompliance => {
+                        bail!("--effect `{e}`: a description of a URDF arm cannot hold it yet; synth makes offsets, compliances, geometry, frame compliances, payload and drift")
                     }
                     ArmKind::Payload => {
                         count(4)?;

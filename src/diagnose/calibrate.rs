@@ -65,6 +65,9 @@ pub enum ArmKind {
     /// The measurements drifting over their order (thermal growth of the robot or the instrument, the
     /// instrument settling): the target seen moved by a constant rate per row of the file, base frame axes.
     Drift,
+    /// A compliance in series at the tool (a tool holder, a flange): the target moved along each of the tool
+    /// frame's axes by a compliance times the force the tool carries there (the row's wrench, a payload).
+    ToolCompliance,
 }
 
 /// A candidate effect on one joint.
@@ -87,6 +90,7 @@ impl ArmEffect {
             ArmKind::FrameCompliance => "frame-compliance",
             ArmKind::Payload => return "payload".into(),
             ArmKind::Drift => return "drift".into(),
+            ArmKind::ToolCompliance => return "tool-compliance".into(),
         };
         format!("{kind}:{}", joints[self.joint])
     }
@@ -97,7 +101,7 @@ impl ArmEffect {
             ArmKind::JointOffset | ArmKind::JointCompliance | ArmKind::Backlash => 1,
             ArmKind::JointGeometry | ArmKind::FrameCompliance => 6,
             ArmKind::Payload => 4,
-            ArmKind::Drift => 3,
+            ArmKind::Drift | ArmKind::ToolCompliance => 3,
         }
     }
 
@@ -109,6 +113,9 @@ impl ArmEffect {
         if text == "drift" {
             return Ok(ArmEffect { kind: ArmKind::Drift, joint: 0 });
         }
+        if text == "tool-compliance" {
+            return Ok(ArmEffect { kind: ArmKind::ToolCompliance, joint: 0 });
+        }
         let (kind, joint) = text.split_once(':').ok_or_else(|| format!("`{text}`: give KIND:JOINT or payload"))?;
         let kind = match kind {
             "joint-offset" => ArmKind::JointOffset,
@@ -118,7 +125,7 @@ impl ArmEffect {
             "frame-compliance" => ArmKind::FrameCompliance,
             other => {
                 return Err(format!(
-                    "`{other}`: the effects of a serial arm are joint-offset, joint-compliance, backlash, joint-geometry, frame-compliance (KIND:JOINT), payload and drift"
+                    "`{other}`: the effects of a serial arm are joint-offset, joint-compliance, backlash, joint-geometry, frame-compliance (KIND:JOINT), payload, tool-compliance and drift"
                 ))
             }
         };
@@ -321,7 +328,8 @@ fn effect_gain(e: &ArmEffect, s: &ArmStatics, zero: &Option<ArmStatics>, payload
             | ArmKind::JointGeometry
             | ArmKind::Payload
             | ArmKind::FrameCompliance
-            | ArmKind::Drift,
+            | ArmKind::Drift
+            | ArmKind::ToolCompliance,
             _,
         ) => 0.0,
         (ArmKind::JointCompliance, None) => load,
@@ -740,6 +748,21 @@ impl<'a> Problem<'a> {
                 let t = (self.data.rows[r].line - self.data.rows[0].line) as f64;
                 (0..3).map(|k| Vec3::ith(k, t)).collect()
             }
+            // The force through the tool: the row's wrench, the description's payload and one being fitted
+            // (for a displacement, the wrench's alone: the weights are in both states).
+            ArmKind::ToolCompliance => {
+                let row = &self.data.rows[r];
+                let mut force = row.wrench.fixed_rows::<3>(0).into_owned();
+                if zero.is_none() {
+                    force += (self.arm(r).weight(&s.frame).0 + payload).fixed_rows::<3>(0);
+                }
+                (0..3)
+                    .map(|k| {
+                        let axis = s.frame.rot.column(k).into_owned();
+                        axis * axis.dot(&force)
+                    })
+                    .collect()
+            }
         }
     }
 
@@ -991,6 +1014,7 @@ impl<'a> Problem<'a> {
                         format!(" {}", what[k])
                     }
                     ArmKind::Drift => [" x", " y", " z"][k].to_string(),
+                    ArmKind::ToolCompliance => [" along x", " along y", " along z"][k].to_string(),
                     _ => String::new(),
                 };
                 return format!("{}{part}", e.label(self.joints));
@@ -1030,6 +1054,9 @@ impl<'a> Problem<'a> {
                 listed(&values[3..], &ses[3..], 1e3, 3)
             ),
             ArmKind::Drift => format!("({}) um per row, along the base's x, y, z", listed(values, ses, 1e3, 4)),
+            ArmKind::ToolCompliance => {
+                format!("({}) um/N along the tool frame's x, y, z", listed(values, ses, 1e3, 4))
+            }
             ArmKind::FrameCompliance => format!(
                 "compliance along the frame's axes ({}) um/N, about them ({}) urad/(N m)",
                 listed(&values[..3], &ses[..3], 1e3, 4),
@@ -1416,7 +1443,7 @@ pub fn calibrate(
             label: e.label(problem.joints),
             kind: e.kind,
             joint: match e.kind {
-                ArmKind::Payload | ArmKind::Drift => String::new(),
+                ArmKind::Payload | ArmKind::Drift | ArmKind::ToolCompliance => String::new(),
                 _ => problem.joints[e.joint].clone(),
             },
             shown: problem.shown(e, &values, &se),
@@ -1556,6 +1583,13 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibratio
                     a.label, a.shown
                 );
             }
+            ArmKind::ToolCompliance => {
+                let _ = writeln!(
+                    out,
+                    "\n# {}: {} (not written: a description of a URDF arm holds no spring at its tool yet)",
+                    a.label, a.shown
+                );
+            }
             ArmKind::FrameCompliance => match spring_compliances(&a.values, &a.se) {
                 Some(values) => {
                     if a.values.iter().any(|v| *v < 0.0) {
@@ -1616,7 +1650,7 @@ pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
         ArmKind::FrameCompliance => {
             format!("\n[[joint_correction]]\njoint = {joint:?}\nframe_compliance = [{}]\n", list(values))
         }
-        ArmKind::Backlash | ArmKind::Drift => String::new(),
+        ArmKind::Backlash | ArmKind::Drift | ArmKind::ToolCompliance => String::new(),
     }
 }
 
