@@ -680,7 +680,8 @@ fn a_stated_seed_picks_the_branch_of_a_pose() {
 /// reach the same tool pose on the two wrist branches (the second flipped, (q4 + pi, -q5, q6 + pi) in the
 /// model's angles), which a pose alone cannot tell apart.
 /// - `compensate` (the arm's own weight is the load): each row's pose is the DH table's for its angles
-///   (1e-9 mm) and its command keeps the row's branch (within 0.01 rad of the given angles).
+///   (1e-9 mm), its command keeps the row's branch (within 0.01 rad of the given angles), and its command in
+///   the controller's angles (`command_q_<joint>`) maps to the model's command.
 /// - `assemble` with the base moved 1 mm along x: the rigid-body translation of the whole arm, linear and
 ///   non-linear (within 1e-9 mm), although the arm sags under its weight: a regression test, the non-linear
 ///   columns once held the sag (1.4 mm) as well.
@@ -727,6 +728,16 @@ fn batch_studies_take_joint_coordinates_and_keep_the_configuration() {
         assert!((Vec3::new(row[0], row[1], row[2]) - p).norm() < 1e-9, "pose {row:?} vs {p}");
         for k in 0..6 {
             assert!(wrap(row[3 + k] - given[k]).abs() < 0.01, "command {:?} left the branch {given:?}", &row[3..]);
+        }
+    }
+    // The command in the controller's angles: mapped as the controller maps them (q3 = -(t2 + t3), the
+    // wrist reversed), it is the model's command to round-off.
+    let angles: Vec<String> = (1..=6).map(|k| format!("command_q_J{k}_rad")).collect();
+    let commanded = crate::common::csv_columns(&compensated, &angles.iter().map(String::as_str).collect::<Vec<_>>());
+    for (t, row) in commanded.iter().zip(&found) {
+        let mapped = model_angles(&std::array::from_fn(|k| t[k]));
+        for k in 0..6 {
+            assert!((mapped[k] - row[3 + k]).abs() < 1e-12, "controller {t:?} maps to {mapped:?}, not {:?}", &row[3..]);
         }
     }
 

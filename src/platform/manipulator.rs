@@ -49,6 +49,37 @@ impl JointSpace {
         up.iter().zip(&down).map(|(u, d)| (u - d) / (2.0 * STEP)).collect()
     }
 
+    /// The controller's angles that give the model's coordinates `model` (the inverse of
+    /// `model_coordinates`, offsets included): Newton's method on the map, one step for the linear couplings
+    /// of parallelograms and reversed joints. None where it does not converge (a map that is not invertible
+    /// there).
+    pub fn controller_angles(&self, model: &[f64]) -> Option<Vec<f64>> {
+        let n = model.len();
+        let scale = model.iter().fold(1.0f64, |a, q| a.max(q.abs()));
+        let mut t = model.to_vec();
+        for _ in 0..CONTROLLER_ITERATIONS {
+            let q = self.model_coordinates(&t);
+            let r = nalgebra::DVector::from_iterator(n, model.iter().zip(&q).map(|(m, q)| m - q));
+            if !r.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            if r.amax() <= CONTROLLER_TOLERANCE * scale {
+                return Some(t);
+            }
+            let mut jacobian = nalgebra::DMatrix::zeros(n, n);
+            for j in 0..n {
+                for (i, rate) in self.coordinate_rates(&t, j).into_iter().enumerate() {
+                    jacobian[(i, j)] = rate;
+                }
+            }
+            let step = jacobian.lu().solve(&r)?;
+            for (a, d) in t.iter_mut().zip(step.iter()) {
+                *a += d;
+            }
+        }
+        None
+    }
+
     /// The model's coordinates from the controller's angles (in the order of `names`).
     pub fn model_coordinates(&self, controller: &[f64]) -> Vec<f64> {
         let mut q = vec![0.0; controller.len()];
@@ -69,6 +100,11 @@ impl JointSpace {
         })
     }
 }
+
+/// Newton steps `JointSpace::controller_angles` takes at most, and its tolerance relative to the largest
+/// coordinate: a few ulps.
+const CONTROLLER_ITERATIONS: usize = 20;
+const CONTROLLER_TOLERANCE: f64 = 1e-14;
 
 /// Joints a scratch buffer holds on the stack (`with_scratch`).
 const STACK_JOINTS: usize = 16;

@@ -145,6 +145,9 @@ impl Compensation {
 pub struct CompensateLayout {
     /// `leg{i}_actuator{j}_{unit}`, leg by leg.
     pub actuators: Vec<Vec<String>>,
+    /// For a serial arm: its joint space, to give the command in the controller's angles, and those
+    /// columns' names (`command_q_<joint>_<unit>`).
+    pub arm: Option<(crate::platform::manipulator::JointSpace, Vec<String>)>,
 }
 
 impl CompensateLayout {
@@ -155,7 +158,17 @@ impl CompensateLayout {
                 units.iter().enumerate().map(|(j, u)| format!("leg{}_actuator{}_{u}", i + 1, j + 1)).collect()
             })
             .collect();
-        CompensateLayout { actuators }
+        let arm = m.joint_space.as_ref().map(|space| {
+            let units = m.actuator_units();
+            let names = (space.names.iter().enumerate())
+                .map(|(k, n)| {
+                    let unit = units.first().and_then(|u| u.get(k)).copied().unwrap_or("rad");
+                    format!("command_q_{n}_{unit}")
+                })
+                .collect();
+            (space.clone(), names)
+        });
+        CompensateLayout { actuators, arm }
     }
 }
 
@@ -195,6 +208,13 @@ impl Row for CompensationRow<'_> {
         for (i, leg) in l.actuators.iter().enumerate() {
             for (j, name) in leg.iter().enumerate() {
                 r.optional(name, res.actuators.get(i).and_then(|a| a.get(j)).copied());
+            }
+        }
+        // A serial arm's command as its controller takes it: the angles whose map gives these coordinates.
+        if let Some((space, names)) = &l.arm {
+            let angles = res.actuators.first().and_then(|q| space.controller_angles(q));
+            for (k, name) in names.iter().enumerate() {
+                r.optional(name, angles.as_ref().map(|a| a[k]));
             }
         }
         for (prefix, e) in
