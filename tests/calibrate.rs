@@ -898,3 +898,24 @@ fn a_compliance_at_the_tool_is_named_from_the_force_it_carries() {
         assert!((a.values[k] - hidden).abs() < 4.0 * a.se[k], "{}", a.shown);
     }
 }
+
+/// Regression: `plan` on a serial arm with a candidates file of joint columns and no rows panicked (the
+/// calibration's problem read its first row's statics); it is an error that says there is nothing to plan
+/// with, and nothing is written.
+#[test]
+fn a_plan_without_candidate_configurations_is_an_error_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let (candidates, plan) = (dir.path().join("none.csv"), dir.path().join("plan.csv"));
+    std::fs::write(&candidates, "q_J1,q_J2,q_J3,q_J4,q_J5,q_J6\n").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["plan", FANUC, "--candidates"])
+        .arg(&candidates)
+        .args(["--budget", "1", "--noise", "0.05", "-o"])
+        .arg(&plan)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("nothing to calibrate or plan with") && !err.contains("panicked"), "{err}");
+    assert!(!plan.exists());
+}

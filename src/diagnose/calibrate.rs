@@ -387,6 +387,9 @@ pub enum CalibrationError {
 impl<'a> Problem<'a> {
     fn new(m: &'a Manipulator, data: &'a PositionData, sigma: Option<f64>) -> Result<Self, CalibrationError> {
         let space = m.joint_space.as_ref().ok_or_else(|| CalibrationError::NotAnArm(m.name.clone()))?;
+        if data.rows.is_empty() {
+            return Err(CalibrationError::TooFew("no rows: nothing to calibrate or plan with".into()));
+        }
         let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
         let mut tilted: Vec<(Vec3, Manipulator)> = Vec::new();
         let tilt_of: Vec<Option<usize>> = data
