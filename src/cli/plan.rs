@@ -118,7 +118,7 @@ fn report(p: &Plan, how: &str, noise: f64) -> String {
     );
     let units = match p.joint_names.is_empty() {
         true => "factor - 1 for compliance factors",
-        false => "rad or mm for offsets and play, rad/(N mm) or mm/N added to a joint's compliance, mm and rad for geometry, kg and kg mm for the payload",
+        false => "rad or mm for offsets and play, rad/(N mm) or mm/N for compliances added at a joint or the tool, mm and rad for geometry, kg and kg mm for the payload, mm per row for a drift",
     };
     let _ = writeln!(s, "smallest size detectable at 5 sigma (weakest direction; {units}):");
     let _ = writeln!(s, "  {:<26} {:>4} {:>14} {:>18}", "effect", "dim", "alone", "beside the others");
