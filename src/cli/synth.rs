@@ -62,6 +62,9 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     use crate::diagnose::synth;
     use crate::model::effect::Effect;
     let model = a.model.load_model()?;
+    if !(a.noise >= 0.0 && a.noise.is_finite()) {
+        bail!("--noise must be >= 0 (mm)");
+    }
     let mut points = a.points.load(&model.manipulator)?;
     if !points.joint_names.is_empty() {
         return run_joint_space(&a, &model.manipulator, points);
@@ -80,9 +83,6 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("--wrenches: {e}"))?,
         None => Vec::new(),
     };
-    if !(a.noise >= 0.0 && a.noise.is_finite()) {
-        bail!("--noise must be >= 0 (mm)");
-    }
     let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, None)?;
     let options = synth::SynthOptions {
         effects,
@@ -119,9 +119,6 @@ fn run_joint_space(
     use crate::output::table::{CellKind, Column};
     if a.wrenches.is_some() || a.linear || a.repeats != 1 || a.shard.shard.is_some() {
         bail!("--wrenches, --linear, --repeats and --shard are not for joint-space points: the arm is measured under its own weight");
-    }
-    if !(a.noise >= 0.0 && a.noise.is_finite()) {
-        bail!("--noise must be >= 0 (mm)");
     }
     let names = &nominal.joint_space.as_ref().expect("a serial arm").names;
     let mut hidden = PositionSynth {

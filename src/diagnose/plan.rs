@@ -343,8 +343,8 @@ impl Chosen {
 /// Chooses `o.budget` of the `n` candidate measurements for `effects` (and the parameters fitted beside
 /// them, `nuisance`, which are not reported), greedy D-optimal or at random.
 fn choose(effects: &[Signature], nuisance: Option<&DMatrix<f64>>, n: usize, o: &PlanOptions) -> Chosen {
-    let signatures: Vec<DMatrix<f64>> = effects.iter().map(|e| e.signature.clone()).collect();
-    let all = hstack(&[signatures.clone(), nuisance.into_iter().cloned().collect()].concat());
+    let signatures: Vec<&DMatrix<f64>> = effects.iter().map(|e| &e.signature).collect();
+    let all = hstack(&[signatures.clone(), nuisance.into_iter().collect()].concat());
     let picks = match o.random {
         Some(seed) => {
             let mut order: Vec<usize> = (0..n).collect();
@@ -355,7 +355,7 @@ fn choose(effects: &[Signature], nuisance: Option<&DMatrix<f64>>, n: usize, o: &
         None => greedy_d_optimal(&all, o.budget),
     };
     let on_plan = |j: &DMatrix<f64>| rows_of(j, &picks);
-    let planned: Vec<DMatrix<f64>> = signatures.iter().map(on_plan).collect();
+    let planned: Vec<DMatrix<f64>> = signatures.iter().map(|j| on_plan(j)).collect();
     let fitted_beside = nuisance.map(on_plan);
     // Nested pairs (one effect's signature inside a larger one's: gravity in gravity-offset, an actuator
     // offset in its leg's geometry) are told apart by parsimony, not by the data: a larger effect that
@@ -367,10 +367,10 @@ fn choose(effects: &[Signature], nuisance: Option<&DMatrix<f64>>, n: usize, o: &
         .iter()
         .enumerate()
         .map(|(i, e)| {
-            let others: Vec<DMatrix<f64>> = (0..effects.len())
+            let others: Vec<&DMatrix<f64>> = (0..effects.len())
                 .filter(|&k| k != i && !contains(k, i))
-                .map(|k| planned[k].clone())
-                .chain(fitted_beside.clone())
+                .map(|k| &planned[k])
+                .chain(fitted_beside.as_ref())
                 .collect();
             let own = &planned[i];
             let rest = outside_span(own, &hstack(&others)).unwrap_or_else(|| own * 0.0);
@@ -417,7 +417,7 @@ fn choose_effects(offered: Vec<Candidate>, wanted: &[String]) -> Result<Vec<Cand
 }
 
 /// Columns side by side.
-fn hstack(blocks: &[DMatrix<f64>]) -> DMatrix<f64> {
+fn hstack(blocks: &[&DMatrix<f64>]) -> DMatrix<f64> {
     let rows = blocks.first().map_or(0, |b| b.nrows());
     let cols = blocks.iter().map(|b| b.ncols()).sum();
     let mut out = DMatrix::zeros(rows, cols);

@@ -22,7 +22,15 @@ use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::{JointSpace, Manipulator, Payload};
 use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
-use crate::vjm::spring::{CoordinateStiffness, SpringGroup, SIX_DOF};
+use crate::vjm::spring::{one_coordinate, CoordinateStiffness, SpringGroup, SIX_DOF};
+
+/// The `[[joint_correction]]` tables of joint `name`, in file order.
+fn corrections_of<'a>(
+    corrections: &'a [Spanned<JointCorrectionSpec>],
+    name: &'a str,
+) -> impl Iterator<Item = &'a JointCorrectionSpec> + 'a {
+    corrections.iter().map(Spanned::get_ref).filter(move |c| c.joint.get_ref() == name)
+}
 
 /// A description as built: the manipulator (with the spring scalings of its `[[effect]]` entries applied)
 /// and, side by side, the effects that are terms of the measurement model (used by diagnose and synth).
@@ -736,8 +744,8 @@ impl Builder<'_> {
         // A joint's corrections: its added compliance and the change of the fixed transform leading to it.
         let added_compliance = |name: &str| -> Result<f64, InputError> {
             let mut sum = 0.0;
-            for c in corrections.iter().filter(|c| c.get_ref().joint.get_ref() == name) {
-                if let Some(v) = &c.get_ref().compliance {
+            for c in corrections_of(corrections, name) {
+                if let Some(v) = &c.compliance {
                     sum += self.num(v)?;
                 }
             }
@@ -745,8 +753,8 @@ impl Builder<'_> {
         };
         let geometry = |name: &str| -> Result<Option<Frame>, InputError> {
             let mut moved: Option<Frame> = None;
-            for c in corrections.iter().filter(|c| c.get_ref().joint.get_ref() == name) {
-                if let Some(g) = &c.get_ref().geometry {
+            for c in corrections_of(corrections, name) {
+                if let Some(g) = &c.geometry {
                     let v: Vec<f64> = g.iter().map(|n| self.num(n)).collect::<Result<_, _>>()?;
                     let change = Frame::new(
                         crate::kinematics::frame::rotation_from_vector(&Vec3::new(v[3], v[4], v[5])),
@@ -762,8 +770,8 @@ impl Builder<'_> {
         let frame_compliance = |name: &str, parts: &mut ChainParts| -> Result<(), InputError> {
             let mut sum = [0.0; 6];
             let mut span = None;
-            for c in corrections.iter().filter(|c| c.get_ref().joint.get_ref() == name) {
-                if let Some(v) = &c.get_ref().frame_compliance {
+            for c in corrections_of(corrections, name) {
+                if let Some(v) = &c.frame_compliance {
                     for (s, n) in sum.iter_mut().zip(v.get_ref()) {
                         *s += self.num(n)?;
                     }
@@ -857,38 +865,36 @@ impl Builder<'_> {
                         frame_compliance(&j.name, &mut parts)?;
                         parts.joint(jk, j.axis, Role::Actuated);
                         let joint_spec = u.joints.get(&j.name);
-                        if let Some(formula) = joint_spec.map(|k| self.coordinate_stiffness(k)).transpose()?.flatten() {
-                            let coordinate = names.len() - 1;
-                            let added_compliance = added_compliance(&j.name)?;
-                            let spring = CoordinateStiffness {
-                                coordinate,
-                                stiffness: formula.0,
-                                formula: formula.1,
-                                added_compliance,
-                                compliance_factor: 1.0,
-                            };
-                            // Its value at the coordinate's zero stands for it where one number is asked.
-                            let at_zero = spring.compliance(&Default::default());
-                            let (mut km, mut cm) = (Mat6::zeros(), Mat6::zeros());
-                            km[(0, 0)] = 1.0 / at_zero;
-                            cm[(0, 0)] = at_zero;
+                        let added = added_compliance(&j.name)?;
+                        // The joint's spring: its compliance (for a formula of its coordinate, the value at
+                        // zero, which stands for it where one number is asked) and the formula; None: rigid.
+                        let spring = match joint_spec.map(|k| self.coordinate_stiffness(k)).transpose()?.flatten() {
+                            Some((stiffness, formula)) => {
+                                let of_coordinate = CoordinateStiffness {
+                                    coordinate: names.len() - 1,
+                                    stiffness,
+                                    formula,
+                                    added_compliance: added,
+                                    compliance_factor: 1.0,
+                                };
+                                Some((of_coordinate.compliance(&Default::default()), Some(of_coordinate)))
+                            }
+                            None => {
+                                let given = joint_spec.map(|k| self.joint_stiffness(k)).transpose()?;
+                                let compliance = given.map_or(0.0, |k| 1.0 / k) + added;
+                                if compliance < 0.0 || (compliance == 0.0 && given.is_some()) {
+                                    return Err(self.loc.at(
+                                        spec.span(),
+                                        format!("joint `{}`: its compliance with the correction added is {compliance:e}, not positive", j.name),
+                                    ));
+                                }
+                                (compliance > 0.0).then_some((compliance, None))
+                            }
+                        };
+                        if let Some((compliance, of_coordinate)) = spring {
+                            let (km, cm) = one_coordinate(compliance);
                             parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
-                            parts.springs.last_mut().expect("just pushed").of_coordinate = Some(spring);
-                        } else {
-                            let given = joint_spec.map(|k| self.joint_stiffness(k)).transpose()?;
-                            let compliance = given.map_or(0.0, |k| 1.0 / k) + added_compliance(&j.name)?;
-                            if compliance < 0.0 || (compliance == 0.0 && given.is_some()) {
-                                return Err(self.loc.at(
-                                    spec.span(),
-                                    format!("joint `{}`: its compliance with the correction added is {compliance:e}, not positive", j.name),
-                                ));
-                            }
-                            if compliance > 0.0 {
-                                let (mut km, mut cm) = (Mat6::zeros(), Mat6::zeros());
-                                km[(0, 0)] = 1.0 / compliance;
-                                cm[(0, 0)] = compliance;
-                                parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
-                            }
+                            parts.springs.last_mut().expect("just pushed").of_coordinate = of_coordinate;
                         }
                     }
                 }

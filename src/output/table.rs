@@ -284,11 +284,6 @@ pub fn stiffness_unit(i: usize, j: usize) -> &'static str {
     }
 }
 
-/// Upper triangle, row by row: (1,1), (1,2), ... (6,6).
-pub fn upper_triangle() -> impl Iterator<Item = (usize, usize)> {
-    (1..=6).flat_map(|i| (i..=6).map(move |j| (i, j)))
-}
-
 /// Which entries of a 6x6 matrix a block of columns holds (1-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Triangle {
@@ -302,25 +297,16 @@ pub enum Triangle {
 /// The entries of a triangle, row by row (1-based): a fixed table, since every row of a map writes them.
 pub fn matrix_entries(part: Triangle) -> &'static [(usize, usize)] {
     const UPPER: [(usize, usize); 21] = triangle(true);
-    const LOWER: [(usize, usize); 15] = {
-        let all = triangle(false);
-        let mut out = [(0, 0); 15];
-        let mut k = 0;
-        while k < 15 {
-            out[k] = all[k];
-            k += 1;
-        }
-        out
-    };
+    const LOWER: [(usize, usize); 15] = triangle(false);
     match part {
         Triangle::Upper => &UPPER,
         Triangle::Lower => &LOWER,
     }
 }
 
-/// The upper triangle with its diagonal (21 entries), or the strict lower triangle in its first 15.
-const fn triangle(upper: bool) -> [(usize, usize); 21] {
-    let mut out = [(0, 0); 21];
+/// The upper triangle with its diagonal (N = 21), or the strict lower triangle (N = 15), row by row.
+const fn triangle<const N: usize>(upper: bool) -> [(usize, usize); N] {
+    let mut out = [(0, 0); N];
     let (mut i, mut k) = (1, 0);
     while i <= 6 {
         let mut j = 1;

@@ -2,7 +2,7 @@
 //! its placement by inverse kinematics, its unloaded stiffness (eq 9) and its loaded equilibrium (paper
 //! 000 eq 31-47), answered through the leg seam (`leg.rs`).
 
-use crate::kinematics::chain::{Chain, ChainJacobians};
+use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{interpolate, shift_magnitude, shift_stiffness, Frame, Vec3, Vec6};
 use crate::kinematics::ik::{self};
 use crate::vjm::equilibrium::{EquilibriumFailure, LoadedChain};
@@ -117,6 +117,13 @@ impl VjmLeg {
         &state.jac
     }
 
+    /// `evaluation` with the coordinates it was made at, both borrowed from `state`.
+    fn evaluated<'a>(&self, state: &'a mut LegState) -> (&'a ChainJacobians, &'a Coordinates) {
+        self.evaluation(state);
+        let state = &*state;
+        (state.ik.joints_at_solution().unwrap_or(&state.jac), &state.coords)
+    }
+
     pub(super) fn place(&self, platform: &Frame, state: &mut LegState) -> Result<usize, LegFailure> {
         let target = self.target(platform);
         state.end_wrench = Vec6::zeros();
@@ -162,11 +169,10 @@ impl VjmLeg {
     }
 
     pub(super) fn respond_unloaded(&self, platform: &Frame, state: &mut LegState) -> Result<LegResponse, LegFailure> {
-        // A posture-dependent spring (a parallelogram, a formula of a joint's coordinate) needs the
-        // coordinates; others do not (no copy).
-        let coords = if self.springs.iter().any(|s| s.varies()) { state.coords.clone() } else { Default::default() };
-        let jac = self.evaluation(state);
-        let s = spring_compliance_at_end(&jac.virtual_, &self.springs, &coords);
+        // A posture-dependent spring (a parallelogram, a formula of a joint's coordinate) reads the
+        // coordinates beside the evaluation.
+        let (jac, coords) = self.evaluated(state);
+        let s = spring_compliance_at_end(&jac.virtual_, &self.springs, coords);
         let range = passive_range(&jac.passive, self.length_scale);
         let k_end = leg_stiffness(&s, &range).ok_or(LegFailure::SingularChain)?;
         // Move from the leg's end point EP to the reference point RP: K_RP = A^T K_EP A, v = EP - RP.

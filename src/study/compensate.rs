@@ -116,6 +116,8 @@ pub struct Compensation {
     pub command: Option<Frame>,
     /// The actuator coordinates the command gives, leg by leg (mm or rad).
     pub actuators: Vec<Vec<f64>>,
+    /// For a serial arm, the same command in its controller's angles (the inverse of its `controller` map).
+    pub controller: Option<Vec<f64>>,
     /// The error with the command, from an independent forward solve.
     pub residual: Option<Vec6>,
     /// Commands evaluated after the mirror command: the extrapolated one and Newton's steps (None for the
@@ -133,6 +135,7 @@ impl Compensation {
             mirror: None,
             command: None,
             actuators: Vec::new(),
+            controller: None,
             residual: None,
             iterations: None,
             equilibria: 0,
@@ -145,9 +148,8 @@ impl Compensation {
 pub struct CompensateLayout {
     /// `leg{i}_actuator{j}_{unit}`, leg by leg.
     pub actuators: Vec<Vec<String>>,
-    /// For a serial arm: its joint space, to give the command in the controller's angles, and those
-    /// columns' names (`command_q_<joint>_<unit>`).
-    pub arm: Option<(crate::platform::manipulator::JointSpace, Vec<String>)>,
+    /// For a serial arm: the columns of the command in its controller's angles (`command_q_<joint>_<unit>`).
+    pub arm: Option<Vec<String>>,
 }
 
 impl CompensateLayout {
@@ -160,13 +162,12 @@ impl CompensateLayout {
             .collect();
         let arm = m.joint_space.as_ref().map(|space| {
             let units = m.actuator_units();
-            let names = (space.names.iter().enumerate())
+            (space.names.iter().enumerate())
                 .map(|(k, n)| {
                     let unit = units.first().and_then(|u| u.get(k)).copied().unwrap_or("rad");
                     format!("command_q_{n}_{unit}")
                 })
-                .collect();
-            (space.clone(), names)
+                .collect()
         });
         CompensateLayout { actuators, arm }
     }
@@ -210,12 +211,8 @@ impl Row for CompensationRow<'_> {
                 r.optional(name, res.actuators.get(i).and_then(|a| a.get(j)).copied());
             }
         }
-        // A serial arm's command as its controller takes it: the angles whose map gives these coordinates.
-        if let Some((space, names)) = &l.arm {
-            let angles = res.actuators.first().and_then(|q| space.controller_angles(q));
-            for (k, name) in names.iter().enumerate() {
-                r.optional(name, angles.as_ref().map(|a| a[k]));
-            }
+        for (k, name) in l.arm.iter().flatten().enumerate() {
+            r.optional(name, res.controller.as_ref().map(|a| a[k]));
         }
         for (prefix, e) in
             [(names::UNCOMPENSATED, &res.uncompensated), (names::MIRROR, &res.mirror), (names::RESIDUAL, &res.residual)]
@@ -553,6 +550,15 @@ struct Reached {
 }
 
 impl Solver<'_> {
+    /// The actuator coordinates the command found gives (the nominal placement of the check), leg by leg,
+    /// and for a serial arm the controller's angles whose map gives them.
+    fn commanded(&self, st: &CompensateState) -> (Vec<Vec<f64>>, Option<Vec<f64>>) {
+        let actuators: Vec<Vec<f64>> = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
+        let controller = (self.nominal.joint_space.as_ref())
+            .and_then(|space| actuators.first().and_then(|q| space.controller_angles(q)));
+        (actuators, controller)
+    }
+
     /// Commands the real robot with `command` through the controller's nominal inverse kinematics and
     /// solves its loaded equilibrium, starting from the pair's last one: the pose alone (`settle`), or with
     /// `stability` the stability there too (`settle_stable`).
@@ -650,7 +656,7 @@ impl Solver<'_> {
                 self.reach(&command, &mut st.check, true)
             }
         };
-        out.actuators = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
+        (out.actuators, out.controller) = self.commanded(st);
         let checked = match checked {
             Ok(d) => d,
             Err(s) => return Compensation { status: s, ..out },
@@ -713,7 +719,7 @@ impl Solver<'_> {
             return None;
         }
         out.command = Some(task.command(&self.target, &found.y));
-        out.actuators = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
+        (out.actuators, out.controller) = self.commanded(st);
         out.residual = Some(self.target.error_to(&checked.pose));
         out.iterations = Some(1);
         st.commands.record(self.target.pos, task.refined_offset(&jacobian, &found));

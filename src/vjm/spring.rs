@@ -71,11 +71,7 @@ impl SpringGroup {
     /// finite and its point is reported as `overflow` (statuses in README), never a panic.
     pub fn at(&self, coords: &Coordinates) -> (Mat6, Mat6) {
         if let Some(c) = &self.of_coordinate {
-            let compliance = c.compliance(coords);
-            let (mut k, mut cm) = (Mat6::zeros(), Mat6::zeros());
-            k[(0, 0)] = 1.0 / compliance;
-            cm[(0, 0)] = compliance;
-            return (k, cm);
+            return one_coordinate(c.compliance(coords));
         }
         if self.posture.is_none() {
             return (self.stiffness, self.compliance);
@@ -110,6 +106,14 @@ impl SpringGroup {
         let [_, first, second] = p.stiffness_derivatives(q).unwrap_or([not_finite; 3]);
         Some((p.angle, first, second))
     }
+}
+
+/// The stiffness and compliance blocks of a one-coordinate spring of this compliance (the top-left entry).
+pub fn one_coordinate(compliance: f64) -> (Mat6, Mat6) {
+    let (mut stiffness, mut block) = (Mat6::zeros(), Mat6::zeros());
+    stiffness[(0, 0)] = 1.0 / compliance;
+    block[(0, 0)] = compliance;
+    (stiffness, block)
 }
 
 /// A one-coordinate spring whose stiffness is a formula of an actuated coordinate of its chain: a joint
