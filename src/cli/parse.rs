@@ -34,6 +34,11 @@ pub(crate) fn parse_vec6(s: &str) -> Result<Vec6, String> {
     parse_numbers(s, 6).map(|v| Vec6::from_column_slice(&v))
 }
 
+/// Wrenches `Fx,Fy,Fz,Mx,My,Mz` separated by `;` (`--wrenches`, `--loads`); none where the flag is absent.
+pub(crate) fn parse_wrench_list(text: Option<&str>) -> Result<Vec<Vec6>, String> {
+    text.map_or(Ok(Vec::new()), |t| t.split(';').map(|w| parse_vec6(w.trim())).collect())
+}
+
 /// `NAME=FROM:TO:COUNT` (or `NAME=FROM:TO` for a sampled sweep): a parameter's range.
 pub(crate) fn parse_parameter_range(s: &str) -> Result<crate::study::sweep::ParameterRange, String> {
     let usage = || format!("expected NAME=FROM:TO:COUNT (e.g. k_act=10000:40000:7), got `{s}`");

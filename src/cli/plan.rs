@@ -7,7 +7,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::args::{arm_points, point_set_any, write_stdout, ModelArgs, OutputArgs};
-use super::parse::parse_vec6;
+use super::parse::parse_wrench_list;
 use crate::diagnose::plan::{plan, plan_arm, plan_table, write_plan, Plan, PlanOptions};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
@@ -60,14 +60,7 @@ pub(crate) struct CandidateArgs {
 
 pub(crate) fn run(a: PlanArgs) -> Result<()> {
     let model = a.model.load_model()?;
-    let loads = match &a.loads {
-        Some(text) => text
-            .split(';')
-            .map(|w| parse_vec6(w.trim()))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| anyhow::anyhow!("--loads: {e}"))?,
-        None => Vec::new(),
-    };
+    let loads = parse_wrench_list(a.loads.as_deref()).map_err(|e| anyhow::anyhow!("--loads: {e}"))?;
     // The same bounds as a measurement's sigma in diagnose: below a picometre the weights' squares overflow.
     use crate::diagnose::data::{MAX_MAGNITUDE, MIN_SIGMA_MM};
     if !(MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&a.noise) {

@@ -4,7 +4,7 @@ use anyhow::{bail, Result};
 use clap::{ArgMatches, Args};
 
 use super::args::{progress_bar, thread_pool, ModelArgs, OutputArgs, PointsArgs, RunArgs};
-use super::parse::parse_vec6;
+use super::parse::parse_wrench_list;
 use super::shard::{write_shard_preamble, ShardArgs};
 
 /// Worked examples on shipped files, shown after `--help` (tests/cli.rs runs each of them).
@@ -75,14 +75,7 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
         .map(|e| Effect::parse(e, &model.manipulator))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("--effect {e}"))?;
-    let wrenches = match &a.wrenches {
-        Some(text) => text
-            .split(';')
-            .map(|w| parse_vec6(w.trim()))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| anyhow::anyhow!("--wrenches: {e}"))?,
-        None => Vec::new(),
-    };
+    let wrenches = parse_wrench_list(a.wrenches.as_deref()).map_err(|e| anyhow::anyhow!("--wrenches: {e}"))?;
     let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, None)?;
     let options = synth::SynthOptions {
         effects,
