@@ -26,7 +26,8 @@ pub(crate) struct DiagnoseArgs {
     /// Measurements (CSV): pose_id,x_mm,y_mm,z_mm,Fx_N,...,Mz_Nmm,dx_mm,dy_mm,dz_mm[,sigma_mm]; or, for a
     /// serial arm, as a lab records them: q_<joint> columns and the target's measured position in the
     /// instrument's frame (mx_mm,my_mm,mz_mm or mx_m,...; several targets mx1_mm,... or a `target` column;
-    /// optional setup, set = fit|check, sigma_mm, Fx_N..Mz_Nmm), or dx_mm,dy_mm,dz_mm under the row's wrench.
+    /// optional setup, set = fit|check, sigma_mm, Fx_N..Mz_Nmm; the target's orientation as mqw,mqx,mqy,mqz or
+    /// mroll_deg,mpitch_deg,myaw_deg with sigma_mrad), or dx_mm,dy_mm,dz_mm under the row's wrench.
     #[arg(long)]
     pub(crate) data: PathBuf,
     /// Joint-space data: hold out this fraction of the configurations (drawn with --seed) as check rows,
@@ -47,6 +48,10 @@ pub(crate) struct DiagnoseArgs {
     /// Measurement standard deviation, mm (when the data has no sigma_mm column).
     #[arg(long)]
     pub(crate) sigma: Option<f64>,
+    /// Joint-space data: the standard deviation of a measured orientation about each axis, mrad (when the
+    /// data has no sigma_mrad column; without either, orientations are not fitted and the report says so).
+    #[arg(long, value_name = "MRAD")]
+    pub(crate) sigma_mrad: Option<f64>,
     /// Predict by the linear response (rest displacement + C w) instead of the loaded equilibrium (the
     /// default: real robots deflect non-linearly under ordinary loads); `loaded-nonlinearity` is then a
     /// candidate.
@@ -186,13 +191,21 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     if let Some(s) = a.sigma {
         crate::diagnose::data::checked_sigma(s).map_err(|e| anyhow::anyhow!("--sigma: {e}"))?;
     }
+    if let Some(s) = a.sigma_mrad {
+        crate::diagnose::data::checked_sigma(s).map_err(|e| anyhow::anyhow!("--sigma-mrad: {e}"))?;
+    }
     let parse = |list: &[String], flag: &str| -> Result<Vec<ArmEffect>> {
         list.iter()
             .map(|e| ArmEffect::parse(e.trim(), &space.names).map_err(|why| anyhow::anyhow!("{flag}: {why}")))
             .collect()
     };
-    let options =
-        calibrate::Options { alpha: a.alpha, sigma: a.sigma, fitted: parse(&a.fit, "--fit")?, max_effects: 6 };
+    let options = calibrate::Options {
+        alpha: a.alpha,
+        sigma: a.sigma,
+        sigma_rad: a.sigma_mrad.map(|s| s * 1e-3),
+        fitted: parse(&a.fit, "--fit")?,
+        max_effects: 6,
+    };
     let candidates = parse(&a.candidates, "--candidates")?;
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let model_sink = a.model_out.as_deref().map(|p| Sink::create(Some(p))).transpose()?;

@@ -25,7 +25,8 @@ pub(crate) struct SynthArgs {
     /// payload=KG,CX,CY,CZ (tool frame, mm), and the set-up:
     /// registration=RX,RY,RZ,TX,TY,TZ (the instrument sees a base point p at R p + t; rad, mm; repeated: one
     /// set-up each, the configurations measured in that many blocks), target=X,Y,Z (on the tool, mm),
-    /// gross=FRACTION,MM, drift=DX,DY,DZ (mm per row written, base frame axes).
+    /// gross=FRACTION,MM, drift=DX,DY,DZ (mm per row written, base frame axes), target-axes=RX,RY,RZ (the
+    /// target's axes in the tool frame, rad; with --orientation-noise).
     #[arg(long = "effect", value_name = "NAME[:TARGET]=VALUES")]
     pub(crate) effects: Vec<String>,
     #[command(flatten)]
@@ -42,6 +43,10 @@ pub(crate) struct SynthArgs {
     /// Measurements per pose and wrench.
     #[arg(long, default_value_t = 1)]
     pub(crate) repeats: usize,
+    /// Joint-space points: also measure the target's orientation (mqw,mqx,mqy,mqz and sigma_mrad columns), with
+    /// this standard deviation about each axis, mrad.
+    #[arg(long, value_name = "MRAD")]
+    pub(crate) orientation_noise: Option<f64>,
     /// Joint-space points: every N-th configuration is held out (`set` = check; 0: none).
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub(crate) check_every: usize,
@@ -68,6 +73,9 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     let mut points = a.points.load(&model.manipulator)?;
     if !points.joint_names.is_empty() {
         return run_joint_space(&a, &model.manipulator, points);
+    }
+    if a.orientation_noise.is_some() {
+        bail!("--orientation-noise is for joint-space points (q_<joint> columns): a pose diagnosis measures displacements");
     }
     let effects = a
         .effects
@@ -122,6 +130,11 @@ fn run_joint_space(
         check_every: a.check_every,
         seed: a.seed,
         drift: Vec3::zeros(),
+        orientation: match a.orientation_noise {
+            Some(n) if n >= 0.0 && n.is_finite() => Some((Vec3::zeros(), n * 1e-3)),
+            Some(_) => bail!("--orientation-noise must be >= 0 (mrad)"),
+            None => None,
+        },
     };
     let mut tables = String::new();
     for e in &a.effects {
@@ -151,6 +164,13 @@ fn run_joint_space(
             "drift" => {
                 count(3)?;
                 hidden.drift = Vec3::new(values[0], values[1], values[2]);
+            }
+            "target-axes" => {
+                count(3)?;
+                let Some((axes, _)) = hidden.orientation.as_mut() else {
+                    bail!("--effect `{e}`: the target's axes are seen only with --orientation-noise")
+                };
+                *axes = Vec3::new(values[0], values[1], values[2]);
             }
             "gross" => {
                 count(2)?;
@@ -197,6 +217,11 @@ fn run_joint_space(
     for c in ["mx_mm", "my_mm", "mz_mm", crate::columns::SIGMA] {
         columns.push(Column { name: c.into(), kind: CellKind::Number });
     }
+    if hidden.orientation.is_some() {
+        for c in ["mqw", "mqx", "mqy", "mqz", crate::diagnose::positions::SIGMA_MRAD] {
+            columns.push(Column { name: c.into(), kind: CellKind::Number });
+        }
+    }
     columns.push(Column { name: crate::diagnose::positions::SET.into(), kind: CellKind::Text });
     let several = hidden.setups.len() > 1;
     if several {
@@ -205,13 +230,21 @@ fn run_joint_space(
     columns.push(Column { name: "hidden_gross".into(), kind: CellKind::Count });
     let mut sink = a.output.open(&columns)?;
     let mut text = crate::output::table::header_line(&columns);
-    for ((name, joints, wrench), at, gross, held, setup) in &rows {
+    for ((name, joints, wrench), (at, seen), gross, held, setup) in &rows {
         let mut q: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
         if loaded {
             q.extend(wrench.iter().map(|v| format!("{v:?}")));
         }
+        let orientation = match (seen, a.orientation_noise) {
+            (Some(r), Some(noise)) => {
+                let q = nalgebra::UnitQuaternion::from_matrix(r);
+                let sigma = noise.max(crate::diagnose::data::MIN_SIGMA_MM);
+                format!(",{:?},{:?},{:?},{:?},{sigma:?}", q.w, q.i, q.j, q.k)
+            }
+            _ => String::new(),
+        };
         text += &format!(
-            "{name},{},{:?},{:?},{:?},{:?},{}{},{}\n",
+            "{name},{},{:?},{:?},{:?},{:?}{orientation},{}{},{}\n",
             q.join(","),
             at.x,
             at.y,

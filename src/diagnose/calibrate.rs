@@ -144,6 +144,8 @@ pub struct Options {
     pub alpha: f64,
     /// Standard deviation of a measured coordinate, mm, where the rows do not give one.
     pub sigma: Option<f64>,
+    /// Standard deviation of a measured orientation about each axis, rad, where the rows do not give one.
+    pub sigma_rad: Option<f64>,
     /// Effects always fitted (a fixed list, as a geometric calibration fits its parameters).
     pub fitted: Vec<ArmEffect>,
     /// Most effects selected.
@@ -156,6 +158,8 @@ struct Params {
     rotations: Vec<Mat3>,
     translations: Vec<Vec3>,
     targets: Vec<Vec3>,
+    /// Each target's axes in the tool frame (fitted for the targets whose orientation is measured).
+    turns: Vec<Mat3>,
     /// Each effect's parameters.
     effects: Vec<Vec<f64>>,
 }
@@ -246,6 +250,10 @@ pub struct Stage {
     pub check: ErrorStats,
     /// On every row held out, gross ones included (the figure to compare with a calibration that keeps them).
     pub check_all: ErrorStats,
+    /// The orientation errors of the rows fitted and held out (mrad: the rotation vector from the measured
+    /// orientation to the predicted), where orientations are measured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub orientation: Option<[ErrorStats; 2]>,
 }
 
 /// A nuisance parameter's fitted value.
@@ -361,6 +369,35 @@ struct Problem<'a> {
     weight: Vec<f64>,
     absolute: bool,
     prismatic: Vec<bool>,
+    /// Per target, the index of its turn among the fitted ones (None: its orientation is not measured).
+    turn_of: Vec<Option<usize>>,
+}
+
+/// What a row sees of a small motion of the tool: a target's point (its lever from the reference point, base
+/// axes) or, for an orientation, the tool's turn.
+#[derive(Clone, Copy, Debug)]
+enum Seen {
+    Point(Vec3),
+    Turn,
+}
+
+impl Seen {
+    /// What a twist of the tool at the reference point (translation, rotation) moves: the point by
+    /// v + w x lever, the orientation by w.
+    fn of(&self, twist: &Vec6) -> Vec3 {
+        let rotation = twist.fixed_rows::<3>(3).into_owned();
+        match self {
+            Seen::Point(lever) => twist.fixed_rows::<3>(0) + rotation.cross(lever),
+            Seen::Turn => rotation,
+        }
+    }
+
+    /// The twist at the reference point `p` of a rigid motion turning by `w` about the point `o` and moving
+    /// by `v`, as `of` reads it.
+    fn rigid(&self, v: Vec3, w: Vec3, o: &Vec3, p: &Vec3) -> Vec3 {
+        let t = v + w.cross(&(p - o));
+        self.of(&Vec6::new(t.x, t.y, t.z, w.x, w.y, w.z))
+    }
 }
 
 /// The failures of a calibration.
@@ -385,7 +422,12 @@ pub enum CalibrationError {
 }
 
 impl<'a> Problem<'a> {
-    fn new(m: &'a Manipulator, data: &'a PositionData, sigma: Option<f64>) -> Result<Self, CalibrationError> {
+    fn new(
+        m: &'a Manipulator,
+        data: &'a PositionData,
+        sigma: Option<f64>,
+        sigma_rad: Option<f64>,
+    ) -> Result<Self, CalibrationError> {
         let space = m.joint_space.as_ref().ok_or_else(|| CalibrationError::NotAnArm(m.name.clone()))?;
         if data.rows.is_empty() {
             return Err(CalibrationError::TooFew("no rows: nothing to calibrate or plan with".into()));
@@ -432,7 +474,9 @@ impl<'a> Problem<'a> {
             let arm = arm_of(k);
             let found = match (compliant, r.observed) {
                 (false, _) => Ok((Vec6::zeros(), None)),
-                (true, Observed::Position { .. }) => under(arm, r, &r.wrench, &mut state),
+                (true, Observed::Position { .. } | Observed::Orientation { .. }) => {
+                    under(arm, r, &r.wrench, &mut state)
+                }
                 (true, Observed::Displacement(_)) => under(arm, r, &r.wrench, &mut state)
                     .and_then(|(d, _)| Ok((d - under(arm, r, &Vec6::zeros(), &mut state)?.0, None))),
             };
@@ -443,13 +487,23 @@ impl<'a> Problem<'a> {
             deflection.push(d);
             compliance.push(c);
         }
-        let weight = data.rows.iter().map(|r| 1.0 / r.sigma.or(sigma).unwrap_or(1.0)).collect();
+        let weight = data
+            .rows
+            .iter()
+            .map(|r| {
+                let given = match r.observed {
+                    Observed::Orientation { .. } => sigma_rad,
+                    _ => sigma,
+                };
+                1.0 / r.sigma.or(given).unwrap_or(1.0)
+            })
+            .collect();
         let mut statics = Vec::with_capacity(data.rows.len());
         for (k, r) in data.rows.iter().enumerate() {
             let m = arm_of(k);
             let zero = match r.observed {
                 Observed::Displacement(_) => Some(Vec6::zeros()),
-                Observed::Position { .. } => None,
+                Observed::Position { .. } | Observed::Orientation { .. } => None,
             };
             let at = |w: &Vec6, state: &mut ManipulatorState| {
                 m.arm_statics(&r.joints, w, state)
@@ -460,6 +514,17 @@ impl<'a> Problem<'a> {
             statics.push((s, z));
         }
         let prismatic = statics[0].0.columns.iter().map(|c| c.fixed_rows::<3>(3).norm() == 0.0).collect();
+        let mut turns = 0;
+        let turn_of = (0..data.targets.len())
+            .map(|t| {
+                let oriented =
+                    data.rows.iter().any(|r| matches!(r.observed, Observed::Orientation { target, .. } if target == t));
+                oriented.then(|| {
+                    turns += 1;
+                    turns - 1
+                })
+            })
+            .collect();
         Ok(Problem {
             m,
             tilted,
@@ -474,6 +539,7 @@ impl<'a> Problem<'a> {
             weight,
             absolute: data.absolute(),
             prismatic,
+            turn_of,
         })
     }
 
@@ -544,10 +610,20 @@ impl<'a> Problem<'a> {
 
     fn nuisance_count(&self) -> usize {
         if self.absolute {
-            6 * self.data.setups.len() + 3 * self.data.targets.len()
+            6 * self.data.setups.len() + 3 * self.data.targets.len() + 3 * self.turn_count()
         } else {
             0
         }
+    }
+
+    /// How many targets' turns are fitted (those whose orientation is measured).
+    fn turn_count(&self) -> usize {
+        self.turn_of.iter().flatten().count()
+    }
+
+    /// The index of the first parameter of target `t`'s turn.
+    fn turn_parameter(&self, t: usize) -> Option<usize> {
+        self.turn_of[t].map(|k| 6 * self.data.setups.len() + 3 * self.data.targets.len() + 3 * k)
     }
 
     /// The prediction of row `r` and its derivative in every parameter (3 x p, weighted by the row's weight
@@ -575,18 +651,18 @@ impl<'a> Problem<'a> {
             fresh = self.statics_at(r, row, &joints, state)?;
             &fresh
         };
-        let (lever, tool) = match row.observed {
+        let (seen, tool) = match row.observed {
             Observed::Position { target, .. } => {
                 let lever = s.frame.rot * params.targets[target];
-                (lever, s.frame.pos + lever)
+                (Seen::Point(lever), s.frame.pos + lever)
             }
-            Observed::Displacement(_) => (Vec3::zeros(), Vec3::zeros()),
+            Observed::Orientation { .. } => (Seen::Turn, Vec3::zeros()),
+            Observed::Displacement(_) => (Seen::Point(Vec3::zeros()), Vec3::zeros()),
         };
-        let point = |c: &Vec6, lever: &Vec3| c.fixed_rows::<3>(0) + c.fixed_rows::<3>(3).cross(lever);
         // A payload being fitted weighs on every joint: its wrench at the reference point, (m g, (R s) x g).
         let payload = |s: &ArmStatics| -> Vec6 {
             let Some(k) = effects.iter().position(|e| e.kind == ArmKind::Payload) else { return Vec6::zeros() };
-            if !matches!(row.observed, Observed::Position { .. }) {
+            if zero.is_some() {
                 return Vec6::zeros();
             }
             let (v, g) = (&params.effects[k], self.arm(r).weight_gravity());
@@ -594,33 +670,57 @@ impl<'a> Problem<'a> {
             let force = g * v[0];
             Vec6::new(force.x, force.y, force.z, moment.x, moment.y, moment.z)
         };
-        // The body's point (target, or the tool point of a displacement) under the loads, before registration.
-        let mut y = tool + point(&self.deflection[r], &lever);
+        // The body's point (target, or the tool point of a displacement) under the loads, before registration;
+        // for an orientation, the tool's turn under them (base axes).
+        let mut y = tool + seen.of(&self.deflection[r]);
         for (e, v) in effects.iter().zip(&params.effects) {
-            for (unit, value) in self.unit_moves(r, e, s, zero, &lever, &payload(s)).iter().zip(v) {
+            for (unit, value) in self.unit_moves(r, e, s, zero, &seen, &payload(s)).iter().zip(v) {
                 y += unit * *value;
             }
         }
         let (rotation, translation) = match row.observed {
-            Observed::Position { setup, .. } => (params.rotations[setup], params.translations[setup]),
+            Observed::Position { setup, .. } | Observed::Orientation { setup, .. } => {
+                (params.rotations[setup], params.translations[setup])
+            }
             Observed::Displacement(_) => (Mat3::identity(), Vec3::zeros()),
         };
-        let prediction = rotation * y + translation;
+        // An orientation is predicted as the target's axes in the instrument's frame, R exp(y) R_tool R_target;
+        // its prediction is its rotation vector away from the measured one (`measured` gives zero for it).
+        let turned = match row.observed {
+            Observed::Orientation { target, at, .. } => {
+                let axes = rotation * rotation_from_vector(&y) * s.frame.rot;
+                Some((axes, crate::kinematics::frame::rotation_vector(&(axes * params.turns[target] * at.transpose()))))
+            }
+            _ => None,
+        };
+        let prediction = match turned {
+            Some((_, off)) => off,
+            None => rotation * y + translation,
+        };
         if let Some(jac) = jacobian {
             let w = self.weight[r];
             jac.fill(0.0);
             let mut k = 0;
-            if let Observed::Position { setup, target, .. } = row.observed {
-                let ry = rotation * y;
+            if let Some((target, setup)) = row.observed.target_and_setup() {
                 let base = 6 * setup;
-                for a in 0..3 {
-                    jac[(a, base + a)] = w;
+                if let Some((axes, _)) = turned {
+                    // A small rotation d after R turns the prediction by d (to first order about a small
+                    // misfit); the target's turn e in the tool's axes by R exp(y) R_tool e.
+                    jac.view_mut((0, base + 3), (3, 3)).copy_from(&(Mat3::identity() * w));
+                    if let Some(t) = self.turn_parameter(target) {
+                        jac.view_mut((0, t), (3, 3)).copy_from(&(axes * w));
+                    }
+                } else {
+                    let ry = rotation * y;
+                    for a in 0..3 {
+                        jac[(a, base + a)] = w;
+                    }
+                    // A small rotation d applied after R: d(R y) = d x (R y) = -[R y]x d.
+                    let cross = -skew(&ry) * w;
+                    jac.view_mut((0, base + 3), (3, 3)).copy_from(&cross);
+                    let t = 6 * self.data.setups.len() + 3 * target;
+                    jac.view_mut((0, t), (3, 3)).copy_from(&(rotation * s.frame.rot * w));
                 }
-                // A small rotation d applied after R: d(R y) = d x (R y) = -[R y]x d.
-                let cross = -skew(&ry) * w;
-                jac.view_mut((0, base + 3), (3, 3)).copy_from(&cross);
-                let t = 6 * self.data.setups.len() + 3 * target;
-                jac.view_mut((0, t), (3, 3)).copy_from(&(rotation * s.frame.rot * w));
                 k = self.nuisance_count();
             }
             for e in effects {
@@ -633,7 +733,7 @@ impl<'a> Problem<'a> {
                         let mut column = Vec3::zeros();
                         for (rate, c) in rates.iter().zip(&s.columns) {
                             if *rate != 0.0 && zero.is_none() {
-                                column += point(c, &lever) * *rate;
+                                column += seen.of(c) * *rate;
                             }
                         }
                         vec![column]
@@ -641,7 +741,7 @@ impl<'a> Problem<'a> {
                     ArmKind::Payload => {
                         // Its weight loads the compliances being fitted too (their term is the compliance
                         // times the joint's load, payload included): the derivative has that part as well.
-                        let mut columns = self.unit_moves(r, e, s, zero, &lever, &payload(s));
+                        let mut columns = self.unit_moves(r, e, s, zero, &seen, &payload(s));
                         let g = self.arm(r).weight_gravity();
                         for (k, column) in columns.iter_mut().enumerate() {
                             let unit = if k == 0 {
@@ -653,13 +753,13 @@ impl<'a> Problem<'a> {
                             for (other, v) in effects.iter().zip(&params.effects) {
                                 if other.kind == ArmKind::JointCompliance && zero.is_none() {
                                     let joint = &s.columns[other.joint];
-                                    *column += point(joint, &lever) * (v[0] * joint.dot(&unit));
+                                    *column += seen.of(joint) * (v[0] * joint.dot(&unit));
                                 }
                             }
                         }
                         columns
                     }
-                    _ => self.unit_moves(r, e, s, zero, &lever, &payload(s)),
+                    _ => self.unit_moves(r, e, s, zero, &seen, &payload(s)),
                 };
                 for column in columns {
                     jac.view_mut((0, k), (3, 1)).copy_from(&(rotation * column * w));
@@ -670,20 +770,21 @@ impl<'a> Problem<'a> {
         Some(prediction)
     }
 
-    /// How the body's point (before registration) moves per unit of each parameter of effect `e` in row `r`
-    /// (`s` the arm's statics there, `zero` at zero wrench for a displacement, `lever` the target from the
-    /// reference point, `payload` the weight of a payload being fitted); an offset's are found by differences
-    /// in `predict`.
+    /// How the body's point (before registration), or the tool's turn for an orientation, moves per unit of
+    /// each parameter of effect `e` in row `r` (`s` the arm's statics there, `zero` at zero wrench for a
+    /// displacement, `seen` what the row sees, `payload` the weight of a payload being fitted); an offset's are
+    /// found by differences in `predict`.
     fn unit_moves(
         &self,
         r: usize,
         e: &ArmEffect,
         s: &ArmStatics,
         zero: &Option<ArmStatics>,
-        lever: &Vec3,
+        seen: &Seen,
         payload: &Vec6,
     ) -> Vec<Vec3> {
-        let point = |c: &Vec6| c.fixed_rows::<3>(0) + c.fixed_rows::<3>(3).cross(lever);
+        let point = |c: &Vec6| seen.of(c);
+        let turning = matches!(seen, Seen::Turn);
         match e.kind {
             ArmKind::JointOffset => vec![Vec3::zeros()],
             ArmKind::JointCompliance | ArmKind::Backlash => {
@@ -696,14 +797,13 @@ impl<'a> Problem<'a> {
                     return vec![Vec3::zeros(); 6];
                 }
                 let f = &s.joint_frames[e.joint];
-                let x = s.frame.pos + lever;
                 (0..6)
                     .map(|k| {
                         let axis = f.rot.column(k % 3).into_owned();
                         if k < 3 {
-                            axis
+                            seen.rigid(axis, Vec3::zeros(), &f.pos, &s.frame.pos)
                         } else {
-                            axis.cross(&(x - f.pos))
+                            seen.rigid(Vec3::zeros(), axis, &f.pos, &s.frame.pos)
                         }
                     })
                     .collect()
@@ -720,15 +820,14 @@ impl<'a> Problem<'a> {
                 if let Some(z) = zero {
                     w -= z.transmitted[e.joint];
                 }
-                let x = s.frame.pos + lever;
                 (0..6)
                     .map(|k| {
                         let axis = f.rot.column(k % 3).into_owned();
                         let local = axis.dot(&Vec3::new(w[3 * (k / 3)], w[3 * (k / 3) + 1], w[3 * (k / 3) + 2]));
                         if k < 3 {
-                            axis * local
+                            seen.rigid(axis * local, Vec3::zeros(), &f.pos, &s.frame.pos)
                         } else {
-                            axis.cross(&(x - f.pos)) * local
+                            seen.rigid(Vec3::zeros(), axis * local, &f.pos, &s.frame.pos)
                         }
                     })
                     .collect()
@@ -747,12 +846,16 @@ impl<'a> Problem<'a> {
             }
             // A rate per row of the file (its line: the targets of one line were seen together), from the
             // first row; what is common to every row is the registration's.
+            // The instrument's readings drift; the tool's turn is not a reading of its scale.
+            ArmKind::Drift if turning => vec![Vec3::zeros(); 3],
             ArmKind::Drift => {
                 let t = (self.data.rows[r].line - self.data.rows[0].line) as f64;
                 (0..3).map(|k| Vec3::ith(k, t)).collect()
             }
             // The force through the tool: the row's wrench, the description's payload and one being fitted
             // (for a displacement, the wrench's alone: the weights are in both states).
+            // It moves the tool along its own axes (a spring in translation): no turn.
+            ArmKind::ToolCompliance if turning => vec![Vec3::zeros(); 3],
             ArmKind::ToolCompliance => {
                 let row = &self.data.rows[r];
                 let mut force = row.wrench.fixed_rows::<3>(0).into_owned();
@@ -781,14 +884,17 @@ impl<'a> Problem<'a> {
         let s = arm.arm_statics(joints, &row.wrench, state)?;
         let zero = match row.observed {
             Observed::Displacement(_) => Some(arm.arm_statics(joints, &Vec6::zeros(), state)?),
-            Observed::Position { .. } => None,
+            Observed::Position { .. } | Observed::Orientation { .. } => None,
         };
         Some((s, zero))
     }
 
+    /// What row `r` measured, as its prediction is written: a position or displacement (mm); for an
+    /// orientation zero, its prediction being the rotation vector from the measured orientation (rad).
     fn measured(&self, r: usize) -> Vec3 {
         match self.data.rows[r].observed {
             Observed::Position { at, .. } => at,
+            Observed::Orientation { .. } => Vec3::zeros(),
             Observed::Displacement(d) => d,
         }
     }
@@ -809,6 +915,7 @@ impl<'a> Problem<'a> {
             rotations: vec![Mat3::identity(); setups],
             translations: vec![Vec3::zeros(); setups],
             targets: vec![Vec3::zeros(); self.data.targets.len()],
+            turns: vec![Mat3::identity(); self.data.targets.len()],
             effects: effects.iter().map(|e| vec![0.0; e.size()]).collect(),
         };
         if !self.absolute {
@@ -839,6 +946,21 @@ impl<'a> Problem<'a> {
             let rotation = vt.transpose() * d * u.transpose();
             params.rotations[s] = rotation;
             params.translations[s] = cb - rotation * ca;
+        }
+        // Each measured target's axes in the tool frame: the mean (projected back to a rotation) of
+        // R_tool^T R^T M over its rows, M the measured orientation.
+        for t in (0..self.data.targets.len()).filter(|&t| self.turn_of[t].is_some()) {
+            let mut sum = Mat3::zeros();
+            for &r in rows {
+                if let Observed::Orientation { target, setup, at } = self.data.rows[r].observed {
+                    if target == t {
+                        if let Some(f) = self.m.pose_at_joints(&self.data.rows[r].joints, &mut state) {
+                            sum += f.rot.transpose() * params.rotations[setup].transpose() * at;
+                        }
+                    }
+                }
+            }
+            params.turns[t] = nearest_rotation(&sum);
         }
         params
     }
@@ -948,17 +1070,19 @@ impl<'a> Problem<'a> {
             for s in 0..self.data.setups.len() {
                 next.translations[s] += Vec3::new(step[k], step[k + 1], step[k + 2]);
                 let turn = Vec3::new(step[k + 3], step[k + 4], step[k + 5]);
-                next.rotations[s] = rotation_from_vector(&turn) * params.rotations[s];
                 // A rotation built from products drifts off orthogonality: project it back.
-                let svd = next.rotations[s].svd(true, true);
-                if let (Some(u), Some(v_t)) = (svd.u, svd.v_t) {
-                    next.rotations[s] = u * v_t;
-                }
+                next.rotations[s] = nearest_rotation(&(rotation_from_vector(&turn) * params.rotations[s]));
                 // The translation follows the rotation about the origin, as d(R y + t) = d x (R y) + dt says.
                 k += 6;
             }
             for t in 0..self.data.targets.len() {
                 next.targets[t] += Vec3::new(step[k], step[k + 1], step[k + 2]);
+                k += 3;
+            }
+            // A target's turn e is taken in the tool's axes: R_target becomes exp(e) R_target.
+            for t in (0..self.data.targets.len()).filter(|&t| self.turn_of[t].is_some()) {
+                let turn = Vec3::new(step[k], step[k + 1], step[k + 2]);
+                next.turns[t] = nearest_rotation(&(rotation_from_vector(&turn) * params.turns[t]));
                 k += 3;
             }
         }
@@ -989,14 +1113,20 @@ impl<'a> Problem<'a> {
         }
         let k = k - 6 * setups;
         let targets = if self.absolute { self.data.targets.len() } else { 0 };
+        let target_name = |t: usize| match self.data.targets[t].as_str() {
+            "" => "the target".to_string(),
+            t => format!("target {t}"),
+        };
         if k < 3 * targets {
-            let name = match self.data.targets[k / 3].as_str() {
-                "" => "the target".to_string(),
-                t => format!("target {t}"),
-            };
-            return format!("{name}'s place {}", axis[k % 3]);
+            return format!("{}'s place {}", target_name(k / 3), axis[k % 3]);
         }
-        let mut k = k - 3 * targets;
+        let k = k - 3 * targets;
+        let turns = if self.absolute { self.turn_count() } else { 0 };
+        if k < 3 * turns {
+            let t = self.turn_of.iter().position(|&o| o == Some(k / 3)).expect("a turn's target");
+            return format!("{}'s turn about the tool's {}", target_name(t), axis[k % 3]);
+        }
+        let mut k = k - 3 * turns;
         for e in effects {
             if k < e.size() {
                 let part = match e.kind {
@@ -1110,6 +1240,17 @@ impl<'a> Problem<'a> {
 
 /// Each column's norm, the scale its parameter is fitted and judged in; a column of zeros (a parameter that
 /// moves nothing here) keeps scale 1, so that round-off in the steps is not blown up by dividing by it.
+/// The rotation nearest `m` (Frobenius norm): U V^T of its SVD, with the sign that keeps it proper.
+fn nearest_rotation(m: &Mat3) -> Mat3 {
+    let svd = m.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else { return Mat3::identity() };
+    let mut d = Mat3::identity();
+    if (u * v_t).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    u * d * v_t
+}
+
 fn column_scales(jac: &DMatrix<f64>) -> DVector<f64> {
     DVector::from_iterator(jac.ncols(), jac.column_iter().map(|c| if c.norm() > 0.0 { c.norm() } else { 1.0 }))
 }
@@ -1347,10 +1488,18 @@ pub fn calibrate(
     } else {
         data
     };
-    let problem = Problem::new(m, data, options.sigma)?;
+    let weighed_orientations = data.without_unweighted_orientations(options.sigma_rad);
+    let data = &weighed_orientations;
+    let problem = Problem::new(m, data, options.sigma, options.sigma_rad)?;
     let candidates: Vec<ArmEffect> =
         if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
-    let sigma_known = data.rows.iter().all(|r| r.sigma.is_some()) || options.sigma.is_some();
+    let sigma_known = data.rows.iter().all(|r| {
+        r.sigma.is_some()
+            || match r.observed {
+                Observed::Orientation { .. } => options.sigma_rad.is_some(),
+                _ => options.sigma.is_some(),
+            }
+    });
     let usable = |r: &usize| !problem.unusable.iter().any(|(k, _)| k == r);
     let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
     let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).collect();
@@ -1367,15 +1516,9 @@ pub fn calibrate(
         (
             &data.setups,
             "set-up",
-            (|o: &Observed| match o {
-                Observed::Position { setup, .. } => Some(*setup),
-                Observed::Displacement(_) => None,
-            }) as fn(&Observed) -> Option<usize>,
+            (|o: &Observed| o.target_and_setup().map(|(_, setup)| setup)) as fn(&Observed) -> Option<usize>,
         ),
-        (&data.targets, "target", |o: &Observed| match o {
-            Observed::Position { target, .. } => Some(*target),
-            Observed::Displacement(_) => None,
-        }),
+        (&data.targets, "target", |o: &Observed| o.target_and_setup().map(|(target, _)| target)),
     ] {
         for (k, name) in names.iter().enumerate() {
             if !fit_rows.iter().any(|&r| of(&data.rows[r].observed) == Some(k)) {
@@ -1479,6 +1622,14 @@ pub fn calibrate(
                 value: fit.params.targets[t].into(),
                 se: se3(6 * data.setups.len() + 3 * t, 1.0),
             });
+            if let Some(k) = problem.turn_parameter(t) {
+                let turn = crate::kinematics::frame::rotation_vector(&fit.params.turns[t]);
+                nuisance.push(Nuisance {
+                    name: format!("{label}: axes in the tool frame, rotation vector, mrad"),
+                    value: (turn * 1e3).into(),
+                    se: se3(k, 1e3),
+                });
+            }
         }
     }
     // Errors after the registration alone, then after each effect in the order accepted.
@@ -1506,12 +1657,19 @@ pub fn calibrate(
         };
         let Some(f) = f else { continue };
         let r = problem.residuals(&staged, &f.params);
+        let (turning, placed): (Vec<usize>, Vec<usize>) =
+            (0..data.rows.len()).partition(|&k| matches!(data.rows[k].observed, Observed::Orientation { .. }));
+        let only =
+            |rows: &[usize], of: &[usize]| -> Vec<usize> { rows.iter().copied().filter(|k| of.contains(k)).collect() };
+        let in_mrad: Vec<Option<Vec3>> = r.iter().map(|v| v.map(|v| v * 1e3)).collect();
         stages.push(Stage {
             model: label,
             parameters: f.rank,
-            fit: stats(&r, &kept),
-            check: stats(&r, &check_rows),
-            check_all: stats(&r, &all_checks),
+            fit: stats(&r, &only(&kept, &placed)),
+            check: stats(&r, &only(&check_rows, &placed)),
+            check_all: stats(&r, &only(&all_checks, &placed)),
+            orientation: (!turning.is_empty())
+                .then(|| [stats(&in_mrad, &only(&kept, &turning)), stats(&in_mrad, &only(&check_rows, &turning))]),
         });
     }
     if !check_rows.is_empty() && stages.len() == order.len() + 1 {
@@ -1672,6 +1830,15 @@ pub fn text(c: &Calibration, model: &str) -> String {
     let mut s = String::new();
     let verdict = verdict_word(c.verdict);
     let _ = writeln!(s, "Calibration of {model}: {} rows fitted, {} held out", c.rows.0, c.rows.1);
+    if let Some(last) = c.stages.last() {
+        if let Some([fit, check]) = &last.orientation {
+            let _ = writeln!(
+                s,
+                "  (each a position or an orientation: {} and {} fitted, {} and {} held out, gross rows left out)",
+                last.fit.rows, fit.rows, last.check.rows, check.rows
+            );
+        }
+    }
     if !c.unread.is_empty() {
         let _ = writeln!(s, "columns not read (no rule uses them): {}", c.unread.join(", "));
     }
@@ -1729,22 +1896,42 @@ pub fn text(c: &Calibration, model: &str) -> String {
             if e.rows == 0 || (set == "all" && with_gross == 0) {
                 continue;
             }
-            let _ = writeln!(
-                s,
-                "  {:<28} {:<5} {:>5} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4}",
-                format!("{} ({} par.)", st.model, st.parameters),
-                set,
-                e.rows,
-                e.rms_axis[0],
-                e.rms_axis[1],
-                e.rms_axis[2],
-                e.rms,
-                e.p95,
-                e.max
-            );
+            stage_line(&mut s, st, set, e);
+        }
+    }
+    if c.stages.iter().any(|st| st.orientation.is_some()) {
+        let _ = writeln!(s, "orientation error, mrad (the rotation vector from measured to predicted):");
+        let _ = writeln!(
+            s,
+            "                                   rows      rms_x    rms_y    rms_z    rms      p95      max"
+        );
+        for st in &c.stages {
+            for (set, e) in ["fit", "check"].iter().zip(st.orientation.iter().flatten()) {
+                if e.rows > 0 {
+                    stage_line(&mut s, st, set, e);
+                }
+            }
         }
     }
     s
+}
+
+/// One line of the table of errors per stage.
+fn stage_line(s: &mut String, st: &Stage, set: &str, e: &ErrorStats) {
+    use std::fmt::Write;
+    let _ = writeln!(
+        s,
+        "  {:<28} {:<5} {:>5} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4}",
+        format!("{} ({} par.)", st.model, st.parameters),
+        set,
+        e.rows,
+        e.rms_axis[0],
+        e.rms_axis[1],
+        e.rms_axis[2],
+        e.rms,
+        e.p95,
+        e.max
+    );
 }
 
 /// What `stiff synth` hides in joint-space data beyond the robot's changes (which the model it is given
@@ -1766,6 +1953,9 @@ pub struct PositionSynth {
     pub check_every: usize,
     /// The measurements' drift: the target seen moved by this much per row written (mm, base frame axes).
     pub drift: Vec3,
+    /// Where the target's orientation is measured too: its axes in the tool frame (a rotation vector, rad)
+    /// and the noise about each axis (rad).
+    pub orientation: Option<(Vec3, f64)>,
     /// The seed of the noise, gross rows and directions.
     pub seed: u64,
 }
@@ -1832,8 +2022,9 @@ pub fn signatures(
         setups: vec![String::new()],
         configurations: configurations.len(),
         unread: Vec::new(),
+        orientation_columns: Vec::new(),
     };
-    let problem = Problem::new(m, &data, Some(noise))?;
+    let problem = Problem::new(m, &data, Some(noise), None)?;
     let usable: Vec<usize> = (0..data.rows.len()).filter(|r| !problem.unusable.iter().any(|(k, _)| k == r)).collect();
     let effects = if effects.is_empty() {
         problem.two_sided_play(problem.default_candidates(), &usable).0
@@ -1865,9 +2056,9 @@ pub fn signatures(
     Ok(Signatures { usable, nuisance: all.columns(0, nuisance).into_owned(), effects })
 }
 
-/// One synthetic row: the configuration, the measured target (mm), whether it was made gross, whether it
-/// is held out, and its set-up.
-type SynthRow = (Configuration, Vec3, bool, bool, usize);
+/// One synthetic row: the configuration, the measured target (mm) and its orientation where measured,
+/// whether it was made gross, whether it is held out, and its set-up.
+type SynthRow = (Configuration, (Vec3, Option<Mat3>), bool, bool, usize);
 
 /// Joint-space measurements of `m` (the robot as it really is: its offsets, compliances, geometry and payload
 /// built into the description) at the controller's angles of each configuration: the target where the arm's
@@ -1924,8 +2115,13 @@ pub fn synthesize_positions(
             let d = Vec3::new(standard_normal(&mut r), standard_normal(&mut r), standard_normal(&mut r));
             at += d.normalize() * s.gross.1;
         }
+        // The target's axes seen turned by the noise: exp(n) R R_tool R_axes, n normal per axis.
+        let seen = s.orientation.map(|(axes, noise)| {
+            let n = Vec3::from_fn(|_, _| noise * standard_normal(&mut r));
+            rotation_from_vector(&n) * rotation * loaded.rot * rotation_from_vector(&axes)
+        });
         let held = s.check_every > 0 && k % s.check_every == s.check_every - 1;
-        rows.push((configuration.clone(), at, gross, held, setup));
+        rows.push((configuration.clone(), (at, seen), gross, held, setup));
     }
     Ok((rows, skipped))
 }

@@ -7,12 +7,16 @@
 //! registration per set-up), `set` (`fit` or `check`: check rows are never fitted), `pose_id` (the row's
 //! name), `gravity_x,gravity_y,gravity_z` (gravity's direction in the base frame: a base that is not level),
 //! `payload_kg` with optional `payload_cx_mm,payload_cy_mm,payload_cz_mm` (a mass the tool carries at that
-//! row, its centre in the tool frame: its weight joins the row's wrench). Every error is located.
+//! row, its centre in the tool frame: its weight joins the row's wrench). A target's orientation in the
+//! instrument's frame may be given beside its position (a 6-dof probe, a rigid body of markers): a unit
+//! quaternion `mqw,mqx,mqy,mqz`, or roll-pitch-yaw `mroll_deg,mpitch_deg,myaw_deg` (or `_rad`; fixed axes x, y,
+//! z as URDF's), with the group's suffix (`mqw1`, `mroll1_deg`), and its standard deviation `sigma_mrad`.
+//! Every error is located.
 
 use std::path::Path;
 
 use crate::columns::{DISPLACEMENT, JOINT_PREFIX, POSE_ID, SIGMA, WRENCH};
-use crate::kinematics::frame::{Vec3, Vec6};
+use crate::kinematics::frame::{Mat3, Vec3, Vec6};
 use crate::model::error::{open_input, InputError};
 use crate::platform::manipulator::Manipulator;
 
@@ -30,6 +34,8 @@ pub const GRAVITY: [&str; 3] = ["gravity_x", "gravity_y", "gravity_z"];
 pub const PAYLOAD_KG: &str = "payload_kg";
 /// Its centre in the tool frame, mm (the reference point where absent).
 pub const PAYLOAD_CENTRE: [&str; 3] = ["payload_cx_mm", "payload_cy_mm", "payload_cz_mm"];
+/// The standard deviation of a measured orientation, per axis of its rotation vector, mrad.
+pub const SIGMA_MRAD: &str = "sigma_mrad";
 
 /// What a row measured.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,8 +49,30 @@ pub enum Observed {
         /// Measured position, mm.
         at: Vec3,
     },
+    /// A target's orientation in the instrument's frame (the rotation from the target's axes to the
+    /// instrument's), measured on the same line as its position.
+    Orientation {
+        /// The target (index into `PositionData::targets`).
+        target: usize,
+        /// The instrument set-up (index into `PositionData::setups`).
+        setup: usize,
+        /// Measured orientation.
+        at: Mat3,
+    },
     /// The tool point's displacement under the row's wrench, base frame, mm.
     Displacement(Vec3),
+}
+
+impl Observed {
+    /// The target and set-up of a measurement in the instrument's frame (None for a displacement).
+    pub fn target_and_setup(&self) -> Option<(usize, usize)> {
+        match *self {
+            Observed::Position { target, setup, .. } | Observed::Orientation { target, setup, .. } => {
+                Some((target, setup))
+            }
+            Observed::Displacement(_) => None,
+        }
+    }
 }
 
 /// One measured row (a line of a file with several targets gives one row per target).
@@ -60,7 +88,8 @@ pub struct PositionRow {
     pub wrench: Vec6,
     /// What was measured.
     pub observed: Observed,
-    /// The row's standard deviation per coordinate, mm, when given.
+    /// The row's standard deviation per coordinate when given: mm for a position or displacement, rad for
+    /// an orientation.
     pub sigma: Option<f64>,
     /// Held out (`set` = `check`): never fitted.
     pub check: bool,
@@ -88,6 +117,8 @@ pub struct PositionData {
     /// Columns of the file that no rule reads (an orientation, a timestamp): named in the report, so that
     /// a measurement is not taken as used when it was not.
     pub unread: Vec<String>,
+    /// The columns giving orientations (named in the report where they cannot be weighed).
+    pub orientation_columns: Vec<String>,
 }
 
 /// True when a measurement file's header names joint coordinates: it is read by `PositionData::read`.
@@ -116,6 +147,62 @@ fn position_groups(header: &[String]) -> Vec<Group> {
         }
     }
     groups
+}
+
+/// How a group's orientation is written.
+enum OrientationColumns {
+    /// A unit quaternion: the columns of w, x, y, z.
+    Quaternion([usize; 4]),
+    /// Roll, pitch, yaw about fixed x, y, z, and the factor to radians.
+    RollPitchYaw([usize; 3], f64),
+}
+
+/// The orientation columns of the position group with `suffix`, if it has them.
+fn orientation_columns(header: &[String], suffix: &str) -> Option<OrientationColumns> {
+    let find = |name: String| header.iter().position(|c| *c == name);
+    let quaternion: Option<Vec<usize>> = ["w", "x", "y", "z"].iter().map(|a| find(format!("mq{a}{suffix}"))).collect();
+    if let Some(q) = quaternion {
+        return Some(OrientationColumns::Quaternion([q[0], q[1], q[2], q[3]]));
+    }
+    for (unit, to_rad) in [("_rad", 1.0), ("_deg", std::f64::consts::PI / 180.0)] {
+        let angles: Option<Vec<usize>> =
+            ["roll", "pitch", "yaw"].iter().map(|a| find(format!("m{a}{suffix}{unit}"))).collect();
+        if let Some(a) = angles {
+            return Some(OrientationColumns::RollPitchYaw([a[0], a[1], a[2]], to_rad));
+        }
+    }
+    None
+}
+
+impl OrientationColumns {
+    fn columns(&self) -> Vec<usize> {
+        match self {
+            OrientationColumns::Quaternion(c) => c.to_vec(),
+            OrientationColumns::RollPitchYaw(c, _) => c.to_vec(),
+        }
+    }
+
+    /// The rotation a row's cells give, or why they give none.
+    fn rotation(&self, value: impl Fn(usize) -> Result<f64, InputError>) -> Result<Result<Mat3, String>, InputError> {
+        Ok(match self {
+            OrientationColumns::Quaternion(c) => {
+                let q = [value(c[0])?, value(c[1])?, value(c[2])?, value(c[3])?];
+                let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+                // A recorded quaternion is unit to its printed digits; one far from it is not a rotation.
+                if (norm - 1.0).abs() > 1e-3 {
+                    Err(format!("the quaternion (mqw,mqx,mqy,mqz) has length {norm}, not 1"))
+                } else {
+                    let unit =
+                        nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]));
+                    Ok(unit.to_rotation_matrix().into_inner())
+                }
+            }
+            OrientationColumns::RollPitchYaw(c, to_rad) => {
+                let a = [value(c[0])?, value(c[1])?, value(c[2])?].map(|v| v * to_rad);
+                Ok(crate::model::urdf::rpy_matrix(a[0], a[1], a[2]))
+            }
+        })
+    }
 }
 
 impl PositionData {
@@ -197,8 +284,13 @@ impl PositionData {
                 format!("a payload's centre ({}) needs its mass ({PAYLOAD_KG})", PAYLOAD_CENTRE.join(",")),
             ));
         }
+        let orientations: Vec<Option<OrientationColumns>> =
+            groups.iter().map(|g| orientation_columns(&header, &g.suffix)).collect();
+        let sigma_mrad_column = find(SIGMA_MRAD);
         let mut read: Vec<usize> = joint_columns.clone();
         read.extend(groups.iter().flat_map(|g| g.columns));
+        read.extend(orientations.iter().flatten().flat_map(OrientationColumns::columns));
+        read.extend(sigma_mrad_column.iter().filter(|_| orientations.iter().any(Option::is_some)));
         read.extend(displacement.iter().flatten());
         read.extend(wrench_columns.iter().flatten());
         read.extend(
@@ -207,8 +299,16 @@ impl PositionData {
         read.extend(gravity_columns.iter().flatten());
         read.extend(centre_columns.iter().flatten());
         let unread = (0..header.len()).filter(|c| !read.contains(c)).map(|c| header[c].clone()).collect();
-        let mut data =
-            PositionData { rows: Vec::new(), targets: Vec::new(), setups: Vec::new(), configurations: 0, unread };
+        let orientation_columns =
+            orientations.iter().flatten().flat_map(OrientationColumns::columns).map(|c| header[c].clone()).collect();
+        let mut data = PositionData {
+            rows: Vec::new(),
+            targets: Vec::new(),
+            setups: Vec::new(),
+            configurations: 0,
+            unread,
+            orientation_columns,
+        };
         let mut configurations: Vec<Vec<f64>> = Vec::new();
         for record in reader.records() {
             let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
@@ -226,6 +326,16 @@ impl PositionData {
             }
             let sigma = match sigma_column {
                 Some(c) if !text(c).is_empty() => Some(checked_sigma(number(c)?).map_err(|e| at(line, c + 1, e))?),
+                _ => None,
+            };
+            let sigma_rad = match sigma_mrad_column {
+                Some(c) if !text(c).is_empty() => {
+                    let s = number(c)?;
+                    if !(s > 0.0 && s.is_finite()) {
+                        return Err(at(line, c + 1, format!("{SIGMA_MRAD} is a standard deviation: > 0, not {s}")));
+                    }
+                    Some(s * 1e-3)
+                }
                 _ => None,
             };
             let check = match set_column.map(text) {
@@ -287,7 +397,10 @@ impl PositionData {
                     joints: joints.clone(),
                     wrench,
                     observed,
-                    sigma,
+                    sigma: match observed {
+                        Observed::Orientation { .. } => sigma_rad,
+                        _ => sigma,
+                    },
                     check,
                     gravity,
                     configuration,
@@ -300,7 +413,7 @@ impl PositionData {
             }
             let setup_name = setup_column.map(text).unwrap_or("").to_string();
             let setup = index_of(&mut data.setups, setup_name);
-            for g in &groups {
+            for (g, orientation) in groups.iter().zip(&orientations) {
                 // A group with an empty cell is a target not seen at that row.
                 if g.columns.iter().any(|&c| text(c).is_empty()) {
                     continue;
@@ -312,6 +425,16 @@ impl PositionData {
                 let target = index_of(&mut data.targets, target_name);
                 let v = [number(g.columns[0])?, number(g.columns[1])?, number(g.columns[2])?];
                 push(Observed::Position { target, setup, at: Vec3::new(v[0], v[1], v[2]) * g.to_mm });
+                // Its orientation, where this row gives one (empty cells: not seen).
+                let Some(o) = orientation else { continue };
+                let columns = o.columns();
+                if columns.iter().any(|&c| text(c).is_empty()) {
+                    continue;
+                }
+                match o.rotation(number)? {
+                    Ok(at) => push(Observed::Orientation { target, setup, at }),
+                    Err(why) => return Err(at(line, columns[0] + 1, why)),
+                }
             }
         }
         if data.rows.is_empty() {
@@ -354,7 +477,24 @@ impl PositionData {
     /// True when the rows are positions in an instrument's frame (registration fitted), false when they are
     /// displacements in the base frame.
     pub fn absolute(&self) -> bool {
-        matches!(self.rows[0].observed, Observed::Position { .. })
+        !matches!(self.rows[0].observed, Observed::Displacement(_))
+    }
+
+    /// The data without the orientations that have no standard deviation (no `sigma_mrad` cell and no
+    /// `sigma_rad` given): an angle cannot be weighed against a length without one. Their columns are named
+    /// among the unread ones, saying what to give.
+    pub fn without_unweighted_orientations(&self, sigma_rad: Option<f64>) -> PositionData {
+        let unweighted =
+            |r: &PositionRow| matches!(r.observed, Observed::Orientation { .. }) && r.sigma.or(sigma_rad).is_none();
+        let mut out = self.clone();
+        if self.rows.iter().any(unweighted) {
+            out.rows.retain(|r| !unweighted(r));
+            out.unread.push(format!(
+                "{} (orientations without a standard deviation: give a {SIGMA_MRAD} column or --sigma-mrad)",
+                self.orientation_columns.join(", ")
+            ));
+        }
+        out
     }
 }
 
