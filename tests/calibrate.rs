@@ -93,11 +93,6 @@ fn measured_pose(h: &Hidden, t: &[f64; 6], gravity: bool, axes: &Vec3) -> (Vec3,
 /// `check`), noise `sigma` per coordinate, rows `gross` moved 5 mm along a random direction.
 fn synthetic(h: &Hidden, configurations: usize, sigma: f64, gross: &[usize], gravity: bool, seed: u64) -> String {
     let mut r = rng(seed);
-    let normal = |r: &mut rand::rngs::StdRng| {
-        // Box-Muller.
-        let (u, v): (f64, f64) = (r.random_range(1e-12..1.0), r.random_range(0.0..1.0));
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    };
     let mut csv = String::from("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,set\n");
     for c in 0..configurations {
         let t = random_angles(&mut r);
@@ -114,6 +109,12 @@ fn synthetic(h: &Hidden, configurations: usize, sigma: f64, gross: &[usize], gra
         csv += &format!("c{c},{},{:?},{:?},{:?},{set}\n", q.join(","), m.x, m.y, m.z);
     }
     csv
+}
+
+/// A standard normal number (Box-Muller).
+fn normal(r: &mut rand::rngs::StdRng) -> f64 {
+    let (u, v): (f64, f64) = (r.random_range(1e-12..1.0), r.random_range(0.0..1.0));
+    (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
 }
 
 /// The FANUC model (its joints' springs and gravity, or rigid without gravity), read from the shipped files.
@@ -692,6 +693,20 @@ fn plan_chooses_calibration_configurations_of_a_serial_arm() {
     }
 }
 
+/// `stiff synth` on the shipped 43 cable-test configurations into `data`, every third held out, with the
+/// effects and options `set_up` and `robot` give.
+fn synth_cable_tests(data: &Path, set_up: &[&str], robot: &[&str]) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["synth", FANUC, "--points", "manipulators/grids/fanuc-r2000ic-cable-tests.csv"])
+        .args(set_up)
+        .args(robot)
+        .args(["--check-every", "3", "-q", "-o"])
+        .arg(data)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
 /// `stiff synth` with two `registration` effects measures the configurations in two blocks, the instrument
 /// moved between them, and writes a `setup` column; the calibration fits one frame per set-up: each within
 /// 0.25 mm and 0.25 mrad of the hidden one (five standard errors at 0.05 mm of noise), and names the hidden
@@ -700,15 +715,11 @@ fn plan_chooses_calibration_configurations_of_a_serial_arm() {
 fn synth_with_two_setups_gives_each_its_own_registration() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("two.csv");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
-        .args(["synth", FANUC, "--points", "manipulators/grids/fanuc-r2000ic-cable-tests.csv"])
-        .args(["--effect", "registration=0.1,0,0.2,1500,0,300", "--effect", "registration=-0.2,0.1,0,-800,900,100"])
-        .args(["--effect", "target=20,0,30", "--effect", "joint-offset:J2=0.001", "--noise", "0.05", "--seed", "4"])
-        .args(["--check-every", "3", "-q", "-o"])
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    synth_cable_tests(
+        &data,
+        &["--effect", "registration=0.1,0,0.2,1500,0,300", "--effect", "registration=-0.2,0.1,0,-800,900,100"],
+        &["--effect", "target=20,0,30", "--effect", "joint-offset:J2=0.001", "--noise", "0.05", "--seed", "4"],
+    );
     let text = std::fs::read_to_string(&data).unwrap();
     assert!(text.lines().next().unwrap().contains(",set,setup,"), "{text}");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
@@ -949,10 +960,6 @@ fn synthetic_oriented(
     seed: u64,
 ) -> String {
     let mut r = rng(seed);
-    let normal = |r: &mut rand::rngs::StdRng| {
-        let (u, v): (f64, f64) = (r.random_range(1e-12..1.0), r.random_range(0.0..1.0));
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    };
     let columns = match written {
         Written::Quaternion => "mqw,mqx,mqy,mqz",
         Written::RollPitchYawDegrees => "mroll_deg,mpitch_deg,myaw_deg",
@@ -995,10 +1002,7 @@ fn synthetic_oriented(
 fn orientations_are_predicted_exactly_and_read_alike_as_quaternions_or_roll_pitch_yaw() {
     let dir = tempfile::tempdir().unwrap();
     let m = fanuc(true, dir.path());
-    let mut h = Hidden::registration_only();
-    h.offsets[1] = 1.0e-3;
-    h.offsets[4] = -2.0e-3;
-    h.offsets[3] = 1.5e-3;
+    let h = Hidden { offsets: [0.0, 1.0e-3, 0.0, 1.5e-3, -2.0e-3, 0.0], ..Hidden::registration_only() };
     let axes = Vec3::new(0.2, -0.1, 0.3);
     let fitted = vec![
         effect(ArmKind::JointOffset, "J2"),
@@ -1145,16 +1149,24 @@ fn orientations_without_a_standard_deviation_are_named_and_a_bad_quaternion_is_l
 fn synth_measures_orientations_that_the_calibration_explains() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("p.csv");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
-        .args(["synth", FANUC, "--points", "manipulators/grids/fanuc-r2000ic-cable-tests.csv"])
-        .args(["--effect", "registration=0.1,0,0.2,1500,0,300", "--effect", "target=20,0,30"])
-        .args(["--effect", "target-axes=0.1,0.2,-0.3", "--effect", "joint-offset:J4=0.002"])
-        .args(["--effect", "joint-compliance:J2=1e-9", "--noise", "0.05", "--orientation-noise", "0.1"])
-        .args(["--seed", "3", "--check-every", "3", "-o"])
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    synth_cable_tests(
+        &data,
+        &["--effect", "registration=0.1,0,0.2,1500,0,300", "--effect", "target=20,0,30"],
+        &[
+            "--effect",
+            "target-axes=0.1,0.2,-0.3",
+            "--effect",
+            "joint-offset:J4=0.002",
+            "--effect",
+            "joint-compliance:J2=1e-9",
+            "--noise",
+            "0.05",
+            "--orientation-noise",
+            "0.1",
+            "--seed",
+            "3",
+        ],
+    );
     let m = fanuc(false, dir.path());
     let d = PositionData::read(&data, &m.joint_space.as_ref().unwrap().names).unwrap();
     let c = calibrate::calibrate(&m, &d, &[], &options(None)).unwrap();
