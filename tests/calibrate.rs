@@ -946,6 +946,7 @@ fn a_plan_without_candidate_configurations_is_an_error_not_a_panic() {
 enum Written {
     Quaternion,
     RollPitchYawDegrees,
+    RotationVector,
 }
 
 /// A joint-space file with the target's orientation beside its position: `sigma_mm` and `sigma_mrad` noise
@@ -963,6 +964,7 @@ fn synthetic_oriented(
     let columns = match written {
         Written::Quaternion => "mqw,mqx,mqy,mqz",
         Written::RollPitchYawDegrees => "mroll_deg,mpitch_deg,myaw_deg",
+        Written::RotationVector => "mrx_rad,mry_rad,mrz_rad",
     };
     let mut csv =
         format!("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,{columns},sigma_mm,sigma_mrad,set\n");
@@ -985,6 +987,12 @@ fn synthetic_oriented(
                 (-seen[(2, 0)]).asin().to_degrees(),
                 seen[(1, 0)].atan2(seen[(0, 0)]).to_degrees(),
             ],
+            // Axis times angle, from the quaternion: 2 atan2(|v|, w) v / |v|.
+            Written::RotationVector => {
+                let q = nalgebra::UnitQuaternion::from_matrix(&seen);
+                let v = Vec3::new(q.i, q.j, q.k);
+                (v * (2.0 * v.norm().atan2(q.w) / v.norm())).as_slice().to_vec()
+            }
         };
         let q: Vec<String> = t.iter().chain(&[p.x, p.y, p.z]).chain(&angles).map(|v| format!("{v:?}")).collect();
         let set = if c % 3 == 2 { "check" } else { "fit" };
@@ -996,10 +1004,10 @@ fn synthetic_oriented(
 /// A measured orientation predicted exactly: a rigid FANUC, noise-free positions and orientations (as
 /// quaternions) behind a hidden instrument frame, target and target axes, with encoder offsets on J2, J5 and
 /// J4 fitted (J6's is the target's place and turn about the flange's axis: never identifiable). The instrument's frame comes back to 1e-9 mm and 1e-12 rad, the offsets to 1e-11 rad, and the
-/// orientations' misfit is round-off (below 1e-8 mrad). The same file written as roll-pitch-yaw in degrees is
-/// the same measurement: the offsets agree to 1e-11 rad.
+/// orientations' misfit is round-off (below 1e-8 mrad). The same file written as roll-pitch-yaw in degrees, or
+/// as rotation vectors, is the same measurement: the offsets agree to 1e-11 rad.
 #[test]
-fn orientations_are_predicted_exactly_and_read_alike_as_quaternions_or_roll_pitch_yaw() {
+fn orientations_are_predicted_exactly_and_read_alike_as_quaternions_roll_pitch_yaw_or_rotation_vectors() {
     let dir = tempfile::tempdir().unwrap();
     let m = fanuc(true, dir.path());
     let h = Hidden { offsets: [0.0, 1.0e-3, 0.0, 1.5e-3, -2.0e-3, 0.0], ..Hidden::registration_only() };
@@ -1011,7 +1019,7 @@ fn orientations_are_predicted_exactly_and_read_alike_as_quaternions_or_roll_pitc
     ];
     let o = Options { fitted, max_effects: 0, ..options(None) };
     let mut offsets = Vec::new();
-    for written in [Written::Quaternion, Written::RollPitchYawDegrees] {
+    for written in [Written::Quaternion, Written::RollPitchYawDegrees, Written::RotationVector] {
         let csv = synthetic_oriented(&h, 30, (0.0, 0.0), &axes, (written, false), 8);
         let (data, c) = calibrate_text(&m, &csv, dir.path(), &[], &o);
         let report = calibrate::text(&c, "rigid");
@@ -1030,8 +1038,10 @@ fn orientations_are_predicted_exactly_and_read_alike_as_quaternions_or_roll_pitc
         assert!(stage.fit.max < 1e-9, "{report}");
         offsets.push(c.accepted.iter().map(|a| a.values[0]).collect::<Vec<_>>());
     }
-    for (q, rpy) in offsets[0].iter().zip(&offsets[1]) {
-        assert!((q - rpy).abs() < 1e-11, "{offsets:?}");
+    for other in &offsets[1..] {
+        for (q, o) in offsets[0].iter().zip(other) {
+            assert!((q - o).abs() < 1e-11, "{offsets:?}");
+        }
     }
 }
 

@@ -26,8 +26,9 @@ pub(crate) struct DiagnoseArgs {
     /// Measurements (CSV): pose_id,x_mm,y_mm,z_mm,Fx_N,...,Mz_Nmm,dx_mm,dy_mm,dz_mm[,sigma_mm]; or, for a
     /// serial arm, as a lab records them: q_<joint> columns and the target's measured position in the
     /// instrument's frame (mx_mm,my_mm,mz_mm or mx_m,...; several targets mx1_mm,... or a `target` column;
-    /// optional setup, set = fit|check, sigma_mm, Fx_N..Mz_Nmm; the target's orientation as mqw,mqx,mqy,mqz or
-    /// mroll_deg,mpitch_deg,myaw_deg with sigma_mrad), or dx_mm,dy_mm,dz_mm under the row's wrench.
+    /// optional setup, set = fit|check, sigma_mm, Fx_N..Mz_Nmm; the target's orientation as mqw,mqx,mqy,mqz,
+    /// mroll_deg,mpitch_deg,myaw_deg or mrx_rad,mry_rad,mrz_rad with sigma_mrad), or dx_mm,dy_mm,dz_mm under
+    /// the row's wrench.
     #[arg(long)]
     pub(crate) data: PathBuf,
     /// Joint-space data: hold out this fraction of the configurations (drawn with --seed) as check rows,

@@ -9,8 +9,9 @@
 //! `payload_kg` with optional `payload_cx_mm,payload_cy_mm,payload_cz_mm` (a mass the tool carries at that
 //! row, its centre in the tool frame: its weight joins the row's wrench). A target's orientation in the
 //! instrument's frame may be given beside its position (a 6-dof probe, a rigid body of markers): a unit
-//! quaternion `mqw,mqx,mqy,mqz`, or roll-pitch-yaw `mroll_deg,mpitch_deg,myaw_deg` (or `_rad`; fixed axes x, y,
-//! z as URDF's), with the group's suffix (`mqw1`, `mroll1_deg`), and its standard deviation `sigma_mrad`.
+//! quaternion `mqw,mqx,mqy,mqz`, roll-pitch-yaw `mroll_deg,mpitch_deg,myaw_deg` (or `_rad`; fixed axes x, y,
+//! z as URDF's), or a rotation vector `mrx_rad,mry_rad,mrz_rad` (as a UR controller reports its tool), with the
+//! group's suffix (`mqw1`, `mroll1_deg`, `mrx1_rad`), and its standard deviation `sigma_mrad`.
 //! Every error is located.
 
 use std::path::Path;
@@ -155,6 +156,8 @@ enum OrientationColumns {
     Quaternion([usize; 4]),
     /// Roll, pitch, yaw about fixed x, y, z, and the factor to radians.
     RollPitchYaw([usize; 3], f64),
+    /// A rotation vector (axis times angle), rad.
+    RotationVector([usize; 3]),
 }
 
 /// The orientation columns of the position group with `suffix`, if it has them.
@@ -171,14 +174,15 @@ fn orientation_columns(header: &[String], suffix: &str) -> Option<OrientationCol
             return Some(OrientationColumns::RollPitchYaw([a[0], a[1], a[2]], to_rad));
         }
     }
-    None
+    let vector: Option<Vec<usize>> = ["x", "y", "z"].iter().map(|a| find(format!("mr{a}{suffix}_rad"))).collect();
+    vector.map(|v| OrientationColumns::RotationVector([v[0], v[1], v[2]]))
 }
 
 impl OrientationColumns {
     fn columns(&self) -> Vec<usize> {
         match self {
             OrientationColumns::Quaternion(c) => c.to_vec(),
-            OrientationColumns::RollPitchYaw(c, _) => c.to_vec(),
+            OrientationColumns::RollPitchYaw(c, _) | OrientationColumns::RotationVector(c) => c.to_vec(),
         }
     }
 
@@ -200,6 +204,9 @@ impl OrientationColumns {
             OrientationColumns::RollPitchYaw(c, to_rad) => {
                 let a = [value(c[0])?, value(c[1])?, value(c[2])?].map(|v| v * to_rad);
                 Ok(crate::model::urdf::rpy_matrix(a[0], a[1], a[2]))
+            }
+            OrientationColumns::RotationVector(c) => {
+                Ok(crate::kinematics::frame::rotation_from_vector(&Vec3::new(value(c[0])?, value(c[1])?, value(c[2])?)))
             }
         })
     }
