@@ -731,7 +731,8 @@ fn an_unwritable_picture_is_refused_before_the_work() {
 /// A serial arm's calibration (`diagnose --plot` on joint-space data, and `stiff plot` of its JSON): one RMS
 /// bar per stage for the fitted rows and one for the held-out rows, each as tall as the JSON's RMS (heights
 /// in proportion to 1e-3, the SVG's hundredth of a pixel), the stages named, the axis in mm, no text on
-/// another.
+/// another; with orientations measured, a second panel of their errors in mrad, its bars in proportion to
+/// the JSON's orientation RMS alike.
 #[test]
 fn a_calibration_plot_has_a_bar_per_stage_and_row_set() {
     let dir = tempfile::tempdir().unwrap();
@@ -740,7 +741,8 @@ fn a_calibration_plot_has_a_bar_per_stage_and_row_set() {
         &["synth", "manipulators/fanuc-r2000ic.toml", "--points", "manipulators/grids/fanuc-r2000ic-cable-tests.csv"]
             .into_iter()
             .chain(["--effect", "registration=0.1,0,0.2,1500,0,300", "--effect", "joint-offset:J2=0.002"])
-            .chain(["--noise", "0.05", "--seed", "1", "--check-every", "3", "-o", "cal.csv"])
+            .chain(["--noise", "0.05", "--orientation-noise", "0.1", "--seed", "1", "--check-every", "3"])
+            .chain(["-o", "cal.csv"])
             .collect::<Vec<_>>(),
     );
     assert!(synth.status.success(), "{}", String::from_utf8_lossy(&synth.stderr));
@@ -772,21 +774,25 @@ fn a_calibration_plot_has_a_bar_per_stage_and_row_set() {
             .filter(|n| n.has_tag_name("rect") && n.attribute("class") == Some("rms-bar"))
             .map(|n| n.attribute("height").unwrap().parse().unwrap())
             .collect();
-        let rms: Vec<f64> = stages
-            .iter()
-            .flat_map(|s| [s["fit"]["rms"].as_f64().unwrap(), s["check"]["rms"].as_f64().unwrap()])
-            .collect();
-        assert_eq!(bars.len(), rms.len(), "{file}");
-        for (h, r) in bars.iter().zip(&rms) {
-            assert!(
-                (h / bars[0] - r / rms[0]).abs() < 1e-3,
-                "{file}: bar {h} px for {r} mm (first {} px for {} mm)",
-                bars[0],
-                rms[0]
-            );
+        let positions = stages.iter().flat_map(|s| [&s["fit"], &s["check"]]);
+        let orientations = stages.iter().flat_map(|s| [&s["orientation"][0], &s["orientation"][1]]);
+        let panels: Vec<Vec<f64>> = [positions.collect::<Vec<_>>(), orientations.collect()]
+            .map(|p| p.iter().map(|e| e["rms"].as_f64().unwrap()).collect())
+            .into();
+        assert_eq!(bars.len(), panels[0].len() + panels[1].len(), "{file}");
+        for (heights, rms) in [&bars[..panels[0].len()], &bars[panels[0].len()..]].iter().zip(&panels) {
+            for (h, r) in heights.iter().zip(rms) {
+                assert!(
+                    (h / heights[0] - r / rms[0]).abs() < 1e-3,
+                    "{file}: bar {h} px for {r} (first {} px for {})",
+                    heights[0],
+                    rms[0]
+                );
+            }
         }
         let t = texts(&doc);
         assert!(t.iter().any(|x| x == "position error [mm]"), "{t:?}");
+        assert!(t.iter().any(|x| x == "orientation error [mrad]"), "{t:?}");
         assert!(t.iter().any(|x| x.starts_with("+ joint-offset:J2")), "{t:?}");
         assert_no_text_overlaps(&svg, file);
     }

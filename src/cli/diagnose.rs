@@ -102,9 +102,9 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
     if joint_space_data(&input) {
         return run_calibration(&a, &model.manipulator, &input);
     }
-    if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() {
+    if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() || a.sigma_mrad.is_some() {
         bail!(
-            "--check-fraction, --fit and --candidates are for joint-space data (q_<joint> columns); {} gives poses",
+            "--check-fraction, --fit, --candidates and --sigma-mrad are for joint-space data (q_<joint> columns); {} gives poses",
             a.data.display()
         );
     }
