@@ -1193,3 +1193,41 @@ fn synth_measures_orientations_that_the_calibration_explains() {
     let [_, check] = c.stages.last().unwrap().orientation.clone().unwrap();
     assert!(check.rows == 14 && check.rms < 0.17 * 1.35, "{report}");
 }
+
+/// Regression: a row's misfit was judged gross against one robust scale over positions and orientations
+/// together, so where one kind's stated sigma is off, the other's rows were judged on the wrong scale. Here
+/// the orientations' sigma is stated ten times too large (1 mrad for 0.1 mrad of noise): against the pooled
+/// scale an orientation turned by 3 mrad (3 stated sigma, 30 real) passed as sound and pulled the fit;
+/// judged against the orientations' own scale it is named gross, and no other row is.
+#[test]
+fn a_gross_orientation_is_judged_against_the_orientations_own_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let csv = synthetic_oriented(
+        &Hidden::registration_only(),
+        45,
+        (0.05, 0.1),
+        &Vec3::zeros(),
+        (Written::Quaternion, true),
+        17,
+    );
+    let mut lines: Vec<String> = csv.lines().map(String::from).collect();
+    for (k, line) in lines.iter_mut().enumerate().skip(1) {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        cells[15] = "1".into();
+        if k == 8 {
+            // Turned by 3 mrad about the instrument's x: q' = (cos a/2, sin a/2, 0, 0) q.
+            let q: Vec<f64> = cells[10..14].iter().map(|v| v.parse().unwrap()).collect();
+            let (c, s) = ((1.5e-3f64).cos(), (1.5e-3f64).sin());
+            let turned = [c * q[0] - s * q[1], c * q[1] + s * q[0], c * q[2] - s * q[3], c * q[3] + s * q[2]];
+            for (cell, v) in cells[10..14].iter_mut().zip(turned) {
+                *cell = format!("{v:?}");
+            }
+        }
+        *line = cells.join(",");
+    }
+    assert!(lines[0].split(',').nth(15) == Some("sigma_mrad"));
+    let (_, c) = calibrate_text(&m, &(lines.join("\n") + "\n"), dir.path(), &[], &options(None));
+    let named: Vec<&str> = c.left_out.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(named, ["c7 (line 9)"], "{}", calibrate::text(&c, "FANUC"));
+}

@@ -1283,16 +1283,24 @@ fn gross_rows(problem: &Problem, residuals: &[Option<Vec3>], rows: &[usize]) -> 
 }
 
 /// The gross rows among `tested`, against the robust scale of the rows `scaled` (a held-out row is judged
-/// by the fitted rows' scale).
+/// by the fitted rows' scale). Positions and orientations are judged each against their own kind's scale,
+/// so that a stated sigma of one kind that is off does not make the other's rows look gross.
 fn gross_rows_against(problem: &Problem, residuals: &[Option<Vec3>], scaled: &[usize], tested: &[usize]) -> Vec<usize> {
     let misfit = |r: usize| residuals[r].map_or(f64::INFINITY, |v| v.norm() * problem.weight[r]);
-    let mut sorted: Vec<f64> = scaled.iter().map(|&r| misfit(r)).filter(|m| m.is_finite()).collect();
-    if sorted.len() < 5 {
-        return Vec::new();
+    let turning = |r: &usize| matches!(problem.data.rows[*r].observed, Observed::Orientation { .. });
+    let mut gross = Vec::new();
+    for kind in [false, true] {
+        let mut sorted: Vec<f64> =
+            scaled.iter().filter(|r| turning(r) == kind).map(|&r| misfit(r)).filter(|m| m.is_finite()).collect();
+        if sorted.len() < 5 {
+            continue;
+        }
+        sorted.sort_by(f64::total_cmp);
+        let scale = sorted[sorted.len() / 2] / CHI3_MEDIAN;
+        gross.extend(tested.iter().copied().filter(|r| turning(r) == kind && misfit(*r) > GROSS_FACTOR * scale));
     }
-    sorted.sort_by(f64::total_cmp);
-    let scale = sorted[sorted.len() / 2] / CHI3_MEDIAN;
-    tested.iter().copied().filter(|&r| misfit(r) > GROSS_FACTOR * scale).collect()
+    gross.sort_unstable();
+    gross
 }
 
 /// The test of adding an effect to a fit of residual sum `rss0` (weighted) and rank `rank0`, giving `with`: its F
