@@ -619,7 +619,7 @@ fn the_plans_signatures_are_finite_differences_of_the_measured_target() {
     let configurations: Vec<calibrate::Configuration> =
         angles.iter().enumerate().map(|(k, t)| (format!("c{k}"), t.to_vec(), Default::default())).collect();
     let effects = [effect(ArmKind::JointOffset, "J2"), effect(ArmKind::JointCompliance, "J3")];
-    let found = calibrate::signatures(&m, &configurations, &effects, noise).unwrap();
+    let found = calibrate::signatures(&m, &configurations, &effects, noise, None).unwrap();
     assert_eq!(found.usable.len(), 8);
     assert_eq!(found.nuisance.ncols(), 9, "an instrument's frame and a target's place");
     let level = Hidden {
@@ -1230,4 +1230,69 @@ fn a_gross_orientation_is_judged_against_the_orientations_own_scale() {
     let (_, c) = calibrate_text(&m, &(lines.join("\n") + "\n"), dir.path(), &[], &options(None));
     let named: Vec<&str> = c.left_out.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(named, ["c7 (line 9)"], "{}", calibrate::text(&c, "FANUC"));
+}
+
+/// A plan for an instrument that measures orientations too (`plan --orientation-noise`): its signatures'
+/// orientation rows are the derivative of the measured orientation (its rotation vector) in J4's offset and
+/// J3's added compliance, equal to central finite differences of this file's own generator to 1% (weighted
+/// by 1/noise, one sign for all rows); the target's axes join the nuisance parameters (12 columns); and on
+/// the 43 cable-test configurations the plan detects J4's offset beside J5's and J2's compliance at a smaller
+/// size with orientations at 0.1 mrad than from positions alone.
+#[test]
+fn a_plan_with_orientations_weighs_what_they_tell() {
+    let m = fanuc(false, Path::new("."));
+    let mut r = rng(33);
+    let (noise, turn_noise) = (0.05, 1e-4);
+    let angles: Vec<[f64; 6]> = (0..6).map(|_| random_angles(&mut r)).collect();
+    let configurations: Vec<calibrate::Configuration> =
+        angles.iter().enumerate().map(|(k, t)| (format!("c{k}"), t.to_vec(), Default::default())).collect();
+    let effects = [effect(ArmKind::JointOffset, "J4"), effect(ArmKind::JointCompliance, "J3")];
+    let found = calibrate::signatures(&m, &configurations, &effects, noise, Some(turn_noise)).unwrap();
+    assert_eq!((found.usable.len(), found.rows_per_candidate, found.nuisance.ncols()), (6, 6, 12));
+    let level = Hidden { rotation: Vec3::zeros(), translation: Vec3::zeros(), ..Hidden::registration_only() };
+    let difference = |change: &dyn Fn(&mut Hidden, f64), h: f64, t: &[f64; 6]| -> Vec3 {
+        let (mut up, mut down) = (level.clone(), level.clone());
+        change(&mut up, h);
+        change(&mut down, -h);
+        let (a, b) = (measured_pose(&up, t, true, &Vec3::zeros()).1, measured_pose(&down, t, true, &Vec3::zeros()).1);
+        stiff::kinematics::frame::rotation_vector(&(a * b.transpose())) / (2.0 * h) / turn_noise
+    };
+    let offset = |h: &mut Hidden, d: f64| h.offsets[3] = d;
+    let compliance = |h: &mut Hidden, c: f64| h.compliance[2] = 1.0 + c * K_JOINT[2];
+    for (e, (change, step)) in
+        [(&offset as &dyn Fn(&mut Hidden, f64), 1e-6), (&compliance, 1e-12)].into_iter().enumerate()
+    {
+        let signature = &found.effects[e].1;
+        let mut sign = 0.0;
+        for (i, t) in angles.iter().enumerate() {
+            let fd = difference(change, step, t);
+            let s = Vec3::from_fn(|a, _| signature[(6 * i + 3 + a, 0)]);
+            if sign == 0.0 {
+                sign = s.dot(&fd).signum();
+            }
+            assert!((s * sign - fd).norm() <= 1e-2 * fd.norm(), "{} at c{i}: {s} vs {fd}", found.effects[e].0);
+        }
+    }
+    let detectable = |extra: &[&str]| -> f64 {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .args(["plan", FANUC, "--candidates", "manipulators/grids/fanuc-r2000ic-cable-tests.csv"])
+            .args([
+                "--budget",
+                "15",
+                "--noise",
+                "0.05",
+                "--effects",
+                "joint-offset:J4,joint-offset:J5,joint-compliance:J2",
+            ])
+            .args(["-o", "-"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let report = String::from_utf8(out.stdout).unwrap();
+        let line = report.lines().find(|l| l.trim_start().starts_with("joint-offset:J4")).expect("J4's line");
+        line.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    let (with, without) = (detectable(&["--orientation-noise", "0.1"]), detectable(&[]));
+    assert!(with < without, "J4's offset detectable at {with:e} rad with orientations, {without:e} without");
 }

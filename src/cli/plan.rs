@@ -38,6 +38,10 @@ pub(crate) struct PlanArgs {
     /// Standard deviation of the measurement noise, mm.
     #[arg(long)]
     pub(crate) noise: f64,
+    /// A serial arm's calibration: the instrument measures the target's orientation too, with this standard
+    /// deviation about each axis (mrad); the plan weighs what the orientations tell beside the positions.
+    #[arg(long, value_name = "MRAD")]
+    pub(crate) orientation_noise: Option<f64>,
     /// Choose the measurements at random with this seed instead: a baseline to compare a plan with.
     #[arg(long, value_name = "SEED")]
     pub(crate) random: Option<u64>,
@@ -84,7 +88,22 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
     if !arm && loads.is_empty() {
         bail!("give --loads: the loads the measurements may be taken under");
     }
-    let o = PlanOptions { loads, budget: a.budget, effects: a.effects.clone(), noise: a.noise, random: a.random };
+    let orientation_noise = match a.orientation_noise {
+        None => None,
+        Some(_) if !arm => {
+            bail!("--orientation-noise is for a serial arm's calibration (candidates with q_<joint> columns)")
+        }
+        Some(s) if (MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&s) => Some(s * 1e-3),
+        Some(s) => bail!("--orientation-noise must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mrad, got {s}"),
+    };
+    let o = PlanOptions {
+        loads,
+        budget: a.budget,
+        effects: a.effects.clone(),
+        noise: a.noise,
+        orientation_noise,
+        random: a.random,
+    };
     let mut sink = a.output.open(&plan_table(&set.joint_names))?;
     let p = if arm {
         plan_arm(m, &crate::diagnose::calibrate::configurations(&poses), &o)?
@@ -96,15 +115,19 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
     sink.writer().write_all(rows.as_bytes())?;
     sink.finish()?;
     let how = if a.random.is_some() { "chosen at random" } else { "greedy D-optimal on the effects' parameters" };
-    write_stdout(&report(&p, how, a.noise))
+    let noise = match a.orientation_noise {
+        Some(o) => format!("{:e} mm and {o:e} mrad", a.noise),
+        None => format!("{:e} mm", a.noise),
+    };
+    write_stdout(&report(&p, how, &noise))
 }
 
 /// What the plan achieves, for a person.
-fn report(p: &Plan, how: &str, noise: f64) -> String {
+fn report(p: &Plan, how: &str, noise: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{} of {} candidate measurements ({how}); noise {noise:e} mm; log det of the information {:.2}",
+        "{} of {} candidate measurements ({how}); noise {noise}; log det of the information {:.2}",
         p.measurements.len(),
         p.candidates,
         p.log_det

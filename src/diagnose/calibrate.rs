@@ -548,6 +548,12 @@ impl<'a> Problem<'a> {
     /// ways, at least `MIN_PLAY_ROWS` and a tenth of the rows each way; with fewer it would fit a few rows'
     /// misfit. Returns the candidates kept and a note for each left out.
     fn two_sided_play(&self, candidates: Vec<ArmEffect>, rows: &[usize]) -> (Vec<ArmEffect>, Vec<String>) {
+        // An orientation shares its position row's load: counted once.
+        let rows: Vec<usize> = rows
+            .iter()
+            .copied()
+            .filter(|&r| !matches!(self.data.rows[r].observed, Observed::Orientation { .. }))
+            .collect();
         let mut notes = Vec::new();
         let kept = candidates
             .into_iter()
@@ -556,7 +562,7 @@ impl<'a> Problem<'a> {
                     return true;
                 }
                 let (mut up, mut down) = (0, 0);
-                for &r in rows {
+                for &r in &rows {
                     let (s, zero) = &self.statics[r];
                     let g = effect_gain(e, s, zero, &Vec6::zeros());
                     up += usize::from(g > 0.0);
@@ -1984,45 +1990,56 @@ pub fn configurations(points: &[crate::model::grid::PosePoint]) -> Vec<Configura
         .collect()
 }
 
-/// What measuring a target's position at each candidate configuration would tell a calibration, to first
-/// order about the nominal arm: the derivative of the three coordinates in every parameter, weighted by
-/// 1/noise.
+/// What measuring a target's position (and orientation) at each candidate configuration would tell a
+/// calibration, to first order about the nominal arm: the derivative of the three coordinates (and three
+/// rotations) in every parameter, weighted by 1/noise.
 pub struct Signatures {
     /// The candidates with a prediction (the others have no loaded equilibrium), as indices into the
     /// configurations given.
     pub usable: Vec<usize>,
-    /// The registration's and the target's columns (9): fitted in every calibration.
+    /// Rows per usable candidate: 3 (a position), or 6 (a position, then an orientation).
+    pub rows_per_candidate: usize,
+    /// The registration's and the target's columns (9, or 12 with the target's axes): fitted in every
+    /// calibration.
     pub nuisance: DMatrix<f64>,
     /// Each effect's label and columns.
     pub effects: Vec<(String, DMatrix<f64>)>,
 }
 
 /// The signatures (`Signatures`) of `effects` (where empty: the effects `calibrate` offers by default, play
-/// where the candidates load its joint both ways) at `configurations`, one instrument and one target.
+/// where the candidates load its joint both ways) at `configurations`, one instrument and one target; with
+/// `orientation_noise` (rad), the target's orientation measured too.
 pub fn signatures(
     m: &Manipulator,
     configurations: &[Configuration],
     effects: &[ArmEffect],
     noise: f64,
+    orientation_noise: Option<f64>,
 ) -> Result<Signatures, CalibrationError> {
     let mut state = m.new_state();
     let mut rows = Vec::with_capacity(configurations.len());
     for (k, (name, joints, wrench)) in configurations.iter().enumerate() {
-        // Where the nominal arm puts the target (its tool point): the registration's start is then the
-        // identity, the point about which the first order is taken.
-        let at = m.pose_at_joints(joints, &mut state).map_or(Vec3::zeros(), |f| f.pos);
-        rows.push(PositionRow {
+        // Where the nominal arm puts the target (its tool point, its axes the tool's): the registration's
+        // and the target's starts are then the identity, the point about which the first order is taken.
+        let frame = m.pose_at_joints(joints, &mut state);
+        let row = |observed: Observed, sigma: f64| PositionRow {
             name: name.clone(),
             line: k + 2,
             joints: joints.clone(),
             wrench: *wrench,
-            observed: Observed::Position { target: 0, setup: 0, at },
-            sigma: Some(noise),
+            observed,
+            sigma: Some(sigma),
             check: false,
             gravity: None,
             configuration: k,
             payload: None,
-        });
+        };
+        let at = frame.map_or(Vec3::zeros(), |f| f.pos);
+        rows.push(row(Observed::Position { target: 0, setup: 0, at }, noise));
+        if let Some(sigma) = orientation_noise {
+            let at = frame.map_or(Mat3::identity(), |f| f.rot);
+            rows.push(row(Observed::Orientation { target: 0, setup: 0, at }, sigma));
+        }
     }
     let data = PositionData {
         rows,
@@ -2032,18 +2049,23 @@ pub fn signatures(
         unread: Vec::new(),
         orientation_columns: Vec::new(),
     };
-    let problem = Problem::new(m, &data, Some(noise), None)?;
-    let usable: Vec<usize> = (0..data.rows.len()).filter(|r| !problem.unusable.iter().any(|(k, _)| k == r)).collect();
+    let problem = Problem::new(m, &data, Some(noise), orientation_noise)?;
+    // A configuration is usable where its rows have a prediction (its position and orientation share one
+    // equilibrium); the rows of each usable one follow each other.
+    let per = if orientation_noise.is_some() { 2 } else { 1 };
+    let usable: Vec<usize> =
+        (0..configurations.len()).filter(|c| !problem.unusable.iter().any(|(k, _)| k / per == *c)).collect();
+    let usable_rows: Vec<usize> = usable.iter().flat_map(|c| per * c..per * c + per).collect();
     let effects = if effects.is_empty() {
-        problem.two_sided_play(problem.default_candidates(), &usable).0
+        problem.two_sided_play(problem.default_candidates(), &usable_rows).0
     } else {
         effects.to_vec()
     };
-    let params = problem.start(&usable, &effects);
+    let params = problem.start(&usable_rows, &effects);
     let p = problem.nuisance_count() + effects.iter().map(ArmEffect::size).sum::<usize>();
-    let mut all = DMatrix::zeros(3 * usable.len(), p);
+    let mut all = DMatrix::zeros(3 * usable_rows.len(), p);
     let mut row = DMatrix::zeros(3, p);
-    for (i, &r) in usable.iter().enumerate() {
+    for (i, &r) in usable_rows.iter().enumerate() {
         problem.predict(r, &effects, &params, &mut state, Some(&mut row)).ok_or_else(|| CalibrationError::Row {
             name: data.rows[r].name.clone(),
             line: data.rows[r].line,
@@ -2061,7 +2083,7 @@ pub fn signatures(
             (e.label(problem.joints), block)
         })
         .collect();
-    Ok(Signatures { usable, nuisance: all.columns(0, nuisance).into_owned(), effects })
+    Ok(Signatures { usable, rows_per_candidate: 3 * per, nuisance: all.columns(0, nuisance).into_owned(), effects })
 }
 
 /// One synthetic row: the configuration, the measured target (mm) and its orientation where measured,

@@ -9,7 +9,7 @@
 //! (alone, and beside the other effects) and the pairs whose signatures stay within `ABSORBED_SHARE` of
 //! each other on the plan (inseparable).
 
-use nalgebra::{DMatrix, Matrix3};
+use nalgebra::DMatrix;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
@@ -36,6 +36,9 @@ pub struct PlanOptions {
     pub effects: Vec<String>,
     /// Measurement noise, mm (each axis).
     pub noise: f64,
+    /// A serial arm's calibration: the noise of a measured orientation about each axis (rad), where the
+    /// instrument measures the target's orientation too.
+    pub orientation_noise: Option<f64>,
     /// Choose at random (seeded) instead: a baseline to compare a plan with.
     pub random: Option<u64>,
 }
@@ -226,7 +229,7 @@ pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan,
                 .map_err(|e| PlanError::Model(e.into()))
         })
         .collect::<Result<_, _>>()?;
-    let chosen = choose(&effects, None, n, o);
+    let chosen = choose(&effects, None, (n, 3), o);
     let measurements = chosen
         .picks
         .iter()
@@ -264,7 +267,9 @@ pub fn plan_arm(
         .map(|e| ArmEffect::parse(e, names))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|why| PlanError::Arm(format!("--effects {why}")))?;
-    let found = signatures(m, &candidates, &effects, o.noise).map_err(|e| PlanError::Arm(e.to_string()))?;
+    let found = signatures(m, &candidates, &effects, o.noise, o.orientation_noise)
+        .map_err(|e| PlanError::Arm(e.to_string()))?;
+    let per = found.rows_per_candidate;
     let n = found.usable.len();
     if n == 0 {
         return Err(PlanError::NoCandidates);
@@ -293,7 +298,7 @@ pub fn plan_arm(
         let column = found.nuisance.column(c);
         column[r] * (n as f64).sqrt() / column.norm().max(1e-300)
     });
-    let chosen = choose(&effects, Some(&nuisance), n, o);
+    let chosen = choose(&effects, Some(&nuisance), (n, per), o);
     let mut state = m.new_state();
     let measurements = chosen
         .picks
@@ -340,9 +345,10 @@ impl Chosen {
     }
 }
 
-/// Chooses `o.budget` of the `n` candidate measurements for `effects` (and the parameters fitted beside
-/// them, `nuisance`, which are not reported), greedy D-optimal or at random.
-fn choose(effects: &[Signature], nuisance: Option<&DMatrix<f64>>, n: usize, o: &PlanOptions) -> Chosen {
+/// Chooses `o.budget` of the `n` candidate measurements (each `per` rows of the signatures) for `effects`
+/// (and the parameters fitted beside them, `nuisance`, which are not reported), greedy D-optimal or at
+/// random.
+fn choose(effects: &[Signature], nuisance: Option<&DMatrix<f64>>, (n, per): (usize, usize), o: &PlanOptions) -> Chosen {
     let signatures: Vec<&DMatrix<f64>> = effects.iter().map(|e| &e.signature).collect();
     let all = hstack(&[signatures.clone(), nuisance.into_iter().collect()].concat());
     let picks = match o.random {
@@ -352,9 +358,9 @@ fn choose(effects: &[Signature], nuisance: Option<&DMatrix<f64>>, n: usize, o: &
             order.truncate(o.budget);
             order
         }
-        None => greedy_d_optimal(&all, o.budget),
+        None => greedy_d_optimal(&all, o.budget, per),
     };
-    let on_plan = |j: &DMatrix<f64>| rows_of(j, &picks);
+    let on_plan = |j: &DMatrix<f64>| rows_of(j, &picks, per);
     let planned: Vec<DMatrix<f64>> = signatures.iter().map(|j| on_plan(j)).collect();
     let fitted_beside = nuisance.map(on_plan);
     // Nested pairs (one effect's signature inside a larger one's: gravity in gravity-offset, an actuator
@@ -429,9 +435,9 @@ fn hstack(blocks: &[&DMatrix<f64>]) -> DMatrix<f64> {
     out
 }
 
-/// The three rows of each picked measurement.
-fn rows_of(j: &DMatrix<f64>, picks: &[usize]) -> DMatrix<f64> {
-    DMatrix::from_fn(3 * picks.len(), j.ncols(), |r, c| j[(3 * picks[r / 3] + r % 3, c)])
+/// The `per` rows of each picked measurement.
+fn rows_of(j: &DMatrix<f64>, picks: &[usize], per: usize) -> DMatrix<f64> {
+    DMatrix::from_fn(per * picks.len(), j.ncols(), |r, c| j[(per * picks[r / per] + r % per, c)])
 }
 
 /// Two effects are inseparable on a plan when the sine of the smallest angle between their signatures is
@@ -498,18 +504,18 @@ fn log_det_regularised(m: &DMatrix<f64>, all: &DMatrix<f64>) -> f64 {
 }
 
 /// Greedy D-optimal choice of `budget` measurements (three rows each of `all`), each at most once.
-fn greedy_d_optimal(all: &DMatrix<f64>, budget: usize) -> Vec<usize> {
+fn greedy_d_optimal(all: &DMatrix<f64>, budget: usize, per: usize) -> Vec<usize> {
     let p = all.ncols();
-    let count = all.nrows() / 3;
+    let count = all.nrows() / per;
     let mut inverse = DMatrix::<f64>::identity(p, p) / ridge(all);
     let mut picked = vec![false; count];
     let mut out = Vec::with_capacity(budget);
     for _ in 0..budget {
         let mut best = (f64::NEG_INFINITY, usize::MAX);
         for i in (0..count).filter(|&i| !picked[i]) {
-            let ji = all.rows(3 * i, 3);
+            let ji = all.rows(per * i, per);
             let a = ji * &inverse;
-            let g = Matrix3::identity() + Matrix3::from_fn(|r, c| a.row(r).dot(&ji.row(c)));
+            let g = DMatrix::identity(per, per) + DMatrix::from_fn(per, per, |r, c| a.row(r).dot(&ji.row(c)));
             let gain = g.determinant().ln();
             if gain > best.0 {
                 best = (gain, i);
@@ -522,9 +528,9 @@ fn greedy_d_optimal(all: &DMatrix<f64>, budget: usize) -> Vec<usize> {
         picked[i] = true;
         out.push(i);
         // Woodbury: (M + J^T J)^-1 = M^-1 - M^-1 J^T (I + J M^-1 J^T)^-1 J M^-1.
-        let ji = all.rows(3 * i, 3).into_owned();
+        let ji = all.rows(per * i, per).into_owned();
         let mj = &inverse * ji.transpose();
-        let g = DMatrix::<f64>::identity(3, 3) + &ji * &mj;
+        let g = DMatrix::<f64>::identity(per, per) + &ji * &mj;
         if let Some(gi) = g.try_inverse() {
             inverse -= &mj * gi * mj.transpose();
         }
