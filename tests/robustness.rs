@@ -486,3 +486,43 @@ fn error_file_values_are_checked_and_located() {
         assert!(e.contains(what) && e.contains("e.toml, line 4"), "{body}: {e}");
     }
 }
+
+/// Regression: a file written on Windows (CR LF line ends) had every located error one line early: the csv
+/// crate reports the line of a record after a CR LF line end one line early (rust-csv issue #395). A bad
+/// number on line 3 of a points file, of joint-space measurements and of pose measurements is now named at
+/// line 3, and the same files with LF line ends give the same messages.
+#[test]
+fn a_crlf_file_names_the_faulty_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("points.csv", "x_mm,y_mm,z_mm\r\n0,0,0\r\n0,nan,0\r\n", vec!["map", "manipulators/orthoglide-3puu.toml", "--points"]),
+        (
+            "joints.csv",
+            "q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm\r\n0,0,0,0,0,0,1,2,3\r\n0,0,0,0,0,0,nan,2,3\r\n",
+            vec!["diagnose", "manipulators/fanuc-r2000ic.toml", "--data"],
+        ),
+        (
+            "poses.csv",
+            "pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm\r\n\
+             a,0,0,0,100,0,0,0,0,0,0.01,0,0\r\nb,0,0,0,100,0,0,0,0,0,nan,0,0\r\n",
+            vec!["diagnose", "manipulators/orthoglide-3puu.toml", "--data"],
+        ),
+    ];
+    for (name, text, args) in cases {
+        let mut messages = Vec::new();
+        for (file, body) in
+            [(format!("crlf-{name}"), text.to_string()), (format!("lf-{name}"), text.replace("\r\n", "\n"))]
+        {
+            let path = dir.path().join(&file);
+            std::fs::write(&path, body).unwrap();
+            let mut a: Vec<&str> = args.clone();
+            let p = path.to_str().unwrap();
+            a.push(p);
+            a.extend(["-o", "/dev/null"].iter().filter(|_| args[0] == "map"));
+            let e = refused(&run(&a));
+            assert!(e.contains(&format!("{file}, line 3")), "{e}");
+            messages.push(e.replace(&file, "FILE"));
+        }
+        assert_eq!(messages[0], messages[1]);
+    }
+}
