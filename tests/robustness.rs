@@ -495,7 +495,11 @@ fn error_file_values_are_checked_and_located() {
 fn a_crlf_file_names_the_faulty_line() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
-        ("points.csv", "x_mm,y_mm,z_mm\r\n0,0,0\r\n0,nan,0\r\n", vec!["map", "manipulators/orthoglide-3puu.toml", "--points"]),
+        (
+            "points.csv",
+            "x_mm,y_mm,z_mm\r\n0,0,0\r\n0,nan,0\r\n",
+            vec!["map", "manipulators/orthoglide-3puu.toml", "--points"],
+        ),
         (
             "joints.csv",
             "q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm\r\n0,0,0,0,0,0,1,2,3\r\n0,0,0,0,0,0,nan,2,3\r\n",
