@@ -117,7 +117,6 @@ fn run_joint_space(
 ) -> Result<()> {
     use crate::diagnose::calibrate::{correction_table, synthesize_positions, ArmEffect, ArmKind, PositionSynth};
     use crate::kinematics::frame::Vec3;
-    use crate::output::table::{CellKind, Column};
     if a.wrenches.is_some() || a.linear || a.repeats != 1 || a.shard.shard.is_some() {
         bail!("--wrenches, --linear, --repeats and --shard are not for joint-space points: the arm is measured under its own weight");
     }
@@ -207,53 +206,25 @@ fn run_joint_space(
     let configurations = crate::diagnose::calibrate::configurations(&read);
     let loaded = read.iter().any(|p| p.wrench.is_some_and(|w| w != crate::kinematics::frame::Vec6::zeros()));
     let (rows, skipped) = synthesize_positions(&real, &configurations, &hidden).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut columns = vec![Column { name: "pose_id".into(), kind: CellKind::Text }];
-    columns.extend(
-        names.iter().map(|n| Column { name: format!("{}{n}", crate::columns::JOINT_PREFIX), kind: CellKind::Number }),
-    );
-    if loaded {
-        columns.extend(crate::columns::WRENCH.iter().map(|c| Column { name: c.to_string(), kind: CellKind::Number }));
+    use crate::diagnose::positions::{MeasuredLayout, MeasuredRow};
+    use crate::output::table::{header_line, selected_columns, write_row};
+    let layout = MeasuredLayout {
+        joints: names.clone(),
+        loaded,
+        sigma_mm: a.noise.max(crate::diagnose::data::MIN_SIGMA_MM),
+        sigma_mrad: a.orientation_noise.map(|n| n.max(crate::diagnose::data::MIN_SIGMA_MM)),
+        setups: hidden.setups.len() > 1,
+    };
+    fn row(r: &crate::diagnose::calibrate::SynthRow) -> MeasuredRow<'_> {
+        let ((name, joints, wrench), (at, seen), gross, held, setup) = r;
+        MeasuredRow { name, joints, wrench, at, orientation: seen.as_ref(), check: *held, setup: *setup, gross: *gross }
     }
-    for c in ["mx_mm", "my_mm", "mz_mm", crate::columns::SIGMA] {
-        columns.push(Column { name: c.into(), kind: CellKind::Number });
-    }
-    if hidden.orientation.is_some() {
-        for c in ["mqw", "mqx", "mqy", "mqz", crate::diagnose::positions::SIGMA_MRAD] {
-            columns.push(Column { name: c.into(), kind: CellKind::Number });
-        }
-    }
-    columns.push(Column { name: crate::diagnose::positions::SET.into(), kind: CellKind::Text });
-    let several = hidden.setups.len() > 1;
-    if several {
-        columns.push(Column { name: crate::diagnose::positions::SETUP.into(), kind: CellKind::Text });
-    }
-    columns.push(Column { name: "hidden_gross".into(), kind: CellKind::Count });
+    let blank = (String::new(), vec![0.0; names.len()], crate::kinematics::frame::Vec6::zeros());
+    let columns = selected_columns(&row(&(blank, (Vec3::zeros(), None), false, false, 0)), &layout, None);
     let mut sink = a.output.open(&columns)?;
-    let mut text = crate::output::table::header_line(&columns);
-    for ((name, joints, wrench), (at, seen), gross, held, setup) in &rows {
-        let mut q: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
-        if loaded {
-            q.extend(wrench.iter().map(|v| format!("{v:?}")));
-        }
-        let orientation = match (seen, a.orientation_noise) {
-            (Some(r), Some(noise)) => {
-                let q = nalgebra::UnitQuaternion::from_matrix(r);
-                let sigma = noise.max(crate::diagnose::data::MIN_SIGMA_MM);
-                format!(",{:?},{:?},{:?},{:?},{sigma:?}", q.w, q.i, q.j, q.k)
-            }
-            _ => String::new(),
-        };
-        text += &format!(
-            "{name},{},{:?},{:?},{:?},{:?}{orientation},{}{},{}\n",
-            q.join(","),
-            at.x,
-            at.y,
-            at.z,
-            a.noise.max(crate::diagnose::data::MIN_SIGMA_MM),
-            if *held { "check" } else { "fit" },
-            if several { format!(",s{}", setup + 1) } else { String::new() },
-            u8::from(*gross)
-        );
+    let mut text = header_line(&columns);
+    for r in &rows {
+        write_row(&row(r), &layout, &mut text);
     }
     sink.writer().write_all(text.as_bytes())?;
     sink.finish()?;

@@ -2088,7 +2088,7 @@ pub fn signatures(
 
 /// One synthetic row: the configuration, the measured target (mm) and its orientation where measured,
 /// whether it was made gross, whether it is held out, and its set-up.
-type SynthRow = (Configuration, (Vec3, Option<Mat3>), bool, bool, usize);
+pub type SynthRow = (Configuration, (Vec3, Option<Mat3>), bool, bool, usize);
 
 /// Joint-space measurements of `m` (the robot as it really is: its offsets, compliances, geometry and payload
 /// built into the description) at the controller's angles of each configuration: the target where the arm's

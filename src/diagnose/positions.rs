@@ -514,3 +514,73 @@ fn index_of(names: &mut Vec<String>, name: String) -> usize {
         }
     }
 }
+
+/// The column `stiff synth` adds to its joint-space data: 1 on the rows it made gross (for a test to check
+/// the calibration's verdicts; the calibration does not read it).
+pub const HIDDEN_GROSS: &str = "hidden_gross";
+
+/// One measured configuration as `stiff synth` writes it, in the format `PositionData::read` reads: the
+/// controller's angles, the wrench where the file has one, the target's position (and orientation, as a
+/// unit quaternion) in the instrument's frame, the set and the set-up.
+pub struct MeasuredRow<'a> {
+    /// The row's name (`pose_id`).
+    pub name: &'a str,
+    /// The controller's angles, in the arm's order.
+    pub joints: &'a [f64],
+    /// The wrench at the reference point.
+    pub wrench: &'a Vec6,
+    /// The target's position in the instrument's frame, mm.
+    pub at: &'a Vec3,
+    /// Its orientation there, where measured.
+    pub orientation: Option<&'a Mat3>,
+    /// Held out (`set` = check).
+    pub check: bool,
+    /// The set-up (0-based; written `s1`, `s2`, ...).
+    pub setup: usize,
+    /// Made gross.
+    pub gross: bool,
+}
+
+/// What fixes a measurement file's columns.
+pub struct MeasuredLayout {
+    /// The arm's joints, in its order.
+    pub joints: Vec<String>,
+    /// The rows carry wrenches.
+    pub loaded: bool,
+    /// The positions' standard deviation written, mm.
+    pub sigma_mm: f64,
+    /// The orientations' standard deviation written (mrad), where orientations are measured.
+    pub sigma_mrad: Option<f64>,
+    /// The instrument was moved: a `setup` column.
+    pub setups: bool,
+}
+
+impl crate::output::table::Row for MeasuredRow<'_> {
+    type Layout = MeasuredLayout;
+
+    fn record(&self, l: &MeasuredLayout, r: &mut impl crate::output::table::Record) {
+        r.text(POSE_ID, self.name);
+        for (name, q) in l.joints.iter().zip(self.joints) {
+            r.number(format_args!("{JOINT_PREFIX}{name}"), *q);
+        }
+        if l.loaded {
+            r.six(WRENCH, Some(self.wrench));
+        }
+        for (k, name) in ["mx_mm", "my_mm", "mz_mm"].iter().enumerate() {
+            r.number(name, self.at[k]);
+        }
+        r.number(SIGMA, l.sigma_mm);
+        if let Some(sigma) = l.sigma_mrad {
+            let q = self.orientation.map(|m| nalgebra::UnitQuaternion::from_matrix(m));
+            for (k, name) in ["mqw", "mqx", "mqy", "mqz"].iter().enumerate() {
+                r.optional(name, q.map(|q| [q.w, q.i, q.j, q.k][k]));
+            }
+            r.number(SIGMA_MRAD, sigma);
+        }
+        r.text(SET, if self.check { "check" } else { "fit" });
+        if l.setups {
+            r.text(SETUP, &format!("s{}", self.setup + 1));
+        }
+        r.count(HIDDEN_GROSS, Some(u64::from(self.gross)));
+    }
+}
