@@ -634,7 +634,21 @@ fn the_plans_signatures_are_finite_differences_of_the_measured_target() {
         change(&mut down, -h);
         (measured_target(&up, t, true) - measured_target(&down, t, true)) / (2.0 * h) / noise
     };
-    let offset = |h: &mut Hidden, d: f64| h.offsets[1] = d;
+    assert_signatures_are_differences(&found, &angles, 1, (3, 0), difference);
+}
+
+/// The signatures `found` of an offset of joint `offset_joint` and of J3's added compliance (the effects in
+/// that order) equal `difference`, the central differences of this file's generator under a change of
+/// `Hidden`, at each configuration of `angles`: rows `first..first + 3` of each candidate's `per`, to 1% of
+/// the difference's size, with one sign for all rows (the residual's or the prediction's).
+fn assert_signatures_are_differences(
+    found: &calibrate::Signatures,
+    angles: &[[f64; 6]],
+    offset_joint: usize,
+    (per, first): (usize, usize),
+    difference: impl Fn(&dyn Fn(&mut Hidden, f64), f64, &[f64; 6]) -> Vec3,
+) {
+    let offset = |h: &mut Hidden, d: f64| h.offsets[offset_joint] = d;
     // The hidden compliance is a factor on the source's: an added compliance c is the factor 1 + c k3.
     let compliance = |h: &mut Hidden, c: f64| h.compliance[2] = 1.0 + c * K_JOINT[2];
     for (e, (change, step)) in
@@ -644,7 +658,7 @@ fn the_plans_signatures_are_finite_differences_of_the_measured_target() {
         let mut sign = 0.0;
         for (i, t) in angles.iter().enumerate() {
             let fd = difference(change, step, t);
-            let s = Vec3::new(signature[(3 * i, 0)], signature[(3 * i + 1, 0)], signature[(3 * i + 2, 0)]);
+            let s = Vec3::from_fn(|a, _| signature[(per * i + first + a, 0)]);
             if sign == 0.0 {
                 sign = s.dot(&fd).signum();
             }
@@ -1257,22 +1271,7 @@ fn a_plan_with_orientations_weighs_what_they_tell() {
         let (a, b) = (measured_pose(&up, t, true, &Vec3::zeros()).1, measured_pose(&down, t, true, &Vec3::zeros()).1);
         stiff::kinematics::frame::rotation_vector(&(a * b.transpose())) / (2.0 * h) / turn_noise
     };
-    let offset = |h: &mut Hidden, d: f64| h.offsets[3] = d;
-    let compliance = |h: &mut Hidden, c: f64| h.compliance[2] = 1.0 + c * K_JOINT[2];
-    for (e, (change, step)) in
-        [(&offset as &dyn Fn(&mut Hidden, f64), 1e-6), (&compliance, 1e-12)].into_iter().enumerate()
-    {
-        let signature = &found.effects[e].1;
-        let mut sign = 0.0;
-        for (i, t) in angles.iter().enumerate() {
-            let fd = difference(change, step, t);
-            let s = Vec3::from_fn(|a, _| signature[(6 * i + 3 + a, 0)]);
-            if sign == 0.0 {
-                sign = s.dot(&fd).signum();
-            }
-            assert!((s * sign - fd).norm() <= 1e-2 * fd.norm(), "{} at c{i}: {s} vs {fd}", found.effects[e].0);
-        }
-    }
+    assert_signatures_are_differences(&found, &angles, 3, (6, 3), difference);
     let detectable = |extra: &[&str]| -> f64 {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
             .args(["plan", FANUC, "--candidates", "manipulators/grids/fanuc-r2000ic-cable-tests.csv"])

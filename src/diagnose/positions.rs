@@ -571,7 +571,7 @@ impl crate::output::table::Row for MeasuredRow<'_> {
         }
         r.number(SIGMA, l.sigma_mm);
         if let Some(sigma) = l.sigma_mrad {
-            let q = self.orientation.map(|m| nalgebra::UnitQuaternion::from_matrix(m));
+            let q = self.orientation.map(nalgebra::UnitQuaternion::from_matrix);
             for (k, name) in ["mqw", "mqx", "mqy", "mqz"].iter().enumerate() {
                 r.optional(name, q.map(|q| [q.w, q.i, q.j, q.k][k]));
             }
