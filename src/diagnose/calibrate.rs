@@ -850,18 +850,18 @@ impl<'a> Problem<'a> {
                 }
                 moves
             }
+            // The instrument's position readings drift; the tool's turn is not one of them.
+            ArmKind::Drift if turning => vec![Vec3::zeros(); 3],
             // A rate per row of the file (its line: the targets of one line were seen together), from the
             // first row; what is common to every row is the registration's.
-            // The instrument's readings drift; the tool's turn is not a reading of its scale.
-            ArmKind::Drift if turning => vec![Vec3::zeros(); 3],
             ArmKind::Drift => {
                 let t = (self.data.rows[r].line - self.data.rows[0].line) as f64;
                 (0..3).map(|k| Vec3::ith(k, t)).collect()
             }
-            // The force through the tool: the row's wrench, the description's payload and one being fitted
-            // (for a displacement, the wrench's alone: the weights are in both states).
             // It moves the tool along its own axes (a spring in translation): no turn.
             ArmKind::ToolCompliance if turning => vec![Vec3::zeros(); 3],
+            // The force through the tool: the row's wrench, the description's payload and one being fitted
+            // (for a displacement, the wrench's alone: the weights are in both states).
             ArmKind::ToolCompliance => {
                 let row = &self.data.rows[r];
                 let mut force = row.wrench.fixed_rows::<3>(0).into_owned();
