@@ -224,7 +224,7 @@ fn offsets_a_compliance_and_a_gross_row_are_named_and_the_held_out_rows_sit_at_t
         // Named whether fitted or held out (a held-out row is judged against the fitted rows' scale).
         let held = if data.rows[gross[0]].check { ", held out" } else { "" };
         let gross_name = format!("c{} (line {}{held})", gross[0], gross[0] + 2);
-        assert_eq!(c.left_out.iter().map(|l| l.0.clone()).collect::<Vec<_>>(), [gross_name], "{report}");
+        assert_eq!(c.left_out.iter().map(|l| l.row.clone()).collect::<Vec<_>>(), [gross_name], "{report}");
         let last = c.stages.last().unwrap();
         assert!(last.check.rms < 0.087 * 1.35, "seed {seed}: {report}");
         assert!(last.fit.rms < 0.087 * 1.25, "seed {seed}: {report}");
@@ -494,7 +494,7 @@ fn synth_writes_joint_space_data_that_the_calibration_explains() {
     let text = std::fs::read_to_string(&data).unwrap();
     let mut made: Vec<String> =
         text.lines().skip(1).filter(|l| l.ends_with(",1")).map(|l| l.split(',').next().unwrap().to_string()).collect();
-    let mut found: Vec<String> = c.left_out.iter().map(|(n, _)| n.split(' ').next().unwrap().to_string()).collect();
+    let mut found: Vec<String> = c.left_out.iter().map(|g| g.row.split(' ').next().unwrap().to_string()).collect();
     made.sort();
     found.sort();
     assert!(!made.is_empty() && made == found, "made gross {made:?}, named {found:?}");
@@ -1242,8 +1242,10 @@ fn a_gross_orientation_is_judged_against_the_orientations_own_scale() {
     }
     assert!(lines[0].split(',').nth(15) == Some("sigma_mrad"));
     let (_, c) = calibrate_text(&m, &(lines.join("\n") + "\n"), dir.path(), &[], &options(None));
-    let named: Vec<&str> = c.left_out.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(named, ["c7 (line 9)"], "{}", calibrate::text(&c, "FANUC"));
+    let named: Vec<(&str, &str)> = c.left_out.iter().map(|g| (g.row.as_str(), g.unit)).collect();
+    assert_eq!(named, [("c7 (line 9, orientation)", "mrad")], "{}", calibrate::text(&c, "FANUC"));
+    // About 3 mrad off, in the unit given.
+    assert!((c.left_out[0].misfit - 3.0).abs() < 0.5, "{}", c.left_out[0].misfit);
 }
 
 /// A plan for an instrument that measures orientations too (`plan --orientation-noise`): its signatures'

@@ -292,8 +292,8 @@ pub struct Calibration {
     pub nuisance: Vec<Nuisance>,
     /// Directions no fit could see, named by their parameters.
     pub not_identifiable: Vec<String>,
-    /// Gross rows left out: name and misfit, mm.
-    pub left_out: Vec<(String, f64)>,
+    /// Gross rows left out.
+    pub left_out: Vec<GrossRow>,
     /// Rows the model has no prediction for (no loaded equilibrium there), left out: the reason.
     pub unusable: Vec<String>,
     /// Errors per stage.
@@ -398,6 +398,17 @@ impl Seen {
         let t = v + w.cross(&(p - o));
         self.of(&Vec6::new(t.x, t.y, t.z, w.x, w.y, w.z))
     }
+}
+
+/// A gross row left out of the fits.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GrossRow {
+    /// The row: its name and line, `held out` and `orientation` where it is one.
+    pub row: String,
+    /// Its misfit against the model selected: mm for a position, mrad for an orientation.
+    pub misfit: f64,
+    /// The misfit's unit.
+    pub unit: &'static str,
 }
 
 /// The failures of a calibration.
@@ -1706,15 +1717,18 @@ pub fn calibrate(
         left_out: gross
             .iter()
             .map(|&r| {
-                (
-                    format!(
-                        "{} (line {}{})",
+                let turning = matches!(data.rows[r].observed, Observed::Orientation { .. });
+                GrossRow {
+                    row: format!(
+                        "{} (line {}{}{})",
                         data.rows[r].name,
                         data.rows[r].line,
-                        if data.rows[r].check { ", held out" } else { "" }
+                        if data.rows[r].check { ", held out" } else { "" },
+                        if turning { ", orientation" } else { "" }
                     ),
-                    residuals[r].map_or(f64::NAN, |v| v.norm()),
-                )
+                    misfit: residuals[r].map_or(f64::NAN, |v| v.norm()) * if turning { 1e3 } else { 1.0 },
+                    unit: if turning { "mrad" } else { "mm" },
+                }
             })
             .collect(),
         stages,
@@ -1888,8 +1902,8 @@ pub fn text(c: &Calibration, model: &str) -> String {
     for why in &c.unusable {
         let _ = writeln!(s, "row left out, no prediction: {why}");
     }
-    for (row, misfit) in &c.left_out {
-        let _ = writeln!(s, "gross row left out: {row}: {misfit:.4} mm from the model");
+    for g in &c.left_out {
+        let _ = writeln!(s, "gross row left out: {}: {:.4} {} from the model", g.row, g.misfit, g.unit);
     }
     for (k, step) in c.steps.iter().enumerate() {
         let mut tested: Vec<&Tested> = step.iter().filter(|t| t.f.is_some()).collect();
