@@ -33,6 +33,8 @@ struct Hidden {
     payload: (f64, Vec3),
     /// Gravity in the base frame, m/s^2 (a base that is not level).
     gravity: Vec3,
+    /// Play per joint, rad: the joint turned by it in the sense of its load, b sign(tau).
+    play: [f64; 6],
 }
 
 impl Hidden {
@@ -45,6 +47,7 @@ impl Hidden {
             compliance: [1.0; 6],
             payload: (0.0, Vec3::zeros()),
             gravity: Vec3::new(0.0, 0.0, -9.81),
+            play: [0.0; 6],
         }
     }
 }
@@ -80,8 +83,11 @@ fn measured_pose(h: &Hidden, t: &[f64; 6], gravity: bool, axes: &Vec3) -> (Vec3,
         }
         for (k, f) in frames.iter().enumerate() {
             let (z, o) = (Vec3::new(f[(0, 2)], f[(1, 2)], f[(2, 2)]), Vec3::new(f[(0, 3)], f[(1, 3)], f[(2, 3)]));
-            sag += z.cross(&(x - o)) * tau[k] * h.compliance[k] / K_JOINT[k];
-            turn += z * tau[k] * h.compliance[k] / K_JOINT[k];
+            // The joint's turn: its spring's, and its play taken up in the sense of its load.
+            let dq =
+                tau[k] * h.compliance[k] / K_JOINT[k] + h.play[k] * if tau[k] == 0.0 { 0.0 } else { tau[k].signum() };
+            sag += z.cross(&(x - o)) * dq;
+            turn += z * dq;
         }
     }
     let instrument = rotation_from_vector(&h.rotation);
@@ -1296,4 +1302,27 @@ fn a_plan_with_orientations_weighs_what_they_tell() {
     };
     let (with, without) = (detectable(&["--orientation-noise", "0.1"]), detectable(&[]));
     assert!(with < without, "J4's offset detectable at {with:e} rad with orientations, {without:e} without");
+}
+
+/// Play (`backlash:J`): the generator turns J2 by 1 mrad in the sense of its load (the weight's torque,
+/// whose sign follows the arm's lean) at every configuration, behind a hidden instrument frame and target,
+/// with 0.05 mm noise over 60 random configurations, a third held out. The calibration names J2's play and
+/// nothing else, its value within four standard errors of 1 mrad; the same data without the play name
+/// nothing.
+#[test]
+fn a_joints_play_is_named_from_the_sign_of_its_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let mut h = Hidden::registration_only();
+    h.play[1] = 1e-3;
+    let csv = synthetic(&h, 60, 0.05, &[], true, 41);
+    let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
+    let report = calibrate::text(&c, "FANUC");
+    let named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+    assert_eq!(named, ["backlash:J2"], "{report}");
+    let a = &c.accepted[0];
+    assert!((a.values[0] - 1e-3).abs() < 4.0 * a.se[0], "{report}");
+    let csv = synthetic(&Hidden::registration_only(), 60, 0.05, &[], true, 41);
+    let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
+    assert_eq!(c.verdict, Verdict::None, "{}", calibrate::text(&c, "FANUC"));
 }
