@@ -21,7 +21,7 @@ pub(crate) struct SynthArgs {
     pub(crate) model: ModelArgs,
     /// A hidden effect NAME[:TARGET]=V1,V2,... (repeatable), e.g. actuator-compliance:2=1.5, tool-offset=0.05,0,0.
     /// For a serial arm's joint-space points (q_<joint> columns): joint-offset:J=RAD, joint-compliance:J=ADDED,
-    /// joint-geometry:J=DX,DY,DZ,RX,RY,RZ (mm, rad), frame-compliance:J=CX,CY,CZ,CRX,CRY,CRZ (mm/N, rad/(N mm)),
+    /// backlash:J=B (play, rad), joint-geometry:J=DX,DY,DZ,RX,RY,RZ (mm, rad), frame-compliance:J=CX,CY,CZ,CRX,CRY,CRZ (mm/N, rad/(N mm)),
     /// payload=KG,CX,CY,CZ (tool frame, mm), and the set-up:
     /// registration=RX,RY,RZ,TX,TY,TZ (the instrument sees a base point p at R p + t; rad, mm; repeated: one
     /// set-up each, the configurations measured in that many blocks), target=X,Y,Z (on the tool, mm),
@@ -134,6 +134,7 @@ fn run_joint_space(
             Some(_) => bail!("--orientation-noise must be >= 0 (mrad)"),
             None => None,
         },
+        play: vec![0.0; names.len()],
     };
     let mut tables = String::new();
     for e in &a.effects {
@@ -182,8 +183,13 @@ fn run_joint_space(
                 let effect = ArmEffect::parse(name, names).map_err(|why| anyhow::anyhow!("--effect `{e}`: {why}"))?;
                 let joint = names[effect.joint].as_str();
                 match effect.kind {
-                    ArmKind::Backlash | ArmKind::ToolCompliance => {
-                        bail!("--effect `{e}`: a description of a URDF arm cannot hold it yet; synth makes offsets, compliances, geometry, frame compliances, payload and drift")
+                    ArmKind::ToolCompliance => {
+                        bail!("--effect `{e}`: a description of a URDF arm cannot hold it yet; synth makes offsets, compliances, play, geometry, frame compliances, payload and drift")
+                    }
+                    // Play, which no description holds, is applied where each configuration is measured.
+                    ArmKind::Backlash => {
+                        count(1)?;
+                        hidden.play[effect.joint] = values[0];
                     }
                     ArmKind::Payload => {
                         count(4)?;

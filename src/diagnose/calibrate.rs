@@ -1984,6 +1984,10 @@ pub struct PositionSynth {
     /// Where the target's orientation is measured too: its axes in the tool frame (a rotation vector, rad)
     /// and the noise about each axis (rad).
     pub orientation: Option<(Vec3, f64)>,
+    /// Play per joint (rad, or mm for a prismatic joint; empty: none), which no description holds: at each
+    /// configuration the joint's model coordinate sits this far off in the sense of the load it carries
+    /// there (`backlash:J`'s model, `ArmStatics::loads` at the commanded angles).
+    pub play: Vec<f64>,
     /// The seed of the noise, gross rows and directions.
     pub seed: u64,
 }
@@ -2100,6 +2104,28 @@ pub fn signatures(
     Ok(Signatures { usable, rows_per_candidate: 3 * per, nuisance: all.columns(0, nuisance).into_owned(), effects })
 }
 
+/// The controller's angles at which the arm sits when commanded to `commanded` with `play` per joint: each
+/// joint's model coordinate moved by its play in the sense of the load it carries there (none where that
+/// load is round-off); None where the statics or the controller's map fail there.
+fn with_play(
+    m: &Manipulator,
+    commanded: &[f64],
+    wrench: &Vec6,
+    play: &[f64],
+    state: &mut ManipulatorState,
+) -> Option<Vec<f64>> {
+    let space = m.joint_space.as_ref()?;
+    let statics = m.arm_statics(commanded, wrench, state)?;
+    let mut q = space.model_coordinates(commanded);
+    for (j, b) in play.iter().enumerate() {
+        let load = load_of(&statics, j);
+        if load != 0.0 {
+            q[j] += b * load.signum();
+        }
+    }
+    space.controller_angles(&q)
+}
+
 /// One synthetic row: the configuration, the measured target (mm) and its orientation where measured,
 /// whether it was made gross, whether it is held out, and its set-up.
 pub type SynthRow = (Configuration, (Vec3, Option<Mat3>), bool, bool, usize);
@@ -2126,8 +2152,19 @@ pub fn synthesize_positions(
     let mut state = m.new_state();
     let (mut rows, mut skipped) = (Vec::new(), 0);
     for (k, configuration) in configurations.iter().enumerate() {
-        let (_, joints, wrench) = configuration;
+        let (_, commanded, wrench) = configuration;
         let mut r = rand::rngs::StdRng::seed_from_u64(crate::batch::point_seed(s.seed, k as u64));
+        let played;
+        let joints = if s.play.iter().any(|b| *b != 0.0) {
+            let Some(p) = with_play(m, commanded, wrench, &s.play, &mut state) else {
+                skipped += 1;
+                continue;
+            };
+            played = p;
+            &played
+        } else {
+            commanded
+        };
         let Some(frame) = m.pose_at_joints(joints, &mut state) else {
             skipped += 1;
             continue;
