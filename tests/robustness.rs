@@ -530,3 +530,15 @@ fn a_crlf_file_names_the_faulty_line() {
         assert_eq!(messages[0], messages[1]);
     }
 }
+
+/// Positions in an instrument's frame (`mx_mm`, ...) at a parallel robot's poses are not yet calibrated: the
+/// refusal says what is (a serial arm's joint-space data) and what to give for this robot (displacements),
+/// instead of naming a missing wrench column.
+#[test]
+fn absolute_positions_for_a_parallel_robot_are_refused_saying_what_to_give() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("abs.csv");
+    std::fs::write(&path, "pose_id,x_mm,y_mm,z_mm,mx_mm,my_mm,mz_mm\na,0,0,0,1,2,3\n").unwrap();
+    let e = refused(&run(&["diagnose", "manipulators/orthoglide-3puu.toml", "--data", path.to_str().unwrap()]));
+    assert!(e.contains("serial arm read from URDF") && e.contains("dx_mm,dy_mm,dz_mm"), "{e}");
+}

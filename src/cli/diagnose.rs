@@ -102,6 +102,15 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
     if joint_space_data(&input) {
         return run_calibration(&a, &model.manipulator, &input);
     }
+    if absolute_positions(&input) {
+        bail!(
+            "{}: positions in an instrument's frame (mx_mm, ...) are calibrated for a serial arm read from URDF, \
+             at its joint coordinates (q_<joint> columns); for {} give the displacements under each row's wrench \
+             (dx_mm,dy_mm,dz_mm) at its poses",
+            a.data.display(),
+            model.manipulator.name
+        );
+    }
     if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() || a.sigma_mrad.is_some() {
         bail!(
             "--check-fraction, --fit, --candidates and --sigma-mrad are for joint-space data (q_<joint> columns); {} gives poses",
@@ -159,12 +168,20 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
     Ok(())
 }
 
+/// The data's header (empty where it has none).
+fn header_of(input: &[u8]) -> Vec<String> {
+    let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(input);
+    reader.headers().map(|h| h.iter().map(String::from).collect()).unwrap_or_default()
+}
+
+/// True when the data's header names measured positions in an instrument's frame (`mx...`).
+fn absolute_positions(input: &[u8]) -> bool {
+    header_of(input).iter().any(|c| c.starts_with("mx") && (c.ends_with("_mm") || c.ends_with("_m")))
+}
+
 /// True when the data's header names joint coordinates (`q_<joint>`): it is calibration data.
 fn joint_space_data(input: &[u8]) -> bool {
-    let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(input);
-    reader
-        .headers()
-        .is_ok_and(|h| crate::diagnose::positions::is_joint_space(&h.iter().map(String::from).collect::<Vec<_>>()))
+    crate::diagnose::positions::is_joint_space(&header_of(input))
 }
 
 /// A serial arm against joint-space measurements: registration fitted, effects selected, held-out rows
