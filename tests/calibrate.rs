@@ -457,6 +457,19 @@ fn joint_corrections_that_cannot_apply_are_located_errors() {
     assert!(e.contains("corrects the joints of a serial arm read from URDF"), "{e}");
 }
 
+/// A points file in `dir` of 60 random FANUC configurations (`c0`, `c1`, ...), drawn with `seed`.
+fn random_configurations(dir: &Path, seed: u64) -> std::path::PathBuf {
+    let mut r = rng(seed);
+    let mut points = String::from("name,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6\n");
+    for k in 0..60 {
+        let t: Vec<String> = random_angles(&mut r).iter().map(|v| format!("{v:?}")).collect();
+        points += &format!("c{k},{}\n", t.join(","));
+    }
+    let path = dir.join("q.csv");
+    std::fs::write(&path, points).unwrap();
+    path
+}
+
 /// `stiff synth` on joint-space points writes data as a lab records them, from the robot with the hidden
 /// changes built into its description and measured at its loaded equilibrium under its own weight (not the
 /// calibration's first-order model): a hidden instrument frame and target, two offsets, a compliance, a
@@ -466,16 +479,10 @@ fn joint_corrections_that_cannot_apply_are_located_errors() {
 #[test]
 fn synth_writes_joint_space_data_that_the_calibration_explains() {
     let dir = tempfile::tempdir().unwrap();
-    let mut r = rng(21);
-    let mut points = String::from("name,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6\n");
-    for k in 0..60 {
-        let t: Vec<String> = random_angles(&mut r).iter().map(|v| format!("{v:?}")).collect();
-        points += &format!("c{k},{}\n", t.join(","));
-    }
-    std::fs::write(dir.path().join("q.csv"), points).unwrap();
+    let points = random_configurations(dir.path(), 21);
     let data = dir.path().join("data.csv");
     let c3 = 0.8 / K_JOINT[2];
-    synth_four_effects(&dir.path().join("q.csv"), "0.05", 4, &data);
+    synth_four_effects(&points, "0.05", 4, &data);
     let m = fanuc(false, dir.path());
     let names = &m.joint_space.as_ref().unwrap().names;
     let d = PositionData::read(&data, names).unwrap();
@@ -1333,17 +1340,11 @@ fn a_joints_play_is_named_from_the_sign_of_its_load() {
 #[test]
 fn synth_hides_a_joints_play_that_the_calibration_names() {
     let dir = tempfile::tempdir().unwrap();
-    let mut r = rng(43);
-    let mut points = String::from("name,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6\n");
-    for k in 0..60 {
-        let t: Vec<String> = random_angles(&mut r).iter().map(|v| format!("{v:?}")).collect();
-        points += &format!("c{k},{}\n", t.join(","));
-    }
-    std::fs::write(dir.path().join("q.csv"), points).unwrap();
+    let points = random_configurations(dir.path(), 43);
     let data = dir.path().join("play.csv");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
         .args(["synth", FANUC, "--points"])
-        .arg(dir.path().join("q.csv"))
+        .arg(&points)
         .args(["--effect", "registration=0.1,-0.2,0.3,1500,-300,200", "--effect", "target=20,-10,30"])
         .args(["--effect", "backlash:J2=0.001", "--noise", "0.05", "--seed", "5", "--check-every", "3", "-q", "-o"])
         .arg(&data)
