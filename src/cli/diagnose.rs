@@ -174,9 +174,9 @@ fn header_of(input: &[u8]) -> Vec<String> {
     reader.headers().map(|h| h.iter().map(String::from).collect()).unwrap_or_default()
 }
 
-/// True when the data's header names measured positions in an instrument's frame (`mx...`).
+/// True when the data's header names measured positions in an instrument's frame (`mx_mm,...`).
 fn absolute_positions(input: &[u8]) -> bool {
-    header_of(input).iter().any(|c| c.starts_with("mx") && (c.ends_with("_mm") || c.ends_with("_m")))
+    crate::diagnose::positions::has_positions(&header_of(input))
 }
 
 /// True when the data's header names joint coordinates (`q_<joint>`): it is calibration data.

@@ -480,8 +480,19 @@ impl<'a> Problem<'a> {
         };
         // A row whose loaded equilibrium the model cannot find (a singular configuration, a load past a
         // limit) is left out and named: the model has no prediction there.
-        let mut unusable = Vec::new();
+        let mut unusable: Vec<(usize, String)> = Vec::new();
+        // The rows of one line of the file (several targets, a position and its orientation) share its
+        // configuration, wrench and gravity: their equilibrium and statics are those of the line's first.
+        let same_line = |k: usize| k > 0 && data.rows[k - 1].line == data.rows[k].line;
         for (k, r) in data.rows.iter().enumerate() {
+            if same_line(k) {
+                if let Some((_, why)) = unusable.last().filter(|(u, _)| *u == k - 1) {
+                    unusable.push((k, why.clone()));
+                }
+                deflection.push(deflection[k - 1]);
+                compliance.push(compliance[k - 1]);
+                continue;
+            }
             let arm = arm_of(k);
             let found = match (compliant, r.observed) {
                 (false, _) => Ok((Vec6::zeros(), None)),
@@ -509,8 +520,12 @@ impl<'a> Problem<'a> {
                 1.0 / r.sigma.or(given).unwrap_or(1.0)
             })
             .collect();
-        let mut statics = Vec::with_capacity(data.rows.len());
+        let mut statics: Vec<(ArmStatics, Option<ArmStatics>)> = Vec::with_capacity(data.rows.len());
         for (k, r) in data.rows.iter().enumerate() {
+            if same_line(k) {
+                statics.push(statics[k - 1].clone());
+                continue;
+            }
             let m = arm_of(k);
             let zero = match r.observed {
                 Observed::Displacement(_) => Some(Vec6::zeros()),
@@ -560,11 +575,7 @@ impl<'a> Problem<'a> {
     /// misfit. Returns the candidates kept and a note for each left out.
     fn two_sided_play(&self, candidates: Vec<ArmEffect>, rows: &[usize]) -> (Vec<ArmEffect>, Vec<String>) {
         // An orientation shares its position row's load: counted once.
-        let rows: Vec<usize> = rows
-            .iter()
-            .copied()
-            .filter(|&r| !matches!(self.data.rows[r].observed, Observed::Orientation { .. }))
-            .collect();
+        let rows: Vec<usize> = rows.iter().copied().filter(|&r| !self.data.rows[r].observed.is_orientation()).collect();
         let mut notes = Vec::new();
         let kept = candidates
             .into_iter()
@@ -953,14 +964,9 @@ impl<'a> Problem<'a> {
             }
             let n = pairs.len() as f64;
             let (ca, cb) = pairs.iter().fold((Vec3::zeros(), Vec3::zeros()), |(a, b), (p, q)| (a + p / n, b + q / n));
-            let h = pairs.iter().fold(Mat3::zeros(), |h, (p, q)| h + (p - ca) * (q - cb).transpose());
-            let svd = h.svd(true, true);
-            let (u, vt) = (svd.u.unwrap_or_else(Mat3::identity), svd.v_t.unwrap_or_else(Mat3::identity));
-            let mut d = Mat3::identity();
-            if (vt.transpose() * u.transpose()).determinant() < 0.0 {
-                d[(2, 2)] = -1.0;
-            }
-            let rotation = vt.transpose() * d * u.transpose();
+            // Kabsch: the rotation nearest the cross-covariance sum (q - cb) (p - ca)^T.
+            let h = pairs.iter().fold(Mat3::zeros(), |h, (p, q)| h + (q - cb) * (p - ca).transpose());
+            let rotation = nearest_rotation(&h);
             params.rotations[s] = rotation;
             params.translations[s] = cb - rotation * ca;
         }
@@ -1304,7 +1310,7 @@ fn gross_rows(problem: &Problem, residuals: &[Option<Vec3>], rows: &[usize]) -> 
 /// so that a stated sigma of one kind that is off does not make the other's rows look gross.
 fn gross_rows_against(problem: &Problem, residuals: &[Option<Vec3>], scaled: &[usize], tested: &[usize]) -> Vec<usize> {
     let misfit = |r: usize| residuals[r].map_or(f64::INFINITY, |v| v.norm() * problem.weight[r]);
-    let turning = |r: &usize| matches!(problem.data.rows[*r].observed, Observed::Orientation { .. });
+    let turning = |r: &usize| problem.data.rows[*r].observed.is_orientation();
     let mut gross = Vec::new();
     for kind in [false, true] {
         let mut sorted: Vec<f64> =
@@ -1657,6 +1663,11 @@ pub fn calibrate(
             }
         }
     }
+    // The rows of `rows` that are orientations (`turning`) or positions and displacements.
+    let only = |rows: &[usize], turning: bool| -> Vec<usize> {
+        rows.iter().copied().filter(|&k| data.rows[k].observed.is_orientation() == turning).collect()
+    };
+    let oriented = data.rows.iter().any(|r| r.observed.is_orientation());
     // Errors after the registration alone, then after each effect in the order accepted.
     let mut stages = Vec::new();
     let registration: Vec<ArmEffect> = options.fitted.clone();
@@ -1682,19 +1693,15 @@ pub fn calibrate(
         };
         let Some(f) = f else { continue };
         let r = problem.residuals(&staged, &f.params);
-        let (turning, placed): (Vec<usize>, Vec<usize>) =
-            (0..data.rows.len()).partition(|&k| matches!(data.rows[k].observed, Observed::Orientation { .. }));
-        let only =
-            |rows: &[usize], of: &[usize]| -> Vec<usize> { rows.iter().copied().filter(|k| of.contains(k)).collect() };
         let in_mrad: Vec<Option<Vec3>> = r.iter().map(|v| v.map(|v| v * 1e3)).collect();
         stages.push(Stage {
             model: label,
             parameters: f.rank,
-            fit: stats(&r, &only(&kept, &placed)),
-            check: stats(&r, &only(&check_rows, &placed)),
-            check_all: stats(&r, &only(&all_checks, &placed)),
-            orientation: (!turning.is_empty())
-                .then(|| [stats(&in_mrad, &only(&kept, &turning)), stats(&in_mrad, &only(&check_rows, &turning))]),
+            fit: stats(&r, &only(&kept, false)),
+            check: stats(&r, &only(&check_rows, false)),
+            check_all: stats(&r, &only(&all_checks, false)),
+            orientation: oriented
+                .then(|| [stats(&in_mrad, &only(&kept, true)), stats(&in_mrad, &only(&check_rows, true))]),
         });
     }
     if !check_rows.is_empty() && stages.len() == order.len() + 1 {
@@ -1717,7 +1724,7 @@ pub fn calibrate(
         left_out: gross
             .iter()
             .map(|&r| {
-                let turning = matches!(data.rows[r].observed, Observed::Orientation { .. });
+                let turning = data.rows[r].observed.is_orientation();
                 GrossRow {
                     row: format!(
                         "{} (line {}{}{})",

@@ -65,6 +65,11 @@ pub enum Observed {
 }
 
 impl Observed {
+    /// True for an orientation (its residual in rad, not mm).
+    pub fn is_orientation(&self) -> bool {
+        matches!(self, Observed::Orientation { .. })
+    }
+
     /// The target and set-up of a measurement in the instrument's frame (None for a displacement).
     pub fn target_and_setup(&self) -> Option<(usize, usize)> {
         match *self {
@@ -125,6 +130,12 @@ pub struct PositionData {
 /// True when a measurement file's header names joint coordinates: it is read by `PositionData::read`.
 pub fn is_joint_space(header: &[String]) -> bool {
     header.iter().any(|h| h.starts_with(JOINT_PREFIX))
+}
+
+/// True when a measurement file's header names positions in an instrument's frame (`mx_mm,my_mm,mz_mm` or a
+/// group of them).
+pub fn has_positions(header: &[String]) -> bool {
+    !position_groups(header).is_empty()
 }
 
 /// One group of measured position columns: the target it names (its suffix) and the columns of x, y, z, and
@@ -490,18 +501,18 @@ impl PositionData {
     /// The data without the orientations that have no standard deviation (no `sigma_mrad` cell and no
     /// `sigma_rad` given): an angle cannot be weighed against a length without one. Their columns are named
     /// among the unread ones, saying what to give.
-    pub fn without_unweighted_orientations(&self, sigma_rad: Option<f64>) -> PositionData {
-        let unweighted =
-            |r: &PositionRow| matches!(r.observed, Observed::Orientation { .. }) && r.sigma.or(sigma_rad).is_none();
-        let mut out = self.clone();
-        if self.rows.iter().any(unweighted) {
-            out.rows.retain(|r| !unweighted(r));
-            out.unread.push(format!(
-                "{} (orientations without a standard deviation: give a {SIGMA_MRAD} column or --sigma-mrad)",
-                self.orientation_columns.join(", ")
-            ));
+    pub fn without_unweighted_orientations(&self, sigma_rad: Option<f64>) -> std::borrow::Cow<'_, PositionData> {
+        let unweighted = |r: &PositionRow| r.observed.is_orientation() && r.sigma.or(sigma_rad).is_none();
+        if !self.rows.iter().any(unweighted) {
+            return std::borrow::Cow::Borrowed(self);
         }
-        out
+        let mut out = self.clone();
+        out.rows.retain(|r| !unweighted(r));
+        out.unread.push(format!(
+            "{} (orientations without a standard deviation: give a {SIGMA_MRAD} column or --sigma-mrad)",
+            self.orientation_columns.join(", ")
+        ));
+        std::borrow::Cow::Owned(out)
     }
 }
 

@@ -196,11 +196,9 @@ impl<R: std::io::Read> std::io::Read for LfLineEnds<R> {
                             Some(b'\n') => self.start += 1,
                             // A CR whose next byte has not been read: stop here and read on.
                             None if !self.eof => break,
-                            // A lone CR (or the input's last byte) stays.
+                            // A lone CR (or the input's last byte) stays: there is room for it, as the search
+                            // above stopped short of the room left.
                             _ => {
-                                if written == out.len() {
-                                    break;
-                                }
                                 out[written] = b'\r';
                                 written += 1;
                                 self.start += 1;
