@@ -8,6 +8,7 @@ mod allocation;
 mod architecture;
 mod assemble;
 mod calibrate;
+mod calibrate_legs;
 mod cli;
 mod cli_surface;
 mod closed_forms;

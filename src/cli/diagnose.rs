@@ -103,13 +103,9 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         return run_calibration(&a, &model.manipulator, &input);
     }
     if absolute_positions(&input) {
-        bail!(
-            "{}: positions in an instrument's frame (mx_mm, ...) are calibrated for a serial arm read from URDF, \
-             at its joint coordinates (q_<joint> columns); for {} give the displacements under each row's wrench \
-             (dx_mm,dy_mm,dz_mm) at its poses",
-            a.data.display(),
-            model.manipulator.name
-        );
+        // A parallel robot's legs are calibrated from positions in an instrument's frame at commanded poses
+        // (a serial arm's data without q_<joint> columns get the reader's message naming them).
+        return run_calibration(&a, &model.manipulator, &input);
     }
     if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() || a.sigma_mrad.is_some() {
         bail!(
@@ -184,22 +180,21 @@ fn joint_space_data(input: &[u8]) -> bool {
     crate::diagnose::positions::is_joint_space(&header_of(input))
 }
 
-/// A serial arm against joint-space measurements: registration fitted, effects selected, held-out rows
-/// reported.
+/// A serial arm against joint-space measurements, or a parallel robot against positions at commanded
+/// poses: registration fitted, effects selected, held-out rows reported.
 fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulator, input: &[u8]) -> Result<()> {
     use crate::diagnose::calibrate::{self, ArmEffect};
     use crate::diagnose::positions::PositionData;
     if a.linear {
         bail!("--linear is not available for joint-space data: the calibration's predictions are first order about each row's loaded equilibrium");
     }
-    let Some(space) = &m.joint_space else {
-        bail!(
-            "{} gives joint coordinates (q_<joint>), but {} is not a serial arm read from URDF",
-            a.data.display(),
-            m.name
-        );
+    // A serial arm's joints are named by its joint space; a parallel robot's rows give commanded poses and
+    // its effects name its legs' actuators by number.
+    let (read_joints, joints): (&[String], Vec<String>) = match &m.joint_space {
+        Some(space) => (&space.names, space.names.clone()),
+        None => (&[], (1..=m.legs.len()).map(|k| k.to_string()).collect()),
     };
-    let mut data = PositionData::read_from(&a.data, input, &space.names)?;
+    let mut data = PositionData::read_from(&a.data, input, read_joints)?;
     if let Some(f) = a.check_fraction {
         if !(0.0..1.0).contains(&f) {
             bail!("--check-fraction must lie in [0, 1), got {f}");
@@ -214,7 +209,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     }
     let parse = |list: &[String], flag: &str| -> Result<Vec<ArmEffect>> {
         list.iter()
-            .map(|e| ArmEffect::parse(e.trim(), &space.names).map_err(|why| anyhow::anyhow!("{flag}: {why}")))
+            .map(|e| ArmEffect::parse(e.trim(), &joints).map_err(|why| anyhow::anyhow!("{flag}: {why}")))
             .collect()
     };
     let options = calibrate::Options {

@@ -16,8 +16,8 @@
 
 use std::path::Path;
 
-use crate::columns::{DISPLACEMENT, JOINT_PREFIX, POSE_ID, SIGMA, WRENCH};
-use crate::kinematics::frame::{Mat3, Vec3, Vec6};
+use crate::columns::{DISPLACEMENT, JOINT_PREFIX, ORIENTATION, POSE_ID, POSITION, SIGMA, WRENCH};
+use crate::kinematics::frame::{Frame, Mat3, Vec3, Vec6};
 use crate::model::error::{open_input, InputError};
 use crate::platform::manipulator::Manipulator;
 
@@ -88,8 +88,11 @@ pub struct PositionRow {
     pub name: String,
     /// Line in the file.
     pub line: usize,
-    /// The controller's joint coordinates, in the arm's joint-space order.
+    /// The controller's joint coordinates, in the arm's joint-space order (empty for a parallel robot).
     pub joints: Vec<f64>,
+    /// A parallel robot's commanded pose (its actuators set where the nominal inverse kinematics puts
+    /// them for it); None for a serial arm, whose configuration is `joints`.
+    pub pose: Option<Frame>,
     /// The wrench at the reference point (N, N mm).
     pub wrench: Vec6,
     /// What was measured.
@@ -102,7 +105,8 @@ pub struct PositionRow {
     /// Gravity's direction in the base frame at this row (an accelerometer on a base that is not level),
     /// where given; the model's otherwise.
     pub gravity: Option<Vec3>,
-    /// The configuration (distinct joint coordinates, in order of appearance) the row was measured at.
+    /// The configuration (distinct joint coordinates or commanded poses, in order of appearance) the row was
+    /// measured at.
     pub configuration: usize,
     /// A mass the tool carries at this row (kg) and its centre in the tool frame (mm), whose weight is not
     /// yet in `wrench` (`PositionData::with_payload_weights` puts it there).
@@ -127,7 +131,8 @@ pub struct PositionData {
     pub orientation_columns: Vec<String>,
 }
 
-/// True when a measurement file's header names joint coordinates: it is read by `PositionData::read`.
+/// True when a measurement file's header names joint coordinates: it is read by `PositionData::read` with
+/// the arm's joints.
 pub fn is_joint_space(header: &[String]) -> bool {
     header.iter().any(|h| h.starts_with(JOINT_PREFIX))
 }
@@ -224,8 +229,9 @@ impl OrientationColumns {
 }
 
 impl PositionData {
-    /// Reads a joint-space measurement file; `joints` are the arm's joint names (the columns `q_<name>` must
-    /// be exactly these).
+    /// Reads a measurement file; `joints` are a serial arm's joint names (the columns `q_<name>` must be
+    /// exactly these), or empty for a parallel robot, whose rows give the commanded pose instead (`x_mm,
+    /// y_mm, z_mm`, and `pose_rx_rad, pose_ry_rad, pose_rz_rad` where it turns).
     pub fn read(path: &Path, joints: &[String]) -> Result<PositionData, InputError> {
         PositionData::read_from(path, open_input(path)?, joints)
     }
@@ -243,6 +249,17 @@ impl PositionData {
             reader.headers().map_err(|e| at(1, 1, e.to_string()))?.iter().map(String::from).collect();
         let find = |name: &str| header.iter().position(|h| h == name);
         let given: Vec<String> = header.iter().filter_map(|h| h.strip_prefix(JOINT_PREFIX)).map(String::from).collect();
+        if joints.is_empty() && !given.is_empty() {
+            return Err(at(
+                1,
+                1,
+                format!(
+                    "joint coordinates ({JOINT_PREFIX}{}) are a serial arm's; a parallel robot's rows give the commanded pose ({})",
+                    given[0],
+                    POSITION.join(",")
+                ),
+            ));
+        }
         let missing: Vec<&String> = joints.iter().filter(|j| !given.contains(j)).collect();
         let extra: Vec<&String> = given.iter().filter(|g| !joints.contains(g)).collect();
         if !missing.is_empty() || !extra.is_empty() {
@@ -266,6 +283,30 @@ impl PositionData {
         }
         let joint_columns: Vec<usize> =
             joints.iter().map(|j| find(&format!("{JOINT_PREFIX}{j}")).expect("checked")).collect();
+        // A parallel robot's rows are commanded poses: the position's columns, and the orientation's where
+        // given (all three or none).
+        let pose_columns: Option<Vec<Option<usize>>> =
+            joints.is_empty().then(|| POSITION.iter().chain(ORIENTATION.iter()).map(|c| find(c)).collect());
+        if let Some(columns) = &pose_columns {
+            let missing: Vec<&str> =
+                POSITION.iter().zip(columns).filter(|(_, c)| c.is_none()).map(|(n, _)| *n).collect();
+            if !missing.is_empty() {
+                return Err(at(
+                    1,
+                    1,
+                    format!(
+                        "each row gives the platform's commanded pose: {} (and {} where it turns); missing {}",
+                        POSITION.join(","),
+                        ORIENTATION.join(","),
+                        missing.join(", ")
+                    ),
+                ));
+            }
+            let turns = columns[3..].iter().filter(|c| c.is_some()).count();
+            if turns != 0 && turns != 3 {
+                return Err(at(1, 1, format!("the commanded orientation needs all of {}", ORIENTATION.join(","))));
+            }
+        }
         let groups = position_groups(&header);
         let displacement: Option<Vec<usize>> = DISPLACEMENT[..3].iter().map(|c| find(c)).collect();
         if groups.is_empty() && displacement.is_none() {
@@ -306,6 +347,7 @@ impl PositionData {
             groups.iter().map(|g| orientation_columns(&header, &g.suffix)).collect();
         let sigma_mrad_column = find(SIGMA_MRAD);
         let mut read: Vec<usize> = joint_columns.clone();
+        read.extend(pose_columns.iter().flatten().flatten());
         read.extend(groups.iter().flat_map(|g| g.columns));
         read.extend(orientations.iter().flatten().flat_map(OrientationColumns::columns));
         read.extend(sigma_mrad_column.iter().filter(|_| orientations.iter().any(Option::is_some)));
@@ -327,6 +369,7 @@ impl PositionData {
             unread,
             orientation_columns,
         };
+        // The configurations seen so far: joint coordinates, or a commanded pose's six numbers.
         let mut configurations: Vec<Vec<f64>> = Vec::new();
         for record in reader.records() {
             let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
@@ -336,6 +379,13 @@ impl PositionData {
                 checked_number(text(c), &header[c]).map_err(|e| at(line, c + 1, e))
             };
             let joints: Vec<f64> = joint_columns.iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
+            let commanded: Option<Vec<f64>> = pose_columns
+                .as_ref()
+                .map(|columns| columns.iter().map(|c| c.map_or(Ok(0.0), number)).collect::<Result<_, _>>())
+                .transpose()?;
+            let pose = commanded
+                .as_ref()
+                .map(|v| Frame::from_position_rotvec(Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5])));
             let mut wrench = Vec6::zeros();
             for (k, c) in wrench_columns.iter().enumerate() {
                 if let Some(c) = *c {
@@ -401,10 +451,11 @@ impl PositionData {
                 .map(text)
                 .filter(|t| !t.is_empty())
                 .map_or_else(|| format!("row {}", data.rows.len() + 1), String::from);
-            let configuration = match configurations.iter().position(|c| *c == joints) {
+            let identity = commanded.unwrap_or_else(|| joints.clone());
+            let configuration = match configurations.iter().position(|c| *c == identity) {
                 Some(k) => k,
                 None => {
-                    configurations.push(joints.clone());
+                    configurations.push(identity);
                     configurations.len() - 1
                 }
             };
@@ -413,6 +464,7 @@ impl PositionData {
                     name: name.clone(),
                     line,
                     joints: joints.clone(),
+                    pose,
                     wrench,
                     observed,
                     sigma: match observed {
@@ -484,7 +536,7 @@ impl PositionData {
         let g = m.weight_gravity();
         for r in &mut out.rows {
             let Some((kg, centre)) = r.payload.take() else { continue };
-            let Some(frame) = m.pose_at_joints(&r.joints, &mut state) else { continue };
+            let Some(frame) = r.pose.or_else(|| m.pose_at_joints(&r.joints, &mut state)) else { continue };
             let force = r.gravity.map_or(g, |d| d * g.norm()) * kg;
             let moment = (frame.rot * centre).cross(&force);
             r.wrench += Vec6::new(force.x, force.y, force.z, moment.x, moment.y, moment.z);

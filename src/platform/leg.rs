@@ -118,6 +118,15 @@ impl Leg {
         self.spring_groups().any(|(_, actuator)| actuator)
     }
 
+    /// The compliance of the leg's first actuator spring along (about) its axis, mm/N (rad/(N mm)), where it
+    /// has a one-coordinate actuator spring.
+    pub fn actuator_compliance(&self) -> Option<f64> {
+        match self {
+            Leg::Vjm(v) => v.springs.iter().find(|s| s.actuator && s.dim == 1).map(|s| s.compliance[(0, 0)]),
+            Leg::Msa(_) => None,
+        }
+    }
+
     /// Multiplies the compliance of the spring groups `select(name, actuator)` picks by `factor`.
     pub fn scale_springs(&mut self, select: impl Fn(&str, bool) -> bool, factor: f64) {
         if let Leg::Vjm(v) = self {
