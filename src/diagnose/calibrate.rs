@@ -1693,19 +1693,34 @@ fn select(
                     continue;
                 };
                 if f.rank <= fit.rank {
-                    let own = problem.nuisance_count() + trial.len() - 1;
-                    let alone = f.hidden.iter().any(|d| d.len() == 1 && d[0].0 == own);
+                    // The candidate's parameters follow the nuisance ones and the model's.
+                    let own = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
+                    let own = own..own + c.size();
+                    let alone = f.hidden.iter().any(|d| d.len() == 1 && own.contains(&d[0].0));
                     let note = if alone {
                         // Its column is zero: a compliance or play whose joint carries no load (or the same sign of
                         // load in every row, for play), or an offset that moves nothing measured.
                         "moves no measured point in these rows (its joint's load is zero, or of one sign for play)"
                             .into()
                     } else {
-                        let with: Vec<String> = f.hidden.iter().map(|d| problem.describe_hidden(d, &trial)).collect();
-                        format!(
-                            "not identifiable from these rows: one combination ({}) moves no point",
-                            with.join("; ")
-                        )
+                        // The directions that hold the candidate (the model's own hidden ones are reported
+                        // once, for the model).
+                        let with: Vec<String> = f
+                            .hidden
+                            .iter()
+                            .filter(|d| d.iter().any(|(k, _)| own.contains(k)))
+                            .map(|d| problem.describe_hidden(d, &trial))
+                            .collect();
+                        match with.len() {
+                            1 => format!(
+                                "not identifiable from these rows: one combination ({}) moves no point",
+                                with[0]
+                            ),
+                            n => format!(
+                                "not identifiable from these rows: {n} combinations move no point: ({})",
+                                with.join("); (")
+                            ),
+                        }
                     };
                     step.push(Tested { label, f: None, p: None, note: Some(note) });
                     continue;
