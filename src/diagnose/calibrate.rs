@@ -344,7 +344,7 @@ fn platform_statics(
     wrench: &Vec6,
     zero: Option<&Vec6>,
     state: &mut ManipulatorState,
-) -> Result<(ArmStatics, Option<ArmStatics>, Vec<Mat6>, Vec<Vec6>), String> {
+) -> Result<PlatformStatics, String> {
     let model = super::measurement::PoseModel::at(m, pose, state).map_err(|e| e.to_string())?;
     let moves: Vec<Mat6> = model.legs.iter().map(|k| model.compliance * k).collect();
     let columns: Vec<Vec6> = moves.iter().zip(&model.actuators).map(|(c, a)| c * a).collect();
@@ -358,7 +358,17 @@ fn platform_statics(
             transmitted: Vec::new(),
         }
     };
-    Ok((under(wrench), zero.map(under), moves, model.actuators))
+    Ok(PlatformStatics { statics: under(wrench), zero: zero.map(under), moves, actuators: model.actuators })
+}
+
+/// What `platform_statics` gives.
+struct PlatformStatics {
+    statics: ArmStatics,
+    zero: Option<ArmStatics>,
+    /// Each leg's C K_i.
+    moves: Vec<Mat6>,
+    /// Each leg's actuator twist a_i.
+    actuators: Vec<Vec6>,
 }
 
 /// How far a unit of effect `e` turns its joint in a row: nothing for an offset (it moves the configuration
@@ -616,10 +626,10 @@ impl<'a> Problem<'a> {
                     // A row the model has no pose model for is already named unusable (its equilibrium
                     // failed too, or will be): it keeps zero effects.
                     match platform_statics(m, &pose, &r.wrench, zero.as_ref(), &mut state) {
-                        Ok((s, z, moves, actuators)) => {
-                            prismatic = actuators.iter().map(|a| a.fixed_rows::<3>(3).norm() == 0.0).collect();
-                            leg_moves.push(moves);
-                            (s, z)
+                        Ok(p) => {
+                            prismatic = p.actuators.iter().map(|a| a.fixed_rows::<3>(3).norm() == 0.0).collect();
+                            leg_moves.push(p.moves);
+                            (p.statics, p.zero)
                         }
                         Err(why) => {
                             if !unusable.iter().any(|(u, _)| *u == k) {
@@ -1074,7 +1084,7 @@ impl<'a> Problem<'a> {
             all.retain(|(e, _)| e != effects);
             all.push((effects.to_vec(), misses));
             drop(all);
-            if !(moved > 0.1) {
+            if moved.is_nan() || moved <= 0.1 {
                 break;
             }
             fit = self.fit(rows, effects, &fit.params)?;
