@@ -47,7 +47,12 @@ pub(crate) struct SynthArgs {
     /// this standard deviation about each axis, mrad.
     #[arg(long, value_name = "MRAD")]
     pub(crate) orientation_noise: Option<f64>,
-    /// Joint-space points: every N-th configuration is held out (`set` = check; 0: none).
+    /// A parallel robot's poses measured as a lab records them: the target's position in an instrument's
+    /// frame (mx_mm,my_mm,mz_mm) at each commanded pose, with the set-up's effects below (a serial arm's
+    /// joint-space points always are).
+    #[arg(long)]
+    pub(crate) positions: bool,
+    /// Positions: every N-th configuration is held out (`set` = check; 0: none).
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub(crate) check_every: usize,
     /// Measure the linear response C w with every effect as a first-order term, instead of the loaded
@@ -71,8 +76,8 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
         bail!("--noise must be >= 0 (mm)");
     }
     let mut points = a.points.load(&model.manipulator)?;
-    if !points.joint_names.is_empty() {
-        return run_joint_space(&a, &model.manipulator, points);
+    if !points.joint_names.is_empty() || a.positions {
+        return run_positions(&a, &model.manipulator, points);
     }
     if a.orientation_noise.is_some() {
         bail!("--orientation-noise is for joint-space points (q_<joint> columns): a pose diagnosis measures displacements");
@@ -108,19 +113,46 @@ pub(crate) fn run(a: SynthArgs, matches: &ArgMatches) -> Result<()> {
     Ok(())
 }
 
-/// Joint-space measurements of a serial arm as a lab records them: the robot with the hidden changes built
-/// into its description, its target seen by an instrument, with noise, gross rows and held-out rows.
-fn run_joint_space(
+/// A synthetic row as the calibration's reader reads it (`poses`: a parallel robot's commanded poses).
+fn measured_row<'a>(
+    r: &'a crate::diagnose::calibrate::SynthRow,
+    configurations: &'a [crate::diagnose::calibrate::Configuration],
+    poses: Option<&'a [crate::kinematics::frame::Frame]>,
+) -> crate::diagnose::positions::MeasuredRow<'a> {
+    let (k, (at, seen), gross, held, setup) = r;
+    let (name, joints, wrench) = &configurations[*k];
+    crate::diagnose::positions::MeasuredRow {
+        name,
+        joints,
+        pose: poses.map(|p| &p[*k]),
+        wrench,
+        at,
+        orientation: seen.as_ref(),
+        check: *held,
+        setup: *setup,
+        gross: *gross,
+    }
+}
+
+/// Measurements as a lab records them: the target's position in an instrument's frame, at a serial arm's
+/// joint coordinates (the hidden changes written into its description) or at a parallel robot's commanded
+/// poses (`--positions`; the hidden changes are the model-form effects of the diagnosis: actuator offsets,
+/// spring scalings, a payload), with noise, gross rows and held-out rows.
+fn run_positions(
     a: &SynthArgs,
     nominal: &crate::platform::manipulator::Manipulator,
     mut points: crate::model::grid::PointSet,
 ) -> Result<()> {
-    use crate::diagnose::calibrate::{correction_table, synthesize_positions, ArmEffect, ArmKind, PositionSynth};
+    use crate::diagnose::calibrate::{
+        correction_table, synthesize_leg_positions, synthesize_positions, ArmEffect, ArmKind, PositionSynth,
+    };
     use crate::kinematics::frame::Vec3;
+    use crate::model::effect::{Effect, Form};
     if a.wrenches.is_some() || a.linear || a.repeats != 1 || a.shard.shard.is_some() {
-        bail!("--wrenches, --linear, --repeats and --shard are not for joint-space points: the arm is measured under its own weight");
+        bail!("--wrenches, --linear, --repeats and --shard are not for positions in an instrument's frame: each point is measured under its own wrench (Fx_N.. columns) and the robot's weight");
     }
-    let names = &nominal.joint_space.as_ref().expect("a serial arm").names;
+    let arm = nominal.joint_space.as_ref();
+    let names: Vec<String> = arm.map_or_else(Vec::new, |space| space.names.clone());
     let mut hidden = PositionSynth {
         setups: Vec::new(),
         target: Vec3::zeros(),
@@ -137,6 +169,7 @@ fn run_joint_space(
         play: vec![0.0; names.len()],
     };
     let mut tables = String::new();
+    let mut leg_effects = Vec::new();
     for e in &a.effects {
         let (name, values) = e.split_once('=').ok_or_else(|| anyhow::anyhow!("--effect `{e}`: give NAME=VALUES"))?;
         let values: Vec<f64> = values
@@ -179,8 +212,16 @@ fn run_joint_space(
                 }
                 hidden.gross = (values[0], values[1]);
             }
+            // A parallel robot's hidden changes are the diagnosis's model-form effects.
+            _ if arm.is_none() => {
+                let effect = Effect::parse(e, nominal).map_err(|why| anyhow::anyhow!("--effect {why}"))?;
+                if effect.kind.form() != Form::Model {
+                    bail!("--effect `{e}`: with --positions a parallel robot's hidden changes are those a description holds (actuator-offset, actuator-compliance, link-compliance, link-sections, gravity, gravity-offset), with registration, target, drift and gross for the instrument");
+                }
+                leg_effects.push(effect);
+            }
             _ => {
-                let effect = ArmEffect::parse(name, names).map_err(|why| anyhow::anyhow!("--effect `{e}`: {why}"))?;
+                let effect = ArmEffect::parse(name, &names).map_err(|why| anyhow::anyhow!("--effect `{e}`: {why}"))?;
                 let joint = names[effect.joint].as_str();
                 match effect.kind {
                     ArmKind::ToolCompliance => {
@@ -204,15 +245,21 @@ fn run_joint_space(
             }
         }
     }
-    let source = crate::model::error::read_text(&a.model.model)?;
-    let overrides = a.model.set.iter().cloned().collect();
-    let real = crate::model::parse_with(&a.model.model, &format!("{source}\n{tables}"), &overrides, 0)?.manipulator;
     let mut read = Vec::new();
     while points.next_block(4096, &mut read)? > 0 {}
     let configurations = crate::diagnose::calibrate::configurations(&read);
+    let poses: Vec<crate::kinematics::frame::Frame> = read.iter().map(|p| p.frame()).collect();
     let loaded = read.iter().any(|p| p.wrench.is_some_and(|w| w != crate::kinematics::frame::Vec6::zeros()));
-    let (rows, skipped) = synthesize_positions(&real, &configurations, &hidden).map_err(|e| anyhow::anyhow!("{e}"))?;
-    use crate::diagnose::positions::{MeasuredLayout, MeasuredRow};
+    let (rows, skipped) = if arm.is_some() {
+        let source = crate::model::error::read_text(&a.model.model)?;
+        let overrides = a.model.set.iter().cloned().collect();
+        let real = crate::model::parse_with(&a.model.model, &format!("{source}\n{tables}"), &overrides, 0)?.manipulator;
+        synthesize_positions(&real, &configurations, &hidden).map_err(|e| anyhow::anyhow!("{e}"))?
+    } else {
+        let real = crate::model::effect::with_model_effects(nominal, &leg_effects);
+        synthesize_leg_positions(&real, &configurations, &poses, &hidden)
+    };
+    use crate::diagnose::positions::MeasuredLayout;
     use crate::output::table::{header_line, selected_columns, write_row};
     let layout = MeasuredLayout {
         joints: names.clone(),
@@ -221,12 +268,13 @@ fn run_joint_space(
         sigma_mrad: a.orientation_noise.map(|n| n.max(crate::diagnose::data::MIN_SIGMA_MM)),
         setups: hidden.setups.len() > 1,
     };
-    fn row(r: &crate::diagnose::calibrate::SynthRow) -> MeasuredRow<'_> {
-        let ((name, joints, wrench), (at, seen), gross, held, setup) = r;
-        MeasuredRow { name, joints, wrench, at, orientation: seen.as_ref(), check: *held, setup: *setup, gross: *gross }
-    }
-    let blank = (String::new(), vec![0.0; names.len()], crate::kinematics::frame::Vec6::zeros());
-    let columns = selected_columns(&row(&(blank, (Vec3::zeros(), None), false, false, 0)), &layout, None);
+    let poses = arm.is_none().then_some(&poses[..]);
+    let row = |r| measured_row(r, &configurations, poses);
+
+    let Some(first) = rows.first() else {
+        bail!("no configuration could be measured ({skipped} left out: no finite pose or no loaded equilibrium)");
+    };
+    let columns = selected_columns(&row(first), &layout, None);
     let mut sink = a.output.open(&columns)?;
     let mut text = header_line(&columns);
     for r in &rows {

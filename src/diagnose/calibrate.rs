@@ -840,9 +840,14 @@ impl<'a> Problem<'a> {
             fresh = self.statics_at(r, row, &joints, state)?;
             &fresh
         };
+        // The model's own deflection (and a parallel robot's kept miss), a twist at the reference point: its
+        // turn carries the target's lever exactly (an Orthoglide under a milling moment turns by 0.05 rad, whose
+        // second order on a lever of 1 mm is 1 um), the effects act at first order about the turned tool.
+        let deflected = self.deflection[r] + self.kept_miss(effects, r);
+        let loaded_rot = rotation_from_vector(&deflected.fixed_rows::<3>(3).into_owned()) * s.frame.rot;
         let (seen, tool) = match row.observed {
             Observed::Position { target, .. } => {
-                let lever = s.frame.rot * params.targets[target];
+                let lever = loaded_rot * params.targets[target];
                 (Seen::Point(lever), s.frame.pos + lever)
             }
             Observed::Orientation { .. } => (Seen::Turn, Vec3::zeros()),
@@ -853,7 +858,10 @@ impl<'a> Problem<'a> {
         // The body's point (target, or the tool point of a displacement) under the loads, before registration;
         // for an orientation, the tool's turn under them (base axes). A parallel robot's first order is
         // completed by the miss kept for these effects (`exact_misses`).
-        let mut y = tool + seen.of(&(self.deflection[r] + self.kept_miss(effects, r)));
+        let mut y = match seen {
+            Seen::Point(_) => tool + deflected.fixed_rows::<3>(0),
+            Seen::Turn => seen.of(&deflected),
+        };
         for (e, v) in effects.iter().zip(&params.effects) {
             for (unit, value) in self.unit_moves(r, e, s, zero, &seen, &payload(s)).iter().zip(v) {
                 y += unit * *value;
@@ -900,7 +908,7 @@ impl<'a> Problem<'a> {
                     let cross = -skew(&ry) * w;
                     jac.view_mut((0, base + 3), (3, 3)).copy_from(&cross);
                     let t = 6 * self.data.setups.len() + 3 * target;
-                    jac.view_mut((0, t), (3, 3)).copy_from(&(rotation * s.frame.rot * w));
+                    jac.view_mut((0, t), (3, 3)).copy_from(&(rotation * loaded_rot * w));
                 }
                 k = self.nuisance_count();
             }
@@ -1934,8 +1942,35 @@ pub fn calibrate(
         }
         gross = next;
     }
-    let (kept, Selection { model, fit, steps, mut hidden }) = outcome.expect("at least one selection");
+    let (kept, Selection { mut model, mut fit, steps, mut hidden }) = outcome.expect("at least one selection");
     hidden.extend(one_sided);
+    // A joint's geometry holds its offset (a leg's end-point error along its actuator, an arm joint's turn
+    // about its own axis). Chosen while other effects were still missing, or with a parallel robot's offset
+    // at first order (an offset of 0.5 mm leaves 1 um of second order, which a geometry's other directions
+    // absorb), it may stand in for the offset alone: where the offset, each fitted exactly, explains the data
+    // as well (the geometry's other directions do not pass at alpha), the offset is kept instead.
+    if problem.absolute {
+        for k in options.fitted.len()..model.len() {
+            let offset = ArmEffect { kind: ArmKind::JointOffset, joint: model[k].joint };
+            if model[k].kind != ArmKind::JointGeometry || model.contains(&offset) || !candidates.contains(&offset) {
+                continue;
+            }
+            let mut simpler = model.clone();
+            simpler[k] = offset;
+            let mut start = fit.params.clone();
+            start.effects[k] = vec![0.0];
+            let (Some(with_offset), Some(with_geometry)) =
+                (problem.fit_exact(&kept, &simpler, &start), problem.fit_exact(&kept, &model, &fit.params))
+            else {
+                continue;
+            };
+            let (_, p) = test(with_offset.rss, with_offset.rank, &with_geometry, sigma_known);
+            if with_offset.rank > with_geometry.rank.saturating_sub(model[k].size()) && p >= options.alpha {
+                model = simpler;
+                fit = with_offset;
+            }
+        }
+    }
     // A parallel robot's first order completed (a serial arm's fit is final).
     let fit = match problem.space {
         None => problem.fit_exact(&kept, &model, &fit.params).unwrap_or(fit),
@@ -2511,9 +2546,9 @@ fn with_play(
     space.controller_angles(&q)
 }
 
-/// One synthetic row: the configuration, the measured target (mm) and its orientation where measured,
-/// whether it was made gross, whether it is held out, and its set-up.
-pub type SynthRow = (Configuration, (Vec3, Option<Mat3>), bool, bool, usize);
+/// One synthetic row: the configuration's index, the measured target (mm) and its orientation where
+/// measured, whether it was made gross, whether it is held out, and its set-up.
+pub type SynthRow = (usize, (Vec3, Option<Mat3>), bool, bool, usize);
 
 /// Joint-space measurements of `m` (the robot as it really is: its offsets, compliances, geometry and payload
 /// built into the description) at the controller's angles of each configuration: the target where the arm's
@@ -2524,50 +2559,68 @@ pub fn synthesize_positions(
     configurations: &[Configuration],
     s: &PositionSynth,
 ) -> Result<(Vec<SynthRow>, usize), CalibrationError> {
-    use super::synth::normal as standard_normal;
-    use rand::{Rng, SeedableRng};
     if m.joint_space.is_none() {
         return Err(CalibrationError::NotAnArm(m.name.clone()));
     }
     let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
-    let setups: Vec<(Mat3, Vec3)> = match s.setups.is_empty() {
-        true => vec![(Mat3::identity(), Vec3::zeros())],
-        false => s.setups.iter().map(|(r, t)| (rotation_from_vector(r), *t)).collect(),
-    };
     let mut state = m.new_state();
-    let (mut rows, mut skipped) = (Vec::new(), 0);
-    for (k, configuration) in configurations.iter().enumerate() {
-        let (_, commanded, wrench) = configuration;
-        let mut r = rand::rngs::StdRng::seed_from_u64(crate::batch::point_seed(s.seed, k as u64));
+    Ok(measured_rows(configurations, s, |(_, commanded, wrench)| {
         let played;
         let joints = if s.play.iter().any(|b| *b != 0.0) {
-            let Some(p) = with_play(m, commanded, wrench, &s.play, &mut state) else {
-                skipped += 1;
-                continue;
-            };
-            played = p;
+            played = with_play(m, commanded, wrench, &s.play, &mut state)?;
             &played
         } else {
             commanded
         };
-        let Some(frame) = m.pose_at_joints(joints, &mut state) else {
+        let frame = m.pose_at_joints(joints, &mut state)?;
+        if !compliant {
+            return Some(frame);
+        }
+        m.place(&frame, &mut state).ok()?;
+        m.deflect(&frame, wrench, None, &mut state).ok().filter(|d| d.stable).map(|d| d.pose)
+    }))
+}
+
+/// A parallel robot's measurements at commanded poses (`poses`, one per configuration, whose joints are
+/// empty): `real` (the robot with the hidden changes built in: actuator offsets, spring scalings, a payload)
+/// has its actuators placed by the inverse kinematics for the commanded pose and settles under the
+/// configuration's wrench and its payload's weight; its target is seen as `synthesize_positions` sees a
+/// serial arm's. Play is not made here (`s.play` is not read).
+pub fn synthesize_leg_positions(
+    real: &Manipulator,
+    configurations: &[Configuration],
+    poses: &[Frame],
+    s: &PositionSynth,
+) -> (Vec<SynthRow>, usize) {
+    let mut state = real.new_state();
+    state.polish_placements();
+    let mut next = poses.iter();
+    measured_rows(configurations, s, |(_, _, wrench)| {
+        let pose = next.next()?;
+        real.place(pose, &mut state).ok()?;
+        real.deflect(pose, wrench, None, &mut state).ok().filter(|d| d.stable).map(|d| d.pose)
+    })
+}
+
+/// The rows of `configurations` where `measure` puts the reference point (None: left out and counted), the
+/// target seen by the instrument of its set-up with noise, gross rows, drift and held-out rows as `s` says.
+fn measured_rows(
+    configurations: &[Configuration],
+    s: &PositionSynth,
+    mut measure: impl FnMut(&Configuration) -> Option<Frame>,
+) -> (Vec<SynthRow>, usize) {
+    use super::synth::normal as standard_normal;
+    use rand::{Rng, SeedableRng};
+    let setups: Vec<(Mat3, Vec3)> = match s.setups.is_empty() {
+        true => vec![(Mat3::identity(), Vec3::zeros())],
+        false => s.setups.iter().map(|(r, t)| (rotation_from_vector(r), *t)).collect(),
+    };
+    let (mut rows, mut skipped) = (Vec::new(), 0);
+    for (k, configuration) in configurations.iter().enumerate() {
+        let mut r = rand::rngs::StdRng::seed_from_u64(crate::batch::point_seed(s.seed, k as u64));
+        let Some(loaded) = measure(configuration) else {
             skipped += 1;
             continue;
-        };
-        let loaded = if compliant {
-            if m.place(&frame, &mut state).is_err() {
-                skipped += 1;
-                continue;
-            }
-            match m.deflect(&frame, wrench, None, &mut state) {
-                Ok(d) if d.stable => d.pose,
-                _ => {
-                    skipped += 1;
-                    continue;
-                }
-            }
-        } else {
-            frame
         };
         let setup = k * setups.len() / configurations.len();
         let (rotation, translation) = setups[setup];
@@ -2587,7 +2640,7 @@ pub fn synthesize_positions(
             rotation_from_vector(&n) * rotation * loaded.rot * rotation_from_vector(&axes)
         });
         let held = s.check_every > 0 && k % s.check_every == s.check_every - 1;
-        rows.push((configuration.clone(), (at, seen), gross, held, setup));
+        rows.push((k, (at, seen), gross, held, setup));
     }
-    Ok((rows, skipped))
+    (rows, skipped)
 }

@@ -588,8 +588,10 @@ pub const HIDDEN_GROSS: &str = "hidden_gross";
 pub struct MeasuredRow<'a> {
     /// The row's name (`pose_id`).
     pub name: &'a str,
-    /// The controller's angles, in the arm's order.
+    /// The controller's angles, in the arm's order (empty for a parallel robot).
     pub joints: &'a [f64],
+    /// A parallel robot's commanded pose (None for a serial arm).
+    pub pose: Option<&'a Frame>,
     /// The wrench at the reference point.
     pub wrench: &'a Vec6,
     /// The target's position in the instrument's frame, mm.
@@ -606,7 +608,7 @@ pub struct MeasuredRow<'a> {
 
 /// What fixes a measurement file's columns.
 pub struct MeasuredLayout {
-    /// The arm's joints, in its order.
+    /// The arm's joints, in its order (empty for a parallel robot, whose rows give commanded poses).
     pub joints: Vec<String>,
     /// The rows carry wrenches.
     pub loaded: bool,
@@ -625,6 +627,16 @@ impl crate::output::table::Row for MeasuredRow<'_> {
         r.text(POSE_ID, self.name);
         for (name, q) in l.joints.iter().zip(self.joints) {
             r.number(format_args!("{JOINT_PREFIX}{name}"), *q);
+        }
+        if l.joints.is_empty() {
+            let pose = self.pose.copied().unwrap_or_else(|| Frame::translation(Vec3::zeros()));
+            let turn = crate::kinematics::frame::rotation_vector(&pose.rot);
+            for (k, name) in POSITION.iter().enumerate() {
+                r.number(name, pose.pos[k]);
+            }
+            for (k, name) in ORIENTATION.iter().enumerate() {
+                r.number(name, turn[k]);
+            }
         }
         if l.loaded {
             r.six(WRENCH, Some(self.wrench));
