@@ -531,14 +531,15 @@ fn a_crlf_file_names_the_faulty_line() {
     }
 }
 
-/// Positions in an instrument's frame (`mx_mm`, ...) at a parallel robot's poses are not yet calibrated: the
-/// refusal says what is (a serial arm's joint-space data) and what to give for this robot (displacements),
-/// instead of naming a missing wrench column.
+/// Positions in an instrument's frame (`mx_mm`, ...) at a parallel robot's poses are calibrated (its legs'
+/// effects, tests/calibrate_legs.rs); too few of them to fit the instrument's frame and the target's place
+/// are refused saying how many coordinates there are against how many parameters, instead of naming a
+/// missing wrench column (as before the calibration of legs existed).
 #[test]
-fn absolute_positions_for_a_parallel_robot_are_refused_saying_what_to_give() {
+fn absolute_positions_for_a_parallel_robot_too_few_to_register_say_how_many_are_needed() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("abs.csv");
     std::fs::write(&path, "pose_id,x_mm,y_mm,z_mm,mx_mm,my_mm,mz_mm\na,0,0,0,1,2,3\n").unwrap();
     let e = refused(&run(&["diagnose", "manipulators/orthoglide-3puu.toml", "--data", path.to_str().unwrap()]));
-    assert!(e.contains("serial arm read from URDF") && e.contains("dx_mm,dy_mm,dz_mm"), "{e}");
+    assert!(e.contains("1 fitted rows give 3 coordinates, too few for the 9 parameters"), "{e}");
 }

@@ -12,6 +12,7 @@ pub(crate) const EXAMPLES: &str = "Examples:
   stiff synth manipulators/fanuc-r2000ic.toml --points manipulators/grids/fanuc-r2000ic-cable-tests.csv --effect registration=0.1,0,0.2,1500,0,300 --effect target=20,0,30 --effect joint-offset:J2=0.001 --noise 0.05 --seed 1 --check-every 3 -o positions.csv
   stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --effect tool-offset=0.05,0,0 --wrenches \"200,0,0,0,0,0;0,200,0,0,0,0\" --noise 0.002 --seed 7 -o data.csv
   stiff synth manipulators/orthoglide-3prpar.toml --grid manipulators/grids/orthoglide-small.toml --effect link-compliance:parallelogram=2 --wrenches \"0,0,-300,0,0,0\" --noise 0.001 --seed 1 --repeats 3 -o repeats.csv
+  stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --positions --effect registration=0.1,0.2,-0.3,1000,200,-50 --effect actuator-offset:1=0.5 --noise 0.002 --seed 1 --check-every 3 -o legs.csv
 
 Exit status: 0 success, 1 the run failed, 2 usage error.";
 

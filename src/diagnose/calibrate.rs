@@ -132,7 +132,10 @@ impl ArmEffect {
             }
         };
         let joint = joints.iter().position(|j| j == joint).ok_or_else(|| {
-            format!("`{joint}` is not one of its joints ({}; a parallel robot's legs by number)", joints.join(", "))
+            // A parallel robot's joints are its legs' actuators, named by the leg's number.
+            let legs = joints.iter().all(|j| j.parse::<usize>().is_ok());
+            let what = if legs { "a leg of the robot (its legs by number: " } else { "a joint of the arm (" };
+            format!("`{joint}` is not {what}{})", joints.join(", "))
         })?;
         Ok(ArmEffect { kind, joint })
     }
