@@ -761,19 +761,19 @@ impl<'a> Problem<'a> {
     }
 
     /// A parallel robot's: every actuator's offset, compliance and play (of the legs that have an actuator
-    /// moving the platform), every leg's geometry, and the payload, as a serial arm's (positions); compliance
-    /// and play for displacements.
+    /// moving the platform) and the payload (positions); compliance and play for displacements. A leg's
+    /// geometry (its end-point error, six parameters) is offered when asked for: the selection compares
+    /// candidates at first order, where two legs' geometries can stand in for one actuator's offset and its
+    /// second order (500 Orthoglide poses, 0.002 mm noise, a 0.5 mm offset of actuator 1: offered by
+    /// default, legs 2's and 3's geometries were named instead of it).
     fn default_leg_candidates(&self) -> Vec<ArmEffect> {
         let actuated = |j: usize| self.statics.iter().any(|(s, _)| s.columns[j] != Vec6::zeros());
         let mut all = Vec::new();
         for j in 0..self.joints.len() {
             let kinds: &[ArmKind] = match (self.absolute, actuated(j)) {
-                (true, true) => {
-                    &[ArmKind::JointOffset, ArmKind::JointCompliance, ArmKind::Backlash, ArmKind::JointGeometry]
-                }
-                (true, false) => &[ArmKind::JointGeometry],
+                (true, true) => &[ArmKind::JointOffset, ArmKind::JointCompliance, ArmKind::Backlash],
                 (false, true) => &[ArmKind::JointCompliance, ArmKind::Backlash],
-                (false, false) => &[],
+                (_, false) => &[],
             };
             all.extend(kinds.iter().map(|&kind| ArmEffect { kind, joint: j }));
         }
