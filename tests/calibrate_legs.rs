@@ -298,3 +298,37 @@ fn synth_positions_of_a_parallel_robot_round_trip_through_the_calibration() {
     let last = c["calibration"]["stages"].as_array().unwrap().last().unwrap().clone();
     assert!(last["check"]["rms"].as_f64().unwrap() < 0.005, "{text}");
 }
+
+/// Over 12 seeds of the independent generator (offsets of actuators 1 and 3, 0.02 mm noise, 45 poses, a
+/// third held out), the two offsets are named and nothing else in at least 11, and their 95% intervals
+/// cover the true values in at least 90% of the values named; on 12 seeds of null data (the instrument's
+/// frame and the target alone) the verdict is `none` in at least 11.
+#[test]
+fn over_seeds_a_parallel_robots_offsets_are_named_with_honest_intervals_and_null_data_name_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = orthoglide();
+    let (mut exact, mut covered, mut values, mut quiet) = (0, 0, 0, 0);
+    for seed in 0..12 {
+        let mut h = Hidden {
+            rotation: Vec3::new(0.3, -0.2, 0.1),
+            translation: Vec3::new(200.0, 300.0, -400.0),
+            target: Vec3::new(5.0, 5.0, -10.0),
+            offsets: [0.4, 0.0, -0.25],
+        };
+        let (_, c) = calibrated(&m, &synthetic(&h, 45, 0.02, &[], 100 + seed), dir.path(), &options(0.02, Vec::new()));
+        let mut labels: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+        labels.sort();
+        exact += usize::from(labels == ["joint-offset:1", "joint-offset:3"]);
+        for a in c.accepted.iter().filter(|a| a.kind == ArmKind::JointOffset) {
+            let truth = h.offsets[a.joint.parse::<usize>().unwrap() - 1];
+            values += 1;
+            covered += usize::from((a.values[0] - truth).abs() < 1.96 * a.se[0]);
+        }
+        h.offsets = [0.0; 3];
+        let (_, c) = calibrated(&m, &synthetic(&h, 45, 0.02, &[], 200 + seed), dir.path(), &options(0.02, Vec::new()));
+        quiet += usize::from(c.verdict == Verdict::None);
+    }
+    assert!(exact >= 11, "named exactly in {exact} of 12");
+    assert!(covered as f64 >= 0.9 * values as f64, "{covered} of {values} covered");
+    assert!(quiet >= 11, "null data: none in {quiet} of 12");
+}
