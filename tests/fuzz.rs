@@ -196,6 +196,20 @@ c9,-0.89966487,0.068155107,-0.271939751,0.843430361,-0.966528433,1.84784989,-737
 c10,-1.01852179,0.288118953,-0.039147735,0.260630017,-1.48595587,2.42934124,-430.890842,46.5759513,-273.547472,0,0,0,2964.56504,-1593.77941,1414.7752,0.05,-0.022784964,0.680283907,0.725953505,-0.0984182889,0.1,fit\n\
 c11,-1.17821942,-0.908059903,-0.183102492,0.284925,-1.3496282,2.11741599,-470.677917,-469.304041,-346.216674,0,0,0,2052.76235,-879.150638,951.16655,0.05,-0.0217033127,0.817919607,0.563248714,-0.115270847,0.1,fit\n\
 c12,-1.44542933,-0.800146196,-0.083130032,0.103620198,-1.41436247,2.42159198,-276.020095,-976.224977,-575.029118,0,0,0,1970.91261,-1008.10991,1164.76563,0.05,-0.0218987976,0.827511317,0.559863474,-0.0360326683,0.1,check\n";
+/// A parallel robot's calibration data: the Orthoglide's commanded poses under the milling wrench, a target's
+/// position in an instrument's frame (made by `stiff synth --positions` with a hidden registration, target
+/// and actuator offset, 0.002 mm of noise), every third held out.
+const LEG_DATA: &str = "pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,mx_mm,my_mm,mz_mm,sigma_mm,set\n\
+c0,-60.0,-60.0,-60.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,927.8465376387719,157.01372816927392,-83.96880366524184,0.002,fit\n\
+c12,0.0,0.0,-60.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,1002.1108307039029,197.0577634871761,-92.35563720336174,0.002,fit\n\
+c24,60.0,60.0,-60.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,1076.5830463464995,237.13837275997454,-100.72458951033178,0.002,check\n\
+c36,-30.0,0.0,-30.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,979.2617475920645,201.7342017279403,-56.86179111197436,0.002,fit\n\
+c48,30.0,60.0,-30.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,1053.621292854992,241.81648816220314,-65.17130844118762,0.002,fit\n\
+c60,-60.0,0.0,0.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,956.4507067665098,206.39557310645216,-21.44285728010121,0.002,check\n\
+c72,0.0,60.0,0.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,1030.7351597239322,246.4774793289033,-29.677134112009565,0.002,fit\n\
+c84,60.0,-30.0,30.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,1065.0415443586053,140.30403098631405,-18.929336107808055,0.002,fit\n\
+c96,-30.0,60.0,30.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,1007.8821415158054,251.12223528561717,5.745913265690788,0.002,check\n\
+c108,30.0,-30.0,60.0,215.0,-10.0,-25.0,1000.0,21500.0,0.0,1042.1882946460505,145.0031216340131,16.60748069875844,0.002,fit\n";
 const DATA: &str = "pose_id,x_mm,y_mm,z_mm,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,sigma_mm\n\
 p0,0,0,0,200,0,0,0,0,0,0.056,0.0001,0.0002,0.002\np0,0,0,0,-200,0,0,0,0,0,-0.056,0,0.0001,0.002\n\
 p0,0,0,0,0,200,0,0,0,0,0.0001,0.056,0,0.002\np0,0,0,0,0,0,200,0,0,0,0,0.0001,0.057,0.002\n\
@@ -339,10 +353,34 @@ fn case(r: &mut StdRng) -> Case {
             a
         }
         14 => {
-            // A serial arm's calibration (URDF, joint-space data with orientations), or its plan.
+            // A serial arm's calibration (URDF, joint-space data with orientations), or its plan; a parallel
+            // robot's.
             files.push(("joints.csv".into(), JOINT_DATA.into()));
+            files.push(("legs.csv".into(), LEG_DATA.into()));
             let fanuc = root().join("manipulators/fanuc-r2000ic.toml").display().to_string();
-            match r.random_range(0..3) {
+            let orthoglide = root().join("manipulators/orthoglide-3puu.toml").display().to_string();
+            match r.random_range(0..5) {
+                // A parallel robot's legs calibrated from positions at commanded poses, or such data made.
+                3 => m(&["diagnose", &orthoglide, "--data", "legs.csv", "--check-fraction=0.3", "--seed=2"]),
+                4 => {
+                    files.push(("grid.toml".into(), SMALL_GRID.into()));
+                    m(&[
+                        "synth",
+                        &orthoglide,
+                        "--grid",
+                        "grid.toml",
+                        "--positions",
+                        "--effect",
+                        "registration=0.1,0,0.2,500,0,300",
+                        "--effect",
+                        "actuator-offset:2=0.4",
+                        "--noise=0.002",
+                        "--seed=1",
+                        "--check-every=3",
+                        "-o",
+                        "legs-out.csv",
+                    ])
+                }
                 0 => m(&["diagnose", &fanuc, "--data", "joints.csv"]),
                 1 => m(&[
                     "diagnose",
