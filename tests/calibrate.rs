@@ -632,7 +632,7 @@ fn the_plans_signatures_are_finite_differences_of_the_measured_target() {
     let configurations: Vec<calibrate::Configuration> =
         angles.iter().enumerate().map(|(k, t)| (format!("c{k}"), t.to_vec(), Default::default())).collect();
     let effects = [effect(ArmKind::JointOffset, "J2"), effect(ArmKind::JointCompliance, "J3")];
-    let found = calibrate::signatures(&m, &configurations, &effects, noise, None).unwrap();
+    let found = calibrate::signatures(&m, &configurations, None, &effects, noise, None).unwrap();
     assert_eq!(found.usable.len(), 8);
     assert_eq!(found.nuisance.ncols(), 9, "an instrument's frame and a target's place");
     let level = Hidden {
@@ -1276,7 +1276,7 @@ fn a_plan_with_orientations_weighs_what_they_tell() {
     let configurations: Vec<calibrate::Configuration> =
         angles.iter().enumerate().map(|(k, t)| (format!("c{k}"), t.to_vec(), Default::default())).collect();
     let effects = [effect(ArmKind::JointOffset, "J4"), effect(ArmKind::JointCompliance, "J3")];
-    let found = calibrate::signatures(&m, &configurations, &effects, noise, Some(turn_noise)).unwrap();
+    let found = calibrate::signatures(&m, &configurations, None, &effects, noise, Some(turn_noise)).unwrap();
     assert_eq!((found.usable.len(), found.rows_per_candidate, found.nuisance.ncols()), (6, 6, 12));
     let level = Hidden { rotation: Vec3::zeros(), translation: Vec3::zeros(), ..Hidden::registration_only() };
     let difference = |change: &dyn Fn(&mut Hidden, f64), h: f64, t: &[f64; 6]| -> Vec3 {

@@ -386,3 +386,38 @@ fn a_payloads_centre_along_gravity_is_seen_through_the_platforms_turn_under_load
         assert!((values[k] - truth).abs() < 4.0 * se[k], "{k}: {} +- {} against {truth}\n{text}", values[k], se[k]);
     }
 }
+
+/// The plan's signatures of the actuators' offsets (what `stiff plan --positions` chooses poses on) are the
+/// platform's motion per unit offset: at 8 random poses they equal central finite differences of the
+/// independent kinematics' forward solve, q_i -> q_i +- h, to 1e-6 relative.
+#[test]
+fn a_parallel_robots_plan_signatures_of_offsets_are_finite_differences_of_its_kinematics() {
+    let m = orthoglide();
+    let mut r = rng(8);
+    let poses: Vec<stiff::kinematics::frame::Frame> = (0..8)
+        .map(|_| stiff::kinematics::frame::Frame::translation(Vec3::from_fn(|_, _| r.random_range(-70.0..120.0))))
+        .collect();
+    let configurations: Vec<calibrate::Configuration> =
+        (0..8).map(|k| (format!("p{k}"), Vec::new(), stiff::kinematics::frame::Vec6::zeros())).collect();
+    let effects: Vec<ArmEffect> = (0..3).map(offset).collect();
+    let found = calibrate::signatures(&m, &configurations, Some(&poses), &effects, 1.0, None).unwrap();
+    assert_eq!(found.usable.len(), 8);
+    let h = 1e-4;
+    for (k, pose) in poses.iter().enumerate() {
+        let q = inverse(&pose.pos);
+        for (leg, (_, block)) in found.effects.iter().enumerate() {
+            let moved = |s: f64| {
+                let mut shifted = q;
+                shifted[leg] += s * h;
+                forward(&shifted, &pose.pos)
+            };
+            let difference = (moved(1.0) - moved(-1.0)) / (2.0 * h);
+            let signature = Vec3::new(block[(3 * k, 0)], block[(3 * k + 1, 0)], block[(3 * k + 2, 0)]);
+            assert!(
+                (signature - difference).norm() < 1e-6 * difference.norm(),
+                "pose {k}, leg {}: {signature} against {difference}",
+                leg + 1
+            );
+        }
+    }
+}

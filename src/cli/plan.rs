@@ -42,6 +42,11 @@ pub(crate) struct PlanArgs {
     /// deviation about each axis (mrad); the plan weighs what the orientations tell beside the positions.
     #[arg(long, value_name = "MRAD")]
     pub(crate) orientation_noise: Option<f64>,
+    /// A parallel robot's plan for the calibration of its legs from positions in an instrument's frame at
+    /// the candidate poses (`stiff diagnose` on `synth --positions` data), instead of displacements under
+    /// loads; `--loads` is then optional (each pose under its own wrench where none are given).
+    #[arg(long)]
+    pub(crate) positions: bool,
     /// Choose the measurements at random with this seed instead: a baseline to compare a plan with.
     #[arg(long, value_name = "SEED")]
     pub(crate) random: Option<u64>,
@@ -85,13 +90,14 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
             m.name
         );
     }
-    if !arm && loads.is_empty() {
+    let positions = arm || a.positions;
+    if !positions && loads.is_empty() {
         bail!("give --loads: the loads the measurements may be taken under");
     }
     let orientation_noise = match a.orientation_noise {
         None => None,
-        Some(_) if !arm => {
-            bail!("--orientation-noise is for a serial arm's calibration (candidates with q_<joint> columns)")
+        Some(_) if !positions => {
+            bail!("--orientation-noise is for a calibration from positions (a serial arm's candidates with q_<joint> columns, or --positions)")
         }
         Some(s) if (MIN_SIGMA_MM..=MAX_MAGNITUDE).contains(&s) => Some(s * 1e-3),
         Some(s) => bail!("--orientation-noise must lie in [{MIN_SIGMA_MM:e}, {MAX_MAGNITUDE:e}] mrad, got {s}"),
@@ -106,7 +112,10 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
     };
     let mut sink = a.output.open(&plan_table(&set.joint_names))?;
     let p = if arm {
-        plan_arm(m, &crate::diagnose::calibrate::configurations(&poses), &o)?
+        plan_arm(m, &crate::diagnose::calibrate::configurations(&poses), None, &o)?
+    } else if positions {
+        let frames: Vec<crate::kinematics::frame::Frame> = poses.iter().map(|p| p.frame()).collect();
+        plan_arm(m, &crate::diagnose::calibrate::configurations(&poses), Some(&frames), &o)?
     } else {
         plan(&model, &poses, &o)?
     };
@@ -119,11 +128,11 @@ pub(crate) fn run(a: PlanArgs) -> Result<()> {
         Some(o) => format!("{:e} mm and {o:e} mrad", a.noise),
         None => format!("{:e} mm", a.noise),
     };
-    write_stdout(&report(&p, how, &noise))
+    write_stdout(&report(&p, how, &noise, positions))
 }
 
 /// What the plan achieves, for a person.
-fn report(p: &Plan, how: &str, noise: &str) -> String {
+fn report(p: &Plan, how: &str, noise: &str, calibration: bool) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -132,9 +141,9 @@ fn report(p: &Plan, how: &str, noise: &str) -> String {
         p.candidates,
         p.log_det
     );
-    let units = match p.joint_names.is_empty() {
-        true => "factor - 1 for compliance factors",
-        false => "rad or mm for offsets and play, rad/(N mm) or mm/N for compliances added at a joint or the tool, mm and rad for geometry, kg and kg mm for the payload, mm per row for a drift",
+    let units = match calibration {
+        false => "factor - 1 for compliance factors",
+        true => "rad or mm for offsets and play, rad/(N mm) or mm/N for compliances added at a joint or the tool, mm and rad for geometry, kg and kg mm for the payload, mm per row for a drift",
     };
     let _ = writeln!(s, "smallest size detectable at 5 sigma (weakest direction; {units}):");
     let _ = writeln!(s, "  {:<26} {:>4} {:>14} {:>18}", "effect", "dim", "alone", "beside the others");

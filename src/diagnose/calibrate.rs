@@ -2468,10 +2468,12 @@ pub struct Signatures {
 
 /// The signatures (`Signatures`) of `effects` (where empty: the effects `calibrate` offers by default, play
 /// where the candidates load its joint both ways) at `configurations`, one instrument and one target; with
-/// `orientation_noise` (rad), the target's orientation measured too.
+/// `orientation_noise` (rad), the target's orientation measured too. `poses`: a parallel robot's commanded
+/// pose for each configuration (its joints empty).
 pub fn signatures(
     m: &Manipulator,
     configurations: &[Configuration],
+    poses: Option<&[Frame]>,
     effects: &[ArmEffect],
     noise: f64,
     orientation_noise: Option<f64>,
@@ -2479,14 +2481,15 @@ pub fn signatures(
     let mut state = m.new_state();
     let mut rows = Vec::with_capacity(configurations.len());
     for (k, (name, joints, wrench)) in configurations.iter().enumerate() {
-        // Where the nominal arm puts the target (its tool point, its axes the tool's): the registration's
+        // Where the nominal robot puts the target (its tool point, its axes the tool's): the registration's
         // and the target's starts are then the identity, the point about which the first order is taken.
-        let frame = m.pose_at_joints(joints, &mut state);
+        let pose = poses.map(|p| p[k]);
+        let frame = pose.or_else(|| m.pose_at_joints(joints, &mut state));
         let row = |observed: Observed, sigma: f64| PositionRow {
             name: name.clone(),
             line: k + 2,
             joints: joints.clone(),
-            pose: None,
+            pose,
             wrench: *wrench,
             observed,
             sigma: Some(sigma),

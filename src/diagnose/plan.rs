@@ -246,28 +246,42 @@ pub fn plan(model: &Model, poses: &[PosePoint], o: &PlanOptions) -> Result<Plan,
 /// each configuration under its own load: zero, the arm's own weight, where its row gives none), for the calibration `stiff diagnose` makes of joint-space data: the effects it
 /// offers by default (or `o.effects`, named as its `--candidates`), beside the instrument's frame and the
 /// target's place that every calibration fits.
+///
+/// With `poses` (a parallel robot's commanded poses, one per configuration, whose joints are empty), the
+/// plan is for the calibration of its legs from positions at those poses.
 pub fn plan_arm(
     m: &Manipulator,
     configurations: &[super::calibrate::Configuration],
+    poses: Option<&[Frame]>,
     o: &PlanOptions,
 ) -> Result<Plan, PlanError> {
     use super::calibrate::{signatures, ArmEffect};
-    let not_an_arm = || PlanError::Arm(format!("{} is not a serial arm read from URDF", m.name));
-    let names = &m.joint_space.as_ref().ok_or_else(not_an_arm)?.names;
-    let candidates: Vec<super::calibrate::Configuration> = match o.loads.is_empty() {
-        true => configurations.to_vec(),
-        false => configurations
-            .iter()
-            .flat_map(|(name, q, _)| o.loads.iter().map(move |w| (name.clone(), q.clone(), *w)))
-            .collect(),
+    let names: Vec<String> = match (&m.joint_space, poses) {
+        (Some(space), _) => space.names.clone(),
+        (None, Some(_)) => (1..=m.legs.len()).map(|k| k.to_string()).collect(),
+        (None, None) => return Err(PlanError::Arm(format!("{} is not a serial arm read from URDF", m.name))),
     };
+    let loads: Vec<Option<Vec6>> = match o.loads.is_empty() {
+        true => vec![None],
+        false => o.loads.iter().copied().map(Some).collect(),
+    };
+    // Every configuration under every load (its own where none are given), its pose beside it.
+    let (candidates, candidate_poses): (Vec<super::calibrate::Configuration>, Vec<Option<Frame>>) = configurations
+        .iter()
+        .enumerate()
+        .flat_map(|(k, (name, q, own))| {
+            let pose = poses.map(|p| p[k]);
+            loads.iter().map(move |w| ((name.clone(), q.clone(), w.unwrap_or(*own)), pose))
+        })
+        .unzip();
+    let candidate_poses: Option<Vec<Frame>> = candidate_poses.into_iter().collect();
     let effects = o
         .effects
         .iter()
-        .map(|e| ArmEffect::parse(e, names))
+        .map(|e| ArmEffect::parse(e, &names))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|why| PlanError::Arm(format!("--effects {why}")))?;
-    let found = signatures(m, &candidates, &effects, o.noise, o.orientation_noise)
+    let found = signatures(m, &candidates, candidate_poses.as_deref(), &effects, o.noise, o.orientation_noise)
         .map_err(|e| PlanError::Arm(e.to_string()))?;
     let per = found.rows_per_candidate;
     let n = found.usable.len();
@@ -304,13 +318,20 @@ pub fn plan_arm(
         .picks
         .iter()
         .map(|&k| {
-            let (pose, joints, wrench) = &candidates[found.usable[k]];
-            let position = m.pose_at_joints(joints, &mut state).map_or(Vec3::zeros(), |f| f.pos);
+            let c = found.usable[k];
+            let (pose, joints, wrench) = &candidates[c];
+            let frame = match &candidate_poses {
+                Some(p) => Some(p[c]),
+                None => m.pose_at_joints(joints, &mut state),
+            };
+            let position = frame.map_or(Vec3::zeros(), |f| f.pos);
             Planned { pose: pose.clone(), position, wrench: *wrench, joints: joints.clone() }
         })
         .collect();
     let unseen = unseen.into_iter().map(|(label, _)| label.clone()).collect();
-    Ok(Plan { measurements, joint_names: names.clone(), unseen, ..chosen.plan(n) })
+    // A parallel robot's plan gives poses (its joints are its legs, not columns of the plan).
+    let joint_names = if m.joint_space.is_some() { names } else { Vec::new() };
+    Ok(Plan { measurements, joint_names, unseen, ..chosen.plan(n) })
 }
 
 /// One effect's signature over the candidate measurements, in units of a typical size (`probe` of its own
