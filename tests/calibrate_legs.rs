@@ -94,6 +94,35 @@ fn synthetic(h: &Hidden, poses: usize, sigma: f64, gross: &[usize], seed: u64) -
     csv
 }
 
+/// Runs `stiff synth --positions` on `model` at `poses` (`--grid FILE` or `--points FILE`) with the hidden
+/// `effects` (each an `--effect` value), 0.002 mm of noise, `seed` and every third pose held out, then `stiff
+/// diagnose` on what it wrote: the report's text, its JSON's `calibration` and the data written.
+fn synth_and_calibrate(
+    model: &str,
+    poses: [&str; 2],
+    effects: &[&str],
+    seed: &str,
+) -> (String, serde_json::Value, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, json) = (dir.path().join("synth.csv"), dir.path().join("c.json"));
+    let mut args = vec!["synth", model, poses[0], poses[1], "--positions"];
+    for e in effects {
+        args.extend(["--effect", e]);
+    }
+    args.extend(["--noise", "0.002", "--seed", seed, "--check-every", "3", "-o", data.to_str().unwrap()]);
+    crate::common::run_stiff(&args);
+    let text = crate::common::run_stiff(&[
+        "diagnose",
+        model,
+        "--data",
+        data.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    (text, c["calibration"].clone(), std::fs::read_to_string(&data).unwrap())
+}
+
 fn orthoglide() -> Manipulator {
     stiff::model::load_manipulator(Path::new(MODEL)).unwrap()
 }
@@ -247,44 +276,16 @@ fn the_command_line_calibrates_a_parallel_robot_and_its_corrected_description_ex
 /// turn exactly (at first order the positions missed by 2e-4 mm and the compliance came out 4.1 times).
 #[test]
 fn synth_positions_of_a_parallel_robot_round_trip_through_the_calibration() {
-    let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("syn.csv");
-    let json = dir.path().join("c.json");
-    crate::common::run_stiff(&[
-        "synth",
-        MODEL,
-        "--grid",
-        "manipulators/grids/orthoglide-small.toml",
-        "--positions",
-        "--effect",
+    let grid = ["--grid", "manipulators/grids/orthoglide-small.toml"];
+    let hidden = [
         "registration=0.1,0.2,-0.3,1000,200,-50",
-        "--effect",
         "target=10,-5,20",
-        "--effect",
         "actuator-offset:1=0.5",
-        "--effect",
         "actuator-compliance:2=3",
-        "--effect",
         "gross=0.02,3",
-        "--noise",
-        "0.002",
-        "--seed",
-        "4",
-        "--check-every",
-        "3",
-        "-o",
-        data.to_str().unwrap(),
-    ]);
-    let text = crate::common::run_stiff(&[
-        "diagnose",
-        MODEL,
-        "--data",
-        data.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
-    let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let accepted = c["calibration"]["accepted"].as_array().unwrap();
+    ];
+    let (text, c, csv) = synth_and_calibrate(MODEL, grid, &hidden, "4");
+    let accepted = c["accepted"].as_array().unwrap();
     let labels: Vec<&str> = accepted.iter().map(|a| a["label"].as_str().unwrap()).collect();
     assert_eq!(labels, ["joint-offset:1", "joint-compliance:2"], "{text}");
     let compliance = 1.0 / 20491.0;
@@ -292,10 +293,9 @@ fn synth_positions_of_a_parallel_robot_round_trip_through_the_calibration() {
         let (v, se) = (a["values"][0].as_f64().unwrap(), a["se"][0].as_f64().unwrap());
         assert!((v - truth).abs() < 4.0 * se, "{v} +- {se} against {truth}\n{text}");
     }
-    let csv = std::fs::read_to_string(&data).unwrap();
     let hidden = csv.lines().filter(|l| l.ends_with(",1")).count();
-    assert_eq!(c["calibration"]["left_out"].as_array().unwrap().len(), hidden, "{text}");
-    let last = c["calibration"]["stages"].as_array().unwrap().last().unwrap().clone();
+    assert_eq!(c["left_out"].as_array().unwrap().len(), hidden, "{text}");
+    let last = c["stages"].as_array().unwrap().last().unwrap().clone();
     assert!(last["check"]["rms"].as_f64().unwrap() < 0.005, "{text}");
 }
 
@@ -341,42 +341,15 @@ fn over_seeds_a_parallel_robots_offsets_are_named_with_honest_intervals_and_null
 /// on x, 3.5 +- 0.4 mm for 0.
 #[test]
 fn a_payloads_centre_along_gravity_is_seen_through_the_platforms_turn_under_load() {
-    let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("payload.csv");
-    let json = dir.path().join("c.json");
-    crate::common::run_stiff(&[
-        "synth",
-        MODEL,
-        "--grid",
-        "manipulators/grids/orthoglide-small.toml",
-        "--positions",
-        "--effect",
+    let grid = ["--grid", "manipulators/grids/orthoglide-small.toml"];
+    let hidden = [
         "registration=0.1,0.2,-0.3,1000,200,-50",
-        "--effect",
         "target=10,-5,20",
-        "--effect",
         "gravity-offset=20,0,0,50",
-        "--effect",
         "actuator-offset:2=0.3",
-        "--noise",
-        "0.002",
-        "--seed",
-        "1",
-        "--check-every",
-        "3",
-        "-o",
-        data.to_str().unwrap(),
-    ]);
-    let text = crate::common::run_stiff(&[
-        "diagnose",
-        MODEL,
-        "--data",
-        data.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
-    let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let accepted = c["calibration"]["accepted"].as_array().unwrap();
+    ];
+    let (text, c, _) = synth_and_calibrate(MODEL, grid, &hidden, "1");
+    let accepted = c["accepted"].as_array().unwrap();
     let payload = accepted.iter().find(|a| a["label"] == "payload").unwrap_or_else(|| panic!("{text}"));
     let number = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
     let (values, se): (Vec<f64>, Vec<f64>) =
@@ -442,40 +415,11 @@ fn a_turning_platforms_actuator_offset_and_target_are_recovered_from_positions()
         let cells: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
         points += &format!("s{k},{}\n", cells.join(","));
     }
-    let (poses, data, json) = (dir.path().join("poses.csv"), dir.path().join("sg.csv"), dir.path().join("c.json"));
+    let poses = dir.path().join("poses.csv");
     std::fs::write(&poses, points).unwrap();
-    let model = "manipulators/stewart-gough-b.toml";
-    crate::common::run_stiff(&[
-        "synth",
-        model,
-        "--points",
-        poses.to_str().unwrap(),
-        "--positions",
-        "--effect",
-        "registration=0.1,0.2,-0.3,1000,200,-50",
-        "--effect",
-        "target=10,-5,20",
-        "--effect",
-        "actuator-offset:3=0.4",
-        "--noise",
-        "0.002",
-        "--seed",
-        "1",
-        "--check-every",
-        "3",
-        "-o",
-        data.to_str().unwrap(),
-    ]);
-    let text = crate::common::run_stiff(&[
-        "diagnose",
-        model,
-        "--data",
-        data.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
-    let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let c = &c["calibration"];
+    let hidden = ["registration=0.1,0.2,-0.3,1000,200,-50", "target=10,-5,20", "actuator-offset:3=0.4"];
+    let (text, c, _) =
+        synth_and_calibrate("manipulators/stewart-gough-b.toml", ["--points", poses.to_str().unwrap()], &hidden, "1");
     let accepted = c["accepted"].as_array().unwrap();
     assert_eq!(accepted.len(), 1, "{text}");
     assert_eq!(accepted[0]["label"], "joint-offset:3", "{text}");
