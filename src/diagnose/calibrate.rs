@@ -1,6 +1,9 @@
 //! Calibration of a serial arm against what a lab measures (`positions.rs`): where a target on the tool was,
 //! in an instrument's frame, at configurations given by the controller's joint coordinates, under the arm's
-//! own weight and the rows' wrenches; or the tool point's displacement under a wrench.
+//! own weight and the rows' wrenches; or the tool point's displacement under a wrench. A parallel robot's
+//! legs are calibrated by the same routine from positions at commanded poses, its legs' actuators read as
+//! the joints (`platform_statics`), its first order completed by its exact loaded equilibrium
+//! (`Problem::exact_misses`).
 //!
 //! The set-up is fitted, not blamed: each instrument set-up's frame (a rotation and a translation) and each
 //! target's place on the tool are nuisance parameters of every fit. The effects a serial arm can miss are
@@ -339,8 +342,8 @@ fn nominal_frame(m: &Manipulator, row: &PositionRow, state: &mut ManipulatorStat
 /// leg i seen through the other legs, paper 000 eq 60), and the load it carries, a_i . K_i C w (power
 /// conjugate to a_i; w the row's wrench with the payload's weight, at the reference point); and at zero
 /// wrench where `zero` asks. Also each leg's C K_i (the platform's twist per unit end-point error) and its
-/// actuator twist a_i. First order about the unloaded pose: a robot's deflection is a thousandth of its
-/// size, so the load's change of C and K_i is a millionth.
+/// actuator twist a_i. First order about the unloaded commanded pose; what the load's change of C and K_i
+/// and the effects' own second order leave is completed by `Problem::exact_misses`.
 fn platform_statics(
     m: &Manipulator,
     pose: &Frame,
