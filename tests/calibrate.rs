@@ -362,7 +362,7 @@ fn diagnose_takes_joint_space_data_from_the_command_line() {
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(err.contains(says), "{args:?}: {err}");
     };
-    refused(&["--linear"], "--linear is not available for joint-space data");
+    refused(&["--linear"], "--linear is not available for measured positions");
     refused(&["--fit", "joint-offset:J9"], "`J9` is not a joint of the arm (J1, J2, J3, J4, J5, J6)");
     refused(&["--candidates", "stretch:J1"], "the effects of a serial arm are");
     refused(&["--check-fraction", "1.5"], "--check-fraction must lie in [0, 1)");

@@ -16,6 +16,8 @@ pub(crate) const EXAMPLES: &str = "Examples:
   stiff diagnose manipulators/orthoglide-3puu.toml --data data.csv --json verdict.json --model-out corrected.toml --plot verdict.svg
   stiff synth manipulators/fanuc-r2000ic.toml --points manipulators/grids/fanuc-r2000ic-cable-tests.csv --effect registration=0.1,0,0.2,1500,0,300 --effect target=20,0,30 --effect joint-offset:J2=0.001 --noise 0.05 --seed 1 --check-every 3 -o positions.csv
   stiff diagnose manipulators/fanuc-r2000ic.toml --data positions.csv --model-out calibrated.toml
+  stiff synth manipulators/orthoglide-3puu.toml --grid manipulators/grids/orthoglide-small.toml --positions --effect registration=0.1,0.2,-0.3,1000,200,-50 --effect actuator-offset:1=0.5 --noise 0.002 --seed 1 --check-every 3 -o legs.csv
+  stiff diagnose manipulators/orthoglide-3puu.toml --data legs.csv --model-out legs-calibrated.toml
 
 Exit status: 0 success whatever the verdict (unless --fail-on), 1 the run failed or --fail-on matched the\nverdict, 2 usage error.";
 
@@ -28,28 +30,30 @@ pub(crate) struct DiagnoseArgs {
     /// instrument's frame (mx_mm,my_mm,mz_mm or mx_m,...; several targets mx1_mm,... or a `target` column;
     /// optional setup, set = fit|check, sigma_mm, Fx_N..Mz_Nmm; the target's orientation as mqw,mqx,mqy,mqz,
     /// mroll_deg,mpitch_deg,myaw_deg or mrx_rad,mry_rad,mrz_rad with sigma_mrad), or dx_mm,dy_mm,dz_mm under
-    /// the row's wrench.
+    /// the row's wrench; or, for a parallel robot, the same measured positions at commanded poses
+    /// (x_mm,y_mm,z_mm[,pose_rx_rad,pose_ry_rad,pose_rz_rad] in place of q_<joint>): its legs are calibrated.
     #[arg(long)]
     pub(crate) data: PathBuf,
-    /// Joint-space data: hold out this fraction of the configurations (drawn with --seed) as check rows,
+    /// Positions (joint-space data, or a parallel robot's at commanded poses): hold out this fraction of the configurations (drawn with --seed) as check rows,
     /// never fitted.
     #[arg(long, value_name = "F")]
     pub(crate) check_fraction: Option<f64>,
     /// Seed of --check-fraction's draw.
     #[arg(long, default_value_t = 1, requires = "check_fraction")]
     pub(crate) seed: u64,
-    /// Joint-space data: an effect always fitted, not selected (repeat; e.g. --fit joint-compliance:J2):
-    /// joint-offset:J, joint-compliance:J, backlash:J.
+    /// Positions: an effect always fitted, not selected (repeat; e.g. --fit joint-compliance:J2):
+    /// joint-offset:J, joint-compliance:J, backlash:J, joint-geometry:J, frame-compliance:J, payload,
+    /// tool-compliance, drift (a parallel robot's J: a leg's number, its actuator).
     #[arg(long, value_name = "EFFECT")]
     pub(crate) fit: Vec<String>,
-    /// Joint-space data: the candidates offered (comma-separated, as --fit); default every joint's offset
-    /// (positions only), compliance and backlash.
+    /// Positions: the candidates offered (comma-separated, as --fit); default every joint's offset
+    /// (positions only), compliance and backlash, a serial arm's joints' geometry and the payload.
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub(crate) candidates: Vec<String>,
     /// Measurement standard deviation, mm (when the data has no sigma_mm column).
     #[arg(long)]
     pub(crate) sigma: Option<f64>,
-    /// Joint-space data: the standard deviation of a measured orientation about each axis, mrad (when the
+    /// Positions: the standard deviation of a measured orientation about each axis, mrad (when the
     /// data has no sigma_mrad column; without either, orientations are not fitted and the report says so).
     #[arg(long, value_name = "MRAD")]
     pub(crate) sigma_mrad: Option<f64>,
@@ -109,7 +113,7 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
     }
     if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() || a.sigma_mrad.is_some() {
         bail!(
-            "--check-fraction, --fit, --candidates and --sigma-mrad are for joint-space data (q_<joint> columns); {} gives poses",
+            "--check-fraction, --fit, --candidates and --sigma-mrad are for measured positions (mx_mm,my_mm,mz_mm: a serial arm's at q_<joint> columns, a parallel robot's at commanded poses); {} gives displacements",
             a.data.display()
         );
     }
@@ -186,7 +190,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     use crate::diagnose::calibrate::{self, ArmEffect};
     use crate::diagnose::positions::PositionData;
     if a.linear {
-        bail!("--linear is not available for joint-space data: the calibration's predictions are first order about each row's loaded equilibrium");
+        bail!("--linear is not available for measured positions: the calibration's predictions are first order about each row's loaded equilibrium");
     }
     // A serial arm's joints are named by its joint space; a parallel robot's rows give commanded poses and
     // its effects name its legs' actuators by number.
