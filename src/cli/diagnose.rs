@@ -194,11 +194,21 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     }
     // A serial arm's joints are named by its joint space; a parallel robot's rows give commanded poses and
     // its effects name its legs' actuators by number.
-    let (read_joints, joints): (&[String], Vec<String>) = match &m.joint_space {
-        Some(space) => (&space.names, space.names.clone()),
-        None => (&[], (1..=m.legs.len()).map(|k| k.to_string()).collect()),
+    let (joints, mut data) = match &m.joint_space {
+        Some(space) => (space.names.clone(), PositionData::read_from(&a.data, input, &space.names)?),
+        None => {
+            // The actuators' readings a parallel robot's rows may give: q_<leg> for each leg with one actuator.
+            let readable: Vec<String> = m
+                .actuator_units()
+                .iter()
+                .enumerate()
+                .filter(|(_, units)| units.len() == 1)
+                .map(|(k, _)| (k + 1).to_string())
+                .collect();
+            let legs = (1..=m.legs.len()).map(|k| k.to_string()).collect();
+            (legs, PositionData::read_at_poses(&a.data, input, &readable)?)
+        }
     };
-    let mut data = PositionData::read_from(&a.data, input, read_joints)?;
     if let Some(f) = a.check_fraction {
         if !(0.0..1.0).contains(&f) {
             bail!("--check-fraction must lie in [0, 1), got {f}");

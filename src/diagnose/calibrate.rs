@@ -1864,6 +1864,31 @@ fn select(
     Ok(Selection { model, fit, steps, hidden })
 }
 
+/// A parallel robot's rows that give its actuators' readings: each row's pose becomes the rigid robot's at
+/// those readings (`Manipulator::pose_at_actuators`), the commanded pose only its start, so that what the
+/// controller did not reach is not taken for an effect.
+fn at_actuator_readings(m: &Manipulator, data: &PositionData) -> Result<PositionData, CalibrationError> {
+    let mut out = data.clone();
+    let mut state = m.new_state();
+    let mut last: Option<(usize, Frame)> = None;
+    for r in &mut out.rows {
+        let Some(start) = r.pose.filter(|_| !r.joints.is_empty()) else { continue };
+        let pose = match last.filter(|(line, _)| *line == r.line) {
+            Some((_, pose)) => pose,
+            None => m.pose_at_actuators(&r.joints, &start, &mut state).ok_or_else(|| CalibrationError::Row {
+                name: r.name.clone(),
+                line: r.line,
+                why: "the actuators' readings give no pose near the commanded one (a reading outside the reach, or \
+                      far from the commanded pose)"
+                    .into(),
+            })?,
+        };
+        last = Some((r.line, pose));
+        r.pose = Some(pose);
+    }
+    Ok(out)
+}
+
 /// Calibrates the arm `m` against `data`: registration fitted, effects selected among `candidates` (all
 /// of the arm's joints' where empty), gross rows left out, check rows reported.
 pub fn calibrate(
@@ -1872,6 +1897,13 @@ pub fn calibrate(
     candidates: &[ArmEffect],
     options: &Options,
 ) -> Result<Calibration, CalibrationError> {
+    let solved;
+    let data = if m.joint_space.is_none() && data.rows.iter().any(|r| !r.joints.is_empty()) {
+        solved = at_actuator_readings(m, data)?;
+        &solved
+    } else {
+        data
+    };
     let weighed;
     let data = if data.rows.iter().any(|r| r.payload.is_some()) {
         weighed = data.with_payload_weights(m);

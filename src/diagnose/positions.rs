@@ -88,7 +88,8 @@ pub struct PositionRow {
     pub name: String,
     /// Line in the file.
     pub line: usize,
-    /// The controller's joint coordinates, in the arm's joint-space order (empty for a parallel robot).
+    /// The controller's joint coordinates, in the arm's joint-space order; for a parallel robot its
+    /// actuators' readings where the data give them (leg by leg), else empty.
     pub joints: Vec<f64>,
     /// A parallel robot's commanded pose (its actuators set where the nominal inverse kinematics puts
     /// them for it); None for a serial arm, whose configuration is `joints`.
@@ -238,6 +239,25 @@ impl PositionData {
 
     /// As `read`, from `input` (the contents of `path`, named in messages).
     pub fn read_from(path: &Path, input: impl std::io::Read, joints: &[String]) -> Result<PositionData, InputError> {
+        PositionData::read_rows(path, input, joints, joints.is_empty())
+    }
+
+    /// A parallel robot's measurements from `input`: commanded poses, and where the data give them its
+    /// actuators' readings, `q_<leg>` for each of `legs` (the legs by number), every one or none. A
+    /// row's `joints` are then its readings, in the order of `legs`, from which the calibration finds the pose
+    /// the commanded one only starts.
+    pub fn read_at_poses(path: &Path, input: impl std::io::Read, legs: &[String]) -> Result<PositionData, InputError> {
+        PositionData::read_rows(path, input, legs, true)
+    }
+
+    /// The reader: `joints` the names of the `q_<name>` columns (all required for a serial arm; all or none
+    /// at `poses`), `poses` whether each row gives a commanded pose.
+    fn read_rows(
+        path: &Path,
+        input: impl std::io::Read,
+        joints: &[String],
+        poses: bool,
+    ) -> Result<PositionData, InputError> {
         let at = |line: usize, column: usize, message: String| InputError::At {
             path: path.to_path_buf(),
             line,
@@ -249,6 +269,8 @@ impl PositionData {
             reader.headers().map_err(|e| at(1, 1, e.to_string()))?.iter().map(String::from).collect();
         let find = |name: &str| header.iter().position(|h| h == name);
         let given: Vec<String> = header.iter().filter_map(|h| h.strip_prefix(JOINT_PREFIX)).map(String::from).collect();
+        // At commanded poses the actuators' readings are optional: without them the rows read no joints.
+        let joints: &[String] = if poses && given.is_empty() { &[] } else { joints };
         if joints.is_empty() && !given.is_empty() {
             return Err(at(
                 1,
@@ -273,12 +295,20 @@ impl PositionData {
             return Err(at(
                 1,
                 1,
-                format!(
-                    "the joint columns must be {JOINT_PREFIX} and each of the arm's joints ({}): missing {}; not joints of the arm {}",
-                    joints.join(", "),
-                    list(&missing),
-                    list(&extra)
-                ),
+                match poses {
+                    false => format!(
+                        "the joint columns must be {JOINT_PREFIX} and each of the arm's joints ({}): missing {}; not joints of the arm {}",
+                        joints.join(", "),
+                        list(&missing),
+                        list(&extra)
+                    ),
+                    true => format!(
+                        "the actuators' readings are {JOINT_PREFIX} and the number of each leg with one actuator ({}), all of them or none: missing {}; not such legs {}",
+                        joints.join(", "),
+                        list(&missing),
+                        list(&extra)
+                    ),
+                },
             ));
         }
         let joint_columns: Vec<usize> =
@@ -286,7 +316,7 @@ impl PositionData {
         // A parallel robot's rows are commanded poses: the position's columns, and the orientation's where
         // given (all three or none).
         let pose_columns: Option<Vec<Option<usize>>> =
-            joints.is_empty().then(|| POSITION.iter().chain(ORIENTATION.iter()).map(|c| find(c)).collect());
+            poses.then(|| POSITION.iter().chain(ORIENTATION.iter()).map(|c| find(c)).collect());
         if let Some(columns) = &pose_columns {
             let missing: Vec<&str> =
                 POSITION.iter().zip(columns).filter(|(_, c)| c.is_none()).map(|(n, _)| *n).collect();

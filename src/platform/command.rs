@@ -11,6 +11,11 @@ use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
 use crate::linalg::{span_basis, Orthonormal6};
 use nalgebra::DMatrix;
 
+/// How far from its reading an actuated coordinate may be left by `Manipulator::pose_at_actuators`, relative
+/// to the length scale: a few hundred times round-off, which Newton's quadratic steps reach from any pose
+/// near the solution.
+const ACTUATOR_TOLERANCE: f64 = 1e-13;
+
 /// The directions the actuators move the platform in (`Manipulator::commanded_directions`).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Directions {
@@ -57,6 +62,42 @@ impl Manipulator {
             motions.extend(leg.actuator_twists(pose, s).iter().map(|u| compliance * (k * u)));
         }
         Ok(Some(motions))
+    }
+
+    /// The pose of the rigid robot whose actuators read `readings` (every actuated coordinate, leg by leg, in
+    /// order): Newton's method from `start` on the inverse kinematics, each step moving the platform by the
+    /// actuators' motions (`actuator_motions`, the forward kinematic Jacobian) times what the readings
+    /// differ from the placement's coordinates. None where a placement fails, K is singular, the readings do
+    /// not cover every actuated coordinate, or 30 steps leave a coordinate further than `ACTUATOR_TOLERANCE`
+    /// (relative to the length scale) from its reading. Placements are polished in `state` (to round-off).
+    pub fn pose_at_actuators(&self, readings: &[f64], start: &Frame, state: &mut ManipulatorState) -> Option<Frame> {
+        state.polish_placements();
+        let tolerance = ACTUATOR_TOLERANCE * self.length_scale.max(1.0);
+        let mut pose = *start;
+        let mut previous = f64::INFINITY;
+        for _ in 0..30 {
+            let motions = self.actuator_motions(&pose, state).ok()??;
+            let placed: Vec<f64> = state.actuators().flatten().copied().collect();
+            if placed.len() != readings.len() || motions.len() != readings.len() {
+                return None;
+            }
+            let mut step = Vec6::zeros();
+            let mut largest = 0.0f64;
+            for ((motion, at), reading) in motions.iter().zip(&placed).zip(readings) {
+                step += motion * (reading - at);
+                largest = largest.max((reading - at).abs());
+            }
+            // Within the tolerance, or at the round-off floor (no longer falling) well within a placement's.
+            if largest <= tolerance || (largest >= previous && largest <= 1e3 * tolerance) {
+                return Some(pose);
+            }
+            previous = largest;
+            if !largest.is_finite() {
+                return None;
+            }
+            pose = crate::kinematics::frame::apply_twist(&pose, &step);
+        }
+        None
     }
 
     /// The platform motions the actuators command at `pose` (placing the rigid robot there): an orthonormal
