@@ -194,8 +194,9 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     }
     // A serial arm's joints are named by its joint space; a parallel robot's rows give commanded poses and
     // its effects name its legs' actuators by number.
-    let (joints, mut data) = match &m.joint_space {
-        Some(space) => (space.names.clone(), PositionData::read_from(&a.data, input, &space.names)?),
+    let joints = calibrate::joint_names(m);
+    let mut data = match &m.joint_space {
+        Some(space) => PositionData::read_from(&a.data, input, &space.names)?,
         None => {
             // The actuators' readings a parallel robot's rows may give: q_<leg> for each leg with one actuator.
             let readable: Vec<String> = m
@@ -205,8 +206,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
                 .filter(|(_, units)| units.len() == 1)
                 .map(|(k, _)| (k + 1).to_string())
                 .collect();
-            let legs = (1..=m.legs.len()).map(|k| k.to_string()).collect();
-            (legs, PositionData::read_at_poses(&a.data, input, &readable)?)
+            PositionData::read_at_poses(&a.data, input, &readable)?
         }
     };
     if let Some(f) = a.check_fraction {

@@ -27,6 +27,7 @@ use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use super::positions::{Observed, PositionData, PositionRow};
 use crate::kinematics::frame::{rotation_from_vector, skew, Frame, Mat3, Mat6, Vec3, Vec6};
+use crate::model::effect::{Effect, Kind, Target};
 use crate::platform::manipulator::{ArmStatics, Manipulator, ManipulatorState};
 
 /// Relative singular value of the column-scaled Jacobian below which a direction is not identifiable: a
@@ -313,10 +314,10 @@ pub struct Calibration {
     pub rows: (usize, usize),
     /// The data's columns no rule read.
     pub unread: Vec<String>,
-    /// A parallel robot's legs: each one's actuator compliance in the model (None where its actuator has no
-    /// spring), with which an added compliance is written as a factor on it; None for a serial arm.
+    /// A parallel robot's accepted effects as the model-form effects a description holds (`model_form`;
+    /// None for one it holds not), in the order of `accepted`; None for a serial arm.
     #[serde(skip)]
-    pub leg_compliances: Option<Vec<Option<f64>>>,
+    pub leg_corrections: Option<Vec<Option<Effect>>>,
 }
 
 /// A joint's load as the effects read it: zero where it is round-off (below `LOAD_ROUND_OFF` of the row's
@@ -331,10 +332,13 @@ fn load_of(s: &ArmStatics, joint: usize) -> f64 {
     }
 }
 
-/// Where the nominal model puts a row's reference point: a parallel robot's commanded pose, a serial arm's
-/// forward kinematics at its joint coordinates.
-fn nominal_frame(m: &Manipulator, row: &PositionRow, state: &mut ManipulatorState) -> Option<Frame> {
-    row.pose.or_else(|| m.pose_at_joints(&row.joints, state))
+/// The joints a calibration of `m` names: a serial arm's, or a parallel robot's legs by number (1-based, as
+/// `[[actuator_offset]]` and the diagnosis's effects name them), each leg's actuator its joint.
+pub fn joint_names(m: &Manipulator) -> Vec<String> {
+    match &m.joint_space {
+        Some(space) => space.names.clone(),
+        None => (1..=m.legs.len()).map(|k| k.to_string()).collect(),
+    }
 }
 
 /// A parallel robot's statics at a commanded pose, read as a serial arm's are, its legs' actuators for
@@ -545,7 +549,8 @@ impl<'a> Problem<'a> {
                      wrench: &Vec6,
                      state: &mut ManipulatorState|
          -> Result<(Vec6, Option<crate::kinematics::frame::Mat6>), CalibrationError> {
-            let frame = nominal_frame(m, r, state)
+            let frame = r
+                .nominal_frame(m, state)
                 .ok_or_else(|| failed(r, "the joint coordinates give no finite pose".into()))?;
             m.place(&frame, state).map_err(|e| failed(r, e.to_string()))?;
             let d = m.deflect(&frame, wrench, None, state).map_err(|e| failed(r, e.to_string()))?;
@@ -633,7 +638,9 @@ impl<'a> Problem<'a> {
                     // failed too, or will be): it keeps zero effects.
                     match platform_statics(m, &pose, &r.wrench, zero.as_ref(), &mut state) {
                         Ok(p) => {
-                            prismatic = p.actuators.iter().map(|a| a.fixed_rows::<3>(3).norm() == 0.0).collect();
+                            if prismatic.is_empty() {
+                                prismatic = p.actuators.iter().map(|a| a.fixed_rows::<3>(3).norm() == 0.0).collect();
+                            }
                             leg_moves.push(p.moves);
                             (p.statics, p.zero)
                         }
@@ -657,10 +664,7 @@ impl<'a> Problem<'a> {
             };
             statics.push((s, z));
         }
-        let joints: Vec<String> = match space {
-            Some(space) => space.names.clone(),
-            None => (1..=m.legs.len()).map(|k| k.to_string()).collect(),
-        };
+        let joints = joint_names(m);
         prismatic.resize(joints.len(), false);
         let mut turns = 0;
         let turn_of = (0..data.targets.len())
@@ -1027,34 +1031,12 @@ impl<'a> Problem<'a> {
         if self.space.is_some() {
             return None;
         }
-        let built = |e: &ArmEffect, v: &[f64]| match e.kind {
-            ArmKind::JointOffset => true,
-            ArmKind::JointCompliance => self.nominal_compliance(e.joint).is_some_and(|n| n + v[0] > 0.0),
-            ArmKind::Payload => v[0] > 0.0,
-            _ => false,
-        };
-        let builds: Vec<bool> = effects.iter().zip(&params.effects).map(|(e, v)| built(e, v)).collect();
-        if !builds.contains(&true) {
+        let built: Vec<(&ArmEffect, &Vec<f64>, Effect)> =
+            effects.iter().zip(&params.effects).filter_map(|(e, v)| Some((e, v, self.model_form(e, v)?))).collect();
+        if built.is_empty() {
             return None;
         }
-        let with_effects = |arm: &Manipulator| {
-            let mut real = arm.clone();
-            for ((e, v), _) in effects.iter().zip(&params.effects).zip(&builds).filter(|(_, b)| **b) {
-                match e.kind {
-                    ArmKind::JointOffset => real.legs[e.joint].offset_actuator(v[0]),
-                    ArmKind::JointCompliance => {
-                        let nominal = self.nominal_compliance(e.joint).expect("built only with a spring");
-                        let actuator = crate::platform::manipulator::SpringSet::ActuatorOf(e.joint);
-                        real.scale_compliance(&actuator, (nominal + v[0]) / nominal);
-                    }
-                    _ => real.add_payload(crate::platform::manipulator::Payload {
-                        mass_kg: v[0],
-                        centre: Vec3::new(v[1], v[2], v[3]) / v[0],
-                    }),
-                }
-            }
-            real
-        };
+        let model_form: Vec<Effect> = built.iter().map(|(_, _, f)| f.clone()).collect();
         let mut real: Vec<Option<Manipulator>> = vec![None; self.tilted.len() + 1];
         let mut state = self.m.new_state();
         // Actuators placed to round-off: the placement's tolerance (about 1e-7 mm) would stay in the misses.
@@ -1070,7 +1052,8 @@ impl<'a> Problem<'a> {
                 misses.push(Vec6::zeros());
                 continue;
             };
-            let robot = real[self.tilt_of[r].map_or(0, |t| t + 1)].get_or_insert_with(|| with_effects(self.arm(r)));
+            let robot = real[self.tilt_of[r].map_or(0, |t| t + 1)]
+                .get_or_insert_with(|| crate::model::effect::with_model_effects(self.arm(r), &model_form));
             if self.unusable.iter().any(|(u, _)| *u == r) {
                 misses.push(Vec6::zeros());
                 continue;
@@ -1082,16 +1065,36 @@ impl<'a> Problem<'a> {
             let (s, zero) = &self.statics[r];
             let payload = self.fitted_payload_weight(r, effects, params, s, zero);
             let mut linear = self.deflection[r];
-            for ((e, v), _) in effects.iter().zip(&params.effects).zip(&builds).filter(|(_, b)| **b) {
+            for (e, v, _) in &built {
                 let moves = self.unit_moves(r, e, s, zero, &Seen::Point(Vec3::zeros()), &payload);
                 let turns = self.unit_moves(r, e, s, zero, &Seen::Turn, &payload);
-                for ((m, t), value) in moves.iter().zip(&turns).zip(v) {
+                for ((m, t), value) in moves.iter().zip(&turns).zip(v.iter()) {
                     linear += Vec6::new(m.x, m.y, m.z, t.x, t.y, t.z) * *value;
                 }
             }
             misses.push(exact - linear);
         }
         Some(misses)
+    }
+
+    /// A parallel robot's effect `e` at `values` as the description's model-form effect every study builds in
+    /// (`model::effect::with_model_effects`): an actuator offset, an added actuator compliance as the factor
+    /// on its spring (where it has one and stays positive), a payload of positive mass (stored as (m, m c),
+    /// as the fit's parameters are); None for the others, which no description holds.
+    fn model_form(&self, e: &ArmEffect, values: &[f64]) -> Option<Effect> {
+        let leg = Target::Leg(e.joint);
+        match e.kind {
+            ArmKind::JointOffset => Some(Effect { kind: Kind::ActuatorOffset, target: leg, values: values.to_vec() }),
+            ArmKind::JointCompliance => {
+                let nominal = self.nominal_compliance(e.joint).filter(|n| n + values[0] > 0.0)?;
+                let factor = (nominal + values[0]) / nominal;
+                Some(Effect { kind: Kind::ActuatorCompliance, target: leg, values: vec![factor] })
+            }
+            ArmKind::Payload if values[0] > 0.0 => {
+                Some(Effect { kind: Kind::GravityOffset, target: Target::None, values: values.to_vec() })
+            }
+            _ => None,
+        }
     }
 
     /// The fit of `effects` on `rows` from `start`, a parallel robot's first order completed by its misses
@@ -1298,7 +1301,7 @@ impl<'a> Problem<'a> {
                 .iter()
                 .filter(|&&r| matches!(self.data.rows[r].observed, Observed::Position { setup, .. } if setup == s))
                 .filter_map(|&r| {
-                    let f = nominal_frame(self.m, &self.data.rows[r], &mut state)?;
+                    let f = self.data.rows[r].nominal_frame(self.m, &mut state)?;
                     Some((f.pos, self.measured(r)))
                 })
                 .collect();
@@ -1320,7 +1323,7 @@ impl<'a> Problem<'a> {
             for &r in rows {
                 if let Observed::Orientation { target, setup, at } = self.data.rows[r].observed {
                     if target == t {
-                        if let Some(f) = nominal_frame(self.m, &self.data.rows[r], &mut state) {
+                        if let Some(f) = self.data.rows[r].nominal_frame(self.m, &mut state) {
                             sum += f.rot.transpose() * params.rotations[setup].transpose() * at;
                         }
                     }
@@ -2190,10 +2193,10 @@ pub fn calibrate(
         sigma_known,
         rows: (kept.len(), check_rows.len()),
         unread: data.unread.clone(),
-        leg_compliances: problem
+        leg_corrections: problem
             .space
             .is_none()
-            .then(|| (0..problem.joints.len()).map(|j| problem.nominal_compliance(j)).collect()),
+            .then(|| model.iter().zip(&fit.params.effects).map(|(e, values)| problem.model_form(e, values)).collect()),
     })
 }
 
@@ -2213,9 +2216,12 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibratio
             c.accepted.iter().map(|a| a.label.clone()).collect::<Vec<_>>().join(", ")
         }
     );
-    for a in &c.accepted {
-        if let Some(legs) = &c.leg_compliances {
-            out.push_str(&leg_correction(a, legs));
+    for (k, a) in c.accepted.iter().enumerate() {
+        if let Some(legs) = &c.leg_corrections {
+            match &legs[k] {
+                Some(effect) => super::report::write_correction(&mut out, effect),
+                None => out.push_str(&leg_not_written(a)),
+            }
             continue;
         }
         match a.kind {
@@ -2266,28 +2272,20 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibratio
     out
 }
 
-/// A parallel robot's accepted effect as its description holds it: an actuator offset as
-/// `[[actuator_offset]]`, an added actuator compliance as the factor on the leg's actuator spring
-/// (`[[effect]]` actuator-compliance), a payload as `[[payload]]`; what no description of a parallel robot
-/// holds (a leg's end-point error, play, a drift, a tool's compliance) as a comment.
-fn leg_correction(a: &Accepted, compliances: &[Option<f64>]) -> String {
-    let leg = a.joint.parse::<usize>().unwrap_or(0);
-    let not_written = |why: &str| format!("\n# {}: {} (not written: {why})\n", a.label, a.shown);
-    match a.kind {
-        ArmKind::JointOffset => format!("\n[[actuator_offset]]\nleg = {leg}\noffset = {:?}\n", a.values[0]),
-        ArmKind::JointCompliance => match compliances.get(leg.wrapping_sub(1)).copied().flatten() {
-            Some(nominal) => format!(
-                "\n[[effect]]\nname = \"actuator-compliance\"\ntarget = \"{leg}\"\nvalues = [{:?}]\n",
-                (nominal + a.values[0]) / nominal
-            ),
-            None => not_written("the leg's actuator has no spring to scale"),
-        },
-        ArmKind::Payload => correction_table(a.kind, &a.joint, &a.values),
-        ArmKind::JointGeometry => not_written("a description holds no leg's end-point error; stiff assemble takes it"),
-        ArmKind::Backlash => not_written("a description holds no play yet"),
-        ArmKind::Drift => not_written("a drift belongs to the measurements, not the robot"),
-        ArmKind::ToolCompliance | ArmKind::FrameCompliance => not_written("a description holds no spring there"),
-    }
+/// A parallel robot's accepted effect that no description holds (`model_form` gives none), as a comment
+/// saying why it is not written.
+fn leg_not_written(a: &Accepted) -> String {
+    let why = match a.kind {
+        ArmKind::JointCompliance => {
+            "the leg's actuator has no spring to scale, or its compliance would fall below zero"
+        }
+        ArmKind::Payload => "a payload's mass must be above zero",
+        ArmKind::JointGeometry => "a description holds no leg's end-point error; stiff assemble takes it",
+        ArmKind::Backlash => "a description holds no play yet",
+        ArmKind::Drift => "a drift belongs to the measurements, not the robot",
+        _ => "a description holds no spring there",
+    };
+    format!("\n# {}: {} (not written: {why})\n", a.label, a.shown)
 }
 
 /// Fitted compliances as a spring's: a value below zero within two standard errors (or not seen) is zero,

@@ -255,12 +255,11 @@ pub fn plan_arm(
     poses: Option<&[Frame]>,
     o: &PlanOptions,
 ) -> Result<Plan, PlanError> {
-    use super::calibrate::{signatures, ArmEffect};
-    let names: Vec<String> = match (&m.joint_space, poses) {
-        (Some(space), _) => space.names.clone(),
-        (None, Some(_)) => (1..=m.legs.len()).map(|k| k.to_string()).collect(),
-        (None, None) => return Err(PlanError::Arm(format!("{} is not a serial arm read from URDF", m.name))),
-    };
+    use super::calibrate::{joint_names, signatures, ArmEffect};
+    if m.joint_space.is_none() && poses.is_none() {
+        return Err(PlanError::Arm(format!("{} is not a serial arm read from URDF", m.name)));
+    }
+    let names = joint_names(m);
     let loads: Vec<Option<Vec6>> = match o.loads.is_empty() {
         true => vec![None],
         false => o.loads.iter().copied().map(Some).collect(),

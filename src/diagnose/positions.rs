@@ -114,6 +114,18 @@ pub struct PositionRow {
     pub payload: Option<(f64, Vec3)>,
 }
 
+impl PositionRow {
+    /// Where the nominal model puts the row's reference point: a parallel robot's pose (commanded, or found
+    /// from its actuators' readings), a serial arm's forward kinematics at its joint coordinates.
+    pub fn nominal_frame(
+        &self,
+        m: &Manipulator,
+        state: &mut crate::platform::manipulator::ManipulatorState,
+    ) -> Option<Frame> {
+        self.pose.or_else(|| m.pose_at_joints(&self.joints, state))
+    }
+}
+
 /// A file of measured rows.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PositionData {
@@ -566,7 +578,7 @@ impl PositionData {
         let g = m.weight_gravity();
         for r in &mut out.rows {
             let Some((kg, centre)) = r.payload.take() else { continue };
-            let Some(frame) = r.pose.or_else(|| m.pose_at_joints(&r.joints, &mut state)) else { continue };
+            let Some(frame) = r.nominal_frame(m, &mut state) else { continue };
             let force = r.gravity.map_or(g, |d| d * g.norm()) * kg;
             let moment = (frame.rot * centre).cross(&force);
             r.wrench += Vec6::new(force.x, force.y, force.z, moment.x, moment.y, moment.z);

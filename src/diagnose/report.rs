@@ -326,7 +326,7 @@ pub fn with_absolute_references(source: &str, model_dir: &std::path::Path) -> St
 /// One accepted effect as the model change it is (`[[payload]]`, `[[actuator_offset]]`, a spring scaling
 /// as `[[effect]]`, all built into the model every study uses), or as a measurement term `[[effect]]` that
 /// only diagnose and synth read, said so in the file.
-fn write_correction(out: &mut String, e: &Effect) {
+pub(crate) fn write_correction(out: &mut String, e: &Effect) {
     let v = e.user_values();
     let number = |x: f64| format!("{x:e}");
     match (e.kind, &e.target) {
