@@ -128,8 +128,7 @@ impl Sequence {
             *d = s.displacement;
         }
         let weights = extrapolation_weights(extrapolation_degree(&displacements[..count]) + 1);
-        let prediction = Prediction { solutions: &self.solutions, weights };
-        Some(prediction)
+        Some(Prediction::along(&self.solutions, weights))
     }
 
     /// How many of the last solutions lie with `position` equally spaced on a line (at least 1).
@@ -164,17 +163,36 @@ impl Sequence {
     }
 }
 
-/// An extrapolation: the newest solutions (the last `weights.len()` of `solutions`, oldest first) and
-/// their weights, newest first.
+/// Terms a prediction combines at most: an extrapolation along the row (up to five solutions) and its
+/// error measured in each of the two rows before (the same extrapolation there, and the solution it
+/// predicted).
+const MAX_TERMS: usize = 3 * (KEPT + 1);
+
+/// An extrapolation: solutions and their weights.
 struct Prediction<'a> {
-    solutions: &'a [Solution],
-    weights: &'static [f64],
+    terms: [(f64, Option<&'a Solution>); MAX_TERMS],
+    count: usize,
 }
 
-impl Prediction<'_> {
-    /// The solutions used, newest first, with their weights.
+impl<'a> Prediction<'a> {
+    /// The polynomial extrapolation of `weights` (newest first) through the newest of `solutions` (oldest
+    /// first).
+    fn along(solutions: &'a [Solution], weights: &[f64]) -> Self {
+        let mut p = Prediction { terms: [(0.0, None); MAX_TERMS], count: 0 };
+        for (w, s) in weights.iter().zip(solutions.iter().rev()) {
+            p.add(*w, s);
+        }
+        p
+    }
+
+    fn add(&mut self, weight: f64, solution: &'a Solution) {
+        self.terms[self.count] = (weight, Some(solution));
+        self.count += 1;
+    }
+
+    /// The solutions used with their weights.
     fn terms(&self) -> impl Iterator<Item = (f64, &Solution)> + Clone {
-        self.solutions.iter().rev().zip(self.weights).map(|(s, w)| (*w, s))
+        self.terms[..self.count].iter().filter_map(|(w, s)| s.map(|s| (*w, s)))
     }
 
     /// The platform's displacement predicted.
@@ -192,15 +210,59 @@ impl Prediction<'_> {
     }
 }
 
-/// A run's loaded solutions: the last points, and the first points of the last lines (the starts of a
-/// grid's rows), so a point that begins a line starts from the lines before it rather than from the far
-/// end of the previous row.
+/// The solutions of one row of a grid (points equally spaced on a line, in order), in buffers kept from
+/// row to row: the first `len` of `solutions`.
+#[derive(Clone, Debug, Default)]
+struct Row {
+    solutions: Vec<Solution>,
+    len: usize,
+}
+
+impl Row {
+    fn solved(&self) -> &[Solution] {
+        &self.solutions[..self.len]
+    }
+
+    /// The row's solution at `index`, where it was solved at `position` (to round-off of the grid's
+    /// arithmetic, relative to the row's `spacing`).
+    fn at(&self, index: usize, position: &Vec3, spacing: f64) -> Option<&Solution> {
+        let s = self.solved().get(index)?;
+        ((s.position - position).norm() <= 1e-9 * spacing).then_some(s)
+    }
+
+    fn record(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
+        if self.len == self.solutions.len() {
+            self.solutions.push(Solution::default());
+        }
+        let newest = &mut self.solutions[self.len];
+        self.len += 1;
+        newest.position = position;
+        newest.displacement = displacement;
+        newest.offsets.resize_with(legs.len(), LoadedOffsets::default);
+        for (o, leg) in newest.offsets.iter_mut().zip(legs) {
+            leg.loaded_offsets_into(o);
+        }
+    }
+}
+
+/// Rows whose solutions a run keeps: the current one and the two before it.
+const ROWS_KEPT: usize = 3;
+
+/// A run's loaded solutions: the last points, the first points of the last lines (the starts of a grid's
+/// rows), so a point that begins a line starts from the lines before it rather than from the far end of the
+/// previous row, and the whole of the last rows, so that the error of the extrapolation along a row is
+/// measured on the rows before it and taken off.
 #[derive(Clone, Debug, Default)]
 pub struct LoadedHistory {
     recent: Sequence,
     line_starts: Sequence,
     /// The current line (three equally spaced points) has its first point among `line_starts`.
     line_recorded: bool,
+    /// The current row (`rows[current]`) and the two before it (`rows[current - 1]`, `rows[current - 2]`,
+    /// modulo `ROWS_KEPT`): `rows_kept` of them hold a row.
+    rows: [Row; ROWS_KEPT],
+    current: usize,
+    rows_kept: usize,
 }
 
 impl LoadedHistory {
@@ -210,7 +272,90 @@ impl LoadedHistory {
         if !continues_line && self.line_starts.distance(position) < self.recent.distance(position) {
             return self.line_starts.predict(position);
         }
-        self.recent.predict(position)
+        let mut prediction = self.recent.predict(position)?;
+        if self.continues_row(position) {
+            self.correct_from_rows_before(position, &mut prediction);
+        }
+        Some(prediction)
+    }
+
+    fn row(&self, back: usize) -> &Row {
+        &self.rows[(self.current + ROWS_KEPT - back) % ROWS_KEPT]
+    }
+
+    /// `position` is the next point of the current row: the row holds one point (the next fixes its
+    /// spacing), or it lies equally spaced after the row's last two.
+    fn continues_row(&self, position: &Vec3) -> bool {
+        let row = self.row(0).solved();
+        match row {
+            [] => false,
+            [_] => true,
+            [.., older, newer] => {
+                let step = position - newer.position;
+                ((newer.position - older.position) - step).norm() <= 1e-9 * step.norm().max(1e-9)
+            }
+        }
+    }
+
+    /// Takes off an extrapolation's error along the current row as the rows before it show it: for a point
+    /// at index i of the row, the same extrapolation through the points of each earlier row at the same
+    /// indices misses that row's own solution at i by e_1 (the row before) and e_2 (the one before that);
+    /// the error varies smoothly from row to row, so the prediction gains 2 e_1 - e_2 (the linear
+    /// extrapolation of the errors across equally spaced rows), or e_1 where one row is known. Along a
+    /// short row the extrapolation is of low degree near its start (a constant at its second point), and
+    /// the correction leaves only the mixed differences across rows. Nothing is added where the earlier rows
+    /// do not hold the same points shifted by the same step between rows.
+    fn correct_from_rows_before<'a>(&'a self, position: &Vec3, prediction: &mut Prediction<'a>) {
+        let current = self.row(0).solved();
+        // The point's index in the row (the row holds at least one point: it continues it).
+        let index = current.len();
+        let along = prediction.count;
+        // The along-row terms are the row's last `along` solutions (`Sequence::predict` took them from the
+        // recent points, which the row's last points are: it continues the row).
+        if along > current.len() || along == 0 {
+            return;
+        }
+        let spacing = (position - current[index - 1].position).norm();
+        let mut shifts = [Vec3::zeros(); 2];
+        let mut rows_before = 0;
+        for back in 1..=2.min(self.rows_kept.saturating_sub(1)) {
+            let (row, newer) = (self.row(back).solved(), self.row(back - 1).solved());
+            let (Some(first), Some(newer_first)) = (row.first(), newer.first()) else { break };
+            let shift = newer_first.position - first.position;
+            // Equally spaced rows: the shift between the second and third rows back is the first's.
+            if back == 2 && (shift - shifts[0]).norm() > 1e-9 * shift.norm().max(1e-9) {
+                break;
+            }
+            shifts[back - 1] = shift;
+            rows_before = back;
+        }
+        let weights: [f64; 2] = match rows_before {
+            1 => [1.0, 0.0],
+            2 => [2.0, -1.0],
+            _ => return,
+        };
+        // Each earlier row's point at `index`, and at the indices of the along-row terms.
+        let mut found: [[Option<&Solution>; KEPT + 1]; 2] = [[None; KEPT + 1]; 2];
+        for back in 1..=rows_before {
+            let offset: Vec3 = shifts[..back].iter().sum();
+            let row = self.row(back);
+            found[back - 1][0] = row.at(index, &(position - offset), spacing);
+            for k in 0..along {
+                let j = index - 1 - k;
+                found[back - 1][k + 1] = row.at(j, &(current[j].position - offset), spacing);
+            }
+            if found[back - 1][..=along].iter().any(Option::is_none) {
+                return;
+            }
+        }
+        let along_weights: [f64; KEPT] = std::array::from_fn(|k| if k < along { prediction.terms[k].0 } else { 0.0 });
+        for (back, row_weight) in weights.iter().enumerate().take(rows_before) {
+            let solutions = &found[back];
+            prediction.add(*row_weight, solutions[0].expect("checked above"));
+            for (k, w) in along_weights.iter().enumerate().take(along) {
+                prediction.add(-row_weight * w, solutions[k + 1].expect("checked above"));
+            }
+        }
     }
 
     /// The start of the equilibrium at `position` (the key the solutions were recorded by), where the run
@@ -229,6 +374,12 @@ impl LoadedHistory {
         if !continues_line {
             self.line_recorded = false;
         }
+        if !self.continues_row(&position) {
+            self.current = (self.current + 1) % ROWS_KEPT;
+            self.rows[self.current].len = 0;
+            self.rows_kept = (self.rows_kept + 1).min(ROWS_KEPT);
+        }
+        self.rows[self.current].record(position, displacement, legs);
         self.recent.record(position, displacement, legs);
         // Three equally spaced points make a line: its first is the oldest of them.
         if continues_line && !self.line_recorded {
@@ -243,6 +394,10 @@ impl LoadedHistory {
     pub fn supersede(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
         if self.recent.solutions.last().is_some_and(|s| s.position == position) {
             self.recent.solutions.pop();
+            let row = &mut self.rows[self.current];
+            if row.solved().last().is_some_and(|s| s.position == position) {
+                row.len -= 1;
+            }
         }
         self.push(position, displacement, legs);
     }
@@ -267,6 +422,56 @@ mod tests {
     /// command tried, then a better one): the second solution at the newest position must replace the
     /// first, not stand beside it at zero spacing, which would break the line and leave only the last value
     /// as the next prediction.
+    /// Along a grid's rows the extrapolation through a row's last points misses a displacement cubic along
+    /// the row by 6 h^3 times the cubic's coefficient. Where that coefficient varies linearly across the
+    /// rows, the misses of the same extrapolation on the two rows before (at the same points) predict this
+    /// row's miss exactly: the start is then exact, where the row's own points alone leave the miss.
+    #[test]
+    fn the_rows_before_correct_the_extrapolation_along_a_row() {
+        let displacement = |x: f64, y: f64| Vec6::new((1.0 + 0.5 * y) * x * x * x + x * y, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let position = |x: f64, y: f64| Vec3::new(x, y, 0.0);
+        let mut history = LoadedHistory::default();
+        for y in 0..3 {
+            for x in 0..6 {
+                history.push(position(x as f64, y as f64), displacement(x as f64, y as f64), &[]);
+            }
+        }
+        let mut row_alone = LoadedHistory::default();
+        for x in 0..3 {
+            history.push(position(x as f64, 3.0), displacement(x as f64, 3.0), &[]);
+            row_alone.push(position(x as f64, 3.0), displacement(x as f64, 3.0), &[]);
+        }
+        let exact = displacement(3.0, 3.0);
+        let corrected = history.predict(&position(3.0, 3.0)).unwrap().displacement();
+        let alone = row_alone.predict(&position(3.0, 3.0)).unwrap().displacement();
+        assert!((corrected - exact).norm() < 1e-12, "corrected {corrected} vs {exact}");
+        assert!((alone - exact).norm() > 1.0, "the row alone misses by 6 (1 + 0.5 * 3): {alone} vs {exact}");
+        // Rows shifted along the row by the same amount each (a sheared grid) hold the same points along the
+        // shear: the correction is exact there too.
+        let mut sheared = LoadedHistory::default();
+        for y in 0..4 {
+            for x in 0..if y < 3 { 6 } else { 3 } {
+                let x = x as f64 + 0.5 * y as f64;
+                sheared.push(position(x, y as f64), displacement(x, y as f64), &[]);
+            }
+        }
+        let predicted = sheared.predict(&position(4.5, 3.0)).unwrap().displacement();
+        assert!((predicted - displacement(4.5, 3.0)).norm() < 1e-12, "sheared {predicted}");
+        // Rows spaced unlike the current one do not hold its points: the row's own extrapolation stays.
+        let mut finer = LoadedHistory::default();
+        for y in 0..3 {
+            for x in 0..6 {
+                finer.push(position(x as f64, y as f64), displacement(x as f64, y as f64), &[]);
+            }
+        }
+        for x in 0..3 {
+            finer.push(position(0.5 * x as f64, 3.0), displacement(0.5 * x as f64, 3.0), &[]);
+        }
+        let predicted = finer.predict(&position(1.5, 3.0)).unwrap().displacement();
+        let along: Vec6 = [3.0, -3.0, 1.0].iter().zip([1.0, 0.5, 0.0]).map(|(w, x)| displacement(x, 3.0) * *w).sum();
+        assert_eq!(predicted, along);
+    }
+
     #[test]
     fn a_second_solution_at_one_position_replaces_the_first() {
         let position = |x: f64| Vec3::new(x, 2.0 * x, -x);
