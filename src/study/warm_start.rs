@@ -164,9 +164,9 @@ impl Sequence {
 }
 
 /// Terms a prediction combines at most: an extrapolation along the row (up to five solutions) and its
-/// error measured in each of the two rows before (the same extrapolation there, and the solution it
+/// error measured in each of the three rows before (the same extrapolation there, and the solution it
 /// predicted).
-const MAX_TERMS: usize = 3 * (KEPT + 1);
+const MAX_TERMS: usize = 4 * (KEPT + 1);
 
 /// An extrapolation: solutions and their weights.
 struct Prediction<'a> {
@@ -245,8 +245,8 @@ impl Row {
     }
 }
 
-/// Rows whose solutions a run keeps: the current one and the two before it.
-const ROWS_KEPT: usize = 3;
+/// Rows whose solutions a run keeps: the current one and the three before it.
+const ROWS_KEPT: usize = 4;
 
 /// A run's loaded solutions: the last points, the first points of the last lines (the starts of a grid's
 /// rows), so a point that begins a line starts from the lines before it rather than from the far end of the
@@ -258,8 +258,8 @@ pub struct LoadedHistory {
     line_starts: Sequence,
     /// The current line (three equally spaced points) has its first point among `line_starts`.
     line_recorded: bool,
-    /// The current row (`rows[current]`) and the two before it (`rows[current - 1]`, `rows[current - 2]`,
-    /// modulo `ROWS_KEPT`): `rows_kept` of them hold a row.
+    /// The current row (`rows[current]`) and the three before it (`rows[current - 1]`, ..., modulo
+    /// `ROWS_KEPT`): `rows_kept` of them hold a row.
     rows: [Row; ROWS_KEPT],
     current: usize,
     rows_kept: usize,
@@ -299,12 +299,12 @@ impl LoadedHistory {
 
     /// Takes off an extrapolation's error along the current row as the rows before it show it: for a point
     /// at index i of the row, the same extrapolation through the points of each earlier row at the same
-    /// indices misses that row's own solution at i by e_1 (the row before) and e_2 (the one before that);
-    /// the error varies smoothly from row to row, so the prediction gains 2 e_1 - e_2 (the linear
-    /// extrapolation of the errors across equally spaced rows), or e_1 where one row is known. Along a
-    /// short row the extrapolation is of low degree near its start (a constant at its second point), and
-    /// the correction leaves only the mixed differences across rows. Nothing is added where the earlier rows
-    /// do not hold the same points shifted by the same step between rows.
+    /// indices misses that row's own solution at i by e_1 (the row before), e_2, e_3; the error varies
+    /// smoothly from row to row, so the prediction gains its extrapolation across the equally spaced rows:
+    /// 3 e_1 - 3 e_2 + e_3, or 2 e_1 - e_2, or e_1 where fewer rows are known. Along a short row the
+    /// extrapolation is of low degree near its start (a constant at its second point), and the correction
+    /// leaves only the mixed differences across rows. Nothing is added where the earlier rows do not hold
+    /// the same points shifted by the same step between rows.
     fn correct_from_rows_before<'a>(&'a self, position: &Vec3, prediction: &mut Prediction<'a>) {
         let current = self.row(0).solved();
         // The point's index in the row (the row holds at least one point: it continues it).
@@ -316,26 +316,27 @@ impl LoadedHistory {
             return;
         }
         let spacing = (position - current[index - 1].position).norm();
-        let mut shifts = [Vec3::zeros(); 2];
+        let mut shifts = [Vec3::zeros(); 3];
         let mut rows_before = 0;
-        for back in 1..=2.min(self.rows_kept.saturating_sub(1)) {
+        for back in 1..=3.min(self.rows_kept.saturating_sub(1)) {
             let (row, newer) = (self.row(back).solved(), self.row(back - 1).solved());
             let (Some(first), Some(newer_first)) = (row.first(), newer.first()) else { break };
             let shift = newer_first.position - first.position;
-            // Equally spaced rows: the shift between the second and third rows back is the first's.
-            if back == 2 && (shift - shifts[0]).norm() > 1e-9 * shift.norm().max(1e-9) {
+            // Equally spaced rows: the shift between earlier rows is the first's.
+            if back >= 2 && (shift - shifts[0]).norm() > 1e-9 * shift.norm().max(1e-9) {
                 break;
             }
             shifts[back - 1] = shift;
             rows_before = back;
         }
-        let weights: [f64; 2] = match rows_before {
-            1 => [1.0, 0.0],
-            2 => [2.0, -1.0],
+        let weights: [f64; 3] = match rows_before {
+            1 => [1.0, 0.0, 0.0],
+            2 => [2.0, -1.0, 0.0],
+            3 => [3.0, -3.0, 1.0],
             _ => return,
         };
         // Each earlier row's point at `index`, and at the indices of the along-row terms.
-        let mut found: [[Option<&Solution>; KEPT + 1]; 2] = [[None; KEPT + 1]; 2];
+        let mut found: [[Option<&Solution>; KEPT + 1]; 3] = [[None; KEPT + 1]; 3];
         for back in 1..=rows_before {
             let offset: Vec3 = shifts[..back].iter().sum();
             let row = self.row(back);
@@ -424,7 +425,7 @@ mod tests {
     /// as the next prediction.
     /// Along a grid's rows the extrapolation through a row's last points misses a displacement cubic along
     /// the row by 6 h^3 times the cubic's coefficient. Where that coefficient varies linearly across the
-    /// rows, the misses of the same extrapolation on the two rows before (at the same points) predict this
+    /// rows, the misses of the same extrapolation on the rows before (at the same points) predict this
     /// row's miss exactly: the start is then exact, where the row's own points alone leave the miss.
     #[test]
     fn the_rows_before_correct_the_extrapolation_along_a_row() {
