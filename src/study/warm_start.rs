@@ -105,6 +105,19 @@ struct Solution {
     offsets: Vec<LoadedOffsets>,
 }
 
+impl Solution {
+    /// Overwrites the solution (its buffers reused): the platform's displacement and the legs' departures
+    /// from their placement.
+    fn set(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
+        self.position = position;
+        self.displacement = displacement;
+        self.offsets.resize_with(legs.len(), LoadedOffsets::default);
+        for (o, leg) in self.offsets.iter_mut().zip(legs) {
+            leg.loaded_offsets_into(o);
+        }
+    }
+}
+
 /// The last few solutions of a sequence of points, oldest first, and the prediction they make for the next.
 #[derive(Clone, Debug, Default)]
 struct Sequence {
@@ -149,13 +162,7 @@ impl Sequence {
 
     /// Records a solution: the platform's displacement and the legs' departures from their placement.
     fn record(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
-        let newest = self.make_room();
-        newest.position = position;
-        newest.displacement = displacement;
-        newest.offsets.resize_with(legs.len(), LoadedOffsets::default);
-        for (o, leg) in newest.offsets.iter_mut().zip(legs) {
-            leg.loaded_offsets_into(o);
-        }
+        self.make_room().set(position, displacement, legs);
     }
 
     fn distance(&self, position: &Vec3) -> f64 {
@@ -234,14 +241,8 @@ impl Row {
         if self.len == self.solutions.len() {
             self.solutions.push(Solution::default());
         }
-        let newest = &mut self.solutions[self.len];
+        self.solutions[self.len].set(position, displacement, legs);
         self.len += 1;
-        newest.position = position;
-        newest.displacement = displacement;
-        newest.offsets.resize_with(legs.len(), LoadedOffsets::default);
-        for (o, leg) in newest.offsets.iter_mut().zip(legs) {
-            leg.loaded_offsets_into(o);
-        }
     }
 }
 
