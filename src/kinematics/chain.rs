@@ -46,33 +46,64 @@ pub struct Joint {
 }
 
 impl Joint {
+    /// The principal axis (0, 1 or 2) a revolute joint turns about, where its axis is a unit vector of the
+    /// frame: its rotation then only mixes two columns (`apply`).
+    fn principal_axis(&self) -> Option<usize> {
+        if self.kind != JointKind::Revolute || self.axis.norm_squared() != 1.0 {
+            return None;
+        }
+        [self.axis.x, self.axis.y, self.axis.z].iter().position(|&c| c == 1.0)
+    }
+
     /// `f * motion(value)`: the frame after this joint moves by `value` (rad or mm) about or along its axis.
-    /// Rotations about a principal axis only mix two columns, the common case on the hot path.
+    /// Rotations about a principal axis (`principal`, from `principal_axis`) only mix two columns, the
+    /// common case on the hot path.
     #[inline(always)]
-    fn apply(&self, f: &Frame, value: f64) -> Frame {
-        match self.kind {
-            JointKind::Prismatic => Frame { rot: f.rot, pos: f.pos + f.rot * (self.axis * value) },
-            JointKind::Revolute => {
-                let principal = [self.axis.x, self.axis.y, self.axis.z].iter().position(|&c| c == 1.0);
-                match principal {
-                    Some(k) if self.axis.norm_squared() == 1.0 => {
-                        let (s, c) = value.sin_cos();
-                        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                        let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
-                        let (new_i, new_j) = (ci * c + cj * s, cj * c - ci * s);
-                        let kept = f.rot.column(k).into_owned();
-                        // Built whole rather than copied and overwritten column by column, so that the
-                        // frame is not stored in pieces that the next joint's loads must wait for.
-                        let rot = match k {
-                            0 => Mat3::from_columns(&[kept, new_i, new_j]),
-                            1 => Mat3::from_columns(&[new_j, kept, new_i]),
-                            _ => Mat3::from_columns(&[new_i, new_j, kept]),
-                        };
-                        Frame { rot, pos: f.pos }
-                    }
-                    _ => Frame { rot: f.rot * rotation_about(&self.axis, value), pos: f.pos },
-                }
+    fn apply(&self, f: &Frame, value: f64, principal: Option<usize>) -> Frame {
+        match (self.kind, principal) {
+            (JointKind::Prismatic, _) => Frame { rot: f.rot, pos: f.pos + f.rot * (self.axis * value) },
+            (JointKind::Revolute, Some(k)) => {
+                let (s, c) = value.sin_cos();
+                let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
+                let (new_i, new_j) = (ci * c + cj * s, cj * c - ci * s);
+                let kept = f.rot.column(k).into_owned();
+                // Built whole rather than copied and overwritten column by column, so that the frame is not
+                // stored in pieces that the next joint's loads must wait for.
+                let rot = match k {
+                    0 => Mat3::from_columns(&[kept, new_i, new_j]),
+                    1 => Mat3::from_columns(&[new_j, kept, new_i]),
+                    _ => Mat3::from_columns(&[new_i, new_j, kept]),
+                };
+                Frame { rot, pos: f.pos }
             }
+            (JointKind::Revolute, None) => Frame { rot: f.rot * rotation_about(&self.axis, value), pos: f.pos },
+        }
+    }
+}
+
+/// What `evaluate` and `walk` do at each element, decided once when the chain is built: a fixed transform
+/// that only translates (most link vectors) needs no rotation product, and a revolute joint's principal
+/// axis is found once rather than at every evaluation.
+#[derive(Clone, Debug, PartialEq)]
+enum Step {
+    Translate(Vec3),
+    Transform(Frame),
+    Mass { kg: f64, centre: Vec3 },
+    Joint { joint: Joint, tag: JointTag, principal: Option<usize> },
+}
+
+impl Step {
+    fn of(e: &Element) -> Step {
+        match e {
+            Element::Fixed(t) if t.rot == Mat3::identity() => Step::Translate(t.pos),
+            Element::Fixed(t) => Step::Transform(*t),
+            Element::Mass { kg, centre } => Step::Mass { kg: *kg, centre: *centre },
+            Element::Joint(j) => Step::Joint {
+                joint: *j,
+                tag: JointTag { gain: j.gain, index: j.index, kind: j.kind, role: j.role },
+                principal: j.principal_axis(),
+            },
         }
     }
 }
@@ -150,7 +181,7 @@ struct PlacedJoint {
 /// What the Jacobian columns and load terms need of a joint besides its placement, copied field by field:
 /// copying the whole `Joint`, the compiler moved its bytes in overlapping pieces that later loads had to
 /// wait for (failed store forwarding: 8% of the evaluation's time samples in a loaded map sat on one such load).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct JointTag {
     gain: f64,
     index: usize,
@@ -380,6 +411,8 @@ impl ChainJacobians {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Chain {
     elements: Vec<Element>,
+    /// The elements as `evaluate` walks them.
+    steps: Vec<Step>,
     /// Number of actuated coordinates.
     pub n_actuated: usize,
     /// Number of passive coordinates.
@@ -407,7 +440,8 @@ impl Chain {
                 _ => merged.push(e),
             }
         }
-        Self { elements: merged, n_actuated: na, n_passive: np, n_virtual: nv }
+        let steps = merged.iter().map(Step::of).collect();
+        Self { elements: merged, steps, n_actuated: na, n_passive: np, n_virtual: nv }
     }
 
     /// The kind of each virtual joint, by virtual coordinate index.
@@ -481,15 +515,16 @@ impl Chain {
     #[inline(always)]
     fn walk(&self, c: &Coordinates, mut at_joint: impl FnMut(&Joint, &Frame)) -> Frame {
         let mut f = Frame::IDENTITY;
-        for e in &self.elements {
-            match e {
-                Element::Fixed(t) => f = f.compose(t),
-                Element::Mass { .. } => {}
-                Element::Joint(j) => {
+        for step in &self.steps {
+            match step {
+                Step::Translate(p) => f.pos += f.rot * p,
+                Step::Transform(t) => f = f.compose(t),
+                Step::Mass { .. } => {}
+                Step::Joint { joint: j, principal, .. } => {
                     at_joint(j, &f);
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
-                        f = j.apply(&f, v);
+                        f = j.apply(&f, v, *principal);
                     }
                 }
             }
@@ -505,22 +540,21 @@ impl Chain {
         out.placed.clear();
         out.masses.clear();
         let mut f = Frame::IDENTITY;
-        for e in &self.elements {
-            match e {
+        for step in &self.steps {
+            match step {
                 // Most fixed transforms are translations (link vectors): no rotation product for them.
-                Element::Fixed(t) if t.rot == Mat3::identity() => f.pos += f.rot * t.pos,
-                Element::Fixed(t) => f = f.compose(t),
-                Element::Mass { kg, centre } => out.masses.push(PlacedMass {
+                Step::Translate(p) => f.pos += f.rot * p,
+                Step::Transform(t) => f = f.compose(t),
+                Step::Mass { kg, centre } => out.masses.push(PlacedMass {
                     kg: *kg,
                     point: f.transform_point(centre),
                     upstream: out.placed.len(),
                 }),
-                Element::Joint(j) => {
-                    let joint = JointTag { gain: j.gain, index: j.index, kind: j.kind, role: j.role };
-                    out.placed.push(PlacedJoint { joint, axis_world: f.rot * j.axis, origin_world: f.pos });
+                Step::Joint { joint: j, tag, principal } => {
+                    out.placed.push(PlacedJoint { joint: *tag, axis_world: f.rot * j.axis, origin_world: f.pos });
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
-                        f = j.apply(&f, v);
+                        f = j.apply(&f, v, *principal);
                     }
                 }
             }

@@ -304,9 +304,9 @@ impl Leg {
     }
 
     /// The fraction of a Newton step (platform twist `platform_step`) that keeps the leg's coordinate
-    /// changes within the solver's largest step.
-    pub fn step_fraction(&self, lin: &LegLinear, platform_step: &Vec6) -> f64 {
-        match (self, &lin.lin) {
+    /// changes within the solver's largest step; the step is kept for `advance_measured`.
+    pub fn step_fraction(&self, lin: &mut LegLinear, platform_step: &Vec6) -> f64 {
+        match (self, &mut lin.lin) {
             (Leg::Vjm(l), Some(chain)) => l.loaded_chain().damping(chain, &(lin.shift * platform_step)),
             _ => 1.0,
         }
@@ -317,6 +317,13 @@ impl Leg {
         if let (Leg::Vjm(l), Some(chain)) = (self, &lin.lin) {
             let end_twist = lin.shift * platform_step;
             l.loaded_chain().advance(chain, &end_twist, fraction, &mut state.coords, &mut state.end_wrench);
+        }
+    }
+
+    /// Applies `fraction` of the step `step_fraction` measured last.
+    pub fn advance_measured(&self, lin: &LegLinear, fraction: f64, state: &mut LegState) {
+        if let (Leg::Vjm(l), Some(chain)) = (self, &lin.lin) {
+            l.loaded_chain().advance_measured(chain, fraction, &mut state.coords, &mut state.end_wrench);
         }
     }
 

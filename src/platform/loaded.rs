@@ -313,11 +313,11 @@ impl Manipulator {
             last_distance = distance;
             let step_mm = step_size * self.length_scale;
             let mut fraction = if step_mm > MAX_STEP_MM { MAX_STEP_MM / step_mm } else { 1.0 };
-            for (leg, l) in self.legs.iter().zip(lins.iter()) {
+            for (leg, l) in self.legs.iter().zip(lins.iter_mut()) {
                 fraction = fraction.min(leg.step_fraction(l, &step));
             }
             for ((leg, l), s) in self.legs.iter().zip(lins.iter()).zip(states.iter_mut()) {
-                leg.advance(l, &step, fraction, s);
+                leg.advance_measured(l, fraction, s);
             }
             *t = apply_twist(t, &(step * fraction));
         }

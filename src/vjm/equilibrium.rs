@@ -103,6 +103,9 @@ pub struct Linearization {
     pub end_error: Vec6,
     /// The number of its factorisation in the workspace that made it (see `EquilibriumWorkspace`).
     factorization: u64,
+    /// The change of every unknown in the last step `damping` measured (its end twist), for
+    /// `advance_measured` to apply: each change is computed once.
+    step: Vec<f64>,
 }
 
 impl Linearization {
@@ -115,6 +118,7 @@ impl Linearization {
             wrench: Vec6::zeros(),
             end_error: Vec6::zeros(),
             factorization: 0,
+            step: Vec::new(),
         }
     }
 
@@ -268,8 +272,9 @@ impl LoadedChain<'_> {
         if lin.factorization == 0 || lin.factorization != ws.factorizations {
             return None;
         }
+        // The residual reads the joints' placements, not the virtual coordinates' Jacobian columns (only a
+        // factorisation needs those), so they are not filled.
         self.chain.evaluate(coords, &mut ws.jac);
-        ws.jac.fill_virtual();
         let correction = &mut lin.correction[..];
         self.residual(coords, wrench, target, &ws.jac, &mut ws.generalised, correction);
         ws.factors.solve_in_place(correction);
@@ -346,14 +351,35 @@ impl LoadedChain<'_> {
         }
     }
 
-    /// The fraction of a Newton step that keeps every coordinate change within `MAX_STEP`.
-    pub fn damping(&self, lin: &Linearization, end_twist: &Vec6) -> f64 {
+    /// The fraction of a Newton step (the end moved by `end_twist`) that keeps every coordinate change
+    /// within `MAX_STEP`; the step's changes are kept in `lin` for `advance_measured`.
+    pub fn damping(&self, lin: &mut Linearization, end_twist: &Vec6) -> f64 {
         let (n, m) = self.sizes();
-        let largest = (0..n + m).fold(0.0f64, |largest, k| largest.max(lin.delta(k, end_twist).abs()));
+        let mut step = std::mem::take(&mut lin.step);
+        step.clear();
+        step.extend((0..n + m + 6).map(|k| lin.delta(k, end_twist)));
+        let largest = step[..n + m].iter().fold(0.0f64, |largest, d| largest.max(d.abs()));
+        lin.step = step;
         if largest > MAX_STEP {
             MAX_STEP / largest
         } else {
             1.0
+        }
+    }
+
+    /// `advance` by `fraction` of the step `damping` measured last.
+    pub fn advance_measured(&self, lin: &Linearization, fraction: f64, coords: &mut Coordinates, wrench: &mut Vec6) {
+        let (n, m) = self.sizes();
+        let (passive, rest) = lin.step.split_at(n);
+        let (virtual_, end) = rest.split_at(m);
+        for (q, d) in coords.passive.iter_mut().zip(passive) {
+            *q += fraction * d;
+        }
+        for (theta, d) in coords.virtual_.iter_mut().zip(virtual_) {
+            *theta += fraction * d;
+        }
+        for (f, d) in wrench.iter_mut().zip(end) {
+            *f += fraction * d;
         }
     }
 
@@ -384,8 +410,9 @@ impl LoadedChain<'_> {
                     end: lin.end,
                 });
             }
-            let fraction = self.damping(&lin, &Vec6::zeros());
-            self.advance(&lin, &Vec6::zeros(), fraction, coords, wrench);
+            let mut lin = lin;
+            let fraction = self.damping(&mut lin, &Vec6::zeros());
+            self.advance_measured(&lin, fraction, coords, wrench);
         }
         let e = ws.jac.end.error_to(target);
         Err(EquilibriumFailure::NotConverged { iterations: MAX_ITERATIONS, residual: e.norm() })
