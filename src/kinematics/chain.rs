@@ -90,7 +90,7 @@ enum Step {
     Translate(Vec3),
     Transform(Frame),
     Mass { kg: f64, centre: Vec3 },
-    Joint { joint: Joint, tag: JointTag, principal: Option<usize> },
+    Joint { joint: Joint, principal: Option<usize> },
 }
 
 impl Step {
@@ -99,11 +99,7 @@ impl Step {
             Element::Fixed(t) if t.rot == Mat3::identity() => Step::Translate(t.pos),
             Element::Fixed(t) => Step::Transform(*t),
             Element::Mass { kg, centre } => Step::Mass { kg: *kg, centre: *centre },
-            Element::Joint(j) => Step::Joint {
-                joint: *j,
-                tag: JointTag { gain: j.gain, index: j.index, kind: j.kind, role: j.role },
-                principal: j.principal_axis(),
-            },
+            Element::Joint(j) => Step::Joint { joint: *j, principal: j.principal_axis() },
         }
     }
 }
@@ -181,7 +177,7 @@ struct PlacedJoint {
 /// What the Jacobian columns and load terms need of a joint besides its placement, copied field by field:
 /// copying the whole `Joint`, the compiler moved its bytes in overlapping pieces that later loads had to
 /// wait for (failed store forwarding: 8% of the evaluation's time samples in a loaded map sat on one such load).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug)]
 struct JointTag {
     gain: f64,
     index: usize,
@@ -550,8 +546,10 @@ impl Chain {
                     point: f.transform_point(centre),
                     upstream: out.placed.len(),
                 }),
-                Step::Joint { joint: j, tag, principal } => {
-                    out.placed.push(PlacedJoint { joint: *tag, axis_world: f.rot * j.axis, origin_world: f.pos });
+                Step::Joint { joint: j, principal } => {
+                    // Field by field (see `JointTag`).
+                    let joint = JointTag { gain: j.gain, index: j.index, kind: j.kind, role: j.role };
+                    out.placed.push(PlacedJoint { joint, axis_world: f.rot * j.axis, origin_world: f.pos });
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
                         f = j.apply(&f, v, *principal);
