@@ -175,17 +175,19 @@ impl Sequence {
 /// predicted).
 const MAX_TERMS: usize = 4 * (KEPT + 1);
 
-/// An extrapolation: solutions and their weights.
+/// An extrapolation: solutions and their weights (the first `count` of `terms`).
 struct Prediction<'a> {
-    terms: [(f64, Option<&'a Solution>); MAX_TERMS],
+    terms: [(f64, &'a Solution); MAX_TERMS],
     count: usize,
 }
 
 impl<'a> Prediction<'a> {
     /// The polynomial extrapolation of `weights` (newest first) through the newest of `solutions` (oldest
-    /// first).
+    /// first, at least one).
     fn along(solutions: &'a [Solution], weights: &[f64]) -> Self {
-        let mut p = Prediction { terms: [(0.0, None); MAX_TERMS], count: 0 };
+        let newest = solutions.last().expect("an extrapolation through at least one solution");
+        // Slots past `count` are never read; they hold the newest solution only to be initialised.
+        let mut p = Prediction { terms: [(0.0, newest); MAX_TERMS], count: 0 };
         for (w, s) in weights.iter().zip(solutions.iter().rev()) {
             p.add(*w, s);
         }
@@ -193,13 +195,13 @@ impl<'a> Prediction<'a> {
     }
 
     fn add(&mut self, weight: f64, solution: &'a Solution) {
-        self.terms[self.count] = (weight, Some(solution));
+        self.terms[self.count] = (weight, solution);
         self.count += 1;
     }
 
     /// The solutions used with their weights.
     fn terms(&self) -> impl Iterator<Item = (f64, &Solution)> + Clone {
-        self.terms[..self.count].iter().filter_map(|(w, s)| s.map(|s| (*w, s)))
+        self.terms[..self.count].iter().map(|(w, s)| (*w, *s))
     }
 
     /// The platform's displacement predicted.
