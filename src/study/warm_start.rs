@@ -220,12 +220,19 @@ impl<'a> Prediction<'a> {
 }
 
 /// The solutions of one row of a grid (points equally spaced on a line, in order), in buffers kept from
-/// row to row: the first `len` of `solutions`.
+/// row to row: the first `len` of `solutions`, of the row's `points` so far (all of them up to
+/// `ROW_POINTS_KEPT`).
 #[derive(Clone, Debug, Default)]
 struct Row {
     solutions: Vec<Solution>,
     len: usize,
+    points: usize,
 }
+
+/// Points of a row whose solutions are kept: a map's run (`batch::RUN`), beyond which no grid row of a run
+/// reaches. A longer row (a compensation's path, one line of thousands of targets) is not kept beyond it:
+/// with no rows before it, nothing would read them.
+const ROW_POINTS_KEPT: usize = crate::batch::RUN;
 
 impl Row {
     fn solved(&self) -> &[Solution] {
@@ -240,11 +247,20 @@ impl Row {
     }
 
     fn record(&mut self, position: Vec3, displacement: Vec6, legs: &[LegState]) {
+        self.points += 1;
+        if self.len == ROW_POINTS_KEPT {
+            return;
+        }
         if self.len == self.solutions.len() {
             self.solutions.push(Solution::default());
         }
         self.solutions[self.len].set(position, displacement, legs);
         self.len += 1;
+    }
+
+    fn clear(&mut self) {
+        self.len = 0;
+        self.points = 0;
     }
 }
 
@@ -289,14 +305,17 @@ impl LoadedHistory {
     /// `position` is the next point of the current row: the row holds one point (the next fixes its
     /// spacing), or it lies equally spaced after the row's last two.
     fn continues_row(&self, position: &Vec3) -> bool {
-        let row = self.row(0).solved();
-        match row {
-            [] => false,
-            [_] => true,
-            [.., older, newer] => {
-                let step = position - newer.position;
-                ((newer.position - older.position) - step).norm() <= 1e-9 * step.norm().max(1e-9)
-            }
+        match self.row(0).points {
+            0 => false,
+            1 => true,
+            // The row's last two points are the last two solved (`recent`).
+            _ => match self.recent.solutions.as_slice() {
+                [.., older, newer] => {
+                    let step = position - newer.position;
+                    ((newer.position - older.position) - step).norm() <= 1e-9 * step.norm().max(1e-9)
+                }
+                _ => false,
+            },
         }
     }
 
@@ -310,8 +329,12 @@ impl LoadedHistory {
     /// the same points shifted by the same step between rows.
     fn correct_from_rows_before<'a>(&'a self, position: &Vec3, prediction: &mut Prediction<'a>) {
         let current = self.row(0).solved();
-        // The point's index in the row (the row holds at least one point: it continues it).
-        let index = current.len();
+        // The point's index in the row (the row holds at least one point: it continues it), where the row's
+        // points are all kept.
+        let index = self.row(0).points;
+        if index > current.len() {
+            return;
+        }
         let along = prediction.count;
         // The along-row terms are the row's last `along` solutions (`Sequence::predict` took them from the
         // recent points, which the row's last points are: it continues the row).
@@ -380,7 +403,7 @@ impl LoadedHistory {
         }
         if !self.continues_row(&position) {
             self.current = (self.current + 1) % ROWS_KEPT;
-            self.rows[self.current].len = 0;
+            self.rows[self.current].clear();
             self.rows_kept = (self.rows_kept + 1).min(ROWS_KEPT);
         }
         self.rows[self.current].record(position, displacement, legs);
@@ -399,9 +422,8 @@ impl LoadedHistory {
         if self.recent.solutions.last().is_some_and(|s| s.position == position) {
             self.recent.solutions.pop();
             let row = &mut self.rows[self.current];
-            if row.solved().last().is_some_and(|s| s.position == position) {
-                row.len -= 1;
-            }
+            row.points = row.points.saturating_sub(1);
+            row.len = row.len.min(row.points);
         }
         self.push(position, displacement, legs);
     }
@@ -474,6 +496,23 @@ mod tests {
         let predicted = finer.predict(&position(1.5, 3.0)).unwrap().displacement();
         let along: Vec6 = [3.0, -3.0, 1.0].iter().zip([1.0, 0.5, 0.0]).map(|(w, x)| displacement(x, 3.0) * *w).sum();
         assert_eq!(predicted, along);
+    }
+
+    /// A compensation's path is one line of thousands of targets: its row is kept only up to a map's run
+    /// (nothing reads it, as no row lies before it), so the history neither grows with the path nor
+    /// allocates per target; the extrapolation along the line is the one the recent points make.
+    #[test]
+    fn a_long_line_keeps_a_bounded_row() {
+        let position = |x: f64| Vec3::new(x, 0.5 * x, 0.0);
+        let displacement = |x: f64| Vec6::new(x * x, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut history = LoadedHistory::default();
+        for i in 0..1000 {
+            history.push(position(i as f64), displacement(i as f64), &[]);
+        }
+        let row = history.row(0);
+        assert_eq!((row.points, row.len, row.solutions.len()), (1000, ROW_POINTS_KEPT, ROW_POINTS_KEPT));
+        let predicted = history.predict(&position(1000.0)).unwrap().displacement();
+        assert!((predicted - displacement(1000.0)).norm() < 1e-6, "{predicted}");
     }
 
     #[test]
