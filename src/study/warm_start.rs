@@ -269,8 +269,8 @@ const ROWS_KEPT: usize = 4;
 
 /// A run's loaded solutions: the last points, the first points of the last lines (the starts of a grid's
 /// rows), so a point that begins a line starts from the lines before it rather than from the far end of the
-/// previous row, and the last rows (up to `ROW_POINTS_KEPT` points each), so that the error of the extrapolation along a row is
-/// measured on the rows before it and taken off.
+/// previous row, and the last rows (up to `ROW_POINTS_KEPT` points each), so that the error of the
+/// extrapolation along a row is measured on the rows before it and taken off.
 #[derive(Clone, Debug, Default)]
 pub struct LoadedHistory {
     recent: Sequence,
