@@ -313,8 +313,8 @@ impl Leg {
     }
 
     /// Applies `fraction` of the Newton step in which the platform moves by `platform_step`.
-    pub fn advance(&self, lin: &LegLinear, platform_step: &Vec6, fraction: f64, state: &mut LegState) {
-        if let (Leg::Vjm(l), Some(chain)) = (self, &lin.lin) {
+    pub fn advance(&self, lin: &mut LegLinear, platform_step: &Vec6, fraction: f64, state: &mut LegState) {
+        if let (Leg::Vjm(l), Some(chain)) = (self, &mut lin.lin) {
             let end_twist = lin.shift * platform_step;
             l.loaded_chain().advance(chain, &end_twist, fraction, &mut state.coords, &mut state.end_wrench);
         }

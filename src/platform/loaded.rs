@@ -275,7 +275,7 @@ impl Manipulator {
                     || distance <= TANGENT_TOLERANCE
                     || (chord_contraction <= CHORD_STALL && distance * chord_contraction <= TANGENT_TOLERANCE));
             if finish == Finish::Pose && pose_converged {
-                for ((leg, l), s) in self.legs.iter().zip(lins.iter()).zip(states.iter_mut()) {
+                for ((leg, l), s) in self.legs.iter().zip(lins.iter_mut()).zip(states.iter_mut()) {
                     leg.advance(l, &step, 1.0, s);
                 }
                 *t = apply_twist(t, &step);
@@ -289,7 +289,7 @@ impl Manipulator {
                 let unstable_legs = (self.legs.iter().zip(states.iter_mut()).enumerate())
                     .filter_map(|(i, (leg, s))| (!leg.stable(s)).then_some(i))
                     .fold(0, |bits, i| bits | leg_bit(i));
-                for ((leg, l), s) in self.legs.iter().zip(lins.iter()).zip(states.iter_mut()) {
+                for ((leg, l), s) in self.legs.iter().zip(lins.iter_mut()).zip(states.iter_mut()) {
                     leg.advance(l, &step, 1.0, s);
                 }
                 *t = apply_twist(t, &step);

@@ -308,14 +308,8 @@ impl LoadedHistory {
         match self.row(0).points {
             0 => false,
             1 => true,
-            // The row's last two points are the last two solved (`recent`).
-            _ => match self.recent.solutions.as_slice() {
-                [.., older, newer] => {
-                    let step = position - newer.position;
-                    ((newer.position - older.position) - step).norm() <= 1e-9 * step.norm().max(1e-9)
-                }
-                _ => false,
-            },
+            // The row's last two points are the last two solved.
+            _ => self.recent.equally_spaced(position) >= 2,
         }
     }
 

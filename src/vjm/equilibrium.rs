@@ -333,33 +333,31 @@ impl LoadedChain<'_> {
     /// `end_twist` (at the end point), scaled by `fraction` (1 for a full Newton step).
     pub fn advance(
         &self,
-        lin: &Linearization,
+        lin: &mut Linearization,
         end_twist: &Vec6,
         fraction: f64,
         coords: &mut Coordinates,
         wrench: &mut Vec6,
     ) {
+        self.measure_step(lin, end_twist);
+        self.advance_measured(lin, fraction, coords, wrench);
+    }
+
+    /// The change of every unknown (q, theta, F) in the step with the end moved by `end_twist`, into `lin`.
+    fn measure_step(&self, lin: &mut Linearization, end_twist: &Vec6) {
         let (n, m) = self.sizes();
-        for k in 0..n {
-            coords.passive[k] += fraction * lin.delta(k, end_twist);
-        }
-        for k in 0..m {
-            coords.virtual_[k] += fraction * lin.delta(n + k, end_twist);
-        }
-        for r in 0..6 {
-            wrench[r] += fraction * lin.delta(n + m + r, end_twist);
-        }
+        let mut step = std::mem::take(&mut lin.step);
+        step.clear();
+        step.extend((0..n + m + 6).map(|k| lin.delta(k, end_twist)));
+        lin.step = step;
     }
 
     /// The fraction of a Newton step (the end moved by `end_twist`) that keeps every coordinate change
     /// within `MAX_STEP`; the step's changes are kept in `lin` for `advance_measured`.
     pub fn damping(&self, lin: &mut Linearization, end_twist: &Vec6) -> f64 {
         let (n, m) = self.sizes();
-        let mut step = std::mem::take(&mut lin.step);
-        step.clear();
-        step.extend((0..n + m + 6).map(|k| lin.delta(k, end_twist)));
-        let largest = step[..n + m].iter().fold(0.0f64, |largest, d| largest.max(d.abs()));
-        lin.step = step;
+        self.measure_step(lin, end_twist);
+        let largest = lin.step[..n + m].iter().fold(0.0f64, |largest, d| largest.max(d.abs()));
         if largest > MAX_STEP {
             MAX_STEP / largest
         } else {
