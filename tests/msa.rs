@@ -294,6 +294,61 @@ fn forest_choice_does_not_change_the_answer() {
     assert!((moved - d_tip).abs().max() < 1e-8 * d_tip.abs().max(), "{moved}\nvs\n{d_tip}");
 }
 
+/// A spring closing a loop acts as the same spring in the forest: a pin about z at a beam's end, in parallel
+/// with a six-direction spring (a loop outside the forest, all its directions elastic, so the reduced
+/// system is solved by the envelope Cholesky), is rigid in the pin's five held directions and turns against
+/// the spring's k_rz alone: the end's stiffness and preload's holding wrench equal those of one elastic
+/// joint about z with k_rz and the same preload, and its torsion is the beam's G J / L and k_rz in series.
+#[test]
+fn a_spring_closing_a_loop_equals_the_spring_in_the_forest() {
+    let s = section();
+    let (p0, p1) = (Vec3::zeros(), Vec3::new(0.0, 0.0, 300.0));
+    let unit = |k: usize| Vec6::from_fn(|r, _| if r == k { 1.0 } else { 0.0 });
+    let k_rz = 4.0e6;
+    let stiffnesses = [2.0e5, 3.0e5, 4.0e5, 5.0e7, 6.0e7, k_rz];
+    let mut six = Connection::elastic(
+        (0..6).map(unit).collect(),
+        DMatrix::from_fn(6, 6, |r, c| if r == c { stiffnesses[r] } else { 0.0 }),
+    );
+    six.preload[5] = 0.01;
+    let mut one = Connection::elastic(vec![unit(5)], DMatrix::from_element(1, 1, k_rz));
+    one.preload[0] = 0.01;
+    let beam = || Element::Flexible { i: 0, j: 1, kjj: beam_stiffness(&s, &p0, &p1).unwrap() };
+    let base = || Element::Base { node: 0, connection: Connection::rigid() };
+    let looped = Structure {
+        nodes: vec![p0, p1, p1],
+        elements: vec![
+            base(),
+            beam(),
+            Element::Joint { i: 1, j: 2, connection: Connection::passive(vec![unit(5)]) },
+            Element::Joint { i: 1, j: 2, connection: six },
+        ],
+        end: 2,
+    };
+    let single = Structure {
+        nodes: vec![p0, p1, p1],
+        elements: vec![base(), beam(), Element::Joint { i: 1, j: 2, connection: one }],
+        end: 2,
+    };
+    let (a, b) = (looped.condense().unwrap(), single.condense().unwrap());
+    assert!(
+        (a.stiffness - b.stiffness).abs().max() < 1e-9 * b.stiffness.abs().max(),
+        "{}\nvs\n{}",
+        a.stiffness,
+        b.stiffness
+    );
+    assert!(
+        (a.holding_wrench - b.holding_wrench).norm() < 1e-9 * b.holding_wrench.norm(),
+        "{} vs {}",
+        a.holding_wrench,
+        b.holding_wrench
+    );
+    let torsion = s.g * s.j / (p1 - p0).norm();
+    let series = torsion * k_rz / (torsion + k_rz);
+    assert!((a.stiffness[(5, 5)] - series).abs() < 1e-9 * series, "{} vs {series}", a.stiffness[(5, 5)]);
+    assert!((a.holding_wrench[5] + series * 0.01).abs() < 1e-9 * series * 0.01, "{}", a.holding_wrench);
+}
+
 fn model(path: &str) -> stiff::platform::manipulator::Manipulator {
     stiff::model::load_manipulator(std::path::Path::new(path)).unwrap()
 }

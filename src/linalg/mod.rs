@@ -582,6 +582,30 @@ fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
     true
 }
 
+/// x . y and x . z, x read once, each as two running sums of the even and of the odd terms (which the
+/// compiler keeps side by side in vector registers) added at the end.
+#[inline(always)]
+fn paired_dots(x: &[f64], y: &[f64], z: &[f64]) -> (f64, f64) {
+    let n = x.len();
+    let (x_pairs, y_pairs, z_pairs) = (x.chunks_exact(2), y[..n].chunks_exact(2), z[..n].chunks_exact(2));
+    let last = |other: &[f64]| x_pairs.remainder().iter().zip(other).map(|(x, y)| x * y).sum::<f64>();
+    let (last_y, last_z) = (last(y_pairs.remainder()), last(z_pairs.remainder()));
+    let (mut sum_y, mut sum_z) = ([0.0f64; 2], [0.0f64; 2]);
+    for ((a, b), c) in x_pairs.zip(y_pairs).zip(z_pairs) {
+        sum_y[0] += a[0] * b[0];
+        sum_y[1] += a[1] * b[1];
+        sum_z[0] += a[0] * c[0];
+        sum_z[1] += a[1] * c[1];
+    }
+    (sum_y[0] + sum_y[1] + last_y, sum_z[0] + sum_z[1] + last_z)
+}
+
+/// x . y as `paired_dots` sums it.
+#[inline(always)]
+fn paired_dot(x: &[f64], y: &[f64]) -> f64 {
+    paired_dots(x, y, y).0
+}
+
 fn dot(a: &[f64; CONSTRAINTS], b: &[f64; CONSTRAINTS]) -> f64 {
     a.iter().zip(b).map(|(a, b)| a * b).sum()
 }
@@ -625,102 +649,128 @@ pub fn spd_inverse6(a: &nalgebra::Matrix6<f64>) -> Option<nalgebra::Matrix6<f64>
     inverse.iter().all(|v| v.is_finite()).then_some(inverse)
 }
 
-/// A Cholesky factorisation A = L L^T made in the caller's buffer (MSA's reduced stiffness at every pose,
-/// factorised where it was assembled), with the envelope of A kept: row r of L is zero left of row r's
-/// first non-zero in A (no fill outside the envelope), so column j of L is worked only down to the last
-/// row whose envelope reaches j. A banded or block-structured matrix then costs what its envelope holds,
-/// not n^3 / 6.
+/// A Cholesky factorisation A = U^T U made in the caller's buffer over A's envelope (MSA's reduced stiffness
+/// at every pose, factorised where it was assembled): column i holds A's upper triangle from row `first[i]`,
+/// its first entry that may be non-zero, down to the diagonal. The envelope is given, from the structure's
+/// shape, rather than found in the numbers: the entries above it must be zero, and the factor's are
+/// (a Cholesky factor has no fill outside the envelope), so a banded or block-structured matrix costs what
+/// its envelope holds, not n^3 / 6, and only the envelope need be assembled or cleared. The skyline
+/// factorisation of Bathe & Wilson, "Numerical Methods in Finite Element Analysis" (1976), s. 8.2: each
+/// entry one dot product of two columns' overlapping parts.
 #[derive(Clone, Debug, Default)]
 pub struct EnvelopeCholesky {
-    n: usize,
-    /// Per row: its first non-zero column in the lower triangle.
+    /// Per column: the first row of its upper triangle inside the envelope.
     first: Vec<usize>,
-    /// Per column: the last row whose envelope reaches it (L's column is zero below).
-    last: Vec<usize>,
+    /// How many coordinates the last factorisation eliminated.
+    eliminated: usize,
 }
 
 impl EnvelopeCholesky {
-    /// Factorises the leading n x n block of the column-major matrix `a` (columns `stride` long) in place:
-    /// its lower triangle (read) becomes L, its strict upper triangle is left untouched. The smallest and
-    /// largest pivot L_ii^2, or None where a pivot is not positive or not finite (not positive definite).
-    pub fn factor(&mut self, a: &mut [f64], stride: usize, n: usize) -> Option<(f64, f64)> {
-        self.eliminate(a, stride, n, n)
+    /// The factorisation of matrices whose column i is zero above row `first[i]` (at most i).
+    pub fn new(first: Vec<usize>) -> EnvelopeCholesky {
+        assert!(first.iter().enumerate().all(|(i, &f)| f <= i), "an envelope starts at or above the diagonal");
+        EnvelopeCholesky { first, eliminated: 0 }
     }
 
-    /// Eliminates the first `m` of the n coordinates of the symmetric n x n block: with A = [[A_yy, A_yu],
-    /// [A_uy, A_uu]], A_yy = L L^T, the lower triangle's first m columns become [L; A_uy L^-T] and the
-    /// trailing block's lower triangle becomes the Schur complement A_uu - A_uy A_yy^-1 A_yu (static
-    /// condensation, as one factorisation). Pivots as `factor`, over the m eliminated.
-    pub fn eliminate(&mut self, a: &mut [f64], stride: usize, n: usize, m: usize) -> Option<(f64, f64)> {
+    /// The envelope's first row in each column.
+    pub fn first(&self) -> &[usize] {
+        &self.first
+    }
+
+    /// Factorises the n x n matrix (n the envelope's size; column-major, columns `stride` long) in place:
+    /// its upper triangle (read) becomes U, its strict lower triangle is left untouched. The smallest and
+    /// largest pivot U_ii^2, or None where a pivot is not positive or not finite (not positive definite).
+    pub fn factor(&mut self, a: &mut [f64], stride: usize) -> Option<(f64, f64)> {
+        self.eliminate(a, stride, self.first.len())
+    }
+
+    /// Eliminates the first `m` of the n coordinates of the symmetric n x n matrix: with A = [[A_yy, A_yu],
+    /// [A_uy, A_uu]], A_yy = U^T U, the upper triangle's first m rows become [U, U^-T A_yu] and the
+    /// trailing block's upper triangle the Schur complement A_uu - A_uy A_yy^-1 A_yu (static condensation,
+    /// as one factorisation). Pivots as `factor`, over the m eliminated.
+    ///
+    /// Column i's entries are made two at a time (rows j and j + 1, column i read once for both, half the
+    /// loops' set-up), each dot product started at the higher of the two columns' envelopes: the other's
+    /// extra entries there are zeros. Row j + 1's product takes row j's new entry last.
+    pub fn eliminate(&mut self, a: &mut [f64], stride: usize, m: usize) -> Option<(f64, f64)> {
+        let n = self.first.len();
         assert!(m <= n && n <= stride && a.len() >= stride * n.saturating_sub(1) + n);
-        self.n = m;
-        self.first.clear();
-        self.first.extend((0..n).map(|r| (0..r).find(|&j| a[j * stride + r] != 0.0).unwrap_or(r)));
-        self.last.clear();
-        self.last.extend(0..n);
-        for (r, &f) in self.first.iter().enumerate() {
-            self.last[f] = self.last[f].max(r);
-        }
-        for j in 1..n {
-            self.last[j] = self.last[j].max(self.last[j - 1]);
-        }
+        self.eliminated = m;
+        let first = &self.first;
         let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-        for k in 0..n {
-            // Column k, left-looking: a_rk - sum_{j<k, j<m} l_rj l_kj over the envelope.
-            let (left, right) = a.split_at_mut(k * stride);
-            let column = &mut right[..n];
-            for j in self.first[k]..k.min(m) {
-                let lkj = left[j * stride + k];
-                if lkj != 0.0 {
-                    let end = self.last[j] + 1;
-                    for (x, l) in column[k..end].iter_mut().zip(&left[j * stride + k..j * stride + end]) {
-                        *x -= l * lkj;
-                    }
+        for i in 0..n {
+            let fi = first[i];
+            let (before, rest) = a.split_at_mut(i * stride);
+            let column = &mut rest[..=i];
+            let top = |j: usize| fi.max(first[j].min(first[j + 1]));
+            // U's entries (rows below m): U_ji = (a_ji - sum_k<j U_ki U_kj) / U_jj.
+            let mut j = fi;
+            while j + 1 < i.min(m) {
+                let s = top(j);
+                let (column_j, column_next) = (&before[j * stride..j * stride + j + 1], &before[(j + 1) * stride..]);
+                let (dot, dot_next) = paired_dots(&column[s..j], &column_j[s..j], &column_next[s..j]);
+                column[j] = (column[j] - dot) / column_j[j];
+                column[j + 1] = (column[j + 1] - dot_next - column[j] * column_next[j]) / column_next[j + 1];
+                j += 2;
+            }
+            if j < i.min(m) {
+                let s = fi.max(first[j]);
+                let column_j = &before[j * stride..j * stride + j + 1];
+                column[j] = (column[j] - paired_dot(&column[s..j], &column_j[s..j])) / column_j[j];
+            }
+            // The Schur complement's entries (rows from m, above the diagonal): a_ji - sum_k<m U_ki U_kj.
+            let mut j = fi.max(m);
+            while j + 1 < i {
+                let s = top(j).min(m);
+                let (column_j, column_next) = (&before[j * stride..], &before[(j + 1) * stride..]);
+                let (dot, dot_next) = paired_dots(&column[s..m], &column_j[s..m], &column_next[s..m]);
+                column[j] -= dot;
+                column[j + 1] -= dot_next;
+                j += 2;
+            }
+            if j < i {
+                let s = fi.max(first[j]).min(m);
+                column[j] -= paired_dot(&column[s..m], &before[j * stride + s..j * stride + m]);
+            }
+            let leading = &column[fi.min(m)..i.min(m)];
+            let d = column[i] - paired_dot(leading, leading);
+            if i < m {
+                if !(d > 0.0 && d.is_finite()) {
+                    return None;
                 }
-            }
-            if k >= m {
-                continue;
-            }
-            let d = column[k];
-            if !(d > 0.0 && d.is_finite()) {
-                return None;
-            }
-            lo = lo.min(d);
-            hi = hi.max(d);
-            let root = d.sqrt();
-            for x in &mut column[k..self.last[k] + 1] {
-                *x /= root;
+                lo = lo.min(d);
+                hi = hi.max(d);
+                column[i] = d.sqrt();
+            } else {
+                column[i] = d;
             }
         }
         Some((lo, hi))
     }
 
-    /// Solves L y = b in place (the first half of a solve: with it, B^T A^-1 C = (L^-1 B)^T (L^-1 C)), `l`
-    /// the buffer `factor` worked in.
-    pub fn forward_in_place(&self, l: &[f64], stride: usize, b: &mut [f64]) {
-        let b = &mut b[..self.n];
-        for k in 0..self.n {
-            let end = (self.last[k] + 1).min(self.n);
-            let col = &l[k * stride + k..k * stride + end];
-            b[k] /= col[0];
-            let bk = b[k];
-            if bk != 0.0 {
-                for (x, l) in b[k + 1..end].iter_mut().zip(&col[1..]) {
-                    *x -= l * bk;
-                }
-            }
+    /// Solves U^T y = b in place (the first half of a solve: with it, B^T A^-1 C = (U^-T B)^T (U^-T C)), `u`
+    /// the buffer the factorisation worked in: y_i = (b_i - sum_k<i U_ki y_k) / U_ii.
+    pub fn forward_in_place(&self, u: &[f64], stride: usize, b: &mut [f64]) {
+        let b = &mut b[..self.eliminated];
+        for i in 0..b.len() {
+            let column = &u[i * stride..i * stride + i + 1];
+            let f = self.first[i];
+            b[i] = (b[i] - paired_dot(&b[f..i], &column[f..i])) / column[i];
         }
     }
 
-    /// Solves A x = b in place for one right-hand side, `l` the buffer `factor` worked in.
-    pub fn solve_in_place(&self, l: &[f64], stride: usize, b: &mut [f64]) {
-        self.forward_in_place(l, stride, b);
-        let b = &mut b[..self.n];
-        for k in (0..self.n).rev() {
-            let end = (self.last[k] + 1).min(self.n);
-            let col = &l[k * stride + k..k * stride + end];
-            let dot: f64 = b[k + 1..end].iter().zip(&col[1..]).map(|(x, l)| x * l).sum();
-            b[k] = (b[k] - dot) / col[0];
+    /// Solves A x = b in place for one right-hand side, `u` the buffer `factor` worked in.
+    pub fn solve_in_place(&self, u: &[f64], stride: usize, b: &mut [f64]) {
+        self.forward_in_place(u, stride, b);
+        let b = &mut b[..self.eliminated];
+        for i in (0..b.len()).rev() {
+            let column = &u[i * stride..i * stride + i + 1];
+            b[i] /= column[i];
+            let bi = b[i];
+            let f = self.first[i];
+            for (x, l) in b[f..i].iter_mut().zip(&column[f..i]) {
+                *x -= l * bi;
+            }
         }
     }
 }
@@ -963,10 +1013,15 @@ mod tests {
         assert!(definite >= 10 && indefinite >= 10, "both kinds tested: {definite} and {indefinite}");
     }
 
+    /// The envelope of a symmetric matrix from its numbers: each column's first non-zero above the diagonal.
+    fn envelope_of(m: &DMatrix<f64>) -> EnvelopeCholesky {
+        EnvelopeCholesky::new((0..m.ncols()).map(|j| (0..j).find(|&i| m[(i, j)] != 0.0).unwrap_or(j)).collect())
+    }
+
     /// A symmetric positive definite system solved as nalgebra's Cholesky solves it, dense and with an
     /// envelope (a banded block with zeros inside the band and a stray far entry), factorised in a larger
-    /// buffer whose strict upper triangle is left as it was; the pivots are the squares of L's diagonal; an
-    /// indefinite matrix is refused.
+    /// buffer whose strict lower triangle is left as it was; U is nalgebra's L transposed, the pivots are the
+    /// squares of its diagonal; an indefinite matrix is refused.
     #[test]
     fn envelope_cholesky_solves_like_nalgebra() {
         let n = 11;
@@ -987,15 +1042,17 @@ mod tests {
             let expected = m.clone().cholesky().unwrap();
             let stride = n + 3;
             let mut buffer = DMatrix::from_fn(stride, n + 1, |i, j| if i < n && j < n { m[(i, j)] } else { 7.0 });
-            let upper_before: Vec<f64> = (0..n).flat_map(|j| (0..j).map(move |i| (i, j))).map(|p| buffer[p]).collect();
-            let mut c = EnvelopeCholesky::default();
-            let (lo, hi) = c.factor(buffer.as_mut_slice(), stride, n).unwrap();
-            let upper_after: Vec<f64> = (0..n).flat_map(|j| (0..j).map(move |i| (i, j))).map(|p| buffer[p]).collect();
-            assert_eq!(upper_before, upper_after);
+            let lower_before: Vec<f64> =
+                (0..n).flat_map(|j| (j + 1..n).map(move |i| (i, j))).map(|p| buffer[p]).collect();
+            let mut c = envelope_of(&m);
+            let (lo, hi) = c.factor(buffer.as_mut_slice(), stride).unwrap();
+            let lower_after: Vec<f64> =
+                (0..n).flat_map(|j| (j + 1..n).map(move |i| (i, j))).map(|p| buffer[p]).collect();
+            assert_eq!(lower_before, lower_after);
             let l = expected.l();
             for j in 0..n {
                 for i in j..n {
-                    assert!((buffer[(i, j)] - l[(i, j)]).abs() < 1e-12 * l.amax(), "L[{i},{j}]");
+                    assert!((buffer[(j, i)] - l[(i, j)]).abs() < 1e-12 * l.amax(), "U[{j},{i}]");
                 }
             }
             let squares: Vec<f64> = (0..n).map(|i| l[(i, i)] * l[(i, i)]).collect();
@@ -1010,16 +1067,18 @@ mod tests {
         }
         let mut indefinite = DMatrix::<f64>::identity(3, 3);
         indefinite[(1, 1)] = -1.0;
-        assert!(EnvelopeCholesky::default().factor(indefinite.as_mut_slice(), 3, 3).is_none());
+        assert!(envelope_of(&indefinite).factor(indefinite.as_mut_slice(), 3).is_none());
     }
 
-    /// Eliminating the first m coordinates leaves the Schur complement A_uu - A_uy A_yy^-1 A_yu (computed
-    /// here with nalgebra's inverse) in the trailing block, and A_uy L^-T below L.
+    /// Eliminating the first m coordinates of a matrix with an envelope (a band in the eliminated block,
+    /// trailing rows that reach only part of it) leaves the Schur complement A_uu - A_uy A_yy^-1 A_yu
+    /// (computed here with nalgebra's inverse) in the trailing block's upper triangle, and U^-T A_yu
+    /// (= (A_uy L^-T)^T, L nalgebra's factor of A_yy) above it.
     #[test]
     fn elimination_leaves_the_schur_complement() {
         let (n, m) = (10, 7);
         let g = DMatrix::from_fn(n, n, |i, j| {
-            if i.abs_diff(j) <= 3 || i >= m || j >= m {
+            if i.abs_diff(j) <= 2 || (i >= m && j >= 3) || (j >= m && i >= 3) {
                 ((i * 3 + j * 5) % 7) as f64 - 3.0 + if i == j { 5.0 } else { 0.0 }
             } else {
                 0.0
@@ -1031,14 +1090,15 @@ mod tests {
         let l = ayy.clone_owned().cholesky().unwrap().l();
         let below = ayu.transpose() * l.transpose().try_inverse().unwrap();
         let mut buffer = a.clone();
-        let mut c = EnvelopeCholesky::default();
-        c.eliminate(buffer.as_mut_slice(), n, n, m).unwrap();
+        let mut c = envelope_of(&a);
+        assert!(c.first()[m] > 0, "the trailing rows reach only part of the eliminated block");
+        c.eliminate(buffer.as_mut_slice(), n, m).unwrap();
         for j in 0..n - m {
-            for i in j..n - m {
+            for i in 0..=j {
                 assert!((buffer[(m + i, m + j)] - schur[(i, j)]).abs() < 1e-10 * schur.amax(), "S[{i},{j}]");
             }
             for k in 0..m {
-                assert!((buffer[(m + j, k)] - below[(j, k)]).abs() < 1e-10 * below.amax(), "W[{j},{k}]");
+                assert!((buffer[(k, m + j)] - below[(j, k)]).abs() < 1e-10 * below.amax(), "W[{j},{k}]");
             }
         }
     }
