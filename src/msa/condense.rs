@@ -638,7 +638,11 @@ impl Work {
             Some((lo, hi)) if lo > PIVOT_RATIO * hi => {}
             _ => return None,
         }
-        self.cholesky.forward_in_place(k, nz, &mut f[..n_y]);
+        // Without preloads on the eliminated coordinates g is zero: no solve (an unloaded leg's, as in a map).
+        let preloaded = f[..n_y].iter().any(|v| *v != 0.0);
+        if preloaded {
+            self.cholesky.forward_in_place(k, nz, &mut f[..n_y]);
+        }
         let first = self.cholesky.first();
         let finite = |v: &f64| v.is_finite();
         if !(f[..n_y].iter().all(finite) && (n_y..nz).all(|c| k[c * nz + first[c]..=c * nz + c].iter().all(finite))) {
@@ -653,7 +657,7 @@ impl Work {
                 stiffness[(c, r)] = column[n_y + r];
             }
             // W's column c, above the trailing block.
-            let start = first[n_y + c].min(n_y);
+            let start = if preloaded { first[n_y + c].min(n_y) } else { n_y };
             let wg: f64 = column[start..n_y].iter().zip(&f[start..n_y]).map(|(w, g)| w * g).sum();
             holding[c] = wg - f[n_y + c];
         }
