@@ -663,13 +663,15 @@ pub struct EnvelopeCholesky {
     first: Vec<usize>,
     /// How many coordinates the last factorisation eliminated.
     eliminated: usize,
+    /// 1 / U_ii of those.
+    reciprocal: Vec<f64>,
 }
 
 impl EnvelopeCholesky {
     /// The factorisation of matrices whose column i is zero above row `first[i]` (at most i).
     pub fn new(first: Vec<usize>) -> EnvelopeCholesky {
         assert!(first.iter().enumerate().all(|(i, &f)| f <= i), "an envelope starts at or above the diagonal");
-        EnvelopeCholesky { first, eliminated: 0 }
+        EnvelopeCholesky { first, eliminated: 0, reciprocal: Vec::new() }
     }
 
     /// The envelope's first row in each column.
@@ -689,63 +691,51 @@ impl EnvelopeCholesky {
     /// trailing block's upper triangle the Schur complement A_uu - A_uy A_yy^-1 A_yu (static condensation,
     /// as one factorisation). Pivots as `factor`, over the m eliminated.
     ///
-    /// Column i's entries are made two at a time (rows j and j + 1, column i read once for both, half the
-    /// loops' set-up), each dot product started at the higher of the two columns' envelopes: the other's
-    /// extra entries there are zeros. Row j + 1's product takes row j's new entry last.
+    /// Each entry of a column waits for the one above it (a triangular solve), so the columns are made two
+    /// at a time, entry j of both from one reading of column j: two chains of dependent operations side by
+    /// side, which the processor overlaps, and half the loops. The pivots' reciprocals are kept, so those
+    /// chains multiply where a division would take several times as long. A dot product may start above a
+    /// column's envelope: the entries there are zeros.
     pub fn eliminate(&mut self, a: &mut [f64], stride: usize, m: usize) -> Option<(f64, f64)> {
         let n = self.first.len();
         assert!(m <= n && n <= stride && a.len() >= stride * n.saturating_sub(1) + n);
         self.eliminated = m;
-        let first = &self.first;
-        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-        for i in 0..n {
-            let fi = first[i];
+        self.reciprocal.clear();
+        self.reciprocal.resize(m, 0.0);
+        let (first, reciprocal) = (&self.first, &mut self.reciprocal);
+        let mut pivots = (f64::INFINITY, 0.0f64);
+        let mut i = 0;
+        while i < n {
             let (before, rest) = a.split_at_mut(i * stride);
-            let column = &mut rest[..=i];
-            let top = |j: usize| fi.max(first[j].min(first[j + 1]));
-            // U's entries (rows below m): U_ji = (a_ji - sum_k<j U_ki U_kj) / U_jj.
-            let mut j = fi;
-            while j + 1 < i.min(m) {
-                let s = top(j);
-                let (column_j, column_next) = (&before[j * stride..j * stride + j + 1], &before[(j + 1) * stride..]);
-                let (dot, dot_next) = paired_dots(&column[s..j], &column_j[s..j], &column_next[s..j]);
-                column[j] = (column[j] - dot) / column_j[j];
-                column[j + 1] = (column[j + 1] - dot_next - column[j] * column_next[j]) / column_next[j + 1];
-                j += 2;
-            }
-            if j < i.min(m) {
-                let s = fi.max(first[j]);
-                let column_j = &before[j * stride..j * stride + j + 1];
-                column[j] = (column[j] - paired_dot(&column[s..j], &column_j[s..j])) / column_j[j];
-            }
-            // The Schur complement's entries (rows from m, above the diagonal): a_ji - sum_k<m U_ki U_kj.
-            let mut j = fi.max(m);
-            while j + 1 < i {
-                let s = top(j).min(m);
-                let (column_j, column_next) = (&before[j * stride..], &before[(j + 1) * stride..]);
-                let (dot, dot_next) = paired_dots(&column[s..m], &column_j[s..m], &column_next[s..m]);
-                column[j] -= dot;
-                column[j + 1] -= dot_next;
-                j += 2;
-            }
-            if j < i {
-                let s = fi.max(first[j]).min(m);
-                column[j] -= paired_dot(&column[s..m], &before[j * stride + s..j * stride + m]);
-            }
-            let leading = &column[fi.min(m)..i.min(m)];
-            let d = column[i] - paired_dot(leading, leading);
-            if i < m {
-                if !(d > 0.0 && d.is_finite()) {
-                    return None;
+            let column_above = |j: usize| &before[j * stride..j * stride + j];
+            if i + 1 < n {
+                let (this, next) = rest.split_at_mut(stride);
+                let (this, next) = (&mut this[..=i], &mut next[..=i + 1]);
+                let top = first[i].min(first[i + 1]);
+                for j in top..i {
+                    // Below m: U_jk = (a_jk - sum_p<j U_pj U_pk) / U_jj; from m: a_jk - sum_p<m U_pj U_pk.
+                    let end = j.min(m);
+                    let start = top.max(first[j]).min(end);
+                    let (dot, dot_next) =
+                        paired_dots(&column_above(j)[start..end], &this[start..end], &next[start..end]);
+                    let scale = if j < m { reciprocal[j] } else { 1.0 };
+                    this[j] = (this[j] - dot) * scale;
+                    next[j] = (next[j] - dot_next) * scale;
                 }
-                lo = lo.min(d);
-                hi = hi.max(d);
-                column[i] = d.sqrt();
+                pivots = diagonal(this, i, first[i], m, reciprocal, pivots)?;
+                entry(next, this, i, top, m, reciprocal);
+                pivots = diagonal(next, i + 1, first[i + 1], m, reciprocal, pivots)?;
+                i += 2;
             } else {
-                column[i] = d;
+                let this = &mut rest[..=i];
+                for j in first[i]..i {
+                    entry(this, column_above(j), j, first[i].max(first[j]), m, reciprocal);
+                }
+                pivots = diagonal(this, i, first[i], m, reciprocal, pivots)?;
+                i += 1;
             }
         }
-        Some((lo, hi))
+        Some(pivots)
     }
 
     /// Solves U^T y = b in place (the first half of a solve: with it, B^T A^-1 C = (U^-T B)^T (U^-T C)), `u`
@@ -755,7 +745,7 @@ impl EnvelopeCholesky {
         for i in 0..b.len() {
             let column = &u[i * stride..i * stride + i + 1];
             let f = self.first[i];
-            b[i] = (b[i] - paired_dot(&b[f..i], &column[f..i])) / column[i];
+            b[i] = (b[i] - paired_dot(&b[f..i], &column[f..i])) * self.reciprocal[i];
         }
     }
 
@@ -765,7 +755,7 @@ impl EnvelopeCholesky {
         let b = &mut b[..self.eliminated];
         for i in (0..b.len()).rev() {
             let column = &u[i * stride..i * stride + i + 1];
-            b[i] /= column[i];
+            b[i] *= self.reciprocal[i];
             let bi = b[i];
             let f = self.first[i];
             for (x, l) in b[f..i].iter_mut().zip(&column[f..i]) {
@@ -773,6 +763,44 @@ impl EnvelopeCholesky {
             }
         }
     }
+}
+
+/// Row j's entry of a column whose rows above j are made (`column_j`: column j above its diagonal, final):
+/// below m, U_jk = (a_jk - sum_p<j U_pj U_pk) / U_jj; from m, the Schur complement's a_jk - sum_p<m U_pj U_pk.
+/// The sums start at row `start` (the entries above it zeros).
+#[inline(always)]
+fn entry(column: &mut [f64], column_j: &[f64], j: usize, start: usize, m: usize, reciprocal: &[f64]) {
+    let end = j.min(m);
+    let start = start.min(end);
+    let dot = paired_dot(&column_j[start..end], &column[start..end]);
+    column[j] = (column[j] - dot) * if j < m { reciprocal[j] } else { 1.0 };
+}
+
+/// Column i's diagonal once its rows above are made: below m the pivot d = a_ii - sum_p<i U_pi^2 (None
+/// where it is not positive or not finite), U_ii = sqrt(d) and its reciprocal kept, `pivots` (smallest,
+/// largest) widened; from m, the Schur complement's diagonal.
+#[inline(always)]
+fn diagonal(
+    column: &mut [f64],
+    i: usize,
+    first: usize,
+    m: usize,
+    reciprocal: &mut [f64],
+    pivots: (f64, f64),
+) -> Option<(f64, f64)> {
+    let leading = &column[first.min(m)..i.min(m)];
+    let d = column[i] - paired_dot(leading, leading);
+    if i >= m {
+        column[i] = d;
+        return Some(pivots);
+    }
+    if !(d > 0.0 && d.is_finite()) {
+        return None;
+    }
+    let root = d.sqrt();
+    column[i] = root;
+    reciprocal[i] = 1.0 / root;
+    Some((pivots.0.min(d), pivots.1.max(d)))
 }
 
 #[cfg(test)]
