@@ -665,13 +665,15 @@ pub struct EnvelopeCholesky {
     eliminated: usize,
     /// 1 / U_ii of those.
     reciprocal: Vec<f64>,
+    /// Two columns' entries side by side while they are made.
+    pairs: Vec<[f64; 2]>,
 }
 
 impl EnvelopeCholesky {
     /// The factorisation of matrices whose column i is zero above row `first[i]` (at most i).
     pub fn new(first: Vec<usize>) -> EnvelopeCholesky {
         assert!(first.iter().enumerate().all(|(i, &f)| f <= i), "an envelope starts at or above the diagonal");
-        EnvelopeCholesky { first, eliminated: 0, reciprocal: Vec::new() }
+        EnvelopeCholesky { first, eliminated: 0, reciprocal: Vec::new(), pairs: Vec::new() }
     }
 
     /// The envelope's first row in each column.
@@ -693,45 +695,61 @@ impl EnvelopeCholesky {
     ///
     /// Each entry of a column waits for the one above it (a triangular solve), so the columns are made two
     /// at a time, entry j of both from one reading of column j: two chains of dependent operations side by
-    /// side, which the processor overlaps, and half the loops. The pivots' reciprocals are kept, so those
-    /// chains multiply where a division would take several times as long. A dot product may start above a
-    /// column's envelope: the entries there are zeros.
+    /// side, which the processor overlaps, and half the loops. The entries made are read back from a buffer
+    /// of pairs (this column's and the next's), each pair stored whole and read whole: reading two entries
+    /// of a column stored one by one stalls until both stores complete. The pivots' reciprocals
+    /// are kept, so those chains multiply where a division would take several times as long. A dot product
+    /// may start above a column's envelope: the entries there are zeros.
     pub fn eliminate(&mut self, a: &mut [f64], stride: usize, m: usize) -> Option<(f64, f64)> {
         let n = self.first.len();
         assert!(m <= n && n <= stride && a.len() >= stride * n.saturating_sub(1) + n);
         self.eliminated = m;
         self.reciprocal.clear();
         self.reciprocal.resize(m, 0.0);
-        let (first, reciprocal) = (&self.first, &mut self.reciprocal);
+        let (first, reciprocal, pairs) = (&self.first, &mut self.reciprocal, &mut self.pairs);
         let mut pivots = (f64::INFINITY, 0.0f64);
         let mut i = 0;
         while i < n {
             let (before, rest) = a.split_at_mut(i * stride);
-            let column_above = |j: usize| &before[j * stride..j * stride + j];
             if i + 1 < n {
                 let (this, next) = rest.split_at_mut(stride);
                 let (this, next) = (&mut this[..=i], &mut next[..=i + 1]);
                 let top = first[i].min(first[i + 1]);
+                pairs.resize(i + 1 - top, [0.0; 2]);
                 for j in top..i {
                     // Below m: U_jk = (a_jk - sum_p<j U_pj U_pk) / U_jj; from m: a_jk - sum_p<m U_pj U_pk.
                     let end = j.min(m);
                     let start = top.max(first[j]).min(end);
-                    let (dot, dot_next) =
-                        paired_dots(&column_above(j)[start..end], &this[start..end], &next[start..end]);
+                    let sum = pair_dot(&before[j * stride + start..j * stride + end], &pairs[start - top..end - top]);
                     let scale = if j < m { reciprocal[j] } else { 1.0 };
-                    this[j] = (this[j] - dot) * scale;
-                    next[j] = (next[j] - dot_next) * scale;
+                    let entry = [(this[j] - sum[0]) * scale, (next[j] - sum[1]) * scale];
+                    pairs[j - top] = entry;
+                    [this[j], next[j]] = entry;
                 }
-                pivots = diagonal(this, i, first[i], m, reciprocal, pivots)?;
-                entry(next, this, i, top, m, reciprocal);
-                pivots = diagonal(next, i + 1, first[i + 1], m, reciprocal, pivots)?;
+                // Column i's pivot, then column i + 1's entry in row i and its pivot, from the sums of
+                // column i's entries times both columns' and of column i + 1's squared.
+                let above = &pairs[..i.min(m).max(top) - top];
+                let (by_this, by_next) = above.iter().fold(([0.0f64; 2], 0.0f64), |(s, q), p| {
+                    ([s[0] + p[0] * p[0], s[1] + p[0] * p[1]], q + p[1] * p[1])
+                });
+                pivots = pivot(this[i] - by_this[0], i, m, reciprocal, pivots, &mut this[i])?;
+                let scale = if i < m { reciprocal[i] } else { 1.0 };
+                next[i] = (next[i] - by_this[1]) * scale;
+                let from_row_i = if i < m { next[i] * next[i] } else { 0.0 };
+                pivots = pivot(next[i + 1] - by_next - from_row_i, i + 1, m, reciprocal, pivots, &mut next[i + 1])?;
                 i += 2;
             } else {
+                // The last column of an odd count, alone.
                 let this = &mut rest[..=i];
                 for j in first[i]..i {
-                    entry(this, column_above(j), j, first[i].max(first[j]), m, reciprocal);
+                    let end = j.min(m);
+                    let start = first[i].max(first[j]).min(end);
+                    let dot = paired_dot(&before[j * stride + start..j * stride + end], &this[start..end]);
+                    this[j] = (this[j] - dot) * if j < m { reciprocal[j] } else { 1.0 };
                 }
-                pivots = diagonal(this, i, first[i], m, reciprocal, pivots)?;
+                let leading = &this[first[i].min(m)..i.min(m)];
+                let d = this[i] - paired_dot(leading, leading);
+                pivots = pivot(d, i, m, reciprocal, pivots, &mut this[i])?;
                 i += 1;
             }
         }
@@ -765,40 +783,46 @@ impl EnvelopeCholesky {
     }
 }
 
-/// Row j's entry of a column whose rows above j are made (`column_j`: column j above its diagonal, final):
-/// below m, U_jk = (a_jk - sum_p<j U_pj U_pk) / U_jj; from m, the Schur complement's a_jk - sum_p<m U_pj U_pk.
-/// The sums start at row `start` (the entries above it zeros).
+/// sum_k x_k [p_k0, p_k1]: one column's entries times two columns' side by side, as two running sums (even
+/// and odd k) of pairs, which the compiler keeps in vector registers.
 #[inline(always)]
-fn entry(column: &mut [f64], column_j: &[f64], j: usize, start: usize, m: usize, reciprocal: &[f64]) {
-    let end = j.min(m);
-    let start = start.min(end);
-    let dot = paired_dot(&column_j[start..end], &column[start..end]);
-    column[j] = (column[j] - dot) * if j < m { reciprocal[j] } else { 1.0 };
+fn pair_dot(x: &[f64], pairs: &[[f64; 2]]) -> [f64; 2] {
+    let (x_two, p_two) = (x.chunks_exact(2), pairs[..x.len()].chunks_exact(2));
+    let mut last = [0.0f64; 2];
+    if let (Some(x), Some(p)) = (x_two.remainder().first(), p_two.remainder().first()) {
+        last = [x * p[0], x * p[1]];
+    }
+    let (mut even, mut odd) = ([0.0f64; 2], [0.0f64; 2]);
+    for (x, p) in x_two.zip(p_two) {
+        even[0] += x[0] * p[0][0];
+        even[1] += x[0] * p[0][1];
+        odd[0] += x[1] * p[1][0];
+        odd[1] += x[1] * p[1][1];
+    }
+    [even[0] + odd[0] + last[0], even[1] + odd[1] + last[1]]
 }
 
-/// Column i's diagonal once its rows above are made: below m the pivot d = a_ii - sum_p<i U_pi^2 (None
-/// where it is not positive or not finite), U_ii = sqrt(d) and its reciprocal kept, `pivots` (smallest,
-/// largest) widened; from m, the Schur complement's diagonal.
+/// A column's diagonal from its pivot d (a_ii less the squares of the entries above): below m, U_ii =
+/// sqrt(d) into `diagonal` and its reciprocal kept, `pivots` (smallest, largest) widened, or None where d is
+/// not positive or not finite; from m, d itself (the Schur complement's diagonal).
 #[inline(always)]
-fn diagonal(
-    column: &mut [f64],
+fn pivot(
+    d: f64,
     i: usize,
-    first: usize,
     m: usize,
     reciprocal: &mut [f64],
     pivots: (f64, f64),
+    diagonal: &mut f64,
 ) -> Option<(f64, f64)> {
-    let leading = &column[first.min(m)..i.min(m)];
-    let d = column[i] - paired_dot(leading, leading);
     if i >= m {
-        column[i] = d;
+        *diagonal = d;
         return Some(pivots);
     }
     if !(d > 0.0 && d.is_finite()) {
         return None;
     }
     let root = d.sqrt();
-    column[i] = root;
+    *diagonal = root;
     reciprocal[i] = 1.0 / root;
     Some((pivots.0.min(d), pivots.1.max(d)))
 }
