@@ -385,8 +385,7 @@ struct Work {
     constraints: Vec<f64>,
     /// A connection's relative displacement per coordinate that moves either of its nodes.
     relative: Vec<(usize, Vec6)>,
-    /// A link's coordinates: (column, relative displacement across the link, K times it).
-    link: Vec<(usize, Vec6, Vec6)>,
+    link: LinkEnergy,
     cholesky: EnvelopeCholesky,
 }
 
@@ -400,7 +399,7 @@ impl Work {
             f: DVector::zeros(nz),
             constraints: Vec::new(),
             relative: Vec::new(),
-            link: Vec::new(),
+            link: LinkEnergy::default(),
             cholesky: EnvelopeCholesky::new(plan.envelope.clone()),
         }
     }
@@ -598,13 +597,11 @@ impl Work {
                 let held = Vec6::from_fn(|r, _| {
                     (0..ne).map(|c| if inside(r, c) { stiffness[(r, c)] * preload[c] } else { 0.0 }).sum()
                 });
-                self.link.clear();
-                for (c, dt) in &self.relative {
-                    let b = Vec6::from_fn(|r, _| if r < ne { elastic[r].dot(dt) } else { 0.0 });
-                    self.f[*c] += b.dot(&held);
-                    self.link.push((*c, b, spring * b));
+                for (c, dt) in &mut self.relative {
+                    *dt = Vec6::from_fn(|r, _| if r < ne { elastic[r].dot(dt) } else { 0.0 });
+                    self.f[*c] += dt.dot(&held);
                 }
-                add_link_energy(&self.link, self.kz.as_mut_slice(), nz);
+                self.link.add(&self.relative, &spring, self.kz.as_mut_slice(), nz);
             }
         }
     }
@@ -619,9 +616,7 @@ impl Work {
             let Element::Flexible { i, j, kjj } = e else { continue };
             let k = (kjj + kjj.transpose()) * 0.5;
             relative_displacement(&self.maps, Some(*i), *j, &(s.nodes[*j] - s.nodes[*i]), &mut self.relative);
-            self.link.clear();
-            self.link.extend(self.relative.iter().map(|(c, dt)| (*c, *dt, k * dt)));
-            add_link_energy(&self.link, self.kz.as_mut_slice(), nz);
+            self.link.add(&self.relative, &k, self.kz.as_mut_slice(), nz);
         }
     }
 
@@ -686,6 +681,63 @@ fn relative_displacement(maps: &NodeMaps, i: Option<usize>, j: usize, d: &Vec3, 
         }
         out.push((c, dt));
     }
+}
+
+/// A link's energy over the coordinates that move either of its ends, with its buffers: the coordinates
+/// whose relative displacement dt is a signed unit twist (+-e_r: a root's own coordinates, and the
+/// translations carried from one, about half of a pantograph beam's) and the others, dense.
+#[derive(Clone, Debug, Default)]
+struct LinkEnergy {
+    /// (column, dt, K dt), in increasing column order.
+    dense: Vec<(usize, Vec6, Vec6)>,
+    /// (column, r, sign): dt = sign e_r.
+    units: Vec<(usize, usize, f64)>,
+}
+
+impl LinkEnergy {
+    /// Adds dt_a . (K dt_b) for every pair of coordinates of `relative` (column, dt; in column order) to the
+    /// upper triangle of `kz` (column-major, `nz` square), K symmetric: a pair with a unit +-e_r reads
+    /// +-(K dt)_r, two units +-K_rs, where the others take a dot product.
+    fn add(&mut self, relative: &[(usize, Vec6)], k: &Mat6, kz: &mut [f64], nz: usize) {
+        // Room for every coordinate in either list: which are units can change from pose to pose (a carried
+        // rotation meets an axis), and a map of poses allocates nothing once it has its size.
+        self.dense.clear();
+        self.dense.reserve(relative.len());
+        self.units.clear();
+        self.units.reserve(relative.len());
+        for (c, dt) in relative {
+            match signed_unit(dt) {
+                Some((r, sign)) => self.units.push((*c, r, sign)),
+                None => self.dense.push((*c, *dt, k * dt)),
+            }
+        }
+        add_link_energy(&self.dense, kz, nz);
+        let mut add = |a: usize, b: usize, v: f64| kz[a.max(b) * nz + a.min(b)] += v;
+        for (u, &(cu, ru, su)) in self.units.iter().enumerate() {
+            for (cd, _, load) in &self.dense {
+                add(cu, *cd, su * load[ru]);
+            }
+            for &(cv, rv, sv) in &self.units[u..] {
+                add(cu, cv, su * sv * k[(ru, rv)]);
+            }
+        }
+    }
+}
+
+/// (r, sign) where `x` is sign e_r exactly (sign +-1), as a root's unit twists and the translations
+/// carried from them are.
+fn signed_unit(x: &Vec6) -> Option<(usize, f64)> {
+    let mut unit = None;
+    for (r, &v) in x.iter().enumerate() {
+        if v == 0.0 {
+            continue;
+        }
+        if unit.is_some() || v.abs() != 1.0 {
+            return None;
+        }
+        unit = Some((r, v));
+    }
+    unit
 }
 
 /// A link's energy dt_a . (K dt_b) for every pair of its coordinates (`link`: column, dt, K dt, in
@@ -863,6 +915,41 @@ mod tests {
         let dt = tj - carry(&(pj - pi), &ti);
         let square = dt.dot(&(kjj * dt));
         assert!((full - square).abs() < 1e-12 * full.abs(), "{full} vs {square}");
+    }
+
+    /// A link's energy with some coordinates' relative displacements signed unit twists (+-e_r, read
+    /// rather than summed) equals the plain sums dt_a . (K dt_b) over every pair, in the upper triangle;
+    /// a vector next to a unit (1 + 1e-15, or a unit with a stray 1e-300) is summed as a dense one.
+    #[test]
+    fn unit_displacements_read_from_k_equal_the_dot_products() {
+        let nz = 12;
+        let g = Mat6::from_fn(|r, c| ((r * 5 + c * 3) % 7) as f64 - 3.0 + if r == c { 9.0 } else { 0.0 });
+        let k = g * g.transpose();
+        let unit = |r: usize, sign: f64| Vec6::from_fn(|i, _| if i == r { sign } else { 0.0 });
+        let mut stray = unit(2, 1.0);
+        stray[4] = 1e-300;
+        let relative: Vec<(usize, Vec6)> = vec![
+            (0, unit(3, 1.0)),
+            (2, Vec6::new(0.3, -1.2, 0.5, 0.01, 0.2, -0.7)),
+            (3, unit(0, -1.0)),
+            (5, unit(1, 1.0 + 1e-15)),
+            (6, stray),
+            (8, Vec6::new(-0.4, 0.1, 0.9, -0.3, 0.05, 0.6)),
+            (11, unit(5, -1.0)),
+        ];
+        let mut expected = vec![0.0; nz * nz];
+        for (b, (cb, dtb)) in relative.iter().enumerate() {
+            for (ca, dta) in &relative[..=b] {
+                expected[cb * nz + ca] += dta.dot(&(k * dtb));
+            }
+        }
+        let mut link = LinkEnergy::default();
+        let mut kz = vec![0.0; nz * nz];
+        link.add(&relative, &k, &mut kz, nz);
+        assert_eq!(link.units.len(), 3, "the three exact signed units");
+        for (i, (got, want)) in kz.iter().zip(&expected).enumerate() {
+            assert!((got - want).abs() <= 1e-13 * k.amax(), "entry {i}: {got} vs {want}");
+        }
     }
 
     /// A link's energy is the same number however its coordinate pairs are grouped: the paired lanes of
