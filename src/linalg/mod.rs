@@ -718,7 +718,8 @@ impl EnvelopeCholesky {
                 pairs.resize(i + 1 - top, [0.0; 2]);
                 for j in top..i {
                     // Below m: U_jk = (a_jk - sum_p<j U_pj U_pk) / U_jj; from m: a_jk - sum_p<m U_pj U_pk.
-                    let end = j.min(m);
+                    // (Rows above `top` are zeros in both columns: a sum that would end there is empty.)
+                    let end = j.min(m).max(top);
                     let start = top.max(first[j]).min(end);
                     let sum = pair_dot(&before[j * stride + start..j * stride + end], &pairs[start - top..end - top]);
                     let scale = if j < m { reciprocal[j] } else { 1.0 };
@@ -1137,20 +1138,48 @@ mod tests {
             }
         });
         let a = &g * g.transpose();
+        assert!(envelope_of(&a).first()[m] > 0, "the trailing rows reach only part of the eliminated block");
+        check_schur_complement(&a, m);
+    }
+
+    /// Trailing columns whose envelope starts below the eliminated block (coupled only among themselves,
+    /// two of them side by side), and nothing eliminated at all, condense as the explicit formula says.
+    #[test]
+    fn trailing_columns_outside_the_eliminated_block_condense_too() {
+        let n = 10;
+        let g = DMatrix::from_fn(n, n, |i, j| {
+            let coupled = if i < 6 && j < 6 { i.abs_diff(j) <= 2 } else { i >= 6 && j >= 6 };
+            if coupled {
+                ((i * 3 + j * 5) % 7) as f64 - 3.0 + if i == j { 6.0 } else { 0.0 }
+            } else {
+                0.0
+            }
+        });
+        let a = &g * g.transpose();
+        assert!(envelope_of(&a).first()[6] >= 6 && envelope_of(&a).first()[7] >= 6, "columns 6 and 7 start below m");
+        check_schur_complement(&a, 4);
+        check_schur_complement(&a, 6);
+        let mut untouched = a.clone();
+        envelope_of(&a).eliminate(untouched.as_mut_slice(), n, 0).unwrap();
+        assert!((untouched - &a).upper_triangle().amax() == 0.0, "nothing eliminated leaves the matrix as it is");
+    }
+
+    /// `eliminate(m)` against the Schur complement A_uu - A_uy A_yy^-1 A_yu and U^-T A_yu computed with
+    /// nalgebra's inverse and Cholesky.
+    fn check_schur_complement(a: &DMatrix<f64>, m: usize) {
+        let n = a.nrows();
         let (ayy, ayu, auu) = (a.view((0, 0), (m, m)), a.view((0, m), (m, n - m)), a.view((m, m), (n - m, n - m)));
         let schur = auu - ayu.transpose() * ayy.clone_owned().try_inverse().unwrap() * ayu;
         let l = ayy.clone_owned().cholesky().unwrap().l();
         let below = ayu.transpose() * l.transpose().try_inverse().unwrap();
         let mut buffer = a.clone();
-        let mut c = envelope_of(&a);
-        assert!(c.first()[m] > 0, "the trailing rows reach only part of the eliminated block");
-        c.eliminate(buffer.as_mut_slice(), n, m).unwrap();
+        envelope_of(a).eliminate(buffer.as_mut_slice(), n, m).unwrap();
         for j in 0..n - m {
             for i in 0..=j {
-                assert!((buffer[(m + i, m + j)] - schur[(i, j)]).abs() < 1e-10 * schur.amax(), "S[{i},{j}]");
+                assert!((buffer[(m + i, m + j)] - schur[(i, j)]).abs() <= 1e-10 * schur.amax(), "S[{i},{j}], m = {m}");
             }
             for k in 0..m {
-                assert!((buffer[(k, m + j)] - below[(j, k)]).abs() < 1e-10 * below.amax(), "W[{j},{k}]");
+                assert!((buffer[(k, m + j)] - below[(j, k)]).abs() <= 1e-10 * below.amax(), "W[{j},{k}], m = {m}");
             }
         }
     }
