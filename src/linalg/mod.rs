@@ -715,21 +715,22 @@ impl EnvelopeCholesky {
                 let (this, next) = rest.split_at_mut(stride);
                 let (this, next) = (&mut this[..=i], &mut next[..=i + 1]);
                 let top = first[i].min(first[i + 1]);
-                pairs.resize(i + 1 - top, [0.0; 2]);
+                // Indexed by row; rows above `top` are zeros in both columns and never read.
+                pairs.resize(i + 1, [0.0; 2]);
                 for j in top..i {
                     // Below m: U_jk = (a_jk - sum_p<j U_pj U_pk) / U_jj; from m: a_jk - sum_p<m U_pj U_pk.
-                    // (Rows above `top` are zeros in both columns: a sum that would end there is empty.)
-                    let end = j.min(m).max(top);
+                    let end = j.min(m);
                     let start = top.max(first[j]).min(end);
-                    let sum = pair_dot(&before[j * stride + start..j * stride + end], &pairs[start - top..end - top]);
+                    let sum = pair_dot(&before[j * stride + start..j * stride + end], &pairs[start..end]);
                     let scale = if j < m { reciprocal[j] } else { 1.0 };
                     let entry = [(this[j] - sum[0]) * scale, (next[j] - sum[1]) * scale];
-                    pairs[j - top] = entry;
+                    pairs[j] = entry;
                     [this[j], next[j]] = entry;
                 }
                 // Column i's pivot, then column i + 1's entry in row i and its pivot, from the sums of
                 // column i's entries times both columns' and of column i + 1's squared.
-                let above = &pairs[..i.min(m).max(top) - top];
+                let end = i.min(m);
+                let above = &pairs[top.min(end)..end];
                 let (by_this, by_next) = above.iter().fold(([0.0f64; 2], 0.0f64), |(s, q), p| {
                     ([s[0] + p[0] * p[0], s[1] + p[0] * p[1]], q + p[1] * p[1])
                 });
