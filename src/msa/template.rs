@@ -175,12 +175,20 @@ impl Template {
                 }
                 ElementTemplate::Rigid { i, j } => Element::Rigid { i: *i, j: *j },
                 ElementTemplate::Joint { i, j, free, elastic, stiffness, preload } => {
-                    // The connection this slot held at the last pose, its vectors refilled.
-                    let mut connection = match out.elements.get_mut(k) {
-                        Some(Element::Joint { connection, .. } | Element::Base { connection, .. }) => {
-                            std::mem::replace(connection, Connection::rigid())
-                        }
-                        _ => Connection::rigid(),
+                    // Refilled in place where this slot held the same kind of connection at the last pose
+                    // (its vectors reused, nothing moved), made anew otherwise.
+                    if out.elements.len() == k {
+                        out.elements.push(Element::Rigid { i: 0, j: 0 });
+                    }
+                    let slot = &mut out.elements[k];
+                    match (i, &mut *slot) {
+                        (Some(i), Element::Joint { i: held_i, j: held_j, .. }) => (*held_i, *held_j) = (*i, *j),
+                        (None, Element::Base { node, .. }) => *node = *j,
+                        (Some(i), slot) => *slot = Element::Joint { i: *i, j: *j, connection: Connection::rigid() },
+                        (None, slot) => *slot = Element::Base { node: *j, connection: Connection::rigid() },
+                    }
+                    let (Element::Joint { connection, .. } | Element::Base { connection, .. }) = slot else {
+                        unreachable!("the slot holds a joint now")
                     };
                     connection.free.clear();
                     for d in free {
@@ -197,10 +205,7 @@ impl Template {
                         connection.stiffness = stiffness.clone();
                         connection.preload = preload.clone();
                     }
-                    match i {
-                        Some(i) => Element::Joint { i: *i, j: *j, connection },
-                        None => Element::Base { node: *j, connection },
-                    }
+                    continue;
                 }
             };
             match out.elements.get_mut(k) {
