@@ -168,6 +168,11 @@ impl Template {
                     let hint = y_axis.as_ref().map(|y| place.rot * point(y));
                     let kjj = oriented_beam_stiffness(section, &nodes[*i], &nodes[*j], hint)
                         .ok_or(PoseOutOfReach::Degenerate)?;
+                    // Written where the slot holds a flexible link already, as a joint's connection is.
+                    if let Some(Element::Flexible { i: held_i, j: held_j, kjj: held }) = out.elements.get_mut(k) {
+                        (*held_i, *held_j, *held) = (*i, *j, kjj);
+                        continue;
+                    }
                     Element::Flexible { i: *i, j: *j, kjj }
                 }
                 ElementTemplate::Link { i, j, kjj } => {
