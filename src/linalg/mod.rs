@@ -582,28 +582,18 @@ fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
     true
 }
 
-/// x . y and x . z, x read once, each as two running sums of the even and of the odd terms (which the
-/// compiler keeps side by side in vector registers) added at the end.
-#[inline(always)]
-fn paired_dots(x: &[f64], y: &[f64], z: &[f64]) -> (f64, f64) {
-    let n = x.len();
-    let (x_pairs, y_pairs, z_pairs) = (x.chunks_exact(2), y[..n].chunks_exact(2), z[..n].chunks_exact(2));
-    let last = |other: &[f64]| x_pairs.remainder().iter().zip(other).map(|(x, y)| x * y).sum::<f64>();
-    let (last_y, last_z) = (last(y_pairs.remainder()), last(z_pairs.remainder()));
-    let (mut sum_y, mut sum_z) = ([0.0f64; 2], [0.0f64; 2]);
-    for ((a, b), c) in x_pairs.zip(y_pairs).zip(z_pairs) {
-        sum_y[0] += a[0] * b[0];
-        sum_y[1] += a[1] * b[1];
-        sum_z[0] += a[0] * c[0];
-        sum_z[1] += a[1] * c[1];
-    }
-    (sum_y[0] + sum_y[1] + last_y, sum_z[0] + sum_z[1] + last_z)
-}
-
-/// x . y as `paired_dots` sums it.
+/// x . y as two running sums, of the even and of the odd terms (which the compiler keeps side by side in
+/// one vector register), added at the end.
 #[inline(always)]
 fn paired_dot(x: &[f64], y: &[f64]) -> f64 {
-    paired_dots(x, y, y).0
+    let (x_pairs, y_pairs) = (x.chunks_exact(2), y[..x.len()].chunks_exact(2));
+    let last = x_pairs.remainder().iter().zip(y_pairs.remainder()).map(|(x, y)| x * y).sum::<f64>();
+    let mut sum = [0.0f64; 2];
+    for (a, b) in x_pairs.zip(y_pairs) {
+        sum[0] += a[0] * b[0];
+        sum[1] += a[1] * b[1];
+    }
+    sum[0] + sum[1] + last
 }
 
 fn dot(a: &[f64; CONSTRAINTS], b: &[f64; CONSTRAINTS]) -> f64 {
@@ -661,9 +651,7 @@ pub fn spd_inverse6(a: &nalgebra::Matrix6<f64>) -> Option<nalgebra::Matrix6<f64>
 pub struct EnvelopeCholesky {
     /// Per column: the first row of its upper triangle inside the envelope.
     first: Vec<usize>,
-    /// How many coordinates the last factorisation eliminated.
-    eliminated: usize,
-    /// 1 / U_ii of those.
+    /// 1 / U_ii of the coordinates the last factorisation eliminated (as many as it eliminated).
     reciprocal: Vec<f64>,
     /// Two columns' entries side by side while they are made.
     pairs: Vec<[f64; 2]>,
@@ -673,7 +661,7 @@ impl EnvelopeCholesky {
     /// The factorisation of matrices whose column i is zero above row `first[i]` (at most i).
     pub fn new(first: Vec<usize>) -> EnvelopeCholesky {
         assert!(first.iter().enumerate().all(|(i, &f)| f <= i), "an envelope starts at or above the diagonal");
-        EnvelopeCholesky { first, eliminated: 0, reciprocal: Vec::new(), pairs: Vec::new() }
+        EnvelopeCholesky { first, reciprocal: Vec::new(), pairs: Vec::new() }
     }
 
     /// The envelope's first row in each column.
@@ -697,13 +685,12 @@ impl EnvelopeCholesky {
     /// at a time, entry j of both from one reading of column j: two chains of dependent operations side by
     /// side, which the processor overlaps, and half the loops. The entries made are read back from a buffer
     /// of pairs (this column's and the next's), each pair stored whole and read whole: reading two entries
-    /// of a column stored one by one stalls until both stores complete. The pivots' reciprocals
-    /// are kept, so those chains multiply where a division would take several times as long. A dot product
-    /// may start above a column's envelope: the entries there are zeros.
+    /// of a column stored one by one stalls until both stores complete. The pivots' reciprocals are kept, so
+    /// those chains multiply where a division would take several times as long. A dot product may start
+    /// above a column's envelope: the entries there are zeros.
     pub fn eliminate(&mut self, a: &mut [f64], stride: usize, m: usize) -> Option<(f64, f64)> {
         let n = self.first.len();
         assert!(m <= n && n <= stride && a.len() >= stride * n.saturating_sub(1) + n);
-        self.eliminated = m;
         self.reciprocal.clear();
         self.reciprocal.resize(m, 0.0);
         let (first, reciprocal, pairs) = (&self.first, &mut self.reciprocal, &mut self.pairs);
@@ -761,7 +748,7 @@ impl EnvelopeCholesky {
     /// Solves U^T y = b in place (the first half of a solve: with it, B^T A^-1 C = (U^-T B)^T (U^-T C)), `u`
     /// the buffer the factorisation worked in: y_i = (b_i - sum_k<i U_ki y_k) / U_ii.
     pub fn forward_in_place(&self, u: &[f64], stride: usize, b: &mut [f64]) {
-        let b = &mut b[..self.eliminated];
+        let b = &mut b[..self.reciprocal.len()];
         for i in 0..b.len() {
             let column = &u[i * stride..i * stride + i + 1];
             let f = self.first[i];
@@ -772,7 +759,7 @@ impl EnvelopeCholesky {
     /// Solves A x = b in place for one right-hand side, `u` the buffer `factor` worked in.
     pub fn solve_in_place(&self, u: &[f64], stride: usize, b: &mut [f64]) {
         self.forward_in_place(u, stride, b);
-        let b = &mut b[..self.eliminated];
+        let b = &mut b[..self.reciprocal.len()];
         for i in (0..b.len()).rev() {
             let column = &u[i * stride..i * stride + i + 1];
             b[i] *= self.reciprocal[i];

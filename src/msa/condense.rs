@@ -412,30 +412,30 @@ pub struct Condenser {
     shapes: Vec<Shape>,
     nodes: usize,
     end: usize,
-    plan: Option<Plan>,
-    work: Option<Work>,
+    /// The plan of the current shape and the buffers of its poses, made together.
+    solver: Option<(Plan, Work)>,
 }
 
 impl Condenser {
     /// Solves the structure (eq 15-17): the end node's stiffness and the wrench holding it against preloads.
     pub fn condense(&mut self, s: &Structure) -> Result<EndAnswer, MsaFailure> {
-        let fits = self.plan.is_some()
+        let fits = self.solver.is_some()
             && self.nodes == s.nodes.len()
             && self.end == s.end
             && self.shapes.len() == s.elements.len()
             && self.shapes.iter().zip(&s.elements).all(|(a, e)| *a == shape(e));
         if !fits {
-            self.plan = None;
+            self.solver = None;
             self.shapes.clear();
             self.shapes.extend(s.elements.iter().map(shape));
             self.nodes = s.nodes.len();
             self.end = s.end;
             let plan = Plan::new(&self.shapes, self.nodes, self.end)?;
-            self.work = Some(Work::for_plan(&plan));
-            self.plan = Some(plan);
+            let work = Work::for_plan(&plan);
+            self.solver = Some((plan, work));
         }
-        let plan = self.plan.as_ref().expect("made above");
-        self.work.as_mut().expect("made with the plan").solve(plan, s)
+        let (plan, work) = self.solver.as_mut().expect("made above");
+        work.solve(plan, s)
     }
 }
 
