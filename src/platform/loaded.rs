@@ -226,6 +226,8 @@ impl Manipulator {
         // A contraction measured in this solve (not carried): the next solve may start from it.
         let mut measured = false;
         let mut last_distance = f64::INFINITY;
+        // The slowest contraction of the chord steps since the last full one (see `full` below).
+        let mut slowest = 0.0f64;
         // The manipulator's stiffness factorised once per linearisation: chord steps reuse it.
         let mut stiffness_lu = stiffness.lu();
         for it in 0..MAX_NEWTON {
@@ -258,6 +260,11 @@ impl Manipulator {
             // longer shrink (round-off).
             let stalled = distance > CHORD_STALL * last_distance;
             let contraction = if last_distance.is_finite() { distance / last_distance } else { 1.0 };
+            slowest = match (full, last_distance.is_finite()) {
+                (true, _) => 0.0,
+                (false, true) => slowest.max(contraction),
+                (false, false) => 0.0,
+            };
             // The chord iteration's contraction with these factorisations: measured on this step, or for a
             // first chord step twice the one the last solve measured with them (the matrices have moved on
             // by one neighbouring point since, and the contraction grows in proportion to how far they
@@ -300,11 +307,13 @@ impl Manipulator {
                 return Ok((Some(held), it + 1));
             }
             // The next step: chord steps while they contract, a full one to confirm their convergence once
-            // the distance left after this step (contracting as the last one did) is within the tolerance.
+            // the distance left after this step is within the tolerance, the step contracting as the slowest
+            // of this run of chord steps did: their ratios fluctuate (by 2.5 times along the loaded 3-PUU's
+            // rows), and a full linearisation made short of `TANGENT_TOLERANCE` is followed by another.
             // (A first chord step, from the last solve's factorisations, has no contraction to go by yet.)
             full = match (full, finish) {
                 (true, _) => distance > CHORD_RANGE,
-                (false, Finish::Tangent) => stalled || distance * contraction <= TANGENT_TOLERANCE,
+                (false, Finish::Tangent) => stalled || distance * contraction.max(slowest) <= TANGENT_TOLERANCE,
                 (false, Finish::Pose) => stalled,
                 // The carried contraction where the first chord step has none of its own (at most 1: an
                 // unknown one, infinite or NaN, asks for the step itself within the tolerance).
