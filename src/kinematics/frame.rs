@@ -223,6 +223,34 @@ mod tests {
     }
 
     #[test]
+    fn the_error_back_is_the_error_there_negated_exactly() {
+        // The displacement carrying b to a undoes the one carrying a to b exactly: a translation's difference
+        // negated, and the rotation vector of a transposed rotation (the same products, summed in the same
+        // order; near pi the axis from the symmetric part takes the antisymmetric part's sign). The loaded
+        // equilibrium reads the end's error from its residual's evaluation on this (`target_error`).
+        let angles = [0.0, 1e-9, 0.3, 1.7, 2.9, std::f64::consts::PI - 1e-6];
+        let axes = [Vec3::new(0.3, -0.2, 0.9), Vec3::new(-1.0, 0.5, 0.2), Vec3::new(0.0, 0.0, 1.0)];
+        for (i, &angle) in angles.iter().enumerate() {
+            for (j, axis) in axes.iter().enumerate() {
+                let a = Frame {
+                    pos: Vec3::new(1.5, -2.0, 300.0 + i as f64),
+                    rot: rotation_from_vector(&(Vec3::new(0.2, 0.1, -0.4) * j as f64)),
+                };
+                let b = Frame {
+                    pos: Vec3::new(-0.25, 7.0, 12.5 * j as f64),
+                    rot: rotation_about(&axis.normalize(), angle) * a.rot,
+                };
+                let there = a.error_to(&b);
+                let back = b.error_to(&a);
+                for k in 0..6 {
+                    // Exactly equal (a zero's sign aside, which `==` ignores and a norm does too).
+                    assert_eq!(-there[k], back[k], "angle {angle}, axis {axis:?}: {there} {back}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn shift_stiffness_equals_the_congruence_it_stands_for() {
         let k = Mat6::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 + if i == j { 20.0 } else { 0.0 });
         let k = k + k.transpose();

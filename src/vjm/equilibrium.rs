@@ -277,10 +277,10 @@ impl LoadedChain<'_> {
         self.chain.evaluate(coords, &mut ws.jac);
         let correction = &mut lin.correction[..];
         self.residual(coords, wrench, target, &ws.jac, &mut ws.generalised, correction);
+        lin.end_error = target_error(correction);
         ws.factors.solve_in_place(correction);
         lin.end = ws.jac.end.pos;
         lin.wrench = *wrench;
-        lin.end_error = target.error_to(&ws.jac.end);
         Some(correction.iter().all(|v| v.is_finite()))
     }
 
@@ -324,7 +324,7 @@ impl LoadedChain<'_> {
         lin.sensitivity.extend(ws.rhs.iter().map(|row| std::array::from_fn(|c| row[1 + c])));
         lin.end = ws.jac.end.pos;
         lin.wrench = *wrench;
-        lin.end_error = target.error_to(&ws.jac.end);
+        lin.end_error = target_error(&ws.residual);
         lin.factorization = ws.factorizations;
         true
     }
@@ -424,6 +424,13 @@ impl LoadedChain<'_> {
     pub fn stable(&self, ws: &mut EquilibriumWorkspace) -> bool {
         ws.factors.reduced_negative_definite()
     }
+}
+
+/// Where the end is minus where it was asked, from the residuals `[e; -r]` (e: the displacement carrying the
+/// end to the target): `target.error_to(end)` is `-end.error_to(target)` exactly (the same products summed in
+/// the same order, of a transposed rotation; a zero's sign aside), so the residual's evaluation serves.
+fn target_error(residual: &[f64]) -> Vec6 {
+    -Vec6::from_column_slice(&residual[..6])
 }
 
 /// One coordinate's response to an end displacement: its sensitivity row times the twist.
