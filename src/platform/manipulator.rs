@@ -184,6 +184,15 @@ pub struct ManipulatorState {
     pub(super) chord: Option<Chord>,
 }
 
+impl ManipulatorState {
+    /// The next loaded solve starts with a full linearisation rather than chord steps on the last solve's
+    /// factorisations: where it starts far from where they were made (a grid's new line, begun beside the
+    /// last line's start), chord steps on them would not contract, and two would be spent finding that out.
+    pub fn forget_factorisations(&mut self) {
+        self.chord = None;
+    }
+}
+
 /// The sum over legs at one pose.
 #[derive(Clone, Copy, Debug)]
 pub struct Aggregate {

@@ -259,6 +259,9 @@ pub fn loaded_point(
         history.clear();
         return PointResult::failed_at(e);
     }
+    if history.begins_line(&p.position) {
+        state.forget_factorisations();
+    }
     let start = history.start(&p.position, &commanded, &mut state.legs);
     let mut attempt = m.deflect(&commanded, wrench, start.as_ref(), state);
     if attempt.is_err() && start.is_some() {

@@ -287,8 +287,7 @@ pub struct LoadedHistory {
 impl LoadedHistory {
     /// The extrapolation to `position` from the solutions before.
     fn predict(&self, position: &Vec3) -> Option<Prediction<'_>> {
-        let continues_line = self.recent.equally_spaced(position) >= 2;
-        if !continues_line && self.line_starts.distance(position) < self.recent.distance(position) {
+        if self.begins_line(position) {
             return self.line_starts.predict(position);
         }
         let mut prediction = self.recent.predict(position)?;
@@ -296,6 +295,14 @@ impl LoadedHistory {
             self.correct_from_rows_before(position, &mut prediction);
         }
         Some(prediction)
+    }
+
+    /// `position` begins a new line beside the last line's start, nearer to it than to the last point solved:
+    /// its start is predicted from the lines' starts, and the last solve's factorisations, made at the far
+    /// end of the last line, are of no use to it.
+    pub fn begins_line(&self, position: &Vec3) -> bool {
+        let continues_line = self.recent.equally_spaced(position) >= 2;
+        !continues_line && self.line_starts.distance(position) < self.recent.distance(position)
     }
 
     fn row(&self, back: usize) -> &Row {
@@ -507,6 +514,26 @@ mod tests {
         assert_eq!((row.points, row.len, row.solutions.len()), (1000, ROW_POINTS_KEPT, ROW_POINTS_KEPT));
         let predicted = history.predict(&position(1000.0)).unwrap().displacement();
         assert!((predicted - displacement(1000.0)).norm() < 1e-6, "{predicted}");
+    }
+
+    /// A loaded map's point that begins a grid's line beside the last line's start lies a row's length
+    /// from the last point solved, whose factorisations chord steps would reuse: they contract by how far
+    /// the matrices have moved since, and stall there. Such a point, and only such a point, begins a line.
+    #[test]
+    fn only_the_first_point_of_a_new_line_begins_a_line() {
+        let mut history = LoadedHistory::default();
+        let mut begun = Vec::new();
+        for y in 0..3 {
+            for x in 0..6 {
+                let position = Vec3::new(x as f64, y as f64, 0.0);
+                if history.begins_line(&position) {
+                    begun.push((x, y));
+                }
+                history.push(position, Vec6::repeat(x as f64 * y as f64), &[]);
+            }
+        }
+        // The first line has no line before it to begin beside; the later lines begin at x = 0.
+        assert_eq!(begun, [(0, 1), (0, 2)]);
     }
 
     #[test]
