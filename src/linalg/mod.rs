@@ -355,27 +355,37 @@ impl SaddlePointLu {
         // left skips the basic columns too.
         let mut pivot_rows = [0usize; CONSTRAINTS];
         let mut rows_left = [1.0f64; CONSTRAINTS];
-        for (pivot_row, basic) in pivot_rows.iter_mut().zip(self.basic.iter_mut()) {
-            // The largest entry left (the first in column-major order among equals): each column's largest,
-            // without a branch per entry, then the first column holding the largest and its first row there.
-            let size = |column: &[f64; CONSTRAINTS], r: usize| column[r].abs() * rows_left[r];
-            let mut best = (0usize, 0.0f64);
-            for (c, column) in self.reduced_rows[..k].iter().enumerate() {
-                let largest_left = (0..CONSTRAINTS).fold(0.0f64, |m, r| larger(m, size(column, r)));
-                if largest_left > best.1 {
-                    best = (c, largest_left);
-                }
+        // The largest entry of a column on the rows left, without a branch per entry.
+        let largest_left = |column: &[f64; CONSTRAINTS], rows_left: &[f64; CONSTRAINTS]| {
+            (0..CONSTRAINTS).fold(0.0f64, |m, r| larger(m, column[r].abs() * rows_left[r]))
+        };
+        // The pivot: the largest entry left, the first in column-major order among equals (the first column
+        // holding it, then its first row there). The first is searched here; each later one while the
+        // elimination before it updates the columns, in the same pass.
+        let mut best = (0usize, 0.0f64);
+        for (c, column) in self.reduced_rows[..k].iter().enumerate() {
+            let size = largest_left(column, &rows_left);
+            if size > best.1 {
+                best = (c, size);
             }
+        }
+        for (i, (pivot_row, basic)) in pivot_rows.iter_mut().zip(self.basic.iter_mut()).enumerate() {
             if best.1 <= 1e-12 * largest {
                 return false;
             }
             let pc = best.0;
-            let pr = (0..CONSTRAINTS).find(|&r| size(&self.reduced_rows[pc], r) == best.1).expect("the largest's row");
+            let column = &self.reduced_rows[pc];
+            let pr = (0..CONSTRAINTS).find(|&r| column[r].abs() * rows_left[r] == best.1).expect("the largest's row");
+            rows_left[pr] = 0.0;
+            // The next pivot is searched among J's columns but this one, which becomes a unit column on a
+            // row no longer left (as every earlier one is), and after the last pivot not at all.
+            let search = i + 1 < CONSTRAINTS;
+            best = (0, 0.0);
             // The pivot row scaled to a unit pivot, then the pivot column cleared from every other row.
             let inverse = 1.0 / self.reduced_rows[pc][pr];
             let mut factors = self.reduced_rows[pc];
             factors[pr] = 0.0;
-            for column in self.reduced_rows.iter_mut() {
+            for (c, column) in self.reduced_rows.iter_mut().enumerate() {
                 let p = column[pr] * inverse;
                 for (v, f) in column.iter_mut().zip(&factors) {
                     *v -= f * p;
@@ -384,10 +394,15 @@ impl SaddlePointLu {
                 // stored first (p - 0 p: the same bits); storing p first made the loop's vector loads wait on
                 // that store (a failed store forwarding).
                 column[pr] = p - factors[pr] * p;
+                if search && c < k && c != pc {
+                    let size = largest_left(column, &rows_left);
+                    if size > best.1 {
+                        best = (c, size);
+                    }
+                }
             }
-            // Exactly a unit column (p above is 1 to round-off only), so that the search skips it.
+            // Exactly a unit column (p above is 1 to round-off only).
             self.reduced_rows[pc] = std::array::from_fn(|r| if r == pr { 1.0 } else { 0.0 });
-            rows_left[pr] = 0.0;
             *pivot_row = pr;
             *basic = pc;
         }
