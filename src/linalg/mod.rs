@@ -452,13 +452,9 @@ impl SaddlePointLu {
         self.residual.clear();
         self.residual.resize(k * R, 0.0);
         let (residual, _) = self.residual.as_chunks_mut::<R>();
+        // Each row is summed in a local and stored once (`subtract_rows`).
         for ((r, aj), wb) in residual.iter_mut().zip(a).zip(&self.w_basic_columns) {
-            *r = *aj;
-            for (w, xi) in wb.iter().zip(&x_basic) {
-                for (v, x) in r.iter_mut().zip(xi) {
-                    *v -= w * x;
-                }
-            }
+            *r = subtract_rows(*aj, wb.iter().zip(&x_basic));
         }
         // y = (Z^T W Z)^-1 Z^T (a - W x_p).
         let f = self.free.len();
@@ -466,23 +462,14 @@ impl SaddlePointLu {
         self.free_part.resize(f * R, 0.0);
         let (y, _) = self.free_part.as_chunks_mut::<R>();
         for ((yc, &fc), xc) in y.iter_mut().zip(&self.free).zip(&self.x) {
-            *yc = residual[fc];
-            for (xi, &bi) in xc.iter().zip(&self.basic) {
-                for (v, r) in yc.iter_mut().zip(&residual[bi]) {
-                    *v -= xi * r;
-                }
-            }
+            *yc = subtract_rows(residual[fc], xc.iter().zip(&self.basic).map(|(xi, &bi)| (xi, &residual[bi])));
         }
         if f > 0 {
             self.lu.solve_rows(y);
         }
         // x = x_p + Z y on the basic coordinates.
-        for (xc, yc) in self.x.iter().zip(y.iter()) {
-            for (xb, xi) in x_basic.iter_mut().zip(xc) {
-                for (v, yv) in xb.iter_mut().zip(yc) {
-                    *v -= xi * yv;
-                }
-            }
+        for (i, xb) in x_basic.iter_mut().enumerate() {
+            *xb = subtract_rows(*xb, self.x.iter().zip(y.iter()).map(|(xc, yc)| (&xc[i], yc)));
         }
         // The basic rows' (a - W x)_b, then F = B^-T (a - W x)_b.
         let mut statics = [[0.0; R]; CONSTRAINTS];
@@ -555,6 +542,22 @@ impl SaddlePointLu {
         }
         dense_cholesky(s, f)
     }
+}
+
+/// `start - sum_k c_k row_k`, the products subtracted one at a time in order, the sum held in a local and
+/// returned whole: summed in place in a buffer, each product's store may alias the next load for the
+/// compiler, which then kept `SaddlePointLu::solve_rows`' loops scalar, a store per product.
+#[inline(always)]
+fn subtract_rows<'a, const R: usize>(
+    start: [f64; R],
+    terms: impl Iterator<Item = (&'a f64, &'a [f64; R])>,
+) -> [f64; R] {
+    terms.fold(start, |mut sum, (c, row)| {
+        for (v, x) in sum.iter_mut().zip(row) {
+            *v -= c * x;
+        }
+        sum
+    })
 }
 
 /// Every value finite: the test made on all of them without a branch per value, which the compiler
