@@ -467,7 +467,7 @@ impl SaddlePointLu {
         if f > 0 {
             self.lu.solve_rows(y);
         }
-        // x = x_p + Z y on the basic coordinates.
+        // x = x_p + Z y on the basic coordinates (each summed over the free coordinates in their order).
         for (i, xb) in x_basic.iter_mut().enumerate() {
             *xb = subtract_rows(*xb, self.x.iter().zip(y.iter()).map(|(xc, yc)| (&xc[i], yc)));
         }
