@@ -355,19 +355,23 @@ impl SaddlePointLu {
         // left skips the basic columns too.
         let mut pivot_rows = [0usize; CONSTRAINTS];
         let mut rows_left = [1.0f64; CONSTRAINTS];
-        // The largest entry of a column on the rows left, without a branch per entry.
-        let largest_left = |column: &[f64; CONSTRAINTS], rows_left: &[f64; CONSTRAINTS]| {
-            (0..CONSTRAINTS).fold(0.0f64, |m, r| larger(m, column[r].abs() * rows_left[r]))
-        };
+        // An entry's size on the rows left (zero on the others), and column c as a pivot candidate: kept where
+        // its largest such entry beats the best so far (found without a branch per entry).
+        let size =
+            |column: &[f64; CONSTRAINTS], rows_left: &[f64; CONSTRAINTS], r: usize| column[r].abs() * rows_left[r];
+        let consider =
+            |best: &mut (usize, f64), c: usize, column: &[f64; CONSTRAINTS], rows_left: &[f64; CONSTRAINTS]| {
+                let largest_left = (0..CONSTRAINTS).fold(0.0f64, |m, r| larger(m, size(column, rows_left, r)));
+                if largest_left > best.1 {
+                    *best = (c, largest_left);
+                }
+            };
         // The pivot: the largest entry left, the first in column-major order among equals (the first column
         // holding it, then its first row there). The first is searched here; each later one while the
         // elimination before it updates the columns, in the same pass.
         let mut best = (0usize, 0.0f64);
         for (c, column) in self.reduced_rows[..k].iter().enumerate() {
-            let size = largest_left(column, &rows_left);
-            if size > best.1 {
-                best = (c, size);
-            }
+            consider(&mut best, c, column, &rows_left);
         }
         for (i, (pivot_row, basic)) in pivot_rows.iter_mut().zip(self.basic.iter_mut()).enumerate() {
             if best.1 <= 1e-12 * largest {
@@ -375,7 +379,7 @@ impl SaddlePointLu {
             }
             let pc = best.0;
             let column = &self.reduced_rows[pc];
-            let pr = (0..CONSTRAINTS).find(|&r| column[r].abs() * rows_left[r] == best.1).expect("the largest's row");
+            let pr = (0..CONSTRAINTS).find(|&r| size(column, &rows_left, r) == best.1).expect("the largest's row");
             rows_left[pr] = 0.0;
             // The next pivot is searched among J's columns but this one, which becomes a unit column on a
             // row no longer left (as every earlier one is), and after the last pivot not at all.
@@ -395,10 +399,7 @@ impl SaddlePointLu {
                 // that store (a failed store forwarding).
                 column[pr] = p - factors[pr] * p;
                 if search && c < k && c != pc {
-                    let size = largest_left(column, &rows_left);
-                    if size > best.1 {
-                        best = (c, size);
-                    }
+                    consider(&mut best, c, column, &rows_left);
                 }
             }
             // Exactly a unit column (p above is 1 to round-off only).

@@ -260,11 +260,7 @@ impl Manipulator {
             // longer shrink (round-off).
             let stalled = distance > CHORD_STALL * last_distance;
             let contraction = if last_distance.is_finite() { distance / last_distance } else { 1.0 };
-            slowest = match (full, last_distance.is_finite()) {
-                (true, _) => 0.0,
-                (false, true) => slowest.max(contraction),
-                (false, false) => 0.0,
-            };
+            slowest = if !full && last_distance.is_finite() { slowest.max(contraction) } else { 0.0 };
             // The chord iteration's contraction with these factorisations: measured on this step, or for a
             // first chord step twice the one the last solve measured with them (the matrices have moved on
             // by one neighbouring point since, and the contraction grows in proportion to how far they
