@@ -387,7 +387,10 @@ fn an_effect_is_offered_exactly_when_it_changes_a_prediction() {
                         "{name}, {}: {e} changes predictions by up to {largest_change:e} mm",
                         if loaded { "loaded data" } else { "unloaded data" }
                     );
-                    assert!(!(1e-14..=1e-9).contains(&largest_change), "{what}: neither clearly nor not");
+                    // "Not" is round-off: placements polished to round-off close within about 1e-13 mm,
+                    // and a loaded equilibrium at zero load, solved from one, moves by what its last
+                    // Newton steps leave (found: up to 1.9e-12 mm, Stewart-Gough B's).
+                    assert!(!(1e-11..=1e-9).contains(&largest_change), "{what}: neither clearly nor not");
                     assert_eq!(is_offered, largest_change > 1e-9, "{what}; offered: {is_offered}");
                     if loaded && e.target == Target::Group("parallelogram".into()) {
                         offered_parallelogram = true;

@@ -526,13 +526,11 @@ fn a_point_solved_from_its_neighbours_factorisations_agrees_with_a_fresh_solve()
     let at = |x: f64| Frame::translation(Vec3::new(x, 20.0 - 0.4 * x, -10.0 + 0.2 * x));
     let fresh = |x: f64| {
         let mut s = m.new_state();
-        s.polish_placements();
         m.place(&at(x), &mut s).unwrap();
         m.deflect(&at(x), &wrench, None, &mut s).unwrap()
     };
     // Placements converged past the usual tolerance, so that both solves hold the same actuators.
     let mut carried = m.new_state();
-    carried.polish_placements();
     m.place(&at(-30.0), &mut carried).unwrap();
     let mut last = m.deflect(&at(-30.0), &wrench, None, &mut carried).unwrap();
     for (k, x) in [-27.0, -24.0, -21.0, 0.0].into_iter().enumerate() {

@@ -536,11 +536,6 @@ impl<'a> Problem<'a> {
             .collect();
         let arm_of = |k: usize| tilt_of[k].map_or(m, |t| &tilted[t].1);
         let mut state = m.new_state();
-        // A parallel robot's actuators are placed to round-off for its commanded poses, as `exact_misses`
-        // places them: the placement's tolerance (about 1e-7 mm) would otherwise be part of each deflection.
-        if m.joint_space.is_none() {
-            state.polish_placements();
-        }
         let mut deflection = Vec::with_capacity(data.rows.len());
         let failed = |r: &PositionRow, why: String| CalibrationError::Row { name: r.name.clone(), line: r.line, why };
         let mut compliance = Vec::with_capacity(data.rows.len());
@@ -1039,8 +1034,6 @@ impl<'a> Problem<'a> {
         let model_form: Vec<Effect> = built.iter().map(|(_, _, f)| f.clone()).collect();
         let mut real: Vec<Option<Manipulator>> = vec![None; self.tilted.len() + 1];
         let mut state = self.m.new_state();
-        // Actuators placed to round-off: the placement's tolerance (about 1e-7 mm) would stay in the misses.
-        state.polish_placements();
         let mut misses = Vec::with_capacity(self.data.rows.len());
         for (r, row) in self.data.rows.iter().enumerate() {
             if r > 0 && self.data.rows[r - 1].line == row.line {
@@ -2660,7 +2653,6 @@ pub fn synthesize_leg_positions(
     s: &PositionSynth,
 ) -> (Vec<SynthRow>, usize) {
     let mut state = real.new_state();
-    state.polish_placements();
     let mut next = poses.iter();
     measured_rows(configurations, s, |(_, _, wrench)| {
         let pose = next.next()?;

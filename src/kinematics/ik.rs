@@ -36,8 +36,8 @@ pub const MAX_ITERATIONS: usize = 60;
 /// Convergence: weighted pose error below this times the chain's length scale (a 900 mm leg: 1e-6 mm and
 /// 1e-9 rad), far below what changes a stiffness in its printed digits.
 pub const TOLERANCE: f64 = 1e-9;
-/// A pose error below this times the tolerance counts as polished (`IkWorkspace::polish`): a polishing step
-/// leaves about the tolerance's square, round-off, and this is within a few hundred times round-off.
+/// A pose error below this times the tolerance counts as polished: a polishing step leaves about the
+/// tolerance's square, round-off, and this is within a few hundred times round-off.
 const POLISHED: f64 = 1e-5;
 /// The reach decision's tolerance (mm, rotations weighted by the length scale). At a reach boundary (a leg
 /// stretched to a fold of its kinematics) Gauss-Newton converges sublinearly: a 3-PUU pose 1e-5 mm inside
@@ -56,10 +56,6 @@ pub struct IkWorkspace {
     current_is_valid: bool,
     trial: ChainJacobians,
     trial_coords: Coordinates,
-    /// After converging, take one more Gauss-Newton step (kept where it lowers the error): the pose error
-    /// then falls from below `TOLERANCE` to about its square, so that a command changed by less than the
-    /// tolerance still moves the actuators (compliance compensation iterates on such commands).
-    pub polish: bool,
 }
 
 impl IkWorkspace {
@@ -95,6 +91,12 @@ impl IkWorkspace {
 /// Solves `end_frame(coords) = target` for the actuated and passive coordinates; virtual coordinates are
 /// left as they are. Returns the number of iterations; `ws.current` then holds the evaluation at the solution.
 ///
+/// Once within `TOLERANCE`, one more step is taken (kept where it lowers the error): the error then falls to
+/// about the tolerance's square, round-off, so that the solution does not depend on where the solve
+/// started (a map's placements, and every loaded result through its actuators, are then the same whatever
+/// order the poses are visited in), and a command changed by less than the tolerance still moves the
+/// actuators (compliance compensation iterates on such commands).
+///
 /// The step is the minimum-norm damped solution `du = J^T (J J^T + lambda I)^-1 e` in the weighted metric,
 /// a 6x6 solve whatever the number of unknowns, so redundant and deficient chains (a 3-PUU leg has five
 /// unknowns for six equations, consistent only at reachable poses) are handled alike.
@@ -107,6 +109,8 @@ pub fn solve(
 ) -> Result<usize, IkFailure> {
     let tolerance = TOLERANCE * length_scale.max(1.0);
     ws.trial_coords.clone_from(coords);
+    // A start evaluated and kept is a solution (the last one, or a seeded configuration's own pose).
+    let start_is_solution = ws.current_is_valid;
     if !ws.current_is_valid {
         chain.evaluate(coords, &mut ws.current);
     }
@@ -116,10 +120,11 @@ pub fn solve(
     let mut polished = false;
     for iteration in 0..MAX_ITERATIONS {
         let converged = norm <= tolerance;
-        // A pose error already at the polished level (a solve at the pose of the last, polished, one)
-        // needs no polishing step.
-        polished |= norm <= POLISHED * tolerance;
-        if converged && (polished || !ws.polish) {
+        // A Newton iterate or a solution already at the polished level needs no polishing step. Any other
+        // start (an extrapolation, a loaded configuration) takes at least one step: its error, however
+        // small, is the start's (an extrapolation's within 1e-11 mm would stay in every loaded answer).
+        polished |= (iteration > 0 || start_is_solution) && norm <= POLISHED * tolerance;
+        if converged && polished {
             ws.current_is_valid = true;
             return Ok(iteration);
         }
@@ -129,7 +134,12 @@ pub fn solve(
             let w = jw(j);
             a += w * w.transpose();
         }
-        let damping = 1e-12 * a.trace() + 1e-300;
+        // The damping keeps the Cholesky pivots of a chain with fewer unknowns than equations (a 3-PUU
+        // leg: five for six) positive, above the round-off of `a` (1e-16 of its trace); its step errs by
+        // about damping / (the smallest eigenvalue J gives), so it must stay small for the polishing step
+        // to reach round-off: at 1e-12 of the trace the 3-PUU converged linearly, 3e-6 per step, and a
+        // polishing step left 3e-12 mm; at 1e-14 it leaves 1e-13 mm.
+        let damping = 1e-14 * a.trace() + 1e-300;
         for k in 0..6 {
             a[(k, k)] += damping;
         }

@@ -2,3 +2,4 @@
 pub mod chain;
 pub mod frame;
 pub mod ik;
+pub mod line;

@@ -69,9 +69,8 @@ impl Manipulator {
     /// actuators' motions (`actuator_motions`, the forward kinematic Jacobian) times what the readings
     /// differ from the placement's coordinates. None where a placement fails, K is singular, the readings do
     /// not cover every actuated coordinate, or 30 steps leave a coordinate further than `ACTUATOR_TOLERANCE`
-    /// (relative to the length scale) from its reading. Placements are polished in `state` (to round-off).
+    /// (relative to the length scale) from its reading.
     pub fn pose_at_actuators(&self, readings: &[f64], start: &Frame, state: &mut ManipulatorState) -> Option<Frame> {
-        state.polish_placements();
         let tolerance = ACTUATOR_TOLERANCE * self.length_scale.max(1.0);
         let mut pose = *start;
         let mut previous = f64::INFINITY;
@@ -176,14 +175,6 @@ impl Leg {
 }
 
 impl ManipulatorState {
-    /// Makes every later placement converge past the usual tolerance (`IkWorkspace::polish`), so that the
-    /// actuators follow commands changed by less than it.
-    pub fn polish_placements(&mut self) {
-        for leg in &mut self.legs {
-            leg.ik.polish = true;
-        }
-    }
-
     /// The actuated coordinates of every leg at its last placement (mm or rad), leg by leg.
     pub fn actuators(&self) -> impl Iterator<Item = &[f64]> {
         self.legs.iter().map(|l| l.coords.actuated.as_slice())
@@ -199,6 +190,7 @@ impl LegState {
         self.last_target = nominal.last_target;
         self.warm = true;
         self.placed.clone_from(&nominal.placed);
+        self.placements.clear();
         self.ik.invalidate();
         // An MSA leg's placement (its answer there, the structure's buffers) lives in its MSA state; a VJM
         // leg has none, and copying the empty one would still move its whole size.

@@ -10,6 +10,7 @@ use crate::kinematics::ik::{self, IkWorkspace};
 use crate::vjm::equilibrium::{EquilibriumWorkspace, Linearization};
 use crate::vjm::spring::SpringGroup;
 
+use super::leg_state::PlacementTrail;
 pub use super::leg_state::{LegState, LoadedOffsets};
 use super::msa_leg::{MsaLeg, MsaState};
 pub use super::vjm_leg::VjmLeg;
@@ -187,6 +188,7 @@ impl Leg {
             saved: zeros.clone(),
             checkpoint: (zeros.clone(), Vec6::zeros()),
             placed: zeros,
+            placements: PlacementTrail::default(),
             ik: IkWorkspace::default(),
             jac: ChainJacobians::default(),
             equilibrium: EquilibriumWorkspace::default(),

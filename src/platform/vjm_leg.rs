@@ -46,6 +46,7 @@ fn seed_at(q: &[f64], state: &mut LegState) -> bool {
     state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
     state.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
     state.ik.invalidate();
+    state.placements.clear();
     state.warm = true;
     true
 }
@@ -136,9 +137,13 @@ impl VjmLeg {
         }
         if state.warm {
             state.saved.clone_from(&state.coords);
+            if state.placements.predict_into(&target, &mut state.coords) {
+                state.ik.invalidate();
+            }
             match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
                 Ok(n) => {
                     state.placed.clone_from(&state.coords);
+                    state.placements.record(&target, &state.coords);
                     return Ok(n);
                 }
                 Err(_) => {
@@ -159,6 +164,7 @@ impl VjmLeg {
             Ok(n) => {
                 state.warm = true;
                 state.placed.clone_from(&state.coords);
+                state.placements.record(&target, &state.coords);
                 Ok(n)
             }
             Err(e) => {

@@ -387,8 +387,7 @@ struct Commanded {
 
 impl Commanded {
     fn new(m: &Manipulator) -> Self {
-        let mut nominal = m.new_state();
-        nominal.polish_placements();
+        let nominal = m.new_state();
         Commanded { nominal, real: m.new_state(), history: LoadedHistory::default() }
     }
 }
@@ -410,8 +409,8 @@ pub struct CompensateState {
     /// coordinates): the compensation is a smooth function of the target along a path, and its
     /// extrapolation starts the next target's Newton method.
     commands: Trail,
-    /// With `commands_only`, the nominal robot placed at the target for the task's directions alone:
-    /// nothing is commanded through it, so its placement is not polished (one evaluation per leg less).
+    /// With `commands_only`, the nominal robot placed at the target for the task's directions alone (the
+    /// controller's own placements are at the commands, in `check`).
     directions: ManipulatorState,
     /// With `commands_only`, targets answered by the extrapolated command alone have passed since the
     /// uncompensated and mirror pairs last solved: their solutions lie back along the path.
