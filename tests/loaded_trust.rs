@@ -294,8 +294,8 @@ fn a_loaded_map_reports_the_tangent_at_the_equilibrium() {
 /// The equilibrium under a load is a property of the commanded pose alone (a stable equilibrium on the
 /// branch of the placement); but inverse kinematics stopped within its tolerance (1e-9 of the length scale,
 /// about 1e-6 mm) of the pose, wherever its warm start put it, and the actuators it set carried that miss
-/// into every loaded displacement: a row of ten points of the bench grid under the milling wrench, solved
-/// forward and backward, moved by up to 4.9e-7 mm. Placements are now polished to round-off: both orders,
+/// into every loaded displacement: this row of ten points under the milling wrench, solved forward and
+/// backward, moved by 1.5e-7 mm at its first point. Placements are now polished to round-off: both orders,
 /// each point's displacement agrees to 1e-11 mm and 1e-12 rad, and its compliance to 1e-10 of its scale.
 #[test]
 fn a_loaded_answer_does_not_depend_on_the_order_the_poses_are_visited() {
