@@ -32,3 +32,43 @@ pub fn extrapolation_weights(count: usize) -> &'static [f64] {
         _ => &[5.0, -10.0, 10.0, -5.0, 1.0],
     }
 }
+
+/// The positions of the last `N` points of a sequence, in a ring whose slots the caller's values share: the
+/// slots a next position continues on a line, with their extrapolation weights.
+#[derive(Clone, Copy, Debug)]
+pub struct PositionRing<const N: usize> {
+    positions: [Vec3; N],
+    /// Positions held, and the slot of the newest.
+    count: usize,
+    newest: usize,
+}
+
+impl<const N: usize> Default for PositionRing<N> {
+    fn default() -> Self {
+        Self { positions: [Vec3::zeros(); N], count: 0, newest: 0 }
+    }
+}
+
+impl<const N: usize> PositionRing<N> {
+    /// Forgets every position.
+    pub fn clear(&mut self) {
+        self.count = 0;
+    }
+
+    /// Records `position` as the newest (over the oldest once the ring is full) and returns its slot.
+    pub fn push(&mut self, position: Vec3) -> usize {
+        self.newest = (self.newest + 1) % N;
+        self.count = (self.count + 1).min(N);
+        self.positions[self.newest] = position;
+        self.newest
+    }
+
+    /// How many kept positions lie with `position` equally spaced on a line (`equally_spaced`), and the
+    /// extrapolation to it through them: (weight, slot) pairs, newest first (`extrapolation_weights`; the
+    /// newest alone, weight 1, where none continues it; none without positions).
+    pub fn extrapolation(&self, position: &Vec3) -> (usize, impl Iterator<Item = (f64, usize)> + Clone + '_) {
+        let newest_first = (0..self.count).map(|k| (self.newest + N - k) % N);
+        let count = equally_spaced(newest_first.clone().map(|k| &self.positions[k]), position);
+        (count, extrapolation_weights(count).iter().copied().zip(newest_first))
+    }
+}

@@ -2,9 +2,9 @@
 //! equilibrium, buffers), and the loaded offsets a map extrapolates from point to point.
 
 use crate::kinematics::chain::{ChainJacobians, Coordinates};
-use crate::kinematics::frame::{Frame, Mat3, Vec3, Vec6};
+use crate::kinematics::frame::{Frame, Mat3, Vec6};
 use crate::kinematics::ik::IkWorkspace;
-use crate::kinematics::line::{equally_spaced, extrapolation_weights};
+use crate::kinematics::line::PositionRing;
 use crate::vjm::equilibrium::EquilibriumWorkspace;
 
 use super::msa_leg::MsaState;
@@ -97,48 +97,35 @@ impl LegState {
 const PLACEMENTS_KEPT: usize = 4;
 
 /// A leg's last placements in a run while its targets keep one orientation: the targets' positions and the
-/// actuated and passive coordinates found there, in a ring. Where the next target lies with them equally
-/// spaced on a line (a grid's rows, a sampled path), its placement starts from their polynomial
-/// extrapolation instead of the last solution, a step behind.
+/// actuated and passive coordinates found there. Where the next target lies with them equally spaced on a
+/// line (a grid's rows, a sampled path), its placement starts from their polynomial extrapolation instead of
+/// the last solution, a step behind.
 #[derive(Clone, Debug, Default)]
 pub(super) struct PlacementTrail {
-    positions: [Vec3; PLACEMENTS_KEPT],
-    /// Slot k's actuated then passive coordinates at `coordinates[k * n..(k + 1) * n]`.
+    positions: PositionRing<PLACEMENTS_KEPT>,
+    /// Slot k's actuated then passive coordinates at `coordinates[k * n..(k + 1) * n]`, n the coordinates
+    /// per placement.
     coordinates: Vec<f64>,
-    /// The coordinates per placement.
-    n: usize,
-    /// Placements held, and the slot of the newest.
-    count: usize,
-    newest: usize,
     rotation: Mat3,
 }
 
 impl PlacementTrail {
     /// Forgets every placement (coordinates set by anything but a placement: a seed, a command).
     pub(super) fn clear(&mut self) {
-        self.count = 0;
-    }
-
-    /// The slots from the newest back, `count` of them.
-    fn newest_first(&self) -> impl Iterator<Item = usize> + Clone + '_ {
-        (0..self.count).map(|k| (self.newest + PLACEMENTS_KEPT - k) % PLACEMENTS_KEPT)
+        self.positions.clear();
     }
 
     /// Records the placement `placed` at `target` as the newest (over the oldest once the trail is full;
     /// the others forgotten where the target turned).
     pub(super) fn record(&mut self, target: &Frame, placed: &Coordinates) {
         let n = placed.actuated.len() + placed.passive.len();
-        if target.rot != self.rotation || n != self.n {
-            self.count = 0;
+        if target.rot != self.rotation || self.coordinates.len() != PLACEMENTS_KEPT * n {
+            self.positions.clear();
             self.rotation = target.rot;
-            self.n = n;
             self.coordinates.resize(PLACEMENTS_KEPT * n, 0.0);
         }
-        self.newest = (self.newest + 1) % PLACEMENTS_KEPT;
-        self.count = (self.count + 1).min(PLACEMENTS_KEPT);
-        self.positions[self.newest] = target.pos;
-        let slot = &mut self.coordinates[self.newest * n..(self.newest + 1) * n];
-        for (x, q) in slot.iter_mut().zip(placed.actuated.iter().chain(&placed.passive)) {
+        let slot = self.positions.push(target.pos);
+        for (x, q) in self.coordinates[slot * n..].iter_mut().zip(placed.actuated.iter().chain(&placed.passive)) {
             *x = *q;
         }
     }
@@ -147,15 +134,14 @@ impl PlacementTrail {
     /// zero, newest term first) and returns true, where at least two kept placements lie with it equally
     /// spaced on a line at its orientation; else leaves them and returns false.
     pub(super) fn predict_into(&self, target: &Frame, coords: &mut Coordinates) -> bool {
-        let n = self.n;
-        if target.rot != self.rotation || coords.actuated.len() + coords.passive.len() != n {
+        let n = coords.actuated.len() + coords.passive.len();
+        if target.rot != self.rotation || self.coordinates.len() != PLACEMENTS_KEPT * n {
             return false;
         }
-        let count = equally_spaced(self.newest_first().map(|k| &self.positions[k]), &target.pos);
+        let (count, terms) = self.positions.extrapolation(&target.pos);
         if count < 2 {
             return false;
         }
-        let terms = extrapolation_weights(count).iter().zip(self.newest_first());
         for (i, q) in coords.actuated.iter_mut().chain(coords.passive.iter_mut()).enumerate() {
             *q = terms.clone().fold(0.0, |sum, (w, k)| sum + w * self.coordinates[k * n + i]);
         }

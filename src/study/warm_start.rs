@@ -3,7 +3,7 @@
 //! "converges in 1-2 iterations" for small increments).
 
 use crate::kinematics::frame::{apply_twist, Frame, Vec3, Vec6};
-use crate::kinematics::line::{equally_spaced, extrapolation_weights};
+use crate::kinematics::line::{equally_spaced, extrapolation_weights, PositionRing};
 use crate::platform::leg::{LegState, LoadedOffsets};
 
 /// The degree of the extrapolation through equally spaced values (newest first) that predicts the next
@@ -38,33 +38,32 @@ pub fn extrapolation_degree(newest_first: &[Vec6]) -> usize {
 /// would only amplify the values' round-off, see `extrapolation_degree`).
 const TRAIL_KEPT: usize = 3;
 
-/// A quantity's values at the last positions of a sequence (oldest first), and its extrapolation to the
-/// next position, at most quadratic.
+/// A quantity's values at the last positions of a sequence, and its extrapolation to the next position, at
+/// most quadratic.
 #[derive(Clone, Debug, Default)]
 pub struct Trail {
-    last: Vec<(Vec3, Vec6)>,
+    positions: PositionRing<TRAIL_KEPT>,
+    /// The value at each slot of `positions`.
+    values: [Vec6; TRAIL_KEPT],
 }
 
 impl Trail {
     /// Records the value at `position` as the newest (the oldest dropped once the trail is full).
     pub fn record(&mut self, position: Vec3, value: Vec6) {
-        if self.last.len() == TRAIL_KEPT {
-            self.last.remove(0);
-        }
-        self.last.push((position, value));
+        let slot = self.positions.push(position);
+        self.values[slot] = value;
     }
 
     /// The value extrapolated to `position` (`extrapolation_weights` through the values whose positions lie
     /// with it equally spaced on a line, else the newest value); None without values.
     pub fn predict(&self, position: &Vec3) -> Option<Vec6> {
-        let count = equally_spaced(self.last.iter().rev().map(|(p, _)| p), position);
-        let weights = extrapolation_weights(count).iter().zip(self.last.iter().rev());
-        (count > 0).then(|| weights.map(|(w, (_, v))| v * *w).sum())
+        let (count, terms) = self.positions.extrapolation(position);
+        (count > 0).then(|| terms.map(|(w, k)| self.values[k] * w).sum())
     }
 
     /// Forgets every value.
     pub fn clear(&mut self) {
-        self.last.clear();
+        self.positions.clear();
     }
 }
 
