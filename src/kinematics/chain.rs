@@ -55,6 +55,15 @@ impl Joint {
         [self.axis.x, self.axis.y, self.axis.z].iter().position(|&c| c == 1.0)
     }
 
+    /// The frame axis (0, 1 or 2) that is the joint's axis, where it is one (a unit vector of the frame):
+    /// its world axis is then that column of the frame's rotation, with no product.
+    fn unit_axis(&self) -> Option<usize> {
+        if self.axis.norm_squared() != 1.0 {
+            return None;
+        }
+        [self.axis.x, self.axis.y, self.axis.z].iter().position(|&c| c == 1.0)
+    }
+
     /// `f * motion(value)`: the frame after this joint moves by `value` (rad or mm) about or along its axis.
     /// Rotations about a principal axis (`principal`, from `principal_axis`) only mix two columns, the
     /// common case on the hot path.
@@ -63,7 +72,7 @@ impl Joint {
         match (self.kind, principal) {
             (JointKind::Prismatic, _) => Frame { rot: f.rot, pos: f.pos + f.rot * (self.axis * value) },
             (JointKind::Revolute, Some(k)) => {
-                let (s, c) = value.sin_cos();
+                let (s, c) = small_angle_sin_cos(value);
                 let (i, j) = ((k + 1) % 3, (k + 2) % 3);
                 let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
                 let (new_i, new_j) = (ci * c + cj * s, cj * c - ci * s);
@@ -82,6 +91,26 @@ impl Joint {
     }
 }
 
+/// Below this angle (rad) `small_angle_sin_cos` sums the Taylor series: its first omitted terms,
+/// x^11/11! and x^10/10!, are below 3e-19 there, a thousandth of the last bit of the values.
+const SMALL_ANGLE: f64 = 0.0625;
+
+/// `x.sin_cos()`, by the Taylor series where |x| <= `SMALL_ANGLE` (to within an ulp, as libm): the virtual
+/// springs of a loaded chain turn by 1e-2 rad or less, and there the series costs a fifth of libm's
+/// general reduction, at every joint of every evaluation.
+#[inline]
+pub fn small_angle_sin_cos(x: f64) -> (f64, f64) {
+    if x.abs() > SMALL_ANGLE {
+        return x.sin_cos();
+    }
+    let x2 = x * x;
+    // sin x = x + x^3 (-1/3! + x^2 (1/5! + x^2 (-1/7! + x^2 / 9!))),
+    // cos x = 1 + x^2 (-1/2! + x^2 (1/4! + x^2 (-1/6! + x^2 / 8!))).
+    let sin_tail = -1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362_880.0)));
+    let cos_tail = -0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40_320.0)));
+    (x + x * x2 * sin_tail, 1.0 + x2 * cos_tail)
+}
+
 /// What `evaluate` and `walk` do at each element, decided once when the chain is built: a fixed transform
 /// that only translates (most link vectors) needs no rotation product, and a revolute joint's principal
 /// axis is found once rather than at every evaluation.
@@ -90,7 +119,7 @@ enum Step {
     Translate(Vec3),
     Transform(Frame),
     Mass { kg: f64, centre: Vec3 },
-    Joint { joint: Joint, principal: Option<usize> },
+    Joint { joint: Joint, principal: Option<usize>, tag: JointTag, unit_axis: Option<usize> },
 }
 
 impl Step {
@@ -99,7 +128,12 @@ impl Step {
             Element::Fixed(t) if t.rot == Mat3::identity() => Step::Translate(t.pos),
             Element::Fixed(t) => Step::Transform(*t),
             Element::Mass { kg, centre } => Step::Mass { kg: *kg, centre: *centre },
-            Element::Joint(j) => Step::Joint { joint: *j, principal: j.principal_axis() },
+            Element::Joint(j) => Step::Joint {
+                joint: *j,
+                principal: j.principal_axis(),
+                tag: JointTag { gain: j.gain, index: j.index, kind: j.kind, role: j.role },
+                unit_axis: j.unit_axis(),
+            },
         }
     }
 }
@@ -174,10 +208,11 @@ struct PlacedJoint {
     origin_world: Vec3,
 }
 
-/// What the Jacobian columns and load terms need of a joint besides its placement, copied field by field:
-/// copying the whole `Joint`, the compiler moved its bytes in overlapping pieces that later loads had to
-/// wait for (failed store forwarding: 8% of the evaluation's time samples in a loaded map sat on one such load).
-#[derive(Clone, Copy, Debug)]
+/// What the Jacobian columns and load terms need of a joint besides its placement, made once per chain
+/// (`Step::of`): copying the whole `Joint` at every evaluation, the compiler moved its bytes in overlapping
+/// pieces that later loads had to wait for (failed store forwarding: 8% of the evaluation's time samples in
+/// a loaded map sat on one such load).
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct JointTag {
     gain: f64,
     index: usize,
@@ -409,6 +444,8 @@ pub struct Chain {
     elements: Vec<Element>,
     /// The elements as `evaluate` walks them.
     steps: Vec<Step>,
+    /// Number of joints (elements with a coordinate).
+    n_joints: usize,
     /// Number of actuated coordinates.
     pub n_actuated: usize,
     /// Number of passive coordinates.
@@ -437,7 +474,8 @@ impl Chain {
             }
         }
         let steps = merged.iter().map(Step::of).collect();
-        Self { elements: merged, steps, n_actuated: na, n_passive: np, n_virtual: nv }
+        let n_joints = merged.iter().filter(|e| matches!(e, Element::Joint(_))).count();
+        Self { elements: merged, steps, n_joints, n_actuated: na, n_passive: np, n_virtual: nv }
     }
 
     /// The kind of each virtual joint, by virtual coordinate index.
@@ -533,23 +571,32 @@ impl Chain {
     /// demand (`ChainJacobians::fill_virtual`) without another pass: inverse kinematics needs them only at
     /// its solution.
     pub fn evaluate(&self, c: &Coordinates, out: &mut ChainJacobians) {
-        out.placed.clear();
+        // Every joint's placement is written in place, in chain order: the buffer keeps its length between
+        // evaluations of the same chain, so no push (a capacity test and a length store per joint) is made.
+        let placeholder = PlacedJoint {
+            joint: JointTag { gain: 0.0, index: 0, kind: JointKind::Revolute, role: Role::Actuated },
+            axis_world: Vec3::zeros(),
+            origin_world: Vec3::zeros(),
+        };
+        out.placed.resize(self.n_joints, placeholder);
         out.masses.clear();
         let mut f = Frame::IDENTITY;
+        let mut placed = 0;
         for step in &self.steps {
             match step {
                 // Most fixed transforms are translations (link vectors): no rotation product for them.
                 Step::Translate(p) => f.pos += f.rot * p,
                 Step::Transform(t) => f = f.compose(t),
-                Step::Mass { kg, centre } => out.masses.push(PlacedMass {
-                    kg: *kg,
-                    point: f.transform_point(centre),
-                    upstream: out.placed.len(),
-                }),
-                Step::Joint { joint: j, principal } => {
-                    // Field by field (see `JointTag`).
-                    let joint = JointTag { gain: j.gain, index: j.index, kind: j.kind, role: j.role };
-                    out.placed.push(PlacedJoint { joint, axis_world: f.rot * j.axis, origin_world: f.pos });
+                Step::Mass { kg, centre } => {
+                    out.masses.push(PlacedMass { kg: *kg, point: f.transform_point(centre), upstream: placed })
+                }
+                Step::Joint { joint: j, principal, tag, unit_axis } => {
+                    let axis_world = match unit_axis {
+                        Some(k) => f.rot.column(*k).into_owned(),
+                        None => f.rot * j.axis,
+                    };
+                    out.placed[placed] = PlacedJoint { joint: *tag, axis_world, origin_world: f.pos };
+                    placed += 1;
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
                         f = j.apply(&f, v, *principal);
@@ -588,4 +635,40 @@ impl Chain {
 fn reset(v: &mut Vec<Vec6>, n: usize) {
     v.clear();
     v.resize(n, Vec6::zeros());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Distance in units in the last place between two finite values of the same sign.
+    fn ulps(a: f64, b: f64) -> u64 {
+        (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs()
+    }
+
+    /// The series that turns a virtual spring's joint is sin and cos to round-off: within one unit in the
+    /// last place of libm's values over its whole range (libm is itself within one of the true values), on
+    /// both sides of zero and down to angles whose cube is below the last bit (where sin x is x and cos x is
+    /// 1 exactly), and libm's own values past the range.
+    #[test]
+    fn small_angle_sin_cos_is_libm_to_an_ulp() {
+        let mut worst = (0u64, 0u64);
+        for i in 0..=200_000 {
+            let x = SMALL_ANGLE * (i as f64 / 100_000.0 - 1.0);
+            for x in [x, x * 1e-3, x * 1e-6, x * 1e-9] {
+                let (s, c) = small_angle_sin_cos(x);
+                let (ls, lc) = x.sin_cos();
+                if x == 0.0 {
+                    assert_eq!((s, c), (x, 1.0));
+                    continue;
+                }
+                worst = (worst.0.max(ulps(s, ls)), worst.1.max(ulps(c, lc)));
+            }
+        }
+        assert!(worst.0 <= 1 && worst.1 <= 1, "sin, cos off libm by {worst:?} ulps");
+        assert_eq!(small_angle_sin_cos(1e-9), (1e-9, 1.0));
+        for x in [SMALL_ANGLE * 1.0001, -0.5, 3.0] {
+            assert_eq!(small_angle_sin_cos(x), x.sin_cos());
+        }
+    }
 }

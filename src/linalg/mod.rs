@@ -510,10 +510,49 @@ impl SaddlePointLu {
         rows[k..].copy_from_slice(&multipliers);
     }
 
-    /// Solves in place for one right-hand side (as `solve_rows`).
-    pub fn solve_in_place(&mut self, b: &mut [f64]) {
-        let (rows, _) = b.as_chunks_mut::<1>();
-        self.solve_rows(rows);
+    /// Solves in place for one right-hand side (as `solve_rows`, the same steps): every product with the
+    /// basic coordinates is one of six-entry arrays, where `solve_rows::<1>` would walk them one
+    /// single-entry row at a time (a chord step of the loaded equilibrium makes one such solve per leg).
+    pub fn solve_in_place(&mut self, rows: &mut [f64]) {
+        let k = self.k;
+        let rows = &mut rows[..k + CONSTRAINTS];
+        let (b, a) = rows.split_at(CONSTRAINTS);
+        // x_p on the basic coordinates: B^-1 b; the residual a - W x_p.
+        let mut x_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| dot_slice(&self.basic_inverse[i], b));
+        self.residual.clear();
+        self.residual.extend(a.iter().zip(&self.w_basic_columns).map(|(aj, wb)| aj - dot(wb, &x_basic)));
+        let residual = &self.residual;
+        // y = (Z^T W Z)^-1 Z^T (a - W x_p).
+        let on_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| residual[self.basic[i]]);
+        self.free_part.clear();
+        self.free_part.extend(self.free.iter().zip(&self.x).map(|(&fc, xc)| residual[fc] - dot(xc, &on_basic)));
+        let y = &mut self.free_part;
+        if !y.is_empty() {
+            self.lu.solve_in_place(y);
+        }
+        // x = x_p + Z y on the basic coordinates; then the basic rows' (a - W x)_b, and F = B^-T (a - W x)_b.
+        for (xc, yc) in self.x.iter().zip(y.iter()) {
+            axpy(&mut x_basic, -yc, xc);
+        }
+        let mut statics: [f64; CONSTRAINTS] = std::array::from_fn(|i| a[self.basic[i]]);
+        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+            axpy(&mut statics, -yc, &self.w_basic_rows[fc]);
+        }
+        for (&bc, xb) in self.basic.iter().zip(&x_basic) {
+            axpy(&mut statics, -xb, &self.w_basic_rows[bc]);
+        }
+        let mut multipliers = [0.0; CONSTRAINTS];
+        for (si, bi) in statics.iter().zip(&self.basic_inverse) {
+            axpy(&mut multipliers, *si, bi);
+        }
+        // The unknowns in their order: x's k (free and basic coordinates), then F's six.
+        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+            rows[fc] = *yc;
+        }
+        for (&bc, xb) in self.basic.iter().zip(&x_basic) {
+            rows[bc] = *xb;
+        }
+        rows[k..].copy_from_slice(&multipliers);
     }
 
     /// The symmetric part of the reduced matrix Z^T W Z is negative definite, to a margin of 1e-12 of its
@@ -617,6 +656,19 @@ fn paired_dot(x: &[f64], y: &[f64]) -> f64 {
 
 fn dot(a: &[f64; CONSTRAINTS], b: &[f64; CONSTRAINTS]) -> f64 {
     a.iter().zip(b).map(|(a, b)| a * b).sum()
+}
+
+/// `dot` with the second operand a slice of six.
+fn dot_slice(a: &[f64; CONSTRAINTS], b: &[f64]) -> f64 {
+    a.iter().zip(&b[..CONSTRAINTS]).map(|(a, b)| a * b).sum()
+}
+
+/// `y += c x` on six entries.
+#[inline(always)]
+fn axpy(y: &mut [f64; CONSTRAINTS], c: f64, x: &[f64; CONSTRAINTS]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += c * x;
+    }
 }
 
 /// Cholesky factorisation of a small symmetric matrix in place (its lower triangle read, L written there;
@@ -1001,13 +1053,17 @@ mod tests {
             let expected = dense.clone().lu().solve(&rhs).unwrap();
             let mut rows: Vec<[f64; 3]> = (0..k + 6).map(|r| std::array::from_fn(|c| rhs[(r, c)])).collect();
             saddle.solve_rows(&mut rows);
-            for c in 0..3 {
-                let column = expected.column(c);
-                let error = (0..k + 6).fold(0.0f64, |e, r| e.max((rows[r][c] - column[r]).abs()));
+            for (c, column) in expected.column_iter().enumerate() {
+                let error = rows.iter().zip(column.iter()).fold(0.0f64, |e, (row, x)| e.max((row[c] - x).abs()));
                 assert!(error <= 1e-10 * column.amax(), "k = {k}, right-hand side {c}: error {error}");
+                // One at a time (its own sums, on six-entry arrays): as the dense LU, and as by rows to
+                // round-off.
                 let mut one: Vec<f64> = rhs.column(c).iter().copied().collect();
                 saddle.solve_in_place(&mut one);
-                assert!(one.iter().zip(&rows).all(|(a, b)| *a == b[c]), "one at a time as by rows");
+                let error = one.iter().zip(column.iter()).fold(0.0f64, |e, (v, x)| e.max((v - x).abs()));
+                assert!(error <= 1e-10 * column.amax(), "k = {k}, one at a time {c}: error {error}");
+                let apart = one.iter().zip(&rows).fold(0.0f64, |e, (v, row)| e.max((v - row[c]).abs()));
+                assert!(apart <= 1e-12 * column.amax(), "k = {k}, one at a time {c} and by rows: {apart}");
             }
         }
     }

@@ -424,6 +424,20 @@ pub struct AtReferencePoint {
     pub magnitude: Vec6,
 }
 
+impl LegLinear {
+    /// Sets aside the leg's factorisation of this linearisation in its workspace, for `resume` (an MSA leg,
+    /// linear, has none to keep). False where the workspace no longer holds it.
+    pub(super) fn keep(&self, state: &mut LegState) -> bool {
+        self.lin.as_ref().is_none_or(|lin| state.equilibrium.keep_factorisation(lin))
+    }
+
+    /// Makes the factorisation `keep` set aside for this linearisation the leg's current one, for chord
+    /// steps on it. False where none was set aside for it.
+    pub(super) fn resume(&mut self, state: &mut LegState) -> bool {
+        self.lin.as_mut().is_none_or(|lin| state.equilibrium.resume_kept(lin))
+    }
+}
+
 /// A leg's linearised equilibrium seen from the platform: one Newton step of the whole manipulator
 /// (platform pose and every leg's configuration together) is built from these.
 #[derive(Clone, Debug, Default)]

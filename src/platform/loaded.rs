@@ -208,7 +208,7 @@ impl Manipulator {
         finish: Finish,
     ) -> Result<(Option<Held>, usize), DeflectionFailure> {
         let leg_failure = |i: usize| move |failure| DeflectionFailure::Leg(PoseFailure { leg: i, failure });
-        let ManipulatorState { legs: states, linear: lins, chord } = state;
+        let ManipulatorState { legs: states, linear: lins, chord, .. } = state;
         lins.resize_with(self.legs.len(), LegLinear::default);
         // Chord steps first where the last solve's factorisations are at hand (the neighbouring point's, or
         // the last load step's): from a warm start they contract by the small change of the matrices

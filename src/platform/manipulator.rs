@@ -182,14 +182,31 @@ pub struct ManipulatorState {
     /// What the last loaded solve's full linearisation left, while the legs' linearisations and
     /// factorisations are still those: the next point starts with chord steps on them.
     pub(super) chord: Option<Chord>,
+    /// What the loaded solve at the first point of the last line left (`keep_line_start`): the legs'
+    /// linearisations, whose factorisations each leg's workspace sets aside, and its chord.
+    line_start: Option<(Vec<LegLinear>, Chord)>,
 }
 
 impl ManipulatorState {
-    /// The next loaded solve starts with a full linearisation rather than chord steps on the last solve's
-    /// factorisations: where it starts far from where they were made (a grid's new line, begun beside the
-    /// last line's start), chord steps on them would not contract, and two would be spent finding that out.
-    pub fn forget_factorisations(&mut self) {
+    /// Keeps what the last loaded solve ended with, made at the first point of a line, for the first
+    /// point of the next line (`resume_line_start`). Nothing is kept where the solve left no chord.
+    pub fn keep_line_start(&mut self) {
+        let Some(chord) = self.chord else { return };
+        let kept = self.linear.iter().zip(self.legs.iter_mut()).all(|(l, s)| l.keep(s));
+        self.line_start = kept.then(|| (self.linear.clone(), chord));
+    }
+
+    /// The next loaded solve begins a line beside the last line's first point: it starts with chord steps
+    /// on the factorisations made there (`keep_line_start`), a neighbour's, rather than on the last solve's,
+    /// made at the far end of the last line, where chord steps would not contract and two would be spent
+    /// finding that out. A full linearisation comes first where none was kept.
+    pub fn resume_line_start(&mut self) {
         self.chord = None;
+        let Some((linear, chord)) = self.line_start.take() else { return };
+        self.linear = linear;
+        if self.linear.iter_mut().zip(self.legs.iter_mut()).all(|(l, s)| l.resume(s)) {
+            self.chord = Some(chord);
+        }
     }
 }
 
@@ -322,7 +339,12 @@ impl Manipulator {
 
     /// A fresh state (no warm starts).
     pub fn new_state(&self) -> ManipulatorState {
-        ManipulatorState { legs: self.legs.iter().map(Leg::new_state).collect(), linear: Vec::new(), chord: None }
+        ManipulatorState {
+            legs: self.legs.iter().map(Leg::new_state).collect(),
+            linear: Vec::new(),
+            chord: None,
+            line_start: None,
+        }
     }
 
     /// The platform frame of a serial arm at the controller's joint angles `controller` (in the order of

@@ -259,8 +259,11 @@ pub fn loaded_point(
         history.clear();
         return PointResult::failed_at(e);
     }
-    if history.begins_line(&p.position) {
-        state.forget_factorisations();
+    // The first point of a line (or of the run) keeps its factorisations for the first of the next.
+    let begins_line = history.begins_line(&p.position);
+    let first_of_line = begins_line || history.is_empty();
+    if begins_line {
+        state.resume_line_start();
     }
     let start = history.start(&p.position, &commanded, &mut state.legs);
     let mut attempt = m.deflect(&commanded, wrench, start.as_ref(), state);
@@ -270,6 +273,9 @@ pub fn loaded_point(
     }
     match attempt {
         Ok(d) => {
+            if first_of_line {
+                state.keep_line_start();
+            }
             history.push(p.position, d.displacement, &state.legs);
             let mut r = PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true);
             r.deflection = Some(d.displacement);

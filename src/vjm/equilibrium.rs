@@ -83,6 +83,37 @@ pub struct EquilibriumWorkspace {
     /// Factorisations made in `factors` so far: a linearisation records the number of its own, so that a
     /// chord step knows whether `factors` still holds it.
     factorizations: u64,
+    /// A factorisation set aside by `keep_factorisation`, and the number it had there (0: none).
+    kept: SaddlePointLu,
+    kept_number: u64,
+}
+
+impl EquilibriumWorkspace {
+    /// Sets aside a copy of the factorisation of `lin`, the last linearisation made here, for
+    /// `resume_kept` (chord steps at a point near the one it was made at, after others in between). False
+    /// where the workspace no longer holds `lin`'s factorisation.
+    pub fn keep_factorisation(&mut self, lin: &Linearization) -> bool {
+        if lin.factorization == 0 || lin.factorization != self.factorizations {
+            return false;
+        }
+        self.kept.clone_from(&self.factors);
+        self.kept_number = self.factorizations;
+        true
+    }
+
+    /// Makes the factorisation set aside for `lin` (the linearisation it was made by, kept by the caller)
+    /// the current one again, under a new number that `lin` takes: chord steps may follow on it. The
+    /// factorisation it replaces is dropped. False where none is set aside for `lin`.
+    pub fn resume_kept(&mut self, lin: &mut Linearization) -> bool {
+        if self.kept_number == 0 || lin.factorization != self.kept_number {
+            return false;
+        }
+        std::mem::swap(&mut self.factors, &mut self.kept);
+        self.kept_number = 0;
+        self.factorizations += 1;
+        lin.factorization = self.factorizations;
+        true
+    }
 }
 
 /// The linearised equilibrium of eq (45) at the current configuration: one factorisation serves the Newton
@@ -194,7 +225,13 @@ impl LoadedChain<'_> {
         }
         jac.add_load_hessian(wrench, &self.gravity, n, w);
         for s in self.springs {
-            let stiffness = s.stiffness_at(coords);
+            let varying;
+            let stiffness = if s.varies() {
+                varying = s.stiffness_at(coords);
+                &varying
+            } else {
+                &s.stiffness
+            };
             for i in 0..s.dim {
                 for j in 0..s.dim {
                     w[(n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
@@ -205,8 +242,8 @@ impl LoadedChain<'_> {
             // 1/2 dtheta^T K(q) dtheta also pushes on q, and both statics rows depend on q.
             if let Some((q, dk, ddk)) = s.posture_derivatives(&coords.passive) {
                 let d = self.deflection(s, coords);
-                let dk_d = dk.view((0, 0), (s.dim, s.dim)) * &d;
-                w[(q, q)] -= 0.5 * d.dot(&(ddk.view((0, 0), (s.dim, s.dim)) * &d));
+                let dk_d = dk * d;
+                w[(q, q)] -= 0.5 * d.dot(&(ddk * d));
                 for i in 0..s.dim {
                     w[(n + s.first + i, q)] -= dk_d[i];
                     w[(q, n + s.first + i)] -= dk_d[i];
@@ -215,9 +252,11 @@ impl LoadedChain<'_> {
         }
     }
 
-    /// The spring group's deflection theta - theta0.
-    fn deflection(&self, s: &SpringGroup, coords: &Coordinates) -> DVector<f64> {
-        DVector::from_fn(s.dim, |j, _| coords.virtual_[s.first + j] - self.preload[s.first + j])
+    /// The spring group's deflection theta - theta0, zero past its coordinates (its matrices are zero
+    /// there too, so a whole 6x6 product serves every group).
+    fn deflection(&self, s: &SpringGroup, coords: &Coordinates) -> Vec6 {
+        let (theta, rest) = (&coords.virtual_[s.first..s.first + s.dim], &self.preload[s.first..s.first + s.dim]);
+        Vec6::from_fn(|j, _| if j < s.dim { theta[j] - rest[j] } else { 0.0 })
     }
 
     /// The residuals `[e; -r]` of eq (31) at the evaluation in `jac`, in equation order (kinematics,
@@ -242,15 +281,16 @@ impl LoadedChain<'_> {
             out[6 + k] = -g;
         }
         for s in self.springs {
-            let stiffness = s.stiffness_at(coords);
-            let deflection = |j: usize| coords.virtual_[s.first + j] - self.preload[s.first + j];
-            for i in 0..s.dim {
-                out[6 + n + s.first + i] += (0..s.dim).map(|j| stiffness[(i, j)] * deflection(j)).sum::<f64>();
+            let d = self.deflection(s, coords);
+            // A constant spring's stiffness is read in place (copying the 6x6 matrix cost more than the
+            // product): only a varying one is evaluated.
+            let force = if s.varies() { s.stiffness_at(coords) * d } else { s.stiffness * d };
+            for (o, f) in out[6 + n + s.first..6 + n + s.first + s.dim].iter_mut().zip(force.iter()) {
+                *o += f;
             }
             // The posture-dependent spring's energy pushes on its passive coordinate (see `assemble`).
             if let Some((q, dk, _)) = s.posture_derivatives(&coords.passive) {
-                let d = self.deflection(s, coords);
-                out[6 + q] += 0.5 * d.dot(&(dk.view((0, 0), (s.dim, s.dim)) * &d));
+                out[6 + q] += 0.5 * d.dot(&(dk * d));
             }
         }
     }
