@@ -898,6 +898,7 @@ fn pivot(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{DMatrix, DVector};
 
     /// The finiteness test by products with zero: true for finite values of any size and sign (the largest,
     /// the smallest subnormal, minus zero), false for one NaN or infinity of either sign at any place, in
@@ -916,7 +917,6 @@ mod tests {
             }
         }
     }
-    use nalgebra::{DMatrix, DVector};
 
     /// The Cholesky inverse of SPD matrices Q D Q^T (Q orthogonal, condition 1 to 1e8) is exactly symmetric and
     /// equals Q D^-1 Q^T to the condition times round-off; an indefinite or singular matrix is refused.
