@@ -313,13 +313,22 @@ fn a_loaded_answer_does_not_depend_on_the_order_the_poses_are_visited() {
     let mut backward = solve(&mut row.iter().rev());
     backward.reverse();
     for (k, (a, b)) in forward.iter().zip(&backward).enumerate() {
-        let (da, db) = (a.deflection.expect("the row settles"), b.deflection.expect("the row settles"));
-        let gap = da - db;
-        let (translation, rotation) = (gap.fixed_rows::<3>(0).amax(), gap.fixed_rows::<3>(3).amax());
-        assert!(translation < 1e-11 && rotation < 1e-12, "point {k}: {translation:e} mm, {rotation:e} rad");
-        let compliance = scaled_rel_diff(&a.compliance.unwrap(), &b.compliance.unwrap(), 300.0);
-        assert!(compliance < 1e-10, "point {k}: compliance {compliance:e} (relative)");
+        assert_same_loaded_answer(a, b, &format!("point {k}"));
     }
+}
+
+/// Two loaded answers at one pose are the same equilibrium: displacements within 1e-11 mm and 1e-12 rad,
+/// compliance within 1e-10 of its scale.
+fn assert_same_loaded_answer(
+    a: &stiff::study::point::PointResult,
+    b: &stiff::study::point::PointResult,
+    context: &str,
+) {
+    let gap = a.deflection.expect("the pose settles") - b.deflection.expect("the pose settles");
+    let (translation, rotation) = (gap.fixed_rows::<3>(0).amax(), gap.fixed_rows::<3>(3).amax());
+    assert!(translation < 1e-11 && rotation < 1e-12, "{context}: {translation:e} mm, {rotation:e} rad");
+    let compliance = scaled_rel_diff(&a.compliance.unwrap(), &b.compliance.unwrap(), 300.0);
+    assert!(compliance < 1e-10, "{context}: compliance {compliance:e} (relative)");
 }
 
 /// The first point of a grid's line starts with chord steps on the factorisations kept at the first point
@@ -340,14 +349,7 @@ fn a_line_started_on_the_line_befores_factorisations_reaches_the_same_equilibriu
             let p = PosePoint { position, ..Default::default() };
             let run = loaded_point(&m, &p, &wrench, &mut state, &mut history);
             let cold = loaded_point(&m, &p, &wrench, &mut m.new_state(), &mut LoadedHistory::default());
-            let gap = run.deflection.expect("the grid settles") - cold.deflection.expect("the grid settles");
-            let (translation, rotation) = (gap.fixed_rows::<3>(0).amax(), gap.fixed_rows::<3>(3).amax());
-            assert!(
-                translation < 1e-11 && rotation < 1e-12,
-                "line {line}, point {i}: {translation:e} mm, {rotation:e} rad"
-            );
-            let compliance = scaled_rel_diff(&run.compliance.unwrap(), &cold.compliance.unwrap(), 300.0);
-            assert!(compliance < 1e-10, "line {line}, point {i}: compliance {compliance:e} (relative)");
+            assert_same_loaded_answer(&run, &cold, &format!("line {line}, point {i}"));
         }
     }
 }

@@ -49,10 +49,10 @@ impl Joint {
     /// The principal axis (0, 1 or 2) a revolute joint turns about, where its axis is a unit vector of the
     /// frame: its rotation then only mixes two columns (`apply`).
     fn principal_axis(&self) -> Option<usize> {
-        if self.kind != JointKind::Revolute || self.axis.norm_squared() != 1.0 {
+        if self.kind != JointKind::Revolute {
             return None;
         }
-        [self.axis.x, self.axis.y, self.axis.z].iter().position(|&c| c == 1.0)
+        self.unit_axis()
     }
 
     /// The frame axis (0, 1 or 2) that is the joint's axis, where it is one (a unit vector of the frame):

@@ -517,8 +517,9 @@ impl SaddlePointLu {
         let k = self.k;
         let rows = &mut rows[..k + CONSTRAINTS];
         let (b, a) = rows.split_at(CONSTRAINTS);
+        let b: &[f64; CONSTRAINTS] = b.try_into().expect("six constraint rows");
         // x_p on the basic coordinates: B^-1 b; the residual a - W x_p.
-        let mut x_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| dot_slice(&self.basic_inverse[i], b));
+        let mut x_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| dot(&self.basic_inverse[i], b));
         self.residual.clear();
         self.residual.extend(a.iter().zip(&self.w_basic_columns).map(|(aj, wb)| aj - dot(wb, &x_basic)));
         let residual = &self.residual;
@@ -664,11 +665,6 @@ fn paired_dot(x: &[f64], y: &[f64]) -> f64 {
 
 fn dot(a: &[f64; CONSTRAINTS], b: &[f64; CONSTRAINTS]) -> f64 {
     a.iter().zip(b).map(|(a, b)| a * b).sum()
-}
-
-/// `dot` with the second operand a slice of six.
-fn dot_slice(a: &[f64; CONSTRAINTS], b: &[f64]) -> f64 {
-    a.iter().zip(&b[..CONSTRAINTS]).map(|(a, b)| a * b).sum()
 }
 
 /// `y += c x` on six entries.
