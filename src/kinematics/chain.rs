@@ -452,6 +452,8 @@ pub struct Chain {
     pub n_passive: usize,
     /// Number of virtual coordinates.
     pub n_virtual: usize,
+    /// Per passive then virtual coordinate: it is a length (a prismatic joint's, mm), not an angle (rad).
+    length_coordinates: Vec<bool>,
 }
 
 impl Chain {
@@ -475,7 +477,34 @@ impl Chain {
         }
         let steps = merged.iter().map(Step::of).collect();
         let n_joints = merged.iter().filter(|e| matches!(e, Element::Joint(_))).count();
-        Self { elements: merged, steps, n_joints, n_actuated: na, n_passive: np, n_virtual: nv }
+        let chain = Self {
+            elements: merged,
+            steps,
+            n_joints,
+            n_actuated: na,
+            n_passive: np,
+            n_virtual: nv,
+            length_coordinates: Vec::new(),
+        };
+        chain.with_counts(na, np, nv)
+    }
+
+    /// The chain with these coordinate counts (at least those its joints read: coordinates that never
+    /// appear may be counted too), and the kinds of its coordinates recorded for them.
+    fn with_counts(mut self, n_actuated: usize, n_passive: usize, n_virtual: usize) -> Self {
+        (self.n_actuated, self.n_passive, self.n_virtual) = (n_actuated, n_passive, n_virtual);
+        let (passive, virtual_) = (self.kinds(Role::Passive), self.kinds(Role::Virtual));
+        let is_length = |kinds: &[JointKind], i: usize| kinds.get(i) == Some(&JointKind::Prismatic);
+        self.length_coordinates = (0..n_passive)
+            .map(|i| is_length(&passive, i))
+            .chain((0..n_virtual).map(|i| is_length(&virtual_, i)))
+            .collect();
+        self
+    }
+
+    /// Per passive then virtual coordinate: true where it is a length (mm), false where an angle (rad).
+    pub fn length_coordinates(&self) -> &[bool] {
+        &self.length_coordinates
     }
 
     /// The kind of each virtual joint, by virtual coordinate index.
@@ -509,23 +538,15 @@ impl Chain {
     pub fn prepended(&self, frame: Frame) -> Chain {
         let mut e = vec![Element::Fixed(frame)];
         e.extend(self.elements.iter().cloned());
-        let mut c = Chain::new(e);
         // Coordinates that never appear keep their counts.
-        c.n_actuated = self.n_actuated;
-        c.n_passive = self.n_passive;
-        c.n_virtual = self.n_virtual;
-        c
+        Chain::new(e).with_counts(self.n_actuated, self.n_passive, self.n_virtual)
     }
 
     /// The chain followed by a fixed transform.
     pub fn appended(&self, frame: Frame) -> Chain {
         let mut e: Vec<Element> = self.elements.clone();
         e.push(Element::Fixed(frame));
-        let mut c = Chain::new(e);
-        c.n_actuated = self.n_actuated;
-        c.n_passive = self.n_passive;
-        c.n_virtual = self.n_virtual;
-        c
+        Chain::new(e).with_counts(self.n_actuated, self.n_passive, self.n_virtual)
     }
 
     /// The frame at each actuated coordinate's first joint, before its motion (base frame), at coordinates
@@ -670,5 +691,30 @@ mod tests {
         for x in [SMALL_ANGLE * 1.0001, -0.5, 3.0] {
             assert_eq!(small_angle_sin_cos(x), x.sin_cos());
         }
+    }
+
+    /// A leg's coordinates are lengths (mm) where a prismatic joint reads them and angles (rad) where a
+    /// revolute one does: its distance from equilibrium weighs the lengths by the length scale
+    /// (`Linearization::distance_from_equilibrium`). Passive then virtual, a coordinate read by two joints
+    /// (a gain of -1) once, the actuated ones apart, and the counts a copy keeps (a coordinate no joint
+    /// reads is an angle) with the marks.
+    #[test]
+    fn a_chains_length_coordinates_are_those_its_prismatic_joints_read() {
+        let joint = |kind, role, index, gain| Element::Joint(Joint { kind, axis: Vec3::x(), role, index, gain });
+        let (p, r) = (JointKind::Prismatic, JointKind::Revolute);
+        let chain = Chain::new(vec![
+            joint(p, Role::Actuated, 0, 1.0),
+            Element::Fixed(Frame { rot: Mat3::identity(), pos: Vec3::new(100.0, 0.0, 0.0) }),
+            joint(r, Role::Passive, 0, 1.0),
+            joint(p, Role::Virtual, 0, 1.0),
+            joint(p, Role::Passive, 1, 1.0),
+            joint(r, Role::Virtual, 1, 1.0),
+            joint(r, Role::Passive, 0, -1.0),
+        ]);
+        assert_eq!(chain.length_coordinates(), &[false, true, true, false]);
+        let mut counted = chain.clone();
+        counted.n_virtual = 3;
+        let copy = counted.prepended(Frame::IDENTITY).appended(Frame::IDENTITY);
+        assert_eq!(copy.length_coordinates(), &[false, true, true, false, false]);
     }
 }

@@ -262,7 +262,7 @@ impl Leg {
                 lin.corrected_force = corrected_force(chain, platform);
                 lin.stiffness = at_rp.stiffness;
                 lin.magnitude = at_rp.magnitude;
-                lin.distance = chain.distance_from_equilibrium(l.length_scale);
+                lin.distance = chain.distance_from_equilibrium(l.length_scale, l.chain.length_coordinates());
                 Ok(())
             }
             // Linear: the answer at `platform` is exact, nothing inside the leg to correct.
@@ -297,7 +297,7 @@ impl Leg {
                     Some(true) => {}
                 }
                 lin.corrected_force = corrected_force(chain, platform);
-                lin.distance = chain.distance_from_equilibrium(l.length_scale);
+                lin.distance = chain.distance_from_equilibrium(l.length_scale, l.chain.length_coordinates());
                 Ok(true)
             }
             (Leg::Vjm(_), None) => Ok(false),
@@ -452,7 +452,7 @@ pub struct LegLinear {
     pub stiffness: Mat6,
     /// Size of its diagonal's terms (`LegResponse::magnitude`).
     pub magnitude: Vec6,
-    /// How far the configuration linearised is from the leg's equilibrium (rad or mm, see
-    /// `Linearization::distance_from_equilibrium`).
+    /// How far the configuration linearised is from the leg's equilibrium (relative: rad, or mm over the
+    /// leg's length scale, see `Linearization::distance_from_equilibrium`).
     pub distance: f64,
 }

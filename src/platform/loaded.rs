@@ -134,11 +134,17 @@ impl std::error::Error for DeflectionFailure {}
 
 const MAX_NEWTON: usize = 30;
 /// Convergence of the manipulator-level Newton method: the last step below this times the length scale
-/// (mm, rotations weighted) and every leg within this of its equilibrium (rad or mm).
+/// (mm, rotations weighted) and every leg within this of its equilibrium (its corrections in rad, or in mm
+/// over its length scale: `LegLinear::distance`).
 const NEWTON_TOLERANCE: f64 = 1e-8;
 /// The linearisation whose tangent stiffness is reported is this close to the equilibrium (platform step
-/// over the length scale, legs' corrections in rad or mm): the stiffness's error is first order in it.
+/// over the length scale, legs' corrections as above): the stiffness's error is first order in it.
 const TANGENT_TOLERANCE: f64 = 1e-12;
+/// A pose-only solve (`settle`) ends on chord steps this close to the equilibrium (relative, as above): its
+/// pose is all it delivers, and no last full step squares its error as `deflect`'s does. A hundredth of
+/// `TANGENT_TOLERANCE` puts it within 1e-11 mm of the equilibrium on the 3-PUU (length scale 900 mm), about
+/// as close as `deflect`'s pose.
+const SETTLE_TOLERANCE: f64 = 1e-14;
 /// Chord steps follow a full step whose distance from equilibrium is below this (relative, as above): from
 /// there the matrices change by so little that a chord step gains several digits.
 const CHORD_RANGE: f64 = 1e-3;
@@ -194,7 +200,7 @@ impl Manipulator {
     /// that fails to contract gives way to full steps.
     ///
     /// With `Finish::Pose` the solve ends on the chord step after which the distance left, estimated from
-    /// the contraction as `distance * contraction`, is within `TANGENT_TOLERANCE` (linear convergence: the
+    /// the contraction as `distance * contraction`, is within `SETTLE_TOLERANCE` (linear convergence: the
     /// next step would be that small), or on a full step within `NEWTON_TOLERANCE` (quadratic: the error
     /// left is of the order of its square); no `Held` is returned, as no tangent was made there. With
     /// `Finish::Stability` it ends on the first full step within `NEWTON_TOLERANCE`, made once the chord
@@ -271,12 +277,12 @@ impl Manipulator {
                 (false, true) => (contraction, true),
                 (false, false) => (CARRIED_GROWTH * chord_contraction, measured),
             };
-            // A chord step within `TANGENT_TOLERANCE` leaves less than itself (a contracting iteration), and
+            // A chord step within `SETTLE_TOLERANCE` leaves less than itself (a contracting iteration), and
             // its contraction, a ratio of two steps at round-off, means nothing there.
             let pose_converged = distance <= NEWTON_TOLERANCE
                 && (full
-                    || distance <= TANGENT_TOLERANCE
-                    || (chord_contraction <= CHORD_STALL && distance * chord_contraction <= TANGENT_TOLERANCE));
+                    || distance <= SETTLE_TOLERANCE
+                    || (chord_contraction <= CHORD_STALL && distance * chord_contraction <= SETTLE_TOLERANCE));
             if finish == Finish::Pose && pose_converged {
                 for ((leg, l), s) in self.legs.iter().zip(lins.iter_mut()).zip(states.iter_mut()) {
                     leg.advance(l, &step, 1.0, s);
@@ -379,7 +385,7 @@ impl Manipulator {
     }
 
     /// Where the platform settles under `wrench`, as `deflect` finds it but without the tangent stiffness
-    /// and the stability test: the equilibrium's pose to the same tolerance, for the price of chord steps
+    /// and the stability test: the equilibrium's pose as close, for the price of chord steps
     /// where `deflect` must end on a full linearisation (a controller's model of the robot along a path,
     /// which needs only where the tool goes).
     pub fn settle(

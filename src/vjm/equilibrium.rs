@@ -177,12 +177,19 @@ impl Linearization {
         Mat6::from_fn(|r, c| self.sensitivity[o + r][c])
     }
 
-    /// How far the configuration linearised is from equilibrium: the larger of the largest coordinate
-    /// correction (rad or mm) and the end's pose error (rotations weighted by `length_scale`) over
-    /// `length_scale`.
-    pub fn distance_from_equilibrium(&self, length_scale: f64) -> f64 {
+    /// How far the configuration linearised is from equilibrium, relative as the platform's steps are
+    /// measured: the larger of the largest coordinate correction (rad, or mm over `length_scale` for the
+    /// coordinates `length_coordinates` marks, passive then virtual) and the end's pose error (rotations
+    /// weighted by `length_scale`) over `length_scale`. A length and an angle are then held alike: a
+    /// tolerance in mm would hold a spring's deflection `length_scale` times tighter than its rotation, for
+    /// chord steps that move neither the stiffness nor the pose beyond round-off.
+    pub fn distance_from_equilibrium(&self, length_scale: f64, length_coordinates: &[bool]) -> f64 {
         let pose = weigh_rotations(&self.end_error, length_scale).norm();
-        self.coordinate_correction().max(pose / length_scale)
+        let o = self.correction.len() - 6;
+        let per_length = 1.0 / length_scale;
+        let coordinates = (self.correction[..o].iter().zip(length_coordinates))
+            .fold(0.0f64, |m, (v, &is_length)| m.max(v.abs() * if is_length { per_length } else { 1.0 }));
+        coordinates.max(pose / length_scale)
     }
 
     /// Largest change of a coordinate (rad or mm) in the correction.
@@ -483,5 +490,34 @@ fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
         *m = DMatrix::zeros(rows, cols);
     } else {
         m.as_mut_slice().fill(0.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A leg's distance from its equilibrium is relative, as the platform's steps are: a correction of x L
+    /// mm on a length coordinate counts as x rad on an angle and as an end error of x L mm (L the length
+    /// scale), so that neither a spring's deflection nor its rotation is held L times tighter than the
+    /// other. The end wrench's correction (N) is not a distance.
+    #[test]
+    fn a_length_correction_counts_over_the_length_scale_as_an_angle_does() {
+        let (l, x) = (900.0, 1e-6);
+        let lengths = [false, true, false];
+        let distance = |coordinates: [f64; 3], end_error: Vec6| {
+            let mut lin = Linearization::empty();
+            lin.correction = coordinates.iter().copied().chain([1e3; 6]).collect();
+            lin.end_error = end_error;
+            lin.distance_from_equilibrium(l, &lengths)
+        };
+        let none = Vec6::zeros();
+        assert_eq!(distance([x, 0.0, 0.0], none), x);
+        assert_eq!(distance([0.0, -x * l, 0.0], none), x);
+        assert_eq!(distance([0.0, 0.0, x], none), x);
+        assert_eq!(distance([0.0, 0.0, 0.0], Vec6::new(x * l, 0.0, 0.0, 0.0, 0.0, 0.0)), x);
+        assert_eq!(distance([0.0, 0.0, 0.0], Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, x)), x);
+        // The largest counts: an angle's x beside a length's x mm (x / L relative).
+        assert_eq!(distance([0.5 * x, x, 0.0], none), 0.5 * x);
     }
 }
