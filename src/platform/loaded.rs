@@ -85,11 +85,11 @@ enum Finish {
     /// The pose alone: chord steps that have converged end the solve, and a full linearisation is made
     /// only where they stop contracting.
     Pose,
-    /// The pose and the stability there: chord steps until the next would be within `NEWTON_TOLERANCE`
+    /// The pose and the stability there: chord steps until the next would be within `STABILITY_TOLERANCE`
     /// (none where the last solve started within `FULL_FIRST_RANGE`), then one full linearisation, which
-    /// ends the solve once its step is within `NEWTON_TOLERANCE` (the pose's error is then of the order of
-    /// its square). Its tangent is that close to the equilibrium's:
-    /// enough to decide stability, not to report the stiffness to `TANGENT_TOLERANCE`.
+    /// ends the solve once its step is within `STABILITY_TOLERANCE` (the pose's error is then far below it).
+    /// Its tangent is that close to the equilibrium's: enough to decide stability, not to report the
+    /// stiffness to `TANGENT_TOLERANCE`.
     Stability,
 }
 
@@ -140,6 +140,12 @@ const NEWTON_TOLERANCE: f64 = 1e-8;
 /// The linearisation whose tangent stiffness is reported is this close to the equilibrium (platform step
 /// over the length scale, legs' corrections as above): the stiffness's error is first order in it.
 const TANGENT_TOLERANCE: f64 = 1e-12;
+/// A stability solve (`settle_stable`) ends on a full step within this of the equilibrium (relative, as
+/// above). At `NEWTON_TOLERANCE` the pose it left was not as close as the step's square: the 3-PUU's
+/// compensation checks along a milling path (Case B errors) reported residual rotations up to 4e-10 of
+/// themselves (1e-11 rad) from the same solves made to round-off; at 1e-10, 6e-14 rad, for no more steps
+/// (the chord steps before it gain a factor of about 20 each).
+const STABILITY_TOLERANCE: f64 = 1e-10;
 /// A pose-only solve (`settle`) ends on chord steps this close to the equilibrium (relative, as above): its
 /// pose is all it delivers, and no last full step squares its error as `deflect`'s does. A hundredth of
 /// `TANGENT_TOLERANCE` puts it within 1e-11 mm of the equilibrium on the 3-PUU (length scale 900 mm), about
@@ -156,10 +162,10 @@ const CHORD_STALL: f64 = 0.1;
 /// How much a chord contraction measured by the last solve may have grown by the next (`newton`).
 const CARRIED_GROWTH: f64 = 2.0;
 /// A stability solve whose predecessor started this close to its equilibrium (relative, as `distance`)
-/// starts with its full linearisation: its start is then expected within `NEWTON_TOLERANCE` too (a
+/// starts with its full linearisation: its start is then expected within `STABILITY_TOLERANCE` too (a
 /// hundredth of it, for a prediction twice as far off), and the chord step before it would only confirm
 /// that.
-const FULL_FIRST_RANGE: f64 = 1e-2 * NEWTON_TOLERANCE;
+const FULL_FIRST_RANGE: f64 = 1e-2 * STABILITY_TOLERANCE;
 
 impl Manipulator {
     /// The external wrench that holds the platform at `platform`, and the tangent stiffness there.
@@ -203,7 +209,7 @@ impl Manipulator {
     /// the contraction as `distance * contraction`, is within `SETTLE_TOLERANCE` (linear convergence: the
     /// next step would be that small), or on a full step within `NEWTON_TOLERANCE` (quadratic: the error
     /// left is of the order of its square); no `Held` is returned, as no tangent was made there. With
-    /// `Finish::Stability` it ends on the first full step within `NEWTON_TOLERANCE`, made once the chord
+    /// `Finish::Stability` it ends on the first full step within `STABILITY_TOLERANCE`, made once the chord
     /// steps would be within it.
     fn newton(
         &self,
@@ -219,7 +225,7 @@ impl Manipulator {
         // Chord steps first where the last solve's factorisations are at hand (the neighbouring point's, or
         // the last load step's): from a warm start they contract by the small change of the matrices
         // between neighbours, and the one full linearisation the point needs is then the last. A stability
-        // solve whose predecessor started within `FULL_FIRST_RANGE` is expected within `NEWTON_TOLERANCE`
+        // solve whose predecessor started within `FULL_FIRST_RANGE` is expected within `STABILITY_TOLERANCE`
         // from its start: the full linearisation there is its only step.
         let (mut stiffness, mut full, mut chord_contraction) = match chord.take() {
             Some(c) => {
@@ -294,7 +300,8 @@ impl Manipulator {
                 return Ok((None, it + 1));
             }
             let tangent_close = finish == Finish::Stability || distance <= TANGENT_TOLERANCE || stalled;
-            if full && distance <= NEWTON_TOLERANCE && tangent_close {
+            let full_tolerance = if finish == Finish::Stability { STABILITY_TOLERANCE } else { NEWTON_TOLERANCE };
+            if full && distance <= full_tolerance && tangent_close {
                 let unstable_legs = (self.legs.iter().zip(states.iter_mut()).enumerate())
                     .filter_map(|(i, (leg, s))| (!leg.stable(s)).then_some(i))
                     .fold(0, |bits, i| bits | leg_bit(i));
@@ -319,7 +326,7 @@ impl Manipulator {
                 (false, Finish::Pose) => stalled,
                 // The carried contraction where the first chord step has none of its own (at most 1: an
                 // unknown one, infinite or NaN, asks for the step itself within the tolerance).
-                (false, Finish::Stability) => stalled || distance * chord_contraction.min(1.0) <= NEWTON_TOLERANCE,
+                (false, Finish::Stability) => stalled || distance * chord_contraction.min(1.0) <= STABILITY_TOLERANCE,
             };
             last_distance = distance;
             let step_mm = step_size * self.length_scale;
@@ -369,7 +376,7 @@ impl Manipulator {
     }
 
     /// Where the platform settles under `wrench`, as `settle` finds it, and whether it is stable there
-    /// (as `deflect` decides it): the solve ends on one full linearisation within `NEWTON_TOLERANCE` of
+    /// (as `deflect` decides it): the solve ends on one full linearisation within `STABILITY_TOLERANCE` of
     /// the equilibrium rather than `TANGENT_TOLERANCE`, which decides stability but is not reported as a
     /// stiffness (a forward solve that checks a command, for the price of `settle` and one linearisation).
     pub fn settle_stable(
