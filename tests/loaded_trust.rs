@@ -354,6 +354,15 @@ fn a_line_started_on_the_line_befores_factorisations_reaches_the_same_equilibriu
     }
 }
 
+/// How far `pose` is from the equilibrium `deflect` finds under `wrench` from the unloaded placement at
+/// `commanded`, in a state of its own (no warm start): mm and rad.
+fn gap_to_a_fresh_deflect(m: &Manipulator, commanded: &Frame, wrench: &Vec6, pose: &Frame) -> (f64, f64) {
+    let mut fresh = m.new_state();
+    m.place(commanded, &mut fresh).unwrap();
+    let gap = m.deflect(commanded, wrench, None, &mut fresh).unwrap().pose.error_to(pose);
+    (gap.fixed_rows::<3>(0).norm(), gap.fixed_rows::<3>(3).norm())
+}
+
 /// `settle` (the pose alone, ending on converged chord steps: compensation's evaluations) puts the platform
 /// where `deflect` (ending on a full linearisation, the tangent at the equilibrium) does. Along a finely
 /// sampled milling line under the milling wrench, each point settled from the run's extrapolated last
@@ -376,11 +385,7 @@ fn a_settled_pose_is_the_deflected_pose() {
         let settled = m.settle(&commanded, &wrench, start.as_ref(), &mut s).unwrap();
         history.push(commanded.pos, settled.displacement, &s.legs);
         single_steps += usize::from(settled.iterations == 1);
-        let mut fresh = m.new_state();
-        m.place(&commanded, &mut fresh).unwrap();
-        let d = m.deflect(&commanded, &wrench, None, &mut fresh).unwrap();
-        let gap = d.pose.error_to(&settled.pose);
-        let (translation, rotation) = (gap.fixed_rows::<3>(0).norm(), gap.fixed_rows::<3>(3).norm());
+        let (translation, rotation) = gap_to_a_fresh_deflect(&m, &commanded, &wrench, &settled.pose);
         assert!(translation < 1e-10 && rotation < 1e-11, "point {k}: {translation:e} mm, {rotation:e} rad");
     }
     assert!(single_steps > points * 3 / 4, "{single_steps} of {points} points settled in one chord step");
@@ -407,11 +412,7 @@ fn a_stability_solves_pose_is_the_deflected_pose() {
         let (settled, stable) = m.settle_stable(&commanded, &wrench, start.as_ref(), &mut s).unwrap();
         history.push(commanded.pos, settled.displacement, &s.legs);
         assert!(stable, "point {k}");
-        let mut fresh = m.new_state();
-        m.place(&commanded, &mut fresh).unwrap();
-        let d = m.deflect(&commanded, &wrench, None, &mut fresh).unwrap();
-        let gap = d.pose.error_to(&settled.pose);
-        let (translation, rotation) = (gap.fixed_rows::<3>(0).norm(), gap.fixed_rows::<3>(3).norm());
+        let (translation, rotation) = gap_to_a_fresh_deflect(&m, &commanded, &wrench, &settled.pose);
         worst = (worst.0.max(translation), worst.1.max(rotation));
     }
     assert!(worst.0 < 1e-10 && worst.1 < 1e-13, "{:e} mm, {:e} rad", worst.0, worst.1);

@@ -186,6 +186,7 @@ impl Linearization {
     pub fn distance_from_equilibrium(&self, length_scale: f64, length_coordinates: &[bool]) -> f64 {
         let pose = weigh_rotations(&self.end_error, length_scale).norm();
         let o = self.correction.len() - 6;
+        debug_assert_eq!(length_coordinates.len(), o, "one mark per passive and virtual coordinate");
         let per_length = 1.0 / length_scale;
         let coordinates = (self.correction[..o].iter().zip(length_coordinates))
             .fold(0.0f64, |m, (v, &is_length)| m.max(v.abs() * if is_length { per_length } else { 1.0 }));
