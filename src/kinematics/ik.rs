@@ -39,6 +39,20 @@ pub const TOLERANCE: f64 = 1e-9;
 /// A pose error below this times the tolerance counts as polished: a polishing step leaves about the
 /// tolerance's square, round-off, and this is within a few hundred times round-off.
 const POLISHED: f64 = 1e-5;
+/// Round-off, as a fraction of the tolerance: 1e-16 of the length scale (9e-14 mm on a 900 mm 3-PUU leg),
+/// about what a Newton step from within the tolerance leaves (2e-14 to 9e-14 mm there). An extrapolated
+/// start below it is a solution already. Accepting extrapolations at the polished level instead left
+/// placements 2e-13 to 3e-12 mm from their poses, noise in the next loaded starts extrapolated from the
+/// loaded solutions they shift: along a finely sampled line, settling took two chord steps at 57% of
+/// the points instead of 22%.
+const ROUND_OFF: f64 = 1e-7;
+/// Chord steps (on the last factorisation) are taken from iterates the step before brought this much
+/// closer, or more: they then converge at least about as fast as that step did.
+const CHORD_CONTRACTION: f64 = 1e-3;
+/// Steps from within this many length scales of the pose (0.09 mm on a 900 mm leg) are tried on the end
+/// frame alone: the extrapolated starts of a map's rows (3e-3 mm on a 3-PUU grid 13 mm apart) land within
+/// the tolerance in one Newton step (1e-9 mm), and a chord step then polishes them.
+const POSE_ONLY_RANGE: f64 = 1e-4;
 /// The reach decision's tolerance (mm, rotations weighted by the length scale). At a reach boundary (a leg
 /// stretched to a fold of its kinematics) Gauss-Newton converges sublinearly: a 3-PUU pose 1e-5 mm inside
 /// its boundary ends 60 iterations 7e-6 mm away, as does one 1e-6 mm outside. A solve that ends within
@@ -91,11 +105,20 @@ impl IkWorkspace {
 /// Solves `end_frame(coords) = target` for the actuated and passive coordinates; virtual coordinates are
 /// left as they are. Returns the number of iterations; `ws.current` then holds the evaluation at the solution.
 ///
-/// Once within `TOLERANCE`, one more step is taken (kept where it lowers the error): the error then falls to
-/// about the tolerance's square, round-off, so that the solution does not depend on where the solve
-/// started (a map's placements, and every loaded result through its actuators, are then the same whatever
-/// order the poses are visited in), and a command changed by less than the tolerance still moves the
-/// actuators (compliance compensation iterates on such commands).
+/// Once within `TOLERANCE`, the solve goes on to the polished level (`POLISHED` of it, a few hundred times
+/// round-off) or takes one more Newton step (kept where it lowers the error, it leaves about the
+/// tolerance's square): so that the solution does not depend on where the solve started (a map's
+/// placements, and every loaded result through its actuators, are then the same whatever order the poses
+/// are visited in), and a command changed by less than the tolerance still moves the actuators
+/// (compliance compensation iterates on such commands). A previous solution already at the polished level,
+/// or an extrapolation at round-off (a leg moving along its own actuator's line), is the solution.
+///
+/// Only the solution and Newton steps need the Jacobians' columns. Close to the pose, an iterate that is
+/// not expected to be the solution is reached on its end frame alone (forward kinematics, 60% of a full
+/// evaluation's instructions on a 3-PUU leg), and the next step reuses the last factorisation (a chord step) where the step that led there
+/// contracted the error enough for it: a map's placement from an extrapolated start is then one full
+/// evaluation at the start, a Newton step tried on the end frame, and a chord step to the solution,
+/// evaluated in full.
 ///
 /// The step is the minimum-norm damped solution `du = J^T (J J^T + lambda I)^-1 e` in the weighted metric,
 /// a 6x6 solve whatever the number of unknowns, so redundant and deficient chains (a 3-PUU leg has five
@@ -108,6 +131,8 @@ pub fn solve(
     length_scale: f64,
 ) -> Result<usize, IkFailure> {
     let tolerance = TOLERANCE * length_scale.max(1.0);
+    let polished_level = POLISHED * tolerance;
+    let round_off = ROUND_OFF * tolerance;
     ws.trial_coords.clone_from(coords);
     // A start evaluated and kept is a solution (the last one, or a seeded configuration's own pose).
     let start_is_solution = ws.current_is_valid;
@@ -115,40 +140,57 @@ pub fn solve(
         chain.evaluate(coords, &mut ws.current);
     }
     ws.current_is_valid = false;
+    // True while `ws.current` is the evaluation at `coords`. A step tried on the end frame alone leaves it
+    // the evaluation at the step's origin, whose factorisation `normal` still holds.
+    let mut evaluated = true;
+    let mut normal = NormalEquations::default();
     let mut err = weigh_rotations(&ws.current.end.error_to(target), length_scale);
     let mut norm = err.norm();
-    let mut polished = false;
+    let mut norm_before_step = f64::INFINITY;
+    // A Newton step taken from within the tolerance leaves about the tolerance's square, round-off.
+    let mut newton_polished = false;
+    let mut chord_failed = false;
     for iteration in 0..MAX_ITERATIONS {
         let converged = norm <= tolerance;
         // A Newton iterate or a solution already at the polished level needs no polishing step. Any other
-        // start (an extrapolation, a loaded configuration) takes at least one step: its error, however
-        // small, is the start's (an extrapolation's within 1e-11 mm would stay in every loaded answer).
-        polished |= (iteration > 0 || start_is_solution) && norm <= POLISHED * tolerance;
-        if converged && polished {
-            ws.current_is_valid = true;
-            return Ok(iteration);
+        // start (an extrapolation, a loaded configuration) takes at least one step unless it is at
+        // round-off: its error, however small, is the start's (an extrapolation's within 1e-11 mm would
+        // stay in every loaded answer, and as noise in the extrapolations of the next loaded starts).
+        let at_level = if iteration > 0 || start_is_solution { polished_level } else { round_off };
+        if converged && (newton_polished || norm <= at_level) {
+            return finish(true, iteration, norm, chain, coords, evaluated, ws);
         }
-        let jw = |j: &Vec6| weigh_rotations(j, length_scale);
-        let mut a = Mat6::zeros();
-        for j in ws.current.actuated.iter().chain(ws.current.passive.iter()) {
-            let w = jw(j);
-            a += w * w.transpose();
+        // From an iterate reached on the end frame alone, a chord step (the factorisation of the step that
+        // led there) where that step contracted the error well: its contraction measures how far the
+        // Jacobian turned over it, and a chord step contracts about as much again (twice, to first order).
+        let contraction = norm / norm_before_step;
+        let chord = !evaluated && !chord_failed && contraction <= CHORD_CONTRACTION;
+        if !chord {
+            if !evaluated {
+                chain.evaluate(coords, &mut ws.current);
+                evaluated = true;
+            }
+            if !normal.factorise(&ws.current, length_scale) {
+                return finish(converged, iteration, norm, chain, coords, evaluated, ws);
+            }
         }
-        // The damping keeps the Cholesky pivots of a chain with fewer unknowns than equations (a 3-PUU
-        // leg: five for six) positive, above the round-off of `a` (1e-16 of its trace); its step errs by
-        // about damping / (the smallest eigenvalue J gives), so it must stay small for the polishing step
-        // to reach round-off: at 1e-12 of the trace the 3-PUU converged linearly, 3e-6 per step, and a
-        // polishing step left 3e-12 mm; at 1e-14 it leaves 1e-13 mm.
-        let damping = 1e-14 * a.trace() + 1e-300;
-        for k in 0..6 {
-            a[(k, k)] += damping;
-        }
-        let Some(y) = cholesky_solve(&a, &err) else {
-            return finish(converged, iteration, norm, ws);
+        let y = normal.solve(&err);
+        // The trial is tried on the end frame alone (forward kinematics without the Jacobians' columns)
+        // where neither its Jacobian nor a full evaluation is expected to be needed: a chord step expected
+        // to leave more than the polished level (about twice `contraction` of the error), or a Newton step
+        // expected to land within the tolerance but not at the polished level (about the error's square,
+        // `contraction` squared; a first step from within `POSE_ONLY_RANGE`), where chord steps follow.
+        let pose_only = if chord {
+            2.0 * contraction * norm > polished_level
+        } else if norm_before_step.is_finite() {
+            (polished_level..=tolerance).contains(&(contraction * contraction * norm))
+        } else {
+            !converged && norm <= POSE_ONLY_RANGE * length_scale
         };
         // Back-tracking: halve the step until the error decreases. A polishing step is tried whole only:
         // from within the tolerance the full step lowers the error unless round-off already dominates it,
         // where halving it would only spend evaluations.
+        let jw = |j: &Vec6| weigh_rotations(j, length_scale);
         let mut step = 1.0;
         let mut accepted = false;
         let tries = if converged { 1 } else { 30 };
@@ -160,13 +202,24 @@ pub fn solve(
             for (k, j) in ws.current.passive.iter().enumerate() {
                 t.passive[k] = coords.passive[k] + step * jw(j).dot(&y);
             }
-            chain.evaluate(t, &mut ws.trial);
-            let trial_err = weigh_rotations(&ws.trial.end.error_to(target), length_scale);
+            let trial_end = if pose_only {
+                chain.end_frame(t)
+            } else {
+                chain.evaluate(t, &mut ws.trial);
+                ws.trial.end
+            };
+            let trial_err = weigh_rotations(&trial_end.error_to(target), length_scale);
             let trial_norm = trial_err.norm();
             if trial_norm < norm {
                 coords.actuated.copy_from_slice(&t.actuated);
                 coords.passive.copy_from_slice(&t.passive);
-                std::mem::swap(&mut ws.current, &mut ws.trial);
+                if pose_only {
+                    evaluated = false;
+                } else {
+                    std::mem::swap(&mut ws.current, &mut ws.trial);
+                    evaluated = true;
+                }
+                norm_before_step = norm;
                 norm = trial_norm;
                 err = trial_err;
                 accepted = true;
@@ -174,22 +227,74 @@ pub fn solve(
             }
             step *= 0.5;
         }
+        if chord && !accepted {
+            // The Jacobian turned more than its last step promised: a Newton step from here.
+            chord_failed = true;
+            continue;
+        }
         if !accepted {
             // A polishing step that cannot lower the error leaves the converged solution as it is.
-            return finish(converged, iteration, norm, ws);
+            return finish(converged, iteration, norm, chain, coords, evaluated, ws);
         }
-        polished = converged;
+        newton_polished = converged && !chord;
     }
-    finish(norm <= tolerance, MAX_ITERATIONS, norm, ws)
+    finish(norm <= tolerance, MAX_ITERATIONS, norm, chain, coords, evaluated, ws)
+}
+
+/// The damped normal equations `(J J^T + lambda I) y = e` of a Gauss-Newton step in the weighted metric,
+/// factorised (Cholesky) once and solved for as many right-hand sides as a chord iteration takes.
+#[derive(Default)]
+struct NormalEquations {
+    /// l[j][i]: the factor's column j, row i (i >= j), as nalgebra stores it.
+    l: [[f64; 6]; 6],
+}
+
+impl NormalEquations {
+    /// Forms and factorises the equations of the evaluation's actuated and passive columns; false where a
+    /// pivot is not positive.
+    fn factorise(&mut self, at: &ChainJacobians, length_scale: f64) -> bool {
+        let mut a = Mat6::zeros();
+        for j in at.actuated.iter().chain(at.passive.iter()) {
+            let w = weigh_rotations(j, length_scale);
+            a += w * w.transpose();
+        }
+        // The damping keeps the Cholesky pivots of a chain with fewer unknowns than equations (a 3-PUU
+        // leg: five for six) positive, above the round-off of `a` (1e-16 of its trace); its step errs by
+        // about damping / (the smallest eigenvalue J gives), so it must stay small for the polishing step
+        // to reach round-off: at 1e-12 of the trace the 3-PUU converged linearly, 3e-6 per step, and a
+        // polishing step left 3e-12 mm; at 1e-14 it leaves 1e-13 mm.
+        let damping = 1e-14 * a.trace() + 1e-300;
+        for k in 0..6 {
+            a[(k, k)] += damping;
+        }
+        match cholesky_factor(&a) {
+            Some(l) => {
+                self.l = l;
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn solve(&self, e: &Vec6) -> Vec6 {
+        cholesky_substitute(&self.l, e)
+    }
 }
 
 /// Solves `a y = e` for a symmetric positive definite 6x6 `a` (its lower triangle is read), or None where a
-/// pivot is not positive. The operations and their order are those of nalgebra's `Cholesky::new` and
+/// pivot is not positive: `cholesky_factor` then `cholesky_substitute`, as the normal equations use them,
+/// composed for the test that holds them to nalgebra. The operations and their order are those of nalgebra's `Cholesky::new` and
 /// `solve` (left-looking column updates, each column divided by its pivot's square root, then forward and
 /// back substitution with dot products summed from zero), so every iterate, and every map, is the same to
 /// the bit; on fixed arrays it costs a fraction of the generic code's time.
+#[cfg(test)]
 fn cholesky_solve(a: &Mat6, e: &Vec6) -> Option<Vec6> {
-    // l[j][i]: column j, row i (i >= j), as nalgebra stores it.
+    cholesky_factor(a).map(|l| cholesky_substitute(&l, e))
+}
+
+/// The Cholesky factor of `a` by columns, l[j][i] column j, row i (i >= j), as nalgebra stores it; None
+/// where a pivot is not positive.
+fn cholesky_factor(a: &Mat6) -> Option<[[f64; 6]; 6]> {
     let mut l: [[f64; 6]; 6] = std::array::from_fn(|j| std::array::from_fn(|i| a[(i, j)]));
     for j in 0..6 {
         let (done, rest) = l.split_at_mut(j);
@@ -210,6 +315,11 @@ fn cholesky_solve(a: &Mat6, e: &Vec6) -> Option<Vec6> {
             *x /= root;
         }
     }
+    Some(l)
+}
+
+/// Forward and back substitution on the factor of `cholesky_factor`.
+fn cholesky_substitute(l: &[[f64; 6]; 6], e: &Vec6) -> Vec6 {
     let mut y: [f64; 6] = std::array::from_fn(|i| e[i]);
     for i in 0..6 {
         let c = y[i] / l[i][i];
@@ -225,17 +335,28 @@ fn cholesky_solve(a: &Mat6, e: &Vec6) -> Option<Vec6> {
         }
         y[i] = (y[i] - dot) / l[i][i];
     }
-    Some(Vec6::from(y))
+    Vec6::from(y)
 }
 
-/// The end of a solve: converged (the evaluation in `ws` is the solution's) or not.
-fn finish(converged: bool, iterations: usize, norm: f64, ws: &mut IkWorkspace) -> Result<usize, IkFailure> {
-    if converged {
-        ws.current_is_valid = true;
-        Ok(iterations)
-    } else {
-        Err(IkFailure { iterations, residual_mm: norm })
+/// The end of a solve: converged (the evaluation in `ws` then made at the solution, where the last step
+/// was tried on the end frame alone) or not.
+fn finish(
+    converged: bool,
+    iterations: usize,
+    norm: f64,
+    chain: &Chain,
+    coords: &Coordinates,
+    evaluated: bool,
+    ws: &mut IkWorkspace,
+) -> Result<usize, IkFailure> {
+    if !converged {
+        return Err(IkFailure { iterations, residual_mm: norm });
     }
+    if !evaluated {
+        chain.evaluate(coords, &mut ws.current);
+    }
+    ws.current_is_valid = true;
+    Ok(iterations)
 }
 
 #[cfg(test)]
