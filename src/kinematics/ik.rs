@@ -42,7 +42,7 @@ const POLISHED: f64 = 1e-5;
 /// Round-off, as a fraction of the tolerance: 1e-16 of the length scale (9e-14 mm on a 900 mm 3-PUU leg),
 /// about what a Newton step from within the tolerance leaves (2e-14 to 9e-14 mm there). An extrapolated
 /// start below it is a solution already. Accepting extrapolations at the polished level instead left
-/// placements 2e-13 to 3e-12 mm from their poses, noise in the next loaded starts extrapolated from the
+/// placements 1e-13 to 4e-12 mm from their poses, noise in the next loaded starts extrapolated from the
 /// loaded solutions they shift: along a finely sampled line, settling took two chord steps at 57% of
 /// the points instead of 22%.
 const ROUND_OFF: f64 = 1e-7;
@@ -115,10 +115,10 @@ impl IkWorkspace {
 ///
 /// Only the solution and Newton steps need the Jacobians' columns. Close to the pose, an iterate that is
 /// not expected to be the solution is reached on its end frame alone (forward kinematics, 60% of a full
-/// evaluation's instructions on a 3-PUU leg), and the next step reuses the last factorisation (a chord step) where the step that led there
-/// contracted the error enough for it: a map's placement from an extrapolated start is then one full
-/// evaluation at the start, a Newton step tried on the end frame, and a chord step to the solution,
-/// evaluated in full.
+/// evaluation's instructions on a 3-PUU leg), and the next step reuses the last factorisation (a chord
+/// step) where the step that led there contracted the error enough for it: a map's placement from an
+/// extrapolated start is then one full evaluation at the start, a Newton step tried on the end frame, and
+/// a chord step to the solution, evaluated in full.
 ///
 /// The step is the minimum-norm damped solution `du = J^T (J J^T + lambda I)^-1 e` in the weighted metric,
 /// a 6x6 solve whatever the number of unknowns, so redundant and deficient chains (a 3-PUU leg has five
@@ -283,8 +283,8 @@ impl NormalEquations {
 
 /// Solves `a y = e` for a symmetric positive definite 6x6 `a` (its lower triangle is read), or None where a
 /// pivot is not positive: `cholesky_factor` then `cholesky_substitute`, as the normal equations use them,
-/// composed for the test that holds them to nalgebra. The operations and their order are those of nalgebra's `Cholesky::new` and
-/// `solve` (left-looking column updates, each column divided by its pivot's square root, then forward and
+/// composed for the test that holds them to nalgebra. The operations and their order are those of
+/// nalgebra's `Cholesky::new` and `solve` (left-looking column updates, each column divided by its pivot's square root, then forward and
 /// back substitution with dot products summed from zero), so every iterate, and every map, is the same to
 /// the bit; on fixed arrays it costs a fraction of the generic code's time.
 #[cfg(test)]
