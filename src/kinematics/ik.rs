@@ -284,9 +284,9 @@ impl NormalEquations {
 /// Solves `a y = e` for a symmetric positive definite 6x6 `a` (its lower triangle is read), or None where a
 /// pivot is not positive: `cholesky_factor` then `cholesky_substitute`, as the normal equations use them,
 /// composed for the test that holds them to nalgebra. The operations and their order are those of
-/// nalgebra's `Cholesky::new` and `solve` (left-looking column updates, each column divided by its pivot's square root, then forward and
-/// back substitution with dot products summed from zero), so every iterate, and every map, is the same to
-/// the bit; on fixed arrays it costs a fraction of the generic code's time.
+/// nalgebra's `Cholesky::new` and `solve` (left-looking column updates, each column divided by its pivot's
+/// square root, then forward and back substitution with dot products summed from zero), so every iterate,
+/// and every map, is the same to the bit; on fixed arrays it costs a fraction of the generic code's time.
 #[cfg(test)]
 fn cholesky_solve(a: &Mat6, e: &Vec6) -> Option<Vec6> {
     cholesky_factor(a).map(|l| cholesky_substitute(&l, e))
