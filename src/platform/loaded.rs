@@ -93,6 +93,16 @@ enum Finish {
     Stability,
 }
 
+impl Finish {
+    /// How close to the equilibrium a full step must be to end the solve (relative, as `distance`).
+    fn full_step_tolerance(self) -> f64 {
+        match self {
+            Finish::Stability => STABILITY_TOLERANCE,
+            Finish::Tangent | Finish::Pose => NEWTON_TOLERANCE,
+        }
+    }
+}
+
 /// Why the platform's loaded equilibrium was not found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DeflectionFailure {
@@ -300,8 +310,7 @@ impl Manipulator {
                 return Ok((None, it + 1));
             }
             let tangent_close = finish == Finish::Stability || distance <= TANGENT_TOLERANCE || stalled;
-            let full_tolerance = if finish == Finish::Stability { STABILITY_TOLERANCE } else { NEWTON_TOLERANCE };
-            if full && distance <= full_tolerance && tangent_close {
+            if full && distance <= finish.full_step_tolerance() && tangent_close {
                 let unstable_legs = (self.legs.iter().zip(states.iter_mut()).enumerate())
                     .filter_map(|(i, (leg, s))| (!leg.stable(s)).then_some(i))
                     .fold(0, |bits, i| bits | leg_bit(i));
@@ -326,7 +335,9 @@ impl Manipulator {
                 (false, Finish::Pose) => stalled,
                 // The carried contraction where the first chord step has none of its own (at most 1: an
                 // unknown one, infinite or NaN, asks for the step itself within the tolerance).
-                (false, Finish::Stability) => stalled || distance * chord_contraction.min(1.0) <= STABILITY_TOLERANCE,
+                (false, Finish::Stability) => {
+                    stalled || distance * chord_contraction.min(1.0) <= finish.full_step_tolerance()
+                }
             };
             last_distance = distance;
             let step_mm = step_size * self.length_scale;
