@@ -193,6 +193,7 @@ impl Leg {
             jac: ChainJacobians::default(),
             equilibrium: EquilibriumWorkspace::default(),
             msa: MsaState::default(),
+            offset_sums: Vec::new(),
         }
     }
 

@@ -33,6 +33,8 @@ pub struct LegState {
     pub(super) jac: ChainJacobians,
     pub(super) equilibrium: EquilibriumWorkspace,
     pub(super) msa: MsaState,
+    /// Scratch of `apply_combined_offsets`: the passive coordinates' combined offsets.
+    pub(super) offset_sums: Vec<f64>,
 }
 
 /// How a leg's loaded equilibrium departs from its placement: carried from one point of a map to the
@@ -77,13 +79,26 @@ impl LegState {
         if !terms.clone().all(|(_, o)| o.passive.len() == n && o.virtual_.len() == m) {
             return;
         }
-        for (k, q) in self.coords.passive.iter_mut().enumerate() {
-            *q += terms.clone().fold(0.0, |sum, (w, o)| sum + w * o.passive[k]);
+        // Term by term over contiguous entries (each entry's sum still from zero in the terms' order: the
+        // same bits as one sum per entry, without walking the terms once per entry).
+        let sums = &mut self.offset_sums;
+        sums.clear();
+        sums.resize(n, 0.0);
+        self.coords.virtual_.iter_mut().for_each(|theta| *theta = 0.0);
+        let mut wrench = Vec6::zeros();
+        for (w, o) in terms {
+            for (sum, d) in sums.iter_mut().zip(&o.passive) {
+                *sum += w * d;
+            }
+            for (theta, d) in self.coords.virtual_.iter_mut().zip(&o.virtual_) {
+                *theta += w * d;
+            }
+            wrench += o.wrench * w;
         }
-        for (k, theta) in self.coords.virtual_.iter_mut().enumerate() {
-            *theta = terms.clone().fold(0.0, |sum, (w, o)| sum + w * o.virtual_[k]);
+        for (q, sum) in self.coords.passive.iter_mut().zip(sums.iter()) {
+            *q += sum;
         }
-        self.end_wrench = terms.fold(Vec6::zeros(), |sum, (w, o)| sum + o.wrench * w);
+        self.end_wrench = wrench;
         self.ik.invalidate();
     }
 }
