@@ -587,11 +587,22 @@ impl Chain {
         f
     }
 
-    /// Forward kinematics with the analytic Jacobians of the end point with respect to the actuated and
-    /// passive coordinates. Every joint's placement is recorded, so the virtual columns can follow on
-    /// demand (`ChainJacobians::fill_virtual`) without another pass: inverse kinematics needs them only at
-    /// its solution.
-    pub fn evaluate(&self, c: &Coordinates, out: &mut ChainJacobians) {
+    /// Forward kinematics recording every joint's placement and the masses' points, without the Jacobian
+    /// columns, which are left empty (a read of one fails rather than finding stale numbers): what the
+    /// loaded equilibrium's residual reads (the generalised forces come from the placements), at each of its
+    /// chord steps.
+    pub fn place_joints(&self, c: &Coordinates, out: &mut ChainJacobians) {
+        self.place_joints_only(c, out);
+        out.actuated.clear();
+        out.passive.clear();
+        out.virtual_.clear();
+        out.virtual_filled = false;
+    }
+
+    /// The placements and masses into `out` and its end frame, which is returned too (`evaluate` goes on
+    /// from it to the columns).
+    #[inline(always)]
+    fn place_joints_only(&self, c: &Coordinates, out: &mut ChainJacobians) -> Frame {
         // Every joint's placement is written in place, in chain order: the buffer keeps its length between
         // evaluations of the same chain, so no push (a capacity test and a length store per joint) is made.
         let placeholder = PlacedJoint {
@@ -626,6 +637,15 @@ impl Chain {
             }
         }
         out.end = f;
+        f
+    }
+
+    /// Forward kinematics with the analytic Jacobians of the end point with respect to the actuated and
+    /// passive coordinates. Every joint's placement is recorded, so the virtual columns can follow on
+    /// demand (`ChainJacobians::fill_virtual`) without another pass: inverse kinematics needs them only at
+    /// its solution.
+    pub fn evaluate(&self, c: &Coordinates, out: &mut ChainJacobians) {
+        let f = self.place_joints_only(c, out);
         reset(&mut out.actuated, self.n_actuated);
         reset(&mut out.passive, self.n_passive);
         reset(&mut out.virtual_, self.n_virtual);

@@ -320,9 +320,9 @@ impl LoadedChain<'_> {
         if lin.factorization == 0 || lin.factorization != ws.factorizations {
             return None;
         }
-        // The residual reads the joints' placements, not the virtual coordinates' Jacobian columns (only a
-        // factorisation needs those), so they are not filled.
-        self.chain.evaluate(coords, &mut ws.jac);
+        // The residual reads the joints' placements, not the Jacobian columns (only a factorisation needs
+        // those), so none is made.
+        self.chain.place_joints(coords, &mut ws.jac);
         let correction = &mut lin.correction[..];
         self.residual(coords, wrench, target, &ws.jac, &mut ws.generalised, correction);
         lin.end_error = target_error(correction);
