@@ -45,17 +45,19 @@ fn analytic_jacobians_match_central_differences_on_random_chains() {
 }
 
 /// Inverse kinematics reaches its iterates close to the pose on the end frame alone (forward kinematics)
-/// and polishes them with chord steps on an earlier factorisation; what it hands on must still be the
-/// solution's own evaluation, since every stiffness and loaded solve reads it. On random square chains
-/// (six actuated and passive joints), from starts 1e-1 to 1e-9 (rad or mm) off a known solution
-/// (paths through Newton steps with full trials, pose-only trials and chord steps), the kept evaluation is
-/// a fresh evaluation at the returned coordinates bit for bit, the pose is reached within 1e-14 of the
-/// length scale, and the coordinates are the known solution's.
+/// and polishes them with chord steps on an earlier factorisation; the evaluation it hands on (kept from
+/// the solve, or made where it is asked for) must still be the solution's own, since every stiffness reads
+/// it. On random square chains (six actuated and passive joints), from starts 1e-1 to 1e-9 (rad or mm)
+/// off a known solution (paths through Newton steps with full trials, pose-only trials and chord steps),
+/// for a caller that reads the Jacobians and for one that reads the pose alone (whose solution is not
+/// evaluated during the solve), the evaluation handed on is a fresh evaluation at the returned coordinates
+/// bit for bit, the pose is reached within 1e-14 of the length scale, and the coordinates are the known
+/// solution's.
 #[test]
 fn inverse_kinematics_keeps_the_evaluation_of_its_solution_whatever_its_path() {
     use stiff::kinematics::chain::JointKind;
     use stiff::kinematics::frame::weigh_rotations;
-    use stiff::kinematics::ik::{solve, IkWorkspace};
+    use stiff::kinematics::ik::{solve, IkWorkspace, Needs};
     let mut r = rng(48);
     let mut checked = 0;
     for _ in 0..40 {
@@ -83,17 +85,20 @@ fn inverse_kinematics_keeps_the_evaluation_of_its_solution_whatever_its_path() {
         if singular.min() < 1e-4 * singular.max() {
             continue;
         }
-        for offset in [1e-1, 1e-2, 1e-3, 1e-4, 1e-6, 1e-9] {
+        for (offset, needs) in [1e-1, 1e-2, 1e-3, 1e-4, 1e-6, 1e-9]
+            .into_iter()
+            .flat_map(|offset| [(offset, Needs::Jacobians), (offset, Needs::Pose)])
+        {
             let mut coords = at_solution.clone();
             let direction: Vec<f64> = (0..6).map(|_| r.random_range(-1.0..1.0)).collect();
             for (q, d) in coords.actuated.iter_mut().chain(coords.passive.iter_mut()).zip(&direction) {
                 *q += offset * d;
             }
             let mut ws = IkWorkspace::default();
-            let iterations = solve(&chain, &target, &mut coords, &mut ws, length).expect("converges");
-            let kept = ws.joints_at_solution().expect("a solution's evaluation is kept").clone();
+            let iterations = solve(&chain, &target, &mut coords, &mut ws, length, needs).expect("converges");
+            let kept = ws.joints_at_solution(&chain, &coords).expect("a solution's evaluation is kept").clone();
             chain.evaluate(&coords, &mut fresh);
-            assert_eq!(kept.end, fresh.end, "offset {offset:e}: the kept end frame is the solution's");
+            assert_eq!(kept.end, fresh.end, "offset {offset:e}, {needs:?}: the end frame handed on is the solution's");
             assert_eq!(kept.actuated, fresh.actuated, "offset {offset:e}: actuated columns");
             assert_eq!(kept.passive, fresh.passive, "offset {offset:e}: passive columns");
             let miss = weigh_rotations(&fresh.end.error_to(&target), length).norm();

@@ -563,7 +563,7 @@ fn a_chord_step_on_a_factorisation_no_longer_held_is_refused() {
     let mut s = leg.new_state();
     let (pose, moved) =
         (Frame::translation(Vec3::new(10.0, -20.0, 5.0)), Frame::translation(Vec3::new(10.2, -20.0, 5.0)));
-    leg.place(&pose, &mut s).unwrap();
+    leg.place(&pose, &mut s, stiff::kinematics::ik::Needs::Pose).unwrap();
     assert!(!leg.refresh(&pose, &mut s, &mut LegLinear::default()).unwrap(), "never linearised");
     let (mut first, mut second) = (LegLinear::default(), LegLinear::default());
     leg.linearize_into(&pose, &mut s, &mut first).unwrap();

@@ -432,7 +432,9 @@ fn polished_placements_follow_commands_below_the_ik_tolerance() {
     };
     let at = |dx: f64| Frame::translation(Vec3::new(-20.0 + dx, 15.0, -5.0));
     let place = |dx: f64, s: &mut stiff::platform::manipulator::ManipulatorState| -> Vec<usize> {
-        (m.legs.iter().zip(s.legs.iter_mut())).map(|(leg, state)| leg.place(&at(dx), state).unwrap()).collect()
+        (m.legs.iter().zip(s.legs.iter_mut()))
+            .map(|(leg, state)| leg.place(&at(dx), state, stiff::kinematics::ik::Needs::Jacobians).unwrap())
+            .collect()
     };
     place(1e-3, &mut s);
     let far = actuators(&s);

@@ -60,6 +60,18 @@ const POSE_ONLY_RANGE: f64 = 1e-4;
 /// lie on either side, and its stiffness is degenerate there (status `ill_conditioned`).
 pub const REACH_TOLERANCE_MM: f64 = 1e-4;
 
+/// What a solve's caller reads at the solution besides its coordinates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Needs {
+    /// The chain's Jacobians there (a stiffness, a joint's twists): a trial expected to be the solution is
+    /// evaluated in full.
+    Jacobians,
+    /// The pose alone (a loaded equilibrium, which evaluates its own chain from there): every trial expected
+    /// to be the solution is tried on the end frame, and the solution's evaluation is left to be made where
+    /// it is asked for.
+    Pose,
+}
+
 /// Buffers reused from one solve to the next (no allocation per point).
 #[derive(Clone, Debug, Default)]
 pub struct IkWorkspace {
@@ -68,6 +80,10 @@ pub struct IkWorkspace {
     /// True when `current` was evaluated at the coordinates the next solve starts from (the previous
     /// solution), so the first Newton step needs no new evaluation.
     current_is_valid: bool,
+    /// True when the last solve converged on an iterate reached on its end frame alone, whose evaluation
+    /// is made only where it is asked for (`solution`, `joints_at_solution`, or the next solve's start): a
+    /// loaded equilibrium placed there evaluates its own chain and never reads it.
+    pending: bool,
     trial: ChainJacobians,
     trial_coords: Coordinates,
 }
@@ -76,6 +92,7 @@ impl IkWorkspace {
     /// To be called when the coordinates are changed by anything but `solve`.
     pub fn invalidate(&mut self) {
         self.current_is_valid = false;
+        self.pending = false;
     }
 
     /// Evaluates `chain` at `coords` as the start of the next solve (the coordinates it will be handed): a
@@ -83,27 +100,36 @@ impl IkWorkspace {
     pub fn evaluate_at(&mut self, chain: &Chain, coords: &Coordinates) -> &ChainJacobians {
         chain.evaluate(coords, &mut self.current);
         self.current_is_valid = true;
+        self.pending = false;
         &self.current
     }
 
     /// The evaluation at the last solution (virtual columns included), while the coordinates have not
-    /// changed since.
-    pub fn solution(&mut self) -> Option<&ChainJacobians> {
-        if !self.current_is_valid {
-            return None;
-        }
+    /// changed since: `coords` are the solution, where its evaluation is still to be made.
+    pub fn solution(&mut self, chain: &Chain, coords: &Coordinates) -> Option<&ChainJacobians> {
+        self.joints_at_solution(chain, coords)?;
         self.current.fill_virtual();
         Some(&self.current)
     }
 
     /// As `solution`, without filling the virtual coordinates' columns (for the joints' twists alone).
-    pub fn joints_at_solution(&self) -> Option<&ChainJacobians> {
+    pub fn joints_at_solution(&mut self, chain: &Chain, coords: &Coordinates) -> Option<&ChainJacobians> {
+        if self.pending {
+            self.evaluate_at(chain, coords);
+        }
+        self.kept()
+    }
+
+    /// The evaluation at the last solution where it has been made (`solution` makes it where it is still to
+    /// be made).
+    pub fn kept(&self) -> Option<&ChainJacobians> {
         self.current_is_valid.then_some(&self.current)
     }
 }
 
 /// Solves `end_frame(coords) = target` for the actuated and passive coordinates; virtual coordinates are
-/// left as they are. Returns the number of iterations; `ws.current` then holds the evaluation at the solution.
+/// left as they are. Returns the number of iterations; `ws.solution` then gives the evaluation at the
+/// solution.
 ///
 /// Once within `TOLERANCE`, the solve goes on to the polished level (`POLISHED` of it, a few hundred times
 /// round-off) or takes one more Newton step (kept where it lowers the error, it leaves about the
@@ -129,17 +155,20 @@ pub fn solve(
     coords: &mut Coordinates,
     ws: &mut IkWorkspace,
     length_scale: f64,
+    needs: Needs,
 ) -> Result<usize, IkFailure> {
     let tolerance = TOLERANCE * length_scale.max(1.0);
     let polished_level = POLISHED * tolerance;
     let round_off = ROUND_OFF * tolerance;
     ws.trial_coords.clone_from(coords);
-    // A start evaluated and kept is a solution (the last one, or a seeded configuration's own pose).
-    let start_is_solution = ws.current_is_valid;
+    // A start evaluated and kept is a solution (the last one, or a seeded configuration's own pose), as is
+    // one whose evaluation was left to be made.
+    let start_is_solution = ws.current_is_valid || ws.pending;
     if !ws.current_is_valid {
         chain.evaluate(coords, &mut ws.current);
     }
     ws.current_is_valid = false;
+    ws.pending = false;
     // True while `ws.current` is the evaluation at `coords`. A step tried on the end frame alone leaves it
     // the evaluation at the step's origin, whose factorisation `normal` still holds.
     let mut evaluated = true;
@@ -158,7 +187,7 @@ pub fn solve(
         // stay in every loaded answer, and as noise in the extrapolations of the next loaded starts).
         let at_level = if iteration > 0 || start_is_solution { polished_level } else { round_off };
         if converged && (newton_polished || norm <= at_level) {
-            return finish(true, iteration, norm, chain, coords, evaluated, ws);
+            return finish(true, iteration, norm, evaluated, ws);
         }
         // From an iterate reached on the end frame alone, a chord step (the factorisation of the step that
         // led there) where that step contracted the error well: its contraction measures how far the
@@ -171,7 +200,7 @@ pub fn solve(
                 evaluated = true;
             }
             if !normal.factorise(&ws.current, length_scale) {
-                return finish(converged, iteration, norm, chain, coords, evaluated, ws);
+                return finish(converged, iteration, norm, evaluated, ws);
             }
         }
         let y = normal.solve(&err);
@@ -180,10 +209,14 @@ pub fn solve(
         // to leave more than the polished level (about twice `contraction` of the error), or a Newton step
         // expected to land within the tolerance but not at the polished level (about the error's square,
         // `contraction` squared; a first step from within `POSE_ONLY_RANGE`), where chord steps follow.
+        // A caller that reads no Jacobian at the solution has every trial expected to be the solution
+        // tried on the end frame too (its evaluation is then made only where it is asked for).
+        let pose_wanted = needs == Needs::Pose;
         let pose_only = if chord {
-            2.0 * contraction * norm > polished_level
+            2.0 * contraction * norm > polished_level || pose_wanted
         } else if norm_before_step.is_finite() {
-            (polished_level..=tolerance).contains(&(contraction * contraction * norm))
+            let expected = contraction * contraction * norm;
+            (polished_level..=tolerance).contains(&expected) || (pose_wanted && expected < polished_level)
         } else {
             !converged && norm <= POSE_ONLY_RANGE * length_scale
         };
@@ -234,11 +267,11 @@ pub fn solve(
         }
         if !accepted {
             // A polishing step that cannot lower the error leaves the converged solution as it is.
-            return finish(converged, iteration, norm, chain, coords, evaluated, ws);
+            return finish(converged, iteration, norm, evaluated, ws);
         }
         newton_polished = converged && !chord;
     }
-    finish(norm <= tolerance, MAX_ITERATIONS, norm, chain, coords, evaluated, ws)
+    finish(norm <= tolerance, MAX_ITERATIONS, norm, evaluated, ws)
 }
 
 /// The damped normal equations `(J J^T + lambda I) y = e` of a Gauss-Newton step in the weighted metric,
@@ -338,24 +371,22 @@ fn cholesky_substitute(l: &[[f64; 6]; 6], e: &Vec6) -> Vec6 {
     Vec6::from(y)
 }
 
-/// The end of a solve: converged (the evaluation in `ws` then made at the solution, where the last step
-/// was tried on the end frame alone) or not.
+/// The end of a solve: converged (the evaluation at the solution kept, or left to be made where the last
+/// step was tried on the end frame alone) or not.
 fn finish(
     converged: bool,
     iterations: usize,
     norm: f64,
-    chain: &Chain,
-    coords: &Coordinates,
     evaluated: bool,
     ws: &mut IkWorkspace,
 ) -> Result<usize, IkFailure> {
     if !converged {
         return Err(IkFailure { iterations, residual_mm: norm });
     }
-    if !evaluated {
-        chain.evaluate(coords, &mut ws.current);
-    }
-    ws.current_is_valid = true;
+    // The solution's evaluation is the last one made where it was evaluated in full; else it is made where
+    // it is asked for.
+    ws.current_is_valid = evaluated;
+    ws.pending = !evaluated;
     Ok(iterations)
 }
 

@@ -115,8 +115,10 @@ impl Manipulator {
         // The directions no leg's joints follow (the constraints), and those the passive joints alone do
         // not follow (constraints and actuations).
         let (mut constraints, mut actuations) = (Orthonormal6::default(), Orthonormal6::default());
-        for (leg, s) in self.legs.iter().zip(&state.legs) {
-            let Some(mut joints) = leg.joint_twists(pose, s) else { return self.directions_by_stiffness(pose, state) };
+        for k in 0..self.legs.len() {
+            let Some(mut joints) = self.legs[k].joint_twists(pose, &mut state.legs[k]) else {
+                return self.directions_by_stiffness(pose, state);
+            };
             for t in joints.passive.iter_mut().chain(joints.actuated.iter_mut()) {
                 *t = weigh_rotations(t, self.length_scale);
             }

@@ -6,7 +6,7 @@
 
 use crate::kinematics::chain::{ChainJacobians, Coordinates};
 use crate::kinematics::frame::{point_shift, shift_magnitude, shift_stiffness, skew, Frame, Mat3, Mat6, Vec3, Vec6};
-use crate::kinematics::ik::{self, IkWorkspace};
+use crate::kinematics::ik::{self, IkWorkspace, Needs};
 use crate::vjm::equilibrium::{EquilibriumWorkspace, Linearization};
 use crate::vjm::spring::SpringGroup;
 
@@ -200,9 +200,9 @@ impl Leg {
     /// Places the leg for a commanded platform pose: inverse kinematics of the rigid leg (springs undeformed),
     /// warm-started from the state's previous solution, else from the home configuration (all zero). Fixes
     /// the actuated coordinates for the loaded answers that follow.
-    pub fn place(&self, platform: &Frame, state: &mut LegState) -> Result<usize, LegFailure> {
+    pub fn place(&self, platform: &Frame, state: &mut LegState, needs: Needs) -> Result<usize, LegFailure> {
         match self {
-            Leg::Vjm(l) => l.place(platform, state),
+            Leg::Vjm(l) => l.place(platform, state, needs),
             Leg::Msa(l) => l.place(platform, &mut state.msa).map(|_| 0),
         }
     }
@@ -341,9 +341,9 @@ impl Leg {
     /// After `place`: the twists at the reference point (base frame) along which the leg's actuated and
     /// passive joints move its end, the rigid leg's kinematics; None for an MSA leg (its joints are
     /// elements of a structure, not coordinates of a chain) or where the placement failed.
-    pub fn joint_twists(&self, platform: &Frame, state: &LegState) -> Option<JointTwists> {
-        let Leg::Vjm(_) = self else { return None };
-        let jac = state.ik.joints_at_solution()?;
+    pub fn joint_twists(&self, platform: &Frame, state: &mut LegState) -> Option<JointTwists> {
+        let Leg::Vjm(l) = self else { return None };
+        let jac = state.ik.joints_at_solution(&l.chain, &state.coords)?;
         Some(JointTwists {
             actuated: twists_at_reference_point(&jac.actuated, platform, jac),
             passive: twists_at_reference_point(&jac.passive, platform, jac),

@@ -3,6 +3,7 @@
 use super::leg::{Leg, LegFailure, LegLinear, LegResponse, LegState};
 use super::loaded::Chord;
 use crate::kinematics::frame::{Frame, Mat3, Mat6, Vec3, Vec6};
+use crate::kinematics::ik::Needs;
 
 /// A parallel manipulator: its legs, summed at the platform's reference point.
 #[derive(Clone, Debug)]
@@ -407,8 +408,18 @@ impl Manipulator {
 
     /// Places every leg for the commanded pose (inverse kinematics).
     pub fn place(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<(), PoseFailure> {
+        self.place_for(platform, state, Needs::Jacobians)
+    }
+
+    /// As `place`, for a loaded equilibrium, which reads the placement's coordinates and evaluates the legs'
+    /// chains itself: their evaluation there is left to be made where it is asked for.
+    pub fn place_for_load(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<(), PoseFailure> {
+        self.place_for(platform, state, Needs::Pose)
+    }
+
+    fn place_for(&self, platform: &Frame, state: &mut ManipulatorState, needs: Needs) -> Result<(), PoseFailure> {
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
-            leg.place(platform, s).map_err(|failure| PoseFailure { leg: i, failure })?;
+            leg.place(platform, s, needs).map_err(|failure| PoseFailure { leg: i, failure })?;
         }
         Ok(())
     }

@@ -4,7 +4,7 @@
 
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{interpolate, shift_magnitude, shift_stiffness, Frame, Vec3, Vec6};
-use crate::kinematics::ik::{self};
+use crate::kinematics::ik::{self, Needs};
 use crate::vjm::equilibrium::{EquilibriumFailure, LoadedChain};
 use crate::vjm::spring::SpringGroup;
 use crate::vjm::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
@@ -110,8 +110,8 @@ impl VjmLeg {
 
     /// The chain's Jacobians at the state's configuration, reusing inverse kinematics' last evaluation.
     pub(super) fn evaluation<'a>(&self, state: &'a mut LegState) -> &'a ChainJacobians {
-        if state.ik.solution().is_some() {
-            return state.ik.solution().expect("checked just above");
+        if state.ik.solution(&self.chain, &state.coords).is_some() {
+            return state.ik.kept().expect("made just above");
         }
         self.chain.evaluate(&state.coords, &mut state.jac);
         state.jac.fill_virtual();
@@ -122,10 +122,10 @@ impl VjmLeg {
     fn evaluated<'a>(&self, state: &'a mut LegState) -> (&'a ChainJacobians, &'a Coordinates) {
         self.evaluation(state);
         let state = &*state;
-        (state.ik.joints_at_solution().unwrap_or(&state.jac), &state.coords)
+        (state.ik.kept().unwrap_or(&state.jac), &state.coords)
     }
 
-    pub(super) fn place(&self, platform: &Frame, state: &mut LegState) -> Result<usize, LegFailure> {
+    pub(super) fn place(&self, platform: &Frame, state: &mut LegState, needs: Needs) -> Result<usize, LegFailure> {
         let target = self.target(platform);
         state.end_wrench = Vec6::zeros();
         state.last_target = target;
@@ -140,7 +140,7 @@ impl VjmLeg {
             if state.placements.predict_into(&target, &mut state.coords) {
                 state.ik.invalidate();
             }
-            match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
+            match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale, needs) {
                 Ok(n) => {
                     state.placed.clone_from(&state.coords);
                     state.placements.record(&target, &state.coords);
@@ -160,7 +160,7 @@ impl VjmLeg {
             state.coords.actuated.iter_mut().for_each(|t| *t = 0.0);
         }
         state.coords.passive.iter_mut().for_each(|t| *t = 0.0);
-        match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale) {
+        match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale, needs) {
             Ok(n) => {
                 state.warm = true;
                 state.placed.clone_from(&state.coords);

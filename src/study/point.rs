@@ -255,7 +255,7 @@ pub fn loaded_point(
     history: &mut LoadedHistory,
 ) -> PointResult {
     let commanded = p.frame();
-    if let Err(e) = m.place(&commanded, state) {
+    if let Err(e) = m.place_for_load(&commanded, state) {
         history.clear();
         return PointResult::failed_at(e);
     }
@@ -268,7 +268,7 @@ pub fn loaded_point(
     let start = history.start(&p.position, &commanded, &mut state.legs);
     let mut attempt = m.deflect(&commanded, wrench, start.as_ref(), state);
     if attempt.is_err() && start.is_some() {
-        m.place(&commanded, state).ok();
+        m.place_for_load(&commanded, state).ok();
         attempt = m.deflect(&commanded, wrench, None, state);
     }
     match attempt {
