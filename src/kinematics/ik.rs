@@ -72,28 +72,18 @@ pub enum Needs {
     Pose,
 }
 
-/// The coordinates the next solve starts from, as its workspace knows them.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-enum Start {
-    /// Changed by anything but a solve: `current` is not their evaluation.
-    #[default]
-    Unknown,
-    /// A solution (or a seeded configuration's own pose), evaluated in `current`: the first Newton step
-    /// needs no new evaluation.
-    Evaluated,
-    /// A solution reached on its end frame alone, whose evaluation is made only where it is asked for
-    /// (`solution`, `joints_at_solution`, or the next solve's start): a loaded equilibrium placed there
-    /// evaluates its own chain and never reads it.
-    Pending,
-}
-
 /// Buffers reused from one solve to the next (no allocation per point).
 #[derive(Clone, Debug, Default)]
 pub struct IkWorkspace {
     /// The chain evaluated at the current coordinates.
     pub current: ChainJacobians,
-    /// What `current` is to the coordinates the next solve starts from.
-    at_start: Start,
+    /// True when `current` was evaluated at the coordinates the next solve starts from (the previous
+    /// solution), so the first Newton step needs no new evaluation.
+    current_is_valid: bool,
+    /// True when the last solve converged on an iterate reached on its end frame alone, whose evaluation
+    /// is made only where it is asked for (`solution`, `joints_at_solution`, or the next solve's start): a
+    /// loaded equilibrium placed there evaluates its own chain and never reads it.
+    pending: bool,
     trial: ChainJacobians,
     trial_coords: Coordinates,
 }
@@ -101,14 +91,16 @@ pub struct IkWorkspace {
 impl IkWorkspace {
     /// To be called when the coordinates are changed by anything but `solve`.
     pub fn invalidate(&mut self) {
-        self.at_start = Start::Unknown;
+        self.current_is_valid = false;
+        self.pending = false;
     }
 
     /// Evaluates `chain` at `coords` as the start of the next solve (the coordinates it will be handed): a
     /// solve at the pose they reach then converges on this evaluation without a new one.
     pub fn evaluate_at(&mut self, chain: &Chain, coords: &Coordinates) -> &ChainJacobians {
         chain.evaluate(coords, &mut self.current);
-        self.at_start = Start::Evaluated;
+        self.current_is_valid = true;
+        self.pending = false;
         &self.current
     }
 
@@ -122,7 +114,7 @@ impl IkWorkspace {
 
     /// As `solution`, without filling the virtual coordinates' columns (for the joints' twists alone).
     pub fn joints_at_solution(&mut self, chain: &Chain, coords: &Coordinates) -> Option<&ChainJacobians> {
-        if self.at_start == Start::Pending {
+        if self.pending {
             self.evaluate_at(chain, coords);
         }
         self.kept()
@@ -131,7 +123,7 @@ impl IkWorkspace {
     /// The evaluation at the last solution where it has been made (`solution` makes it where it is still to
     /// be made).
     pub fn kept(&self) -> Option<&ChainJacobians> {
-        (self.at_start == Start::Evaluated).then_some(&self.current)
+        self.current_is_valid.then_some(&self.current)
     }
 }
 
@@ -171,11 +163,12 @@ pub fn solve(
     ws.trial_coords.clone_from(coords);
     // A start evaluated and kept is a solution (the last one, or a seeded configuration's own pose), as is
     // one whose evaluation was left to be made.
-    let start_is_solution = ws.at_start != Start::Unknown;
-    if ws.at_start != Start::Evaluated {
+    let start_is_solution = ws.current_is_valid || ws.pending;
+    if !ws.current_is_valid {
         chain.evaluate(coords, &mut ws.current);
     }
-    ws.at_start = Start::Unknown;
+    ws.current_is_valid = false;
+    ws.pending = false;
     // True while `ws.current` is the evaluation at `coords`. A step tried on the end frame alone leaves it
     // the evaluation at the step's origin, whose factorisation `normal` still holds.
     let mut evaluated = true;
@@ -392,7 +385,8 @@ fn finish(
     }
     // The solution's evaluation is the last one made where it was evaluated in full; else it is made where
     // it is asked for.
-    ws.at_start = if evaluated { Start::Evaluated } else { Start::Pending };
+    ws.current_is_valid = evaluated;
+    ws.pending = !evaluated;
     Ok(iterations)
 }
 
