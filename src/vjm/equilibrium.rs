@@ -490,7 +490,11 @@ fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
     if m.nrows() != rows || m.ncols() != cols {
         *m = DMatrix::zeros(rows, cols);
     } else {
-        m.as_mut_slice().fill(0.0);
+        // Column by column: one fill of the whole matrix (4 KB on the 3-PUU's legs) went to libc's memset
+        // and its `rep stosb`, several times the instructions of column-sized fills.
+        for column in m.as_mut_slice().chunks_exact_mut(rows) {
+            column.fill(0.0);
+        }
     }
 }
 
