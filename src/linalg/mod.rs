@@ -581,7 +581,7 @@ impl SaddlePointLu {
         for d in 0..f {
             s[d * f + d] -= margin;
         }
-        dense_cholesky(s, f)
+        positive_definite_in_place(s, f)
     }
 }
 
@@ -632,15 +632,30 @@ fn larger(m: f64, v: f64) -> f64 {
 /// matrices here are a dozen rows, where a vectorised loop's set-up costs more than its work. False where a
 /// pivot is not positive or not finite (not positive definite to round-off).
 fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
+    cholesky_rows(a, n, |x, y| x.iter().zip(y).map(|(x, y)| x * y).sum())
+}
+
+/// True where the dense n x n symmetric matrix (its lower triangle read, by rows) is positive definite to
+/// round-off: `dense_cholesky`'s factorisation with the dot products taken as two running sums
+/// (`paired_dot`: two terms per vector operation). Only the pivots' signs are read, so the order of the
+/// sums changes no result but at a pivot within round-off of zero (the stability test's margin, 1e-12 of
+/// the largest entry, is ten thousand times round-off), and the factor's values go nowhere.
+fn positive_definite_in_place(a: &mut [f64], n: usize) -> bool {
+    cholesky_rows(a, n, paired_dot)
+}
+
+/// The row-by-row Cholesky factorisation of `dense_cholesky`, each entry's dot product of two rows' leading
+/// parts taken by `dot`.
+#[inline(always)]
+fn cholesky_rows(a: &mut [f64], n: usize, dot: impl Fn(&[f64], &[f64]) -> f64) -> bool {
     for i in 0..n {
         let (above, rest) = a.split_at_mut(i * n);
         let row = &mut rest[..=i];
         for j in 0..i {
             let row_j = &above[j * n..j * n + j + 1];
-            let dot: f64 = row[..j].iter().zip(&row_j[..j]).map(|(x, y)| x * y).sum();
-            row[j] = (row[j] - dot) / row_j[j];
+            row[j] = (row[j] - dot(&row[..j], &row_j[..j])) / row_j[j];
         }
-        let d = row[i] - row[..i].iter().map(|x| x * x).sum::<f64>();
+        let d = row[i] - dot(&row[..i], &row[..i]);
         if !(d > 0.0 && d.is_finite()) {
             return false;
         }
