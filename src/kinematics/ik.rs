@@ -218,7 +218,9 @@ pub fn solve(
             let expected = contraction * contraction * norm;
             (polished_level..=tolerance).contains(&expected) || (pose_wanted && expected < polished_level)
         } else {
-            !converged && norm <= POSE_ONLY_RANGE * length_scale
+            // A first step: a Newton step from near the pose, or a polishing step from a start within the
+            // tolerance, expected to be the solution.
+            (!converged && norm <= POSE_ONLY_RANGE * length_scale) || (pose_wanted && converged)
         };
         // Back-tracking: halve the step until the error decreases. A polishing step is tried whole only:
         // from within the tolerance the full step lowers the error unless round-off already dominates it,
