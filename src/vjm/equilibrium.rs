@@ -240,9 +240,12 @@ impl LoadedChain<'_> {
             } else {
                 &s.stiffness
             };
-            for i in 0..s.dim {
-                for j in 0..s.dim {
-                    w[(n + s.first + i, n + s.first + j)] -= stiffness[(i, j)];
+            // The block's columns as slices of W (column-major), each entry still one subtraction.
+            let (first, size) = (n + s.first, w.nrows());
+            for (j, k_column) in stiffness.column_iter().take(s.dim).enumerate() {
+                let w_column = &mut w.as_mut_slice()[(first + j) * size + first..][..s.dim];
+                for (v, k) in w_column.iter_mut().zip(k_column.iter()) {
+                    *v -= k;
                 }
             }
             // A spring whose stiffness depends on a passive coordinate q (paper 000 s. 6: "an equivalent
