@@ -6,7 +6,6 @@
 //! frame: a revolute joint of world axis w through o gives (w x (p_end - o), w), a prismatic one (w, 0).
 
 use super::frame::{rotation_about, Frame, Mat3, Vec3, Vec6};
-use std::ops::IndexMut;
 
 /// An elementary joint's motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -355,13 +354,7 @@ impl ChainJacobians {
     /// for twist Jacobians (a joint moves the axes, origins and load points downstream of it). Added into
     /// `out` (rows: generalised force, columns: coordinate): a matrix of its own, or a block of a larger one
     /// (the Newton matrix of eq 45 takes them in place).
-    pub fn add_load_hessian(
-        &mut self,
-        w: &Vec6,
-        gravity: &Vec3,
-        n_passive: usize,
-        out: &mut impl IndexMut<(usize, usize), Output = f64>,
-    ) {
+    pub fn add_load_hessian(&mut self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
         let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
         self.add_point_hessian(&self.end.pos.clone(), &f, &m, self.placed.len(), n_passive, out);
         if *gravity != Vec3::zeros() {
@@ -379,7 +372,7 @@ impl ChainJacobians {
         m: &Vec3,
         upto: usize,
         n_passive: usize,
-        out: &mut impl IndexMut<(usize, usize), Output = f64>,
+        out: &mut nalgebra::DMatrix<f64>,
     ) {
         // For a joint k, phi_k = w_k . (m + (x - o_k) x f) (revolute) or w_k . f (prismatic). A unit motion of
         // joint l moves x by dx_l = w_l x (x - o_l) (revolute) or w_l (prismatic); if l comes before k it also
@@ -409,14 +402,18 @@ impl ChainJacobians {
         }));
         // A pair whose d is zero adds nothing: the entries start at +0 and never become -0, so skipping
         // the addition of a zero leaves the same bits.
+        // Entry (k, l) of the column-major matrix by its offset (one bounds check where a 2-D index makes two).
+        let rows = out.nrows();
+        debug_assert!(terms.iter().all(|t| t.index < rows), "an unknown's index within the matrix");
+        let entries = out.as_mut_slice();
         for (a, tk) in terms.iter().enumerate() {
             let (earlier, rest) = terms.split_at(a);
             for tl in earlier.iter().filter(|tl| tl.revolute) {
-                out[(tk.index, tl.index)] += tk.gain * tl.gain * tl.axis.dot(&tk.u);
+                entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.axis.dot(&tk.u);
             }
             if tk.revolute {
                 for tl in rest {
-                    out[(tk.index, tl.index)] += tk.gain * tl.gain * tl.motion.dot(&tk.s);
+                    entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.motion.dot(&tk.s);
                 }
             }
         }
