@@ -352,8 +352,8 @@ impl ChainJacobians {
     /// The derivative of `add_generalised_forces` with respect to the unknowns, the loads held fixed in the
     /// base frame: the Hessians H_qq, H_q theta, H_theta q, H_theta theta of paper 000 eq (41)-(44), exact
     /// for twist Jacobians (a joint moves the axes, origins and load points downstream of it). Added into
-    /// `out` (rows: generalised force, columns: coordinate): a matrix of its own, or a block of a larger one
-    /// (the Newton matrix of eq 45 takes them in place).
+    /// `out`, square in the unknowns (rows: generalised force, columns: coordinate): the statics block of
+    /// eq 45's Newton matrix takes them in place.
     pub fn add_load_hessian(&mut self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
         let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
         self.add_point_hessian(&self.end.pos.clone(), &f, &m, self.placed.len(), n_passive, out);
@@ -400,12 +400,12 @@ impl ChainJacobians {
             };
             Some(HessianTerm { index, gain: pk.joint.gain, revolute, axis: wk, motion, u, s })
         }));
-        // A pair whose d is zero adds nothing: the entries start at +0 and never become -0, so skipping
-        // the addition of a zero leaves the same bits.
         // Entry (k, l) of the column-major matrix by its offset (one bounds check where a 2-D index makes two).
         let rows = out.nrows();
         debug_assert!(terms.iter().all(|t| t.index < rows), "an unknown's index within the matrix");
         let entries = out.as_mut_slice();
+        // A pair whose d is zero adds nothing: the entries start at +0 and never become -0, so skipping
+        // the addition of a zero leaves the same bits.
         for (a, tk) in terms.iter().enumerate() {
             let (earlier, rest) = terms.split_at(a);
             for tl in earlier.iter().filter(|tl| tl.revolute) {

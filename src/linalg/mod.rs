@@ -628,9 +628,9 @@ fn larger(m: f64, v: f64) -> f64 {
 
 /// Cholesky factorisation in place of a dense n x n symmetric matrix (row-major, or column-major: the same
 /// for a symmetric one): its lower triangle is read and overwritten by L row by row, each entry one dot
-/// product of two rows' leading parts (L_ij = (a_ij - sum_k<j L_ik L_jk) / L_jj), a scalar loop: the
-/// matrices here are a dozen rows, where a vectorised loop's set-up costs more than its work. False where a
-/// pivot is not positive or not finite (not positive definite to round-off).
+/// product of two rows' leading parts (L_ij = (a_ij - sum_k<j L_ik L_jk) / L_jj) summed in order: its
+/// callers read the factor's values (`small_cholesky`, `spd_inverse6`), which keep their bits so. False
+/// where a pivot is not positive or not finite (not positive definite to round-off).
 fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
     cholesky_rows(a, n, |x, y| x.iter().zip(y).map(|(x, y)| x * y).sum())
 }

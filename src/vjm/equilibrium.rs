@@ -494,8 +494,9 @@ fn resize_zeroed(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
         *m = DMatrix::zeros(rows, cols);
     } else {
         // Column by column: one fill of the whole matrix (4 KB on the 3-PUU's legs) went to libc's memset
-        // and its `rep stosb`, several times the instructions of column-sized fills.
-        for column in m.as_mut_slice().chunks_exact_mut(rows) {
+        // and its `rep stosb`, several times the instructions of column-sized fills. A chain with no
+        // unknown has an empty matrix and nothing to fill (and columns of no length to cut).
+        for column in m.as_mut_slice().chunks_exact_mut(rows.max(1)) {
             column.fill(0.0);
         }
     }
@@ -527,5 +528,24 @@ mod tests {
         assert_eq!(distance([0.0, 0.0, 0.0], Vec6::new(0.0, 0.0, 0.0, 0.0, 0.0, x)), x);
         // The largest counts: an angle's x beside a length's x mm (x / L relative).
         assert_eq!(distance([0.5 * x, x, 0.0], none), 0.5 * x);
+    }
+
+    /// A chain whose end is held by its actuated joint alone (no passive joint, no spring) has no unknown
+    /// but the end wrench: six constraints on none, a singular equilibrium. Its linearisation says so,
+    /// again at the second call, whose statics block (empty) is reused; cutting that block into columns
+    /// of its height, zero, panicked.
+    #[test]
+    fn a_chain_without_unknowns_linearises_to_a_singular_system_every_time() {
+        use crate::kinematics::chain::{Element, Joint, JointKind, Role};
+        let joint = Joint { kind: JointKind::Prismatic, axis: Vec3::x(), role: Role::Actuated, index: 0, gain: 1.0 };
+        let chain = Chain::new(vec![Element::Joint(joint)]);
+        let loaded =
+            LoadedChain { chain: &chain, springs: &[], gravity: Vec3::zeros(), preload: &[], length_scale: 1.0 };
+        let coords = Coordinates::zeros(&chain);
+        let mut ws = EquilibriumWorkspace::default();
+        let wrench = Vec6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for _ in 0..2 {
+            assert!(loaded.linearize(&Frame::IDENTITY, &coords, &wrench, &mut ws).is_none());
+        }
     }
 }
