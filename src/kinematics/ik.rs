@@ -144,7 +144,8 @@ impl IkWorkspace {
 /// evaluation's instructions on a 3-PUU leg), and the next step reuses the last factorisation (a chord
 /// step) where the step that led there contracted the error enough for it: a map's placement from an
 /// extrapolated start is then one full evaluation at the start, a Newton step tried on the end frame, and
-/// a chord step to the solution, evaluated in full.
+/// a chord step to the solution, evaluated in full; from a start the rows before corrected to within the
+/// tolerance (`platform::leg_state::PlacementTrail`), the evaluation at the start and one polishing step.
 ///
 /// The step is the minimum-norm damped solution `du = J^T (J J^T + lambda I)^-1 e` in the weighted metric,
 /// a 6x6 solve whatever the number of unknowns, so redundant and deficient chains (a 3-PUU leg has five
