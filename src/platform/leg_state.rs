@@ -146,7 +146,8 @@ pub(super) struct PlacementTrail {
     current: usize,
     rows_kept: usize,
     /// The extrapolation `predict_into` made for `pending_position` (before any correction) with its count
-    /// of terms: the miss `record` measures.
+    /// of terms: the miss `record` measures. One of a single term (the newest placement as it is) is left
+    /// for `record` to copy from `coordinates`, where it is read only if it is needed.
     pending: Vec<f64>,
     pending_position: Option<(Vec3, usize)>,
     /// The slot of the newest placement.
