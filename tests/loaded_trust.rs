@@ -375,12 +375,14 @@ fn a_settled_pose_is_the_deflected_pose() {
     let m = orthoglide();
     let wrench: Vec6 = MILLING.into();
     // Placements converged past inverse kinematics' usual tolerance (as a controller's are), so that both
-    // solves see the same actuator coordinates.
+    // solves see the same actuator coordinates: placed for a load, as compensation places its commands,
+    // to round-off (a placement for a stiffness stops at 1e-14 of the length scale, noise in the
+    // extrapolated loaded starts).
     let (mut s, mut history) = (m.new_state(), LoadedHistory::default());
     let (mut single_steps, points) = (0, 400);
     for k in 0..points {
         let commanded = Frame::translation(Vec3::new(-73.65, -73.65 + 0.005 * k as f64, -73.65));
-        m.place(&commanded, &mut s).unwrap();
+        m.place_for_load(&commanded, &mut s).unwrap();
         let start = history.start(&commanded.pos, &commanded, &mut s.legs);
         let settled = m.settle(&commanded, &wrench, start.as_ref(), &mut s).unwrap();
         history.push(commanded.pos, settled.displacement, &s.legs);
@@ -407,7 +409,7 @@ fn a_stability_solves_pose_is_the_deflected_pose() {
     let mut worst = (0.0f64, 0.0f64);
     for k in 0..200 {
         let commanded = Frame::translation(Vec3::new(-73.65, -73.65 + 0.01 * k as f64, -73.65));
-        m.place(&commanded, &mut s).unwrap();
+        m.place_for_load(&commanded, &mut s).unwrap();
         let start = history.start(&commanded.pos, &commanded, &mut s.legs);
         let (settled, stable) = m.settle_stable(&commanded, &wrench, start.as_ref(), &mut s).unwrap();
         history.push(commanded.pos, settled.displacement, &s.legs);
@@ -449,4 +451,37 @@ fn polished_placements_follow_commands_below_the_ik_tolerance() {
         let moved = (near[k] - base[k]) / 1e-8;
         assert!((moved - slope).abs() <= 1e-2 * slope.abs().max(1e-3), "actuator {k}: {moved} vs {slope} per mm");
     }
+}
+
+/// A compensation's commands are a smooth function of its path's targets but lie unequally spaced, so
+/// that placed by their own poses each starts from the last placement, a path's step away (here 0.1 mm,
+/// about 1e-4 of the leg's length scale: a Newton step, then a polishing step). Placed along the targets
+/// (`place_along`), each leg starts from the cubic extrapolation through its last four placements as a
+/// function of the target, within the tolerance: from the fifth command on, at most one polishing step.
+/// Either way every leg lands on the same actuator coordinates (within 1e-11 mm: both polished to
+/// round-off).
+#[test]
+fn commands_placed_along_their_targets_start_from_the_extrapolation() {
+    use stiff::kinematics::ik::Needs;
+    let m = orthoglide();
+    let (mut along, mut own) = (m.new_state(), m.new_state());
+    // The command's offset from its target: smooth, up to 0.3 mm, so that the commands' spacing varies.
+    let offset = |y: f64| Vec3::new(0.3 * (y / 20.0).sin(), 0.2 * (y / 15.0).cos(), 0.1 * y / 200.0);
+    let (mut steps_along, mut steps_own) = (Vec::new(), Vec::new());
+    for k in 0..40 {
+        let target = Frame::translation(Vec3::new(-73.65, -73.65 + 0.1 * k as f64, -73.65));
+        let command = Frame::translation(target.pos + offset(target.pos.y));
+        for (i, leg) in m.legs.iter().enumerate() {
+            let n_along = leg.place_along(&command, Some(&target), &mut along.legs[i], Needs::Pose).unwrap();
+            let n_own = leg.place(&command, &mut own.legs[i], Needs::Pose).unwrap();
+            let (a, b) = (&along.legs[i].coords.actuated, &own.legs[i].coords.actuated);
+            assert!((a[0] - b[0]).abs() < 1e-11, "command {k}, leg {i}: {} vs {} mm", a[0], b[0]);
+            if k >= 4 {
+                steps_along.push(n_along);
+                steps_own.push(n_own);
+            }
+        }
+    }
+    assert!(steps_along.iter().all(|&n| n <= 1), "iterations along the targets: {steps_along:?}");
+    assert!(steps_own.iter().all(|&n| n >= 2), "iterations by the commands' own poses: {steps_own:?}");
 }

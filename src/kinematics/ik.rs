@@ -41,10 +41,15 @@ pub const TOLERANCE: f64 = 1e-9;
 const POLISHED: f64 = 1e-5;
 /// Round-off, as a fraction of the tolerance: 1e-16 of the length scale (9e-14 mm on a 900 mm 3-PUU leg),
 /// about what a Newton step from within the tolerance leaves (2e-14 to 9e-14 mm there). An extrapolated
-/// start below it is a solution already. Accepting extrapolations at the polished level instead left
-/// placements 1e-13 to 4e-12 mm from their poses, noise in the next loaded starts extrapolated from the
-/// loaded solutions they shift: along a finely sampled line, settling took two chord steps at 57% of
-/// the points instead of 22%.
+/// start below it is a solution already for a caller that reads the pose alone (`Needs::Pose`: a loaded
+/// equilibrium starts there). Accepting extrapolations at the polished level for those left placements
+/// 1e-13 to 4e-12 mm from their poses, noise in the next loaded starts extrapolated from the loaded
+/// solutions they shift: along a finely sampled line, settling took two chord steps at 57% of the points
+/// instead of 22%. A caller that reads the Jacobians there (`Needs::Jacobians`: a stiffness, a joint's
+/// twists) takes an extrapolated start at the polished level as it is: the Jacobians of a configuration
+/// 1e-14 of the length scale away differ by about that much, relatively (the unloaded 3-PUU's compliance
+/// moved by 2e-12 of its scale at most), where a polishing step costs a second evaluation of the chain
+/// (on the unloaded 3-PUU's bench grid, half its placements).
 const ROUND_OFF: f64 = 1e-7;
 /// Chord steps (on the last factorisation) are taken from iterates the step before brought this much
 /// closer, or more: they then converge at least about as fast as that step did.
@@ -64,7 +69,7 @@ pub const REACH_TOLERANCE_MM: f64 = 1e-4;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Needs {
     /// The chain's Jacobians there (a stiffness, a joint's twists): a trial expected to be the solution is
-    /// evaluated in full.
+    /// evaluated in full, and an extrapolated start at the polished level is a solution as it is.
     Jacobians,
     /// The pose alone (a loaded equilibrium, which evaluates its own chain from there): every trial expected
     /// to be the solution is tried on the end frame, and the solution's evaluation is left to be made where
@@ -160,7 +165,11 @@ pub fn solve(
 ) -> Result<usize, IkFailure> {
     let tolerance = TOLERANCE * length_scale.max(1.0);
     let polished_level = POLISHED * tolerance;
-    let round_off = ROUND_OFF * tolerance;
+    // The level at which an extrapolated start is a solution as it is (see `ROUND_OFF`).
+    let start_level = match needs {
+        Needs::Jacobians => polished_level,
+        Needs::Pose => ROUND_OFF * tolerance,
+    };
     ws.trial_coords.clone_from(coords);
     // A start evaluated and kept is a solution (the last one, or a seeded configuration's own pose), as is
     // one whose evaluation was left to be made.
@@ -183,10 +192,11 @@ pub fn solve(
     for iteration in 0..MAX_ITERATIONS {
         let converged = norm <= tolerance;
         // A Newton iterate or a solution already at the polished level needs no polishing step. Any other
-        // start (an extrapolation, a loaded configuration) takes at least one step unless it is at
-        // round-off: its error, however small, is the start's (an extrapolation's within 1e-11 mm would
-        // stay in every loaded answer, and as noise in the extrapolations of the next loaded starts).
-        let at_level = if iteration > 0 || start_is_solution { polished_level } else { round_off };
+        // start (an extrapolation, a loaded configuration) takes at least one step unless it is within
+        // `start_level`: its error, however small, is the start's (for a pose alone, an extrapolation's
+        // within 1e-11 mm would stay in every loaded answer, and as noise in the extrapolations of the
+        // next loaded starts).
+        let at_level = if iteration > 0 || start_is_solution { polished_level } else { start_level };
         if converged && (newton_polished || norm <= at_level) {
             return finish(true, iteration, norm, evaluated, ws);
         }

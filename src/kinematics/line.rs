@@ -55,6 +55,11 @@ impl<const N: usize> PositionRing<N> {
         self.count = 0;
     }
 
+    /// The newest position, where the ring holds one.
+    pub fn newest(&self) -> Option<&Vec3> {
+        (self.count > 0).then_some(&self.positions[self.newest])
+    }
+
     /// Records `position` as the newest (over the oldest once the ring is full) and returns its slot.
     pub fn push(&mut self, position: Vec3) -> usize {
         self.newest = (self.newest + 1) % N;

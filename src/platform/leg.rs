@@ -201,8 +201,20 @@ impl Leg {
     /// warm-started from the state's previous solution, else from the home configuration (all zero). Fixes
     /// the actuated coordinates for the loaded answers that follow.
     pub fn place(&self, platform: &Frame, state: &mut LegState, needs: Needs) -> Result<usize, LegFailure> {
+        self.place_along(platform, None, state, needs)
+    }
+
+    /// As `place`, the start extrapolated from the placements before as a function of `along` where given
+    /// (`Manipulator::place_along`), else of the leg's target. Returns the inverse kinematics' iterations.
+    pub fn place_along(
+        &self,
+        platform: &Frame,
+        along: Option<&Frame>,
+        state: &mut LegState,
+        needs: Needs,
+    ) -> Result<usize, LegFailure> {
         match self {
-            Leg::Vjm(l) => l.place(platform, state, needs),
+            Leg::Vjm(l) => l.place(platform, state, needs, along),
             Leg::Msa(l) => l.place(platform, &mut state.msa).map(|_| 0),
         }
     }

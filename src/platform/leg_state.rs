@@ -196,8 +196,9 @@ impl PlacementTrail {
         &self.rows[(self.current + self.rows.len() - back) % self.rows.len()]
     }
 
-    /// Records the placement `placed` at `target` as the newest (over the oldest once the trail is full;
-    /// the others forgotten where the target turned), and its miss in its row.
+    /// Records the placement `placed` at `target` as the newest (over the oldest once the trail is full, or
+    /// over the newest where it is the newest's target again; the others forgotten where the target
+    /// turned), and its miss in its row.
     pub(super) fn record(&mut self, target: &Frame, placed: &Coordinates) {
         let n = placed.actuated.len() + placed.passive.len();
         if target.rot != self.rotation || self.coordinates.len() != PLACEMENTS_KEPT * n {
@@ -218,7 +219,13 @@ impl PlacementTrail {
             Some((p, count)) if p == target.pos && self.pending.len() == n => count,
             _ => 0,
         };
-        let slot = self.positions.push(target.pos);
+        // A target placed again (a load solved anew at the pose just placed, a path's target commanded
+        // anew) replaces its last placement: the same position twice would end every extrapolation
+        // through it for the next four targets.
+        let slot = match self.positions.newest() {
+            Some(newest) if *newest == target.pos => self.newest_slot,
+            _ => self.positions.push(target.pos),
+        };
         self.newest_slot = slot;
         let values = placed.actuated.iter().chain(&placed.passive);
         for (x, q) in self.coordinates[slot * n..].iter_mut().zip(values.clone()) {
@@ -463,5 +470,31 @@ mod tests {
                 assert!((placed[0] - cubic).abs() > 1e-3);
             }
         }
+    }
+    /// A target placed a second time (a path's target commanded anew while a compensation iterates)
+    /// replaces its placement in the trail: the next target's start is still the cubic extrapolation
+    /// through the last four targets, exact for coordinates cubic along the line, where two entries at one
+    /// position would have ended it (the start then the last placement, a step's change away).
+    #[test]
+    fn a_target_placed_again_keeps_the_extrapolation_through_it() {
+        let q = |x: f64| [(x / 10.0).powi(3), 2.0 - x / 10.0];
+        let mut trail = PlacementTrail::default();
+        let mut coords = Coordinates { actuated: vec![0.0], passive: vec![0.0], virtual_: vec![] };
+        let mut place = |x: f64, coords: &mut Coordinates| {
+            let target = Frame::translation(Vec3::new(x, 1.0, 2.0));
+            let start = trail.predict_into(&target, coords).then(|| [coords.actuated[0], coords.passive[0]]);
+            [coords.actuated[0], coords.passive[0]] = q(x);
+            trail.record(&target, coords);
+            start
+        };
+        for x in [0.0, 3.0, 6.0, 9.0] {
+            place(x, &mut coords);
+        }
+        // Placed again at its own target, first from elsewhere (its start the last placement as it is).
+        [coords.actuated[0], coords.passive[0]] = [0.5, 0.5];
+        place(9.0, &mut coords);
+        let start = place(12.0, &mut coords).expect("an extrapolation");
+        let exact = q(12.0);
+        assert!((start[0] - exact[0]).abs() <= 1e-12 && (start[1] - exact[1]).abs() <= 1e-12, "{start:?} vs {exact:?}");
     }
 }

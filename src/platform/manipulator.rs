@@ -417,9 +417,35 @@ impl Manipulator {
         self.place_for(platform, state, Needs::Pose)
     }
 
+    /// As `place_for_load`, each leg's start extrapolated from its placements before as a function of
+    /// `along` in place of the pose: a path's target, of which the commands that compensate it are a smooth
+    /// function where, unlike the targets, they lie unequally spaced (and, on a robot that turns its
+    /// platform, not at one orientation), so that extrapolated by their own poses they would start from the
+    /// last placement alone, a path's step away. A state placed this way is placed so throughout.
+    pub fn place_along(
+        &self,
+        platform: &Frame,
+        along: &Frame,
+        state: &mut ManipulatorState,
+    ) -> Result<(), PoseFailure> {
+        self.place_keyed(platform, state, Needs::Pose, Some(along))
+    }
+
     fn place_for(&self, platform: &Frame, state: &mut ManipulatorState, needs: Needs) -> Result<(), PoseFailure> {
+        self.place_keyed(platform, state, needs, None)
+    }
+
+    /// Places every leg; `along` keys the legs' placement trails where given (`place_along`), else each
+    /// leg's own target does.
+    fn place_keyed(
+        &self,
+        platform: &Frame,
+        state: &mut ManipulatorState,
+        needs: Needs,
+        along: Option<&Frame>,
+    ) -> Result<(), PoseFailure> {
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
-            leg.place(platform, s, needs).map_err(|failure| PoseFailure { leg: i, failure })?;
+            leg.place_along(platform, along, s, needs).map_err(|failure| PoseFailure { leg: i, failure })?;
         }
         Ok(())
     }

@@ -125,8 +125,15 @@ impl VjmLeg {
         (state.ik.kept().unwrap_or(&state.jac), &state.coords)
     }
 
-    pub(super) fn place(&self, platform: &Frame, state: &mut LegState, needs: Needs) -> Result<usize, LegFailure> {
+    pub(super) fn place(
+        &self,
+        platform: &Frame,
+        state: &mut LegState,
+        needs: Needs,
+        along: Option<&Frame>,
+    ) -> Result<usize, LegFailure> {
         let target = self.target(platform);
+        let key = along.unwrap_or(&target);
         state.end_wrench = Vec6::zeros();
         state.last_target = target;
         // Placement is the nominal geometry (springs undeformed, theta = 0): the actuators are set for the
@@ -137,13 +144,13 @@ impl VjmLeg {
         }
         if state.warm {
             state.saved.clone_from(&state.coords);
-            if state.placements.predict_into(&target, &mut state.coords) {
+            if state.placements.predict_into(key, &mut state.coords) {
                 state.ik.invalidate();
             }
             match ik::solve(&self.chain, &target, &mut state.coords, &mut state.ik, self.length_scale, needs) {
                 Ok(n) => {
                     state.placed.clone_from(&state.coords);
-                    state.placements.record(&target, &state.coords);
+                    state.placements.record(key, &state.coords);
                     return Ok(n);
                 }
                 Err(_) => {
@@ -164,7 +171,7 @@ impl VjmLeg {
             Ok(n) => {
                 state.warm = true;
                 state.placed.clone_from(&state.coords);
-                state.placements.record(&target, &state.coords);
+                state.placements.record(key, &state.coords);
                 Ok(n)
             }
             Err(e) => {

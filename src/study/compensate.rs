@@ -562,7 +562,7 @@ impl Solver<'_> {
     /// solves its loaded equilibrium, starting from the pair's last one: the pose alone (`settle`), or with
     /// `stability` the stability there too (`settle_stable`).
     fn reach(&self, command: &Frame, pair: &mut Commanded, stability: bool) -> Result<Reached, Status> {
-        self.nominal.place(command, &mut pair.nominal).map_err(|e| Status::of(&e))?;
+        self.nominal.place_along(command, &self.target, &mut pair.nominal).map_err(|e| Status::of(&e))?;
         self.real.take_command(&pair.nominal, &mut pair.real);
         // Keyed by the target: every pair's command is a smooth function of it, equally spaced along a path
         // as the commands themselves are not.
