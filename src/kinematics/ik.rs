@@ -58,6 +58,12 @@ const CHORD_CONTRACTION: f64 = 1e-3;
 /// frame alone: the extrapolated starts of a map's rows (3e-3 mm on a 3-PUU grid 13 mm apart) land within
 /// the tolerance in one Newton step (1e-9 mm), and a chord step then polishes them.
 const POSE_ONLY_RANGE: f64 = 1e-4;
+/// A first Newton step from an error e is expected to leave this many times e^2 over the length scale, or
+/// less (quadratic convergence; on the 3-PUU's legs, from starts 1e-9 to 1e-1 of the length scale away,
+/// 0.04 to 2.6 times, and up to 11 times where what is left is round-off): where that is within the
+/// polished level the step is the solution, and a caller of the Jacobians has it evaluated in full rather
+/// than tried on the end frame first.
+const NEWTON_MARGIN: f64 = 100.0;
 /// The reach decision's tolerance (mm, rotations weighted by the length scale). At a reach boundary (a leg
 /// stretched to a fold of its kinematics) Gauss-Newton converges sublinearly: a 3-PUU pose 1e-5 mm inside
 /// its boundary ends 60 iterations 7e-6 mm away, as does one 1e-6 mm outside. A solve that ends within
@@ -229,9 +235,12 @@ pub fn solve(
             let expected = contraction * contraction * norm;
             (polished_level..=tolerance).contains(&expected) || (pose_wanted && expected < polished_level)
         } else {
-            // A first step: a Newton step from near the pose, or a polishing step from a start within the
-            // tolerance, expected to be the solution.
-            (!converged && norm <= POSE_ONLY_RANGE * length_scale) || (pose_wanted && converged)
+            // A first step: a Newton step from near the pose, unless it is expected to land at the
+            // polished level (`NEWTON_MARGIN`; a caller of the Jacobians evaluates the solution in full
+            // anyway), or a polishing step from a start within the tolerance, expected to be the solution.
+            let lands_polished = NEWTON_MARGIN * norm * norm / length_scale <= polished_level;
+            let newton = !converged && norm <= POSE_ONLY_RANGE * length_scale && (pose_wanted || !lands_polished);
+            newton || (pose_wanted && converged)
         };
         // Back-tracking: halve the step until the error decreases. A polishing step is tried whole only:
         // from within the tolerance the full step lowers the error unless round-off already dominates it,

@@ -97,18 +97,29 @@ impl Orthonormal6 {
     /// diagonal; while a direction is missing the largest is at least 1/6 (the trace is the dimension
     /// left), so the largest column, normalised, is a direction, and P loses it.
     pub fn complement(&self) -> impl Iterator<Item = nalgebra::Vector6<f64>> {
-        let mut p = nalgebra::Matrix6::identity();
+        // P is not formed: its diagonal is kept, and the one column a direction is taken from is made when
+        // it is chosen, each entry reduced by the directions in their order (the same products in the same
+        // order as P's, at a fifth of the cost where one or two directions are missing).
+        let mut diagonal = [1.0f64; 6];
         for q in self.directions() {
-            p -= q * q.transpose();
+            for (d, v) in diagonal.iter_mut().zip(q.iter()) {
+                *d -= v * v;
+            }
         }
         let mut complete = *self;
         while complete.len < 6 {
-            let k = (0..6).fold(0, |best, k| if p[(k, k)] > p[(best, best)] { k } else { best });
+            let k = (0..6).fold(0, |best, k| if diagonal[k] > diagonal[best] { k } else { best });
+            let mut column = nalgebra::Vector6::ith(k, 1.0);
+            for q in complete.directions() {
+                column -= q * q[k];
+            }
             // Once more against every direction: the column carries round-off of what P removed.
-            let mut q = p.column(k) / p[(k, k)].sqrt();
+            let mut q = column / diagonal[k].sqrt();
             remove_parts_along(&mut q, complete.directions());
             q /= q.norm();
-            p -= q * q.transpose();
+            for (d, v) in diagonal.iter_mut().zip(q.iter()) {
+                *d -= v * v;
+            }
             complete.directions[complete.len] = q;
             complete.len += 1;
         }
@@ -592,8 +603,10 @@ fn subtract_rows<'a, const R: usize>(
 }
 
 /// Every value finite: v * 0 is zero for a finite v and NaN for any other, so the products summed in four
-/// lanes (two vector registers, no branch per value) sum to zero exactly where every value is finite.
-fn all_finite(values: &[f64]) -> bool {
+/// lanes (two vector registers, no branch per value) sum to zero exactly where every value is finite. A
+/// matrix's entries are its `as_slice()`: nalgebra's iterator over them took a dozen instructions per entry
+/// (on the unloaded 3-PUU, 0.4 k per leg's stiffness).
+pub fn all_finite(values: &[f64]) -> bool {
     let chunks = values.chunks_exact(4);
     let rest = chunks.remainder().iter().fold(0.0, |sum, v| sum + v * 0.0);
     let lanes = chunks.fold([0.0f64; 4], |mut lanes, chunk| {
@@ -716,7 +729,7 @@ pub fn spd_inverse6(a: &nalgebra::Matrix6<f64>) -> Option<nalgebra::Matrix6<f64>
             inverse[(j, i)] = v;
         }
     }
-    inverse.iter().all(|v| v.is_finite()).then_some(inverse)
+    all_finite(inverse.as_slice()).then_some(inverse)
 }
 
 /// A Cholesky factorisation A = U^T U made in the caller's buffer over A's envelope (MSA's reduced stiffness

@@ -18,7 +18,7 @@
 use nalgebra::{SymmetricEigen, SVD};
 
 use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec6};
-use crate::linalg::{small_cholesky, MAX_ENTRY, MAX_SWEEPS};
+use crate::linalg::{all_finite, small_cholesky, MAX_ENTRY, MAX_SWEEPS};
 
 /// Relative eigenvalue of the equilibrated stiffness's symmetric part at or below which it is not positive
 /// definite: a few hundred times round-off.
@@ -226,7 +226,7 @@ fn definite_beyond_rank_tolerance(ke: &Mat6) -> bool {
 /// stiffness) C is the full inverse.
 pub fn analyse(k: &Mat6, magnitude: &Vec6, length_scale: f64, symmetric: bool) -> Analysis {
     let not_finite = Analysis { outcome: Outcome::NotFinite, condition: f64::NAN, positive_definite: false };
-    if !k.iter().all(|v| v.is_finite()) {
+    if !all_finite(k.as_slice()) {
         return not_finite;
     }
     let (ke, t) = equilibrated(k, magnitude, length_scale);
@@ -244,7 +244,7 @@ pub fn analyse(k: &Mat6, magnitude: &Vec6, length_scale: f64, symmetric: bool) -
     // condition number from it. Within the limit the rank is full and, for a symmetric K, definiteness
     // is settled too (lambda_min / lambda_max >= 1 / (6 condition)).
     let inverse = if symmetric { ke.cholesky().map(|c| c.inverse()) } else { ke.lu().try_inverse() };
-    let inverse = inverse.filter(|inv| inv.iter().all(|v| v.is_finite()));
+    let inverse = inverse.filter(|inv| all_finite(inv.as_slice()));
     let condition = inverse.as_ref().map_or(f64::INFINITY, |inv| norm1(&ke) * norm1(inv));
     if condition <= CONDITION_LIMIT {
         let inv = inverse.expect("a finite condition comes from an inverse");

@@ -5,6 +5,7 @@ use std::fmt::Write;
 
 pub use super::warm_start::LoadedHistory;
 use crate::kinematics::frame::{Mat6, Vec3, Vec6};
+use crate::linalg::all_finite;
 use crate::model::grid::PosePoint;
 use crate::output::report::{fmt6, matrix, TWIST, WRENCH};
 use crate::platform::compliance::{analyse, principal, Outcome, PrincipalCompliance};
@@ -172,8 +173,8 @@ impl PointResult {
 
     /// Marks a row whose numbers overflowed: nothing non-finite is ever written under `ok`.
     fn check_finite(mut self) -> Self {
-        let finite = |m: &Option<Mat6>| m.is_none_or(|m| m.iter().all(|v| v.is_finite()));
-        let finite_v = self.deflection.is_none_or(|d| d.iter().all(|v| v.is_finite()));
+        let finite = |m: &Option<Mat6>| m.is_none_or(|m| all_finite(m.as_slice()));
+        let finite_v = self.deflection.is_none_or(|d| all_finite(d.as_slice()));
         if self.status == Status::Ok && !(finite(&self.compliance) && finite_v) {
             self.status = Status::Overflow;
             self.compliance = None;

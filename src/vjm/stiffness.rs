@@ -5,7 +5,7 @@ use nalgebra::{Matrix6xX, SMatrix};
 use super::spring::SpringGroup;
 use crate::kinematics::chain::Coordinates;
 use crate::kinematics::frame::{weigh_rotations, Mat3, Mat6, Vec3, Vec6};
-use crate::linalg::{small_cholesky, small_forward};
+use crate::linalg::{all_finite, small_cholesky, small_forward};
 
 /// Relative pivot below which a passive-joint direction is taken as dependent on the others.
 pub const PASSIVE_RANK_TOLERANCE: f64 = 1e-9;
@@ -180,7 +180,7 @@ fn schur<const D: usize>(s: &Mat6, range: &PassiveRange) -> Option<Mat6> {
         row
     });
     let k = Mat6::from_fn(|a, b| (0..D).map(|i| z[a][i] * z[b][i]).sum());
-    k.iter().all(|v| v.is_finite()).then_some(k)
+    all_finite(k.as_slice()).then_some(k)
 }
 
 /// Paper 001 eq (9) as printed, a test oracle for `leg_stiffness`: the leg's stiffness is the upper-left 6x6 block of the inverse of the bordered matrix
