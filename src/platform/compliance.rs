@@ -123,7 +123,7 @@ fn length_weights(length_scale: f64) -> Vec6 {
 /// there), so the other two come from the 2x2 matrix on the plane orthogonal to its eigenvector, whose
 /// eigenvalues `(a + c)/2 +- hypot((a - c)/2, b)` keep their digits. None on non-finite input.
 pub fn symmetric_eigenvalues3(m: &Mat3) -> Option<[f64; 3]> {
-    if !m.iter().all(|v| v.is_finite()) {
+    if !all_finite(m.as_slice()) {
         return None;
     }
     let p1 = m[(0, 1)].powi(2) + m[(0, 2)].powi(2) + m[(1, 2)].powi(2);
@@ -355,7 +355,7 @@ pub fn spectrum(k: &Mat6, length_scale: f64) -> Option<Spectrum> {
     let t: Mat3 = s.fixed_view::<3, 3>(0, 0).into();
     let r: Mat3 = s.fixed_view::<3, 3>(3, 3).into();
     let ks = scaled(&s, length_scale);
-    if !ks.iter().all(|v| v.is_finite()) {
+    if !all_finite(ks.as_slice()) {
         return None;
     }
     let e = SymmetricEigen::try_new(ks, f64::EPSILON, MAX_SWEEPS)?;

@@ -408,13 +408,13 @@ impl Manipulator {
 
     /// Places every leg for the commanded pose (inverse kinematics).
     pub fn place(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<(), PoseFailure> {
-        self.place_for(platform, state, Needs::Jacobians)
+        self.place_for(platform, state, Needs::Jacobians, None)
     }
 
     /// As `place`, for a loaded equilibrium, which reads the placement's coordinates and evaluates the legs'
     /// chains itself: their evaluation there is left to be made where it is asked for.
     pub fn place_for_load(&self, platform: &Frame, state: &mut ManipulatorState) -> Result<(), PoseFailure> {
-        self.place_for(platform, state, Needs::Pose)
+        self.place_for(platform, state, Needs::Pose, None)
     }
 
     /// As `place_for_load`, each leg's start extrapolated from its placements before as a function of
@@ -428,16 +428,12 @@ impl Manipulator {
         along: &Frame,
         state: &mut ManipulatorState,
     ) -> Result<(), PoseFailure> {
-        self.place_keyed(platform, state, Needs::Pose, Some(along))
-    }
-
-    fn place_for(&self, platform: &Frame, state: &mut ManipulatorState, needs: Needs) -> Result<(), PoseFailure> {
-        self.place_keyed(platform, state, needs, None)
+        self.place_for(platform, state, Needs::Pose, Some(along))
     }
 
     /// Places every leg; `along` keys the legs' placement trails where given (`place_along`), else each
     /// leg's own target does.
-    fn place_keyed(
+    fn place_for(
         &self,
         platform: &Frame,
         state: &mut ManipulatorState,

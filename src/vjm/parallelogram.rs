@@ -11,6 +11,7 @@ use super::stiffness::{leg_stiffness, passive_range, spring_compliance_at_end};
 use crate::beam::{beam_compliance, BeamSection};
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{block_rotation, rotation_about, shift_stiffness, Frame, Mat3, Mat6, Vec3, Vec6};
+use crate::linalg::all_finite;
 
 /// A parallelogram whose bars turn about the local z axis by the angle of passive coordinate `angle`, bars
 /// along local x at angle 0, separated along local y.
@@ -75,7 +76,7 @@ impl Parallelogram {
         }
         let motion = Vec6::new(-q.sin(), q.cos(), 0.0, 0.0, 0.0, 0.0);
         total += motion * motion.transpose() * (total.trace() / 6.0);
-        Some((total + total.transpose()) * (0.5 / self.compliance_factor)).filter(|k| k.iter().all(|v| v.is_finite()))
+        Some((total + total.transpose()) * (0.5 / self.compliance_factor)).filter(|k| all_finite(k.as_slice()))
     }
 
     /// The stiffness of the parallelogram at its end side (frame with the base side's axes, at the middle of
@@ -129,7 +130,7 @@ impl Parallelogram {
             let total = bars[order] + motion;
             (total + total.transpose()) * (0.5 / self.compliance_factor)
         });
-        out.iter().all(|k| k.iter().all(|v| v.is_finite())).then_some(out)
+        out.iter().all(|k| all_finite(k.as_slice())).then_some(out)
     }
 }
 
@@ -175,7 +176,7 @@ fn expansion(pinned: &Mat6, separation: f64) -> [Mat6; 6] {
 
 /// A bar's 6-dof spring from its compliance; None where it has no finite stiffness.
 fn bar_spring(compliance: Mat6) -> Option<SpringGroup> {
-    let stiffness = compliance.try_inverse().filter(|k| k.iter().all(|v| v.is_finite()))?;
+    let stiffness = compliance.try_inverse().filter(|k| all_finite(k.as_slice()))?;
     Some(SpringGroup {
         name: "bar".into(),
         actuator: false,
