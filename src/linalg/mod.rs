@@ -170,18 +170,18 @@ pub fn outside_span(x: &nalgebra::DMatrix<f64>, y: &nalgebra::DMatrix<f64>) -> O
     Some(x - &q * (q.transpose() * x))
 }
 
-/// LU factorisation with partial pivoting of a column-major square matrix, made in place and copied by
-/// rows for the substitutions: each solved entry is then a dot product along a row of the factors, summed
+/// LU factorisation with partial pivoting of a column-major square matrix, copied by rows and factorised
+/// there: each solved entry of the substitutions is then a dot product along a row of the factors, summed
 /// in registers, where column-by-column substitutions update the right-hand side in memory once per
 /// column (on the loaded equilibrium's reduced matrices, about 11 square, with vector loops a few entries
 /// long whose set-up costs more than their arithmetic: the several right-hand sides of `solve_rows` took
-/// 40% more instructions that way).
+/// 40% more instructions that way). The elimination updates each later row along the pivot row, the same
+/// operations in the same order per entry as column by column, and a row exchange swaps two contiguous
+/// rows.
 #[derive(Clone, Debug, Default)]
 pub struct DenseLu {
     n: usize,
-    /// The factors, column-major (L below the diagonal, unit diagonal implied; U on and above it).
-    a: Vec<f64>,
-    /// The same factors row-major, for the substitutions' dot products along rows.
+    /// The factors, row-major (L below the diagonal, unit diagonal implied; U on and above it).
     rows: Vec<f64>,
     pivots: Vec<usize>,
 }
@@ -194,20 +194,22 @@ impl DenseLu {
     pub fn factor(&mut self, m: &[f64], n: usize) -> bool {
         assert_eq!(m.len(), n * n);
         self.n = n;
-        self.a.clear();
-        self.a.extend_from_slice(m);
+        self.rows.clear();
+        for i in 0..n {
+            self.rows.extend(m[i..].iter().step_by(n));
+        }
         self.pivots.clear();
         self.pivots.resize(n, 0);
-        let a = &mut self.a;
+        let a = &mut self.rows;
         if !all_finite(a) {
             return false;
         }
         for k in 0..n {
             let (mut p, mut best) = (k, a[k * n + k].abs());
-            for (i, v) in a[k * n + k + 1..k * n + n].iter().enumerate() {
+            for (i, v) in a[k * n + k..].iter().step_by(n).enumerate().skip(1) {
                 if v.abs() > best {
                     best = v.abs();
-                    p = k + 1 + i;
+                    p = k + i;
                 }
             }
             if best == 0.0 {
@@ -215,30 +217,22 @@ impl DenseLu {
             }
             self.pivots[k] = p;
             if p != k {
-                for col in a.chunks_exact_mut(n) {
-                    col.swap(k, p);
-                }
+                let (upper, lower) = a.split_at_mut(p * n);
+                upper[k * n..k * n + n].swap_with_slice(&mut lower[..n]);
             }
-            // Right-looking elimination: column k below the pivot becomes L's, and every later column j
-            // loses l * a_kj (the same operations, in the same order, as row by row).
-            let (left, right) = a.split_at_mut((k + 1) * n);
-            let pivot_column = &mut left[k * n + k..k * n + n];
-            let d = pivot_column[0];
-            for x in &mut pivot_column[1..] {
-                *x /= d;
-            }
-            let lcol = &pivot_column[1..];
-            for col in right.chunks_exact_mut(n) {
-                let f = col[k];
-                if f != 0.0 {
-                    for (x, l) in col[k + 1..].iter_mut().zip(lcol) {
-                        *x -= l * f;
-                    }
+            // Right-looking elimination: each later row's entry in column k becomes L's, l = a_ik / a_kk, and
+            // the row's later entries lose l * a_kj.
+            let (done, later) = a.split_at_mut((k + 1) * n);
+            let pivot_row = &done[k * n + k..k * n + n];
+            let (d, u) = (pivot_row[0], &pivot_row[1..]);
+            for row in later.chunks_exact_mut(n) {
+                let l = row[k] / d;
+                row[k] = l;
+                for (x, u) in row[k + 1..].iter_mut().zip(u) {
+                    *x -= l * u;
                 }
             }
         }
-        self.rows.clear();
-        self.rows.extend((0..n * n).map(|e| a[(e % n) * n + e / n]));
         true
     }
 
