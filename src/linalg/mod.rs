@@ -170,6 +170,69 @@ pub fn outside_span(x: &nalgebra::DMatrix<f64>, y: &nalgebra::DMatrix<f64>) -> O
     Some(x - &q * (q.transpose() * x))
 }
 
+/// `$body` with `$size` bound to `$n`, a literal where `$n` is one of the small sizes the shipped legs'
+/// reduced systems have (1 to 12): after inlining, the body's loops have lengths known when compiled, and
+/// the compiler drops their bounds checks and unrolls them. The same operations in the same order for
+/// every size.
+macro_rules! with_known_size {
+    ($n:expr, $size:ident => $body:expr) => {
+        match $n {
+            1 => {
+                let $size = 1;
+                $body
+            }
+            2 => {
+                let $size = 2;
+                $body
+            }
+            3 => {
+                let $size = 3;
+                $body
+            }
+            4 => {
+                let $size = 4;
+                $body
+            }
+            5 => {
+                let $size = 5;
+                $body
+            }
+            6 => {
+                let $size = 6;
+                $body
+            }
+            7 => {
+                let $size = 7;
+                $body
+            }
+            8 => {
+                let $size = 8;
+                $body
+            }
+            9 => {
+                let $size = 9;
+                $body
+            }
+            10 => {
+                let $size = 10;
+                $body
+            }
+            11 => {
+                let $size = 11;
+                $body
+            }
+            12 => {
+                let $size = 12;
+                $body
+            }
+            other => {
+                let $size = other;
+                $body
+            }
+        }
+    };
+}
+
 /// LU factorisation with partial pivoting of a column-major square matrix, copied by rows and factorised
 /// there: each solved entry of the substitutions is then a dot product along a row of the factors, summed
 /// in registers, where column-by-column substitutions update the right-hand side in memory once per
@@ -200,40 +263,11 @@ impl DenseLu {
         }
         self.pivots.clear();
         self.pivots.resize(n, 0);
-        let a = &mut self.rows;
-        if !all_finite(a) {
+        if !all_finite(&self.rows) {
             return false;
         }
-        for k in 0..n {
-            let (mut p, mut best) = (k, a[k * n + k].abs());
-            for (i, v) in a[k * n + k..].iter().step_by(n).enumerate().skip(1) {
-                if v.abs() > best {
-                    best = v.abs();
-                    p = k + i;
-                }
-            }
-            if best == 0.0 {
-                return false;
-            }
-            self.pivots[k] = p;
-            if p != k {
-                let (upper, lower) = a.split_at_mut(p * n);
-                upper[k * n..k * n + n].swap_with_slice(&mut lower[..n]);
-            }
-            // Right-looking elimination: each later row's entry in column k becomes L's, l = a_ik / a_kk, and
-            // the row's later entries lose l * a_kj.
-            let (done, later) = a.split_at_mut((k + 1) * n);
-            let pivot_row = &done[k * n + k..k * n + n];
-            let (d, u) = (pivot_row[0], &pivot_row[1..]);
-            for row in later.chunks_exact_mut(n) {
-                let l = row[k] / d;
-                row[k] = l;
-                for (x, u) in row[k + 1..].iter_mut().zip(u) {
-                    *x -= l * u;
-                }
-            }
-        }
-        true
+        let (a, pivots) = (&mut self.rows, &mut self.pivots);
+        lu_rows_in_place(a, pivots, n)
     }
 
     /// The factorisation's row exchanges applied to a right-hand side (its values, or its rows).
@@ -354,9 +388,14 @@ impl SaddlePointLu {
         // its largest such entry beats the best so far (found without a branch per entry).
         let size =
             |column: &[f64; CONSTRAINTS], rows_left: &[f64; CONSTRAINTS], r: usize| column[r].abs() * rows_left[r];
+        // The largest of the six sizes, as three pairs then across them (the maximum of finite values is
+        // exact in any order, so the pivot is the same; pairs make vector maxima of two lanes).
         let consider =
             |best: &mut (usize, f64), c: usize, column: &[f64; CONSTRAINTS], rows_left: &[f64; CONSTRAINTS]| {
-                let largest_left = (0..CONSTRAINTS).fold(0.0f64, |m, r| larger(m, size(column, rows_left, r)));
+                let s: [f64; CONSTRAINTS] = std::array::from_fn(|r| size(column, rows_left, r));
+                let pairs = [larger(s[0], s[2]), larger(s[1], s[3])];
+                let pairs = [larger(pairs[0], s[4]), larger(pairs[1], s[5])];
+                let largest_left = larger(pairs[0], pairs[1]);
                 if largest_left > best.1 {
                     *best = (c, largest_left);
                 }
@@ -559,25 +598,70 @@ impl SaddlePointLu {
         if f == 0 {
             return true;
         }
-        // Only the half the Cholesky reads (entries (c, row) with row <= c; the sum is exactly symmetric, so
-        // the largest entry is there too).
         let (r, s) = (&self.reduced, &mut self.symmetric);
         s.clear();
         s.resize(f * f, 0.0);
-        let mut largest = 0.0f64;
-        for c in 0..f {
-            for row in 0..=c {
-                let v = -0.5 * (r[c * f + row] + r[row * f + c]);
-                s[c * f + row] = v;
-                largest = larger(largest, v.abs());
+        with_known_size!(f, f => negative_definite_symmetric_part(r, s, f))
+    }
+}
+
+/// The symmetric part of the f x f column-major matrix `r` is negative definite, to a margin of 1e-12 of
+/// its largest entry (`SaddlePointLu::reduced_negative_definite`), `s` (f x f) the scratch.
+#[inline(always)]
+fn negative_definite_symmetric_part(r: &[f64], s: &mut [f64], f: usize) -> bool {
+    let (r, s) = (&r[..f * f], &mut s[..f * f]);
+    // Only the half the Cholesky reads (entries (c, row) with row <= c; the sum is exactly symmetric, so
+    // the largest entry is there too).
+    let mut largest = 0.0f64;
+    for c in 0..f {
+        for row in 0..=c {
+            let v = -0.5 * (r[c * f + row] + r[row * f + c]);
+            s[c * f + row] = v;
+            largest = larger(largest, v.abs());
+        }
+    }
+    let margin = 1e-12 * largest.max(f64::MIN_POSITIVE);
+    for d in 0..f {
+        s[d * f + d] -= margin;
+    }
+    positive_definite_in_place(s, f)
+}
+
+/// LU factorisation with partial pivoting in place of the n x n row-major `a` (`DenseLu::factor`), the
+/// pivots' rows into `pivots`. False where a pivot is exactly zero.
+#[inline(always)]
+fn lu_rows_in_place(a: &mut [f64], pivots: &mut [usize], n: usize) -> bool {
+    let (a, pivots) = (&mut a[..n * n], &mut pivots[..n]);
+    for k in 0..n {
+        let (mut p, mut best) = (k, a[k * n + k].abs());
+        for (i, v) in a[k * n + k..].iter().step_by(n).enumerate().skip(1) {
+            if v.abs() > best {
+                best = v.abs();
+                p = k + i;
             }
         }
-        let margin = 1e-12 * largest.max(f64::MIN_POSITIVE);
-        for d in 0..f {
-            s[d * f + d] -= margin;
+        if best == 0.0 {
+            return false;
         }
-        positive_definite_in_place(s, f)
+        pivots[k] = p;
+        if p != k {
+            let (upper, lower) = a.split_at_mut(p * n);
+            upper[k * n..k * n + n].swap_with_slice(&mut lower[..n]);
+        }
+        // Right-looking elimination: each later row's entry in column k becomes L's, l = a_ik / a_kk, and
+        // the row's later entries lose l * a_kj.
+        let (done, later) = a.split_at_mut((k + 1) * n);
+        let pivot_row = &done[k * n + k..k * n + n];
+        let (d, u) = (pivot_row[0], &pivot_row[1..]);
+        for row in later.chunks_exact_mut(n) {
+            let l = row[k] / d;
+            row[k] = l;
+            for (x, u) in row[k + 1..].iter_mut().zip(u) {
+                *x -= l * u;
+            }
+        }
     }
+    true
 }
 
 /// `start - sum_k c_k row_k`, the products subtracted one at a time in order, the sum held in a local and
@@ -637,6 +721,7 @@ fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
 /// (`paired_dot`: two terms per vector operation). Only the pivots' signs are read, so the order of the
 /// sums changes no result but at a pivot within round-off of zero (the stability test's margin, 1e-12 of
 /// the largest entry, is ten thousand times round-off), and the factor's values go nowhere.
+#[inline(always)]
 fn positive_definite_in_place(a: &mut [f64], n: usize) -> bool {
     cholesky_rows(a, n, paired_dot)
 }
