@@ -305,19 +305,9 @@ impl DenseLu {
     /// triangle, then back substitution with the upper one, each entry a dot product along its row of the
     /// factors (the back substitution's in the order of decreasing k, as a column-by-column one makes it).
     pub fn solve_in_place(&self, b: &mut [f64]) {
-        let (n, lu) = (self.n, &self.rows);
-        let b = &mut b[..n];
+        let b = &mut b[..self.n];
         self.exchange_rows(b);
-        for i in 1..n {
-            let (done, rest) = b.split_at_mut(i);
-            rest[0] = lu[i * n..i * n + i].iter().zip(done.iter()).fold(rest[0], |v, (l, x)| v - l * x);
-        }
-        for i in (0..n).rev() {
-            let row = &lu[i * n..i * n + n];
-            let (upto, later) = b.split_at_mut(i + 1);
-            let v = row[i + 1..].iter().zip(later.iter()).rev().fold(upto[i], |v, (u, x)| v - u * x);
-            upto[i] = v / row[i];
-        }
+        with_known_size!(self.n, n => substitute(&self.rows, b, n))
     }
 }
 
@@ -377,6 +367,15 @@ impl SaddlePointLu {
         if k < CONSTRAINTS || !all_finite(self.reduced_rows.as_flattened()) || !all_finite(w) {
             return false;
         }
+        with_known_size!(k - CONSTRAINTS, f => self.factor_checked(w, f + CONSTRAINTS))
+    }
+
+    /// `factor` once J's columns are in `reduced_rows` and every entry is known finite, k = f + 6 (the same
+    /// steps for a literal f).
+    #[inline(always)]
+    fn factor_checked(&mut self, w: &[f64], k: usize) -> bool {
+        let w = &w[..k * k];
+        self.reduced_rows.truncate(k);
         let largest = self.reduced_rows.iter().flatten().fold(0.0f64, |l, v| larger(l, v.abs()));
         self.reduced_rows.extend((0..CONSTRAINTS).map(|c| std::array::from_fn(|r| if r == c { 1.0 } else { 0.0 })));
         // The row of each basic coordinate's pivot, in pivot order; 1 for the rows without a pivot yet, 0 for
@@ -423,7 +422,7 @@ impl SaddlePointLu {
             let inverse = 1.0 / self.reduced_rows[pc][pr];
             let mut factors = self.reduced_rows[pc];
             factors[pr] = 0.0;
-            for (c, column) in self.reduced_rows.iter_mut().enumerate() {
+            let eliminate = |column: &mut [f64; CONSTRAINTS]| {
                 let p = column[pr] * inverse;
                 for (v, f) in column.iter_mut().zip(&factors) {
                     *v -= f * p;
@@ -432,10 +431,16 @@ impl SaddlePointLu {
                 // stored first (p - 0 p: the same bits); storing p first made the loop's vector loads wait on
                 // that store (a failed store forwarding).
                 column[pr] = p - factors[pr] * p;
-                if search && c < k && c != pc {
+            };
+            // J's columns, then the identity's (the row operations), which are no pivot candidates.
+            let (j_columns, operations) = self.reduced_rows[..k + CONSTRAINTS].split_at_mut(k);
+            for (c, column) in j_columns.iter_mut().enumerate() {
+                eliminate(column);
+                if search && c != pc {
                     consider(&mut best, c, column, &rows_left);
                 }
             }
+            operations.iter_mut().for_each(eliminate);
             // Exactly a unit column (p above is 1 to round-off only).
             self.reduced_rows[pc] = std::array::from_fn(|r| if r == pr { 1.0 } else { 0.0 });
             *pivot_row = pr;
@@ -446,24 +451,38 @@ impl SaddlePointLu {
         let basic = self.basic;
         self.free.clear();
         self.free.extend((0..k).filter(|c| !basic.contains(c)));
-        let f = self.free.len();
-        self.x.clear();
-        self.x.extend(self.free.iter().map(|&c| std::array::from_fn(|i| self.reduced_rows[c][pivot_rows[i]])));
-        self.w_basic_columns.clear();
-        self.w_basic_columns.extend((0..k).map(|r| std::array::from_fn(|i| w[basic[i] * k + r])));
-        self.w_basic_rows.clear();
-        self.w_basic_rows.extend((0..k).map(|c| std::array::from_fn(|i| w[c * k + basic[i]])));
+        // The six basic coordinates are distinct (each pivot's column a unit column after it).
+        let f = k - CONSTRAINTS;
+        debug_assert_eq!(self.free.len(), f);
+        // Filled in place (a resize, then stores): `extend` over an iterator was compiled out of line once
+        // per size of `with_known_size!`.
+        self.x.resize(f, [0.0; CONSTRAINTS]);
+        for (xc, &c) in self.x.iter_mut().zip(&self.free[..f]) {
+            *xc = std::array::from_fn(|i| self.reduced_rows[c][pivot_rows[i]]);
+        }
+        self.w_basic_columns.resize(k, [0.0; CONSTRAINTS]);
+        for (r, wb) in self.w_basic_columns.iter_mut().enumerate() {
+            *wb = std::array::from_fn(|i| w[basic[i] * k + r]);
+        }
+        self.w_basic_rows.resize(k, [0.0; CONSTRAINTS]);
+        for (c, wb) in self.w_basic_rows.iter_mut().enumerate() {
+            *wb = std::array::from_fn(|i| w[c * k + basic[i]]);
+        }
         // W Z, column by column of Z: z_c = e_free[c] - sum_i X[c, i] e_basic[i].
-        self.wz.clear();
-        for (&fc, xc) in self.free.iter().zip(&self.x) {
+        self.wz.resize(k * f, 0.0);
+        for ((wz_c, &fc), xc) in self.wz.chunks_exact_mut(k).zip(&self.free[..f]).zip(&self.x[..f]) {
             let column = &w[fc * k..fc * k + k];
-            self.wz.extend(column.iter().zip(&self.w_basic_columns).map(|(v, wb)| v - dot(wb, xc)));
+            for ((out, v), wb) in wz_c.iter_mut().zip(column).zip(&self.w_basic_columns[..k]) {
+                *out = v - dot(wb, xc);
+            }
         }
         // Z^T (W Z): entry (r, c) = (W Z)[free[r], c] - sum_i X[r, i] (W Z)[basic[i], c].
-        self.reduced.clear();
-        for wz_c in self.wz.chunks_exact(k) {
+        self.reduced.resize(f * f, 0.0);
+        for (reduced_c, wz_c) in self.reduced.chunks_exact_mut(f.max(1)).zip(self.wz.chunks_exact(k)) {
             let on_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| wz_c[basic[i]]);
-            self.reduced.extend(self.free.iter().zip(&self.x).map(|(&fr, xr)| wz_c[fr] - dot(xr, &on_basic)));
+            for ((out, &fr), xr) in reduced_c.iter_mut().zip(&self.free[..f]).zip(&self.x[..f]) {
+                *out = wz_c[fr] - dot(xr, &on_basic);
+            }
         }
         f == 0 || self.lu.factor(&self.reduced, f)
     }
@@ -471,7 +490,15 @@ impl SaddlePointLu {
     /// Solves in place for R right-hand sides at once, stored by rows in equation order (b's six rows, then
     /// a's k); on return the rows hold the unknowns in their order (x's k, then F's six).
     pub fn solve_rows<const R: usize>(&mut self, rows: &mut [[f64; R]]) {
-        let k = self.k;
+        with_known_size!(self.free.len(), f => self.solve_many(rows, f))
+    }
+
+    /// `solve_rows` with f the number of free coordinates (the same steps for a literal f).
+    #[inline(always)]
+    fn solve_many<const R: usize>(&mut self, rows: &mut [[f64; R]], f: usize) {
+        let k = f + CONSTRAINTS;
+        debug_assert_eq!(k, self.k);
+        let (free, x, w_basic_columns) = (&self.free[..f], &self.x[..f], &self.w_basic_columns[..k]);
         let rows = &mut rows[..k + CONSTRAINTS];
         let (b, a) = rows.split_at(CONSTRAINTS);
         // x_p on the basic coordinates: B^-1 b.
@@ -488,15 +515,14 @@ impl SaddlePointLu {
         self.residual.resize(k * R, 0.0);
         let (residual, _) = self.residual.as_chunks_mut::<R>();
         // Each row is summed in a local and stored once (`subtract_rows`).
-        for ((r, aj), wb) in residual.iter_mut().zip(a).zip(&self.w_basic_columns) {
+        for ((r, aj), wb) in residual.iter_mut().zip(a).zip(w_basic_columns) {
             *r = subtract_rows(*aj, wb.iter().zip(&x_basic));
         }
         // y = (Z^T W Z)^-1 Z^T (a - W x_p).
-        let f = self.free.len();
         self.free_part.clear();
         self.free_part.resize(f * R, 0.0);
         let (y, _) = self.free_part.as_chunks_mut::<R>();
-        for ((yc, &fc), xc) in y.iter_mut().zip(&self.free).zip(&self.x) {
+        for ((yc, &fc), xc) in y.iter_mut().zip(free).zip(x) {
             *yc = subtract_rows(residual[fc], xc.iter().zip(&self.basic).map(|(xi, &bi)| (xi, &residual[bi])));
         }
         if f > 0 {
@@ -504,7 +530,7 @@ impl SaddlePointLu {
         }
         // x = x_p + Z y on the basic coordinates (each summed over the free coordinates in their order).
         for (i, xb) in x_basic.iter_mut().enumerate() {
-            *xb = subtract_rows(*xb, self.x.iter().zip(y.iter()).map(|(xc, yc)| (&xc[i], yc)));
+            *xb = subtract_rows(*xb, x.iter().zip(y.iter()).map(|(xc, yc)| (&xc[i], yc)));
         }
         // The basic rows' (a - W x)_b, then F = B^-T (a - W x)_b.
         let mut statics = [[0.0; R]; CONSTRAINTS];
@@ -521,7 +547,7 @@ impl SaddlePointLu {
                 }
             }
         };
-        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+        for (&fc, yc) in free.iter().zip(y.iter()) {
             subtract(&mut statics, &w_rows[fc], yc);
         }
         for (&bc, xb) in self.basic.iter().zip(&x_basic) {
@@ -535,7 +561,7 @@ impl SaddlePointLu {
                 }
             }
         }
-        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+        for (&fc, yc) in free.iter().zip(y.iter()) {
             rows[fc] = *yc;
         }
         for (&bc, xb) in self.basic.iter().zip(&x_basic) {
@@ -548,29 +574,41 @@ impl SaddlePointLu {
     /// basic coordinates is one of six-entry arrays, where `solve_rows::<1>` would walk them one
     /// single-entry row at a time (a chord step of the loaded equilibrium makes one such solve per leg).
     pub fn solve_in_place(&mut self, rows: &mut [f64]) {
-        let k = self.k;
+        with_known_size!(self.free.len(), f => self.solve_one(rows, f))
+    }
+
+    /// `solve_in_place` with f the number of free coordinates (the same steps for a literal f).
+    #[inline(always)]
+    fn solve_one(&mut self, rows: &mut [f64], f: usize) {
+        let k = f + CONSTRAINTS;
+        debug_assert_eq!(k, self.k);
+        let (free, x, w_basic_columns) = (&self.free[..f], &self.x[..f], &self.w_basic_columns[..k]);
         let rows = &mut rows[..k + CONSTRAINTS];
         let (b, a) = rows.split_at(CONSTRAINTS);
         let b: &[f64; CONSTRAINTS] = b.try_into().expect("six constraint rows");
         // x_p on the basic coordinates: B^-1 b; the residual a - W x_p.
         let mut x_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| dot(&self.basic_inverse[i], b));
-        self.residual.clear();
-        self.residual.extend(a.iter().zip(&self.w_basic_columns).map(|(aj, wb)| aj - dot(wb, &x_basic)));
-        let residual = &self.residual;
+        self.residual.resize(k, 0.0);
+        for ((r, aj), wb) in self.residual.iter_mut().zip(a).zip(w_basic_columns) {
+            *r = aj - dot(wb, &x_basic);
+        }
+        let residual = &self.residual[..k];
         // y = (Z^T W Z)^-1 Z^T (a - W x_p).
         let on_basic: [f64; CONSTRAINTS] = std::array::from_fn(|i| residual[self.basic[i]]);
-        self.free_part.clear();
-        self.free_part.extend(self.free.iter().zip(&self.x).map(|(&fc, xc)| residual[fc] - dot(xc, &on_basic)));
-        let y = &mut self.free_part;
-        if !y.is_empty() {
+        self.free_part.resize(f, 0.0);
+        for ((y, &fc), xc) in self.free_part.iter_mut().zip(free).zip(x) {
+            *y = residual[fc] - dot(xc, &on_basic);
+        }
+        let y = &mut self.free_part[..f];
+        if f > 0 {
             self.lu.solve_in_place(y);
         }
         // x = x_p + Z y on the basic coordinates; then the basic rows' (a - W x)_b, and F = B^-T (a - W x)_b.
-        for (xc, yc) in self.x.iter().zip(y.iter()) {
+        for (xc, yc) in x.iter().zip(y.iter()) {
             axpy(&mut x_basic, -yc, xc);
         }
         let mut statics: [f64; CONSTRAINTS] = std::array::from_fn(|i| a[self.basic[i]]);
-        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+        for (&fc, yc) in free.iter().zip(y.iter()) {
             axpy(&mut statics, -yc, &self.w_basic_rows[fc]);
         }
         for (&bc, xb) in self.basic.iter().zip(&x_basic) {
@@ -581,7 +619,7 @@ impl SaddlePointLu {
             axpy(&mut multipliers, *si, bi);
         }
         // The unknowns in their order: x's k (free and basic coordinates), then F's six.
-        for (&fc, yc) in self.free.iter().zip(y.iter()) {
+        for (&fc, yc) in free.iter().zip(y.iter()) {
             rows[fc] = *yc;
         }
         for (&bc, xb) in self.basic.iter().zip(&x_basic) {
@@ -662,6 +700,23 @@ fn lu_rows_in_place(a: &mut [f64], pivots: &mut [usize], n: usize) -> bool {
         }
     }
     true
+}
+
+/// The forward and back substitutions of `DenseLu::solve_in_place` (its row exchanges made) with the
+/// n x n row-major factors `lu`.
+#[inline(always)]
+fn substitute(lu: &[f64], b: &mut [f64], n: usize) {
+    let (lu, b) = (&lu[..n * n], &mut b[..n]);
+    for i in 1..n {
+        let (done, rest) = b.split_at_mut(i);
+        rest[0] = lu[i * n..i * n + i].iter().zip(done.iter()).fold(rest[0], |v, (l, x)| v - l * x);
+    }
+    for i in (0..n).rev() {
+        let row = &lu[i * n..i * n + n];
+        let (upto, later) = b.split_at_mut(i + 1);
+        let v = row[i + 1..].iter().zip(later.iter()).rev().fold(upto[i], |v, (u, x)| v - u * x);
+        upto[i] = v / row[i];
+    }
 }
 
 /// `start - sum_k c_k row_k`, the products subtracted one at a time in order, the sum held in a local and
