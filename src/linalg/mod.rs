@@ -449,11 +449,13 @@ impl SaddlePointLu {
         let t = &self.reduced_rows[k..];
         self.basic_inverse = std::array::from_fn(|i| std::array::from_fn(|c| t[c][pivot_rows[i]]));
         let basic = self.basic;
-        self.free.clear();
-        self.free.extend((0..k).filter(|c| !basic.contains(c)));
-        // The six basic coordinates are distinct (each pivot's column a unit column after it).
+        // The six basic coordinates are distinct (each pivot's column a unit column after it): f are free.
         let f = k - CONSTRAINTS;
-        debug_assert_eq!(self.free.len(), f);
+        self.free.resize(f, 0);
+        let mut free_slots = self.free[..f].iter_mut();
+        for c in (0..k).filter(|c| !basic.contains(c)) {
+            *free_slots.next().expect("f free coordinates") = c;
+        }
         // Filled in place (a resize, then stores): `extend` over an iterator was compiled out of line once
         // per size of `with_known_size!`.
         self.x.resize(f, [0.0; CONSTRAINTS]);
@@ -1274,7 +1276,8 @@ mod tests {
         let mut next = stream(23);
         let (mut definite, mut indefinite) = (0, 0);
         for case in 0..60 {
-            let k = 8 + case % 10;
+            // f = k - 6 from 2 to 13: sizes `with_known_size!` names and one past them.
+            let k = 8 + case % 12;
             let j = DMatrix::from_fn(6, k, |_, _| next());
             let m = DMatrix::from_fn(k, k, |_, _| next());
             let shift = 0.6 * (case % 5) as f64 / 4.0 * k as f64 / 8.0;

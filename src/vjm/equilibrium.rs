@@ -369,10 +369,14 @@ impl LoadedChain<'_> {
         if !ws.rhs.iter().flatten().all(|v| v.is_finite()) {
             return false;
         }
-        lin.correction.clear();
-        lin.correction.extend(ws.rhs.iter().map(|row| row[0]));
-        lin.sensitivity.clear();
-        lin.sensitivity.extend(ws.rhs.iter().map(|row| std::array::from_fn(|c| row[1 + c])));
+        // Filled in place (a resize, then stores), as every buffer of a linearisation.
+        let size = ws.rhs.len();
+        lin.correction.resize(size, 0.0);
+        lin.sensitivity.resize(size, [0.0; 6]);
+        for ((row, correction), sensitivity) in ws.rhs.iter().zip(&mut lin.correction).zip(&mut lin.sensitivity) {
+            *correction = row[0];
+            *sensitivity = std::array::from_fn(|c| row[1 + c]);
+        }
         lin.end = ws.jac.end.pos;
         lin.wrench = *wrench;
         lin.end_error = target_error(&ws.residual);
