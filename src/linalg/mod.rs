@@ -257,17 +257,10 @@ impl DenseLu {
     pub fn factor(&mut self, m: &[f64], n: usize) -> bool {
         assert_eq!(m.len(), n * n);
         self.n = n;
-        self.rows.clear();
-        for i in 0..n {
-            self.rows.extend(m[i..].iter().step_by(n));
-        }
-        self.pivots.clear();
+        self.rows.resize(n * n, 0.0);
         self.pivots.resize(n, 0);
-        if !all_finite(&self.rows) {
-            return false;
-        }
         let (a, pivots) = (&mut self.rows, &mut self.pivots);
-        lu_rows_in_place(a, pivots, n)
+        with_known_size!(n, n => transpose_into(m, a, n) && lu_rows_in_place(a, pivots, n))
     }
 
     /// The factorisation's row exchanges applied to a right-hand side (its values, or its rows).
@@ -665,6 +658,18 @@ fn negative_definite_symmetric_part(r: &[f64], s: &mut [f64], f: usize) -> bool 
         s[d * f + d] -= margin;
     }
     positive_definite_in_place(s, f)
+}
+
+/// The n x n column-major `m` into `rows` by rows; false where an entry is not finite.
+#[inline(always)]
+fn transpose_into(m: &[f64], rows: &mut [f64], n: usize) -> bool {
+    let (m, rows) = (&m[..n * n], &mut rows[..n * n]);
+    for (j, column) in m.chunks_exact(n.max(1)).enumerate() {
+        for (i, v) in column.iter().enumerate() {
+            rows[i * n + j] = *v;
+        }
+    }
+    all_finite(rows)
 }
 
 /// LU factorisation with partial pivoting in place of the n x n row-major `a` (`DenseLu::factor`), the
