@@ -176,55 +176,14 @@ pub fn outside_span(x: &nalgebra::DMatrix<f64>, y: &nalgebra::DMatrix<f64>) -> O
 /// every size.
 macro_rules! with_known_size {
     ($n:expr, $size:ident => $body:expr) => {
+        with_known_size!(@literals $n, $size => $body; 1 2 3 4 5 6 7 8 9 10 11 12)
+    };
+    (@literals $n:expr, $size:ident => $body:expr; $($literal:literal)*) => {
         match $n {
-            1 => {
-                let $size = 1;
+            $($literal => {
+                let $size = $literal;
                 $body
-            }
-            2 => {
-                let $size = 2;
-                $body
-            }
-            3 => {
-                let $size = 3;
-                $body
-            }
-            4 => {
-                let $size = 4;
-                $body
-            }
-            5 => {
-                let $size = 5;
-                $body
-            }
-            6 => {
-                let $size = 6;
-                $body
-            }
-            7 => {
-                let $size = 7;
-                $body
-            }
-            8 => {
-                let $size = 8;
-                $body
-            }
-            9 => {
-                let $size = 9;
-                $body
-            }
-            10 => {
-                let $size = 10;
-                $body
-            }
-            11 => {
-                let $size = 11;
-                $body
-            }
-            12 => {
-                let $size = 12;
-                $body
-            }
+            })*
             other => {
                 let $size = other;
                 $body
@@ -321,11 +280,11 @@ pub const CONSTRAINTS: usize = 6;
 /// f square, the factorisation costs a fraction of a dense LU of the whole (k + 6)-square matrix.
 #[derive(Clone, Debug, Default)]
 pub struct SaddlePointLu {
-    k: usize,
     /// [J | I6] reduced in place (k + 6 columns of six rows): J's columns become unit columns on the basic
     /// coordinates and X's on the free ones, the identity's the row operations T (T J = the reduced rows).
     reduced_rows: Vec<[f64; CONSTRAINTS]>,
-    /// The basic coordinates in pivot order, the free ones in order.
+    /// The basic coordinates in pivot order, the free ones in order (k = their count plus six, which the
+    /// solves read).
     basic: [usize; CONSTRAINTS],
     free: Vec<usize>,
     /// B^-1 by rows: row i is the row of T at the i-th basic coordinate's pivot row.
@@ -352,7 +311,6 @@ impl SaddlePointLu {
     /// constraints cannot all be met, the system is singular), or the reduced matrix has an exactly zero
     /// pivot.
     pub fn factor(&mut self, j_columns: impl IntoIterator<Item = [f64; CONSTRAINTS]>, w: &[f64], k: usize) -> bool {
-        self.k = k;
         self.reduced_rows.clear();
         self.reduced_rows.extend(j_columns);
         assert_eq!(self.reduced_rows.len(), k, "one column of J per coordinate");
@@ -368,7 +326,8 @@ impl SaddlePointLu {
     #[inline(always)]
     fn factor_checked(&mut self, w: &[f64], k: usize) -> bool {
         let w = &w[..k * k];
-        self.reduced_rows.truncate(k);
+        // A no-op (J has k columns) that bounds the buffer's length for the compiler: the loops below then
+        // index it without checks (about 300 instructions a factorisation).
         let largest = self.reduced_rows.iter().flatten().fold(0.0f64, |l, v| larger(l, v.abs()));
         self.reduced_rows.extend((0..CONSTRAINTS).map(|c| std::array::from_fn(|r| if r == c { 1.0 } else { 0.0 })));
         // The row of each basic coordinate's pivot, in pivot order; 1 for the rows without a pivot yet, 0 for
@@ -492,7 +451,6 @@ impl SaddlePointLu {
     #[inline(always)]
     fn solve_many<const R: usize>(&mut self, rows: &mut [[f64; R]], f: usize) {
         let k = f + CONSTRAINTS;
-        debug_assert_eq!(k, self.k);
         let (free, x, w_basic_columns) = (&self.free[..f], &self.x[..f], &self.w_basic_columns[..k]);
         let rows = &mut rows[..k + CONSTRAINTS];
         let (b, a) = rows.split_at(CONSTRAINTS);
@@ -576,7 +534,6 @@ impl SaddlePointLu {
     #[inline(always)]
     fn solve_one(&mut self, rows: &mut [f64], f: usize) {
         let k = f + CONSTRAINTS;
-        debug_assert_eq!(k, self.k);
         let (free, x, w_basic_columns) = (&self.free[..f], &self.x[..f], &self.w_basic_columns[..k]);
         let rows = &mut rows[..k + CONSTRAINTS];
         let (b, a) = rows.split_at(CONSTRAINTS);
