@@ -250,8 +250,9 @@ impl Manipulator {
         let mut last_distance = f64::INFINITY;
         // The slowest contraction of the chord steps since the last full one (see `full` below).
         let mut slowest = 0.0f64;
-        // The manipulator's stiffness factorised once per linearisation: chord steps reuse it.
-        let mut stiffness_lu = stiffness.lu();
+        // The manipulator's stiffness factorised once per linearisation: chord steps reuse it. The carried
+        // one is factorised only where a chord step comes first.
+        let mut stiffness_lu = (!full).then(|| stiffness.lu());
         for it in 0..MAX_NEWTON {
             let (weight, d_weight) = self.weight(t);
             if !full {
@@ -264,11 +265,11 @@ impl Manipulator {
                     leg.linearize_into(t, s, l).map_err(leg_failure(i))?;
                 }
                 stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
-                stiffness_lu = stiffness.lu();
+                stiffness_lu = Some(stiffness.lu());
             }
             // The payload's weight (a share of it under load continuation) is a load the legs carry.
             let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - weight * weight_share;
-            let Some(step) = stiffness_lu.solve(&(load - force)) else {
+            let Some(step) = stiffness_lu.get_or_insert_with(|| stiffness.lu()).solve(&(load - force)) else {
                 return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
             let step_size = weigh_rotations(&step, self.length_scale).norm() / self.length_scale;

@@ -25,7 +25,6 @@ use std::io::Write;
 
 use anyhow::Result;
 use indicatif::ProgressBar;
-use nalgebra::{DMatrix, DVector};
 
 use super::assemble::{real_manipulator, LegErrors};
 use super::map::MapSummary;
@@ -473,17 +472,28 @@ fn deflection_status(e: &DeflectionFailure) -> Status {
 }
 
 /// The directions a command moves the platform in: an orthonormal basis Q (weighted coordinates, rotations
-/// times the length scale) of the span of the actuators' platform motions.
+/// times the length scale) of the span of the actuators' platform motions. Q has at most six columns, kept
+/// in a 6x6 matrix whose columns past `dimension` are zero, and coordinates along it are six-vectors whose
+/// entries past `dimension` are zero: nothing is allocated per target.
 struct Task {
-    basis: DMatrix<f64>,
+    basis: Mat6,
+    dimension: usize,
     length_scale: f64,
 }
 
 impl Task {
     /// The target moved by `y` along the basis.
-    fn command(&self, target: &Frame, y: &DVector<f64>) -> Frame {
-        let w = &self.basis * y;
-        apply_twist(target, &self.unweighted(&Vec6::from_column_slice(w.as_slice())))
+    fn command(&self, target: &Frame, y: &Vec6) -> Frame {
+        apply_twist(target, &self.unweighted(&self.motion(y)))
+    }
+
+    /// Q y: the weighted platform motion of the coordinates `y`.
+    fn motion(&self, y: &Vec6) -> Vec6 {
+        let mut w = Vec6::zeros();
+        for k in 0..self.dimension {
+            w += self.basis.column(k) * y[k];
+        }
+        w
     }
 
     /// A pose error in weighted coordinates.
@@ -496,38 +506,54 @@ impl Task {
         weigh_rotations(e_w, 1.0 / self.length_scale)
     }
 
-    /// The components of a weighted error along the basis.
-    fn along(&self, e_w: &Vec6) -> DVector<f64> {
-        self.basis.tr_mul(&DVector::from_column_slice(e_w.as_slice()))
+    /// Q^T e: the components of a weighted error along the basis.
+    fn along(&self, e_w: &Vec6) -> Vec6 {
+        Vec6::from_fn(|k, _| if k < self.dimension { self.basis.column(k).dot(e_w) } else { 0.0 })
     }
 
-    /// The Jacobian's block on the basis: Q^T J Q.
-    fn project(&self, j: &Mat6) -> DMatrix<f64> {
-        let jd = DMatrix::from_column_slice(6, 6, j.as_slice());
-        self.basis.tr_mul(&(jd * &self.basis))
+    /// The Newton step -(Q^T J Q)^-1 r on the task residual `r` (zero past `dimension`), Q^T J Q the
+    /// Jacobian's block on the basis; None where the block is singular or the step not finite. On the
+    /// basis's own size, known when compiled: nothing is allocated.
+    fn step(&self, jacobian: &Mat6, residual: &Vec6) -> Option<Vec6> {
+        macro_rules! on_sizes {
+            ($($n:literal)*) => {
+                match self.dimension {
+                    $($n => {
+                        let q = self.basis.fixed_columns::<$n>(0);
+                        let block = q.tr_mul(&(jacobian * q));
+                        let step = block.lu().solve(&-residual.fixed_rows::<$n>(0))?;
+                        let mut padded = Vec6::zeros();
+                        padded.fixed_rows_mut::<$n>(0).copy_from(&step);
+                        Some(padded)
+                    })*
+                    _ => None,
+                }
+            };
+        }
+        on_sizes!(1 2 3 4 5 6).filter(|s| s.iter().all(|v| v.is_finite()))
     }
 
     /// The offset of `trial`'s command from its target (weighted coordinates) moved by the Newton step its
     /// residual still asks with `jacobian`.
     fn refined_offset(&self, jacobian: &Mat6, trial: &Trial) -> Vec6 {
-        let refined = match self.project(jacobian).lu().solve(&trial.task) {
-            Some(step) if step.iter().all(|v| v.is_finite()) => &trial.y - step,
-            _ => trial.y.clone(),
+        let refined = match self.step(jacobian, &trial.task) {
+            Some(step) => trial.y + step,
+            None => trial.y,
         };
-        Vec6::from_column_slice((&self.basis * refined).as_slice())
+        self.motion(&refined)
     }
 
     fn column(&self, k: usize) -> Vec6 {
-        Vec6::from_fn(|r, _| self.basis[(r, k)])
+        self.basis.column(k).into()
     }
 }
 
 /// One evaluated command: its coordinates along the task basis, the weighted error and its task part.
 #[derive(Clone)]
 struct Trial {
-    y: DVector<f64>,
+    y: Vec6,
     error_w: Vec6,
-    task: DVector<f64>,
+    task: Vec6,
     /// The forward solve's answer where the check pair evaluated this command (the extrapolated one):
     /// its check is made.
     checked: Option<Reached>,
@@ -617,14 +643,14 @@ impl Solver<'_> {
             Err(s) => return Compensation { status: s, ..out },
         };
         let start = Trial {
-            y: DVector::zeros(task.basis.ncols()),
+            y: Vec6::zeros(),
             error_w: task.weighted(&uncompensated),
             task: task.along(&task.weighted(&uncompensated)),
             checked: None,
         };
         // The mirror command of [73]: the target minus the error predicted there, in the directions the
         // actuators move.
-        let y_mirror = -&start.task;
+        let y_mirror = -start.task;
         let mirror = self.evaluate(&task, &y_mirror, &mut st.mirror, false, &mut out.equilibria);
         out.mirror = mirror.as_ref().ok().map(|t| task.unweighted(&t.error_w));
         // With Newton's method, also the converged command's offset refined for the next target's start.
@@ -729,8 +755,11 @@ impl Solver<'_> {
     fn task(&self, nominal: &mut ManipulatorState) -> Result<Task, Status> {
         match self.nominal.commanded_directions(&self.target, nominal) {
             Ok(Directions::Span(basis)) => {
-                let basis = DMatrix::from_fn(6, basis.len(), |r, c| basis[c][r]);
-                Ok(Task { basis, length_scale: self.nominal.length_scale })
+                let mut columns = Mat6::zeros();
+                for (mut column, direction) in columns.column_iter_mut().zip(&basis) {
+                    column.copy_from(direction);
+                }
+                Ok(Task { basis: columns, dimension: basis.len().min(6), length_scale: self.nominal.length_scale })
             }
             Ok(Directions::Singular) => Err(Status::Singular),
             Ok(Directions::NotFinite) => Err(Status::Overflow),
@@ -743,7 +772,7 @@ impl Solver<'_> {
     fn evaluate(
         &self,
         task: &Task,
-        y: &DVector<f64>,
+        y: &Vec6,
         pair: &mut Commanded,
         check: bool,
         equilibria: &mut usize,
@@ -752,7 +781,7 @@ impl Solver<'_> {
         let command = task.command(&self.target, y);
         let d = self.reach(&command, pair, check)?;
         let error_w = task.weighted(&self.target.error_to(&d.pose));
-        Ok(Trial { y: y.clone(), task: task.along(&error_w), error_w, checked: check.then_some(d) })
+        Ok(Trial { y: *y, task: task.along(&error_w), error_w, checked: check.then_some(d) })
     }
 
     /// Newton's method on the command from the target (`start`), the mirror command (`mirror`, its first
@@ -766,7 +795,7 @@ impl Solver<'_> {
         task: &Task,
         start: Trial,
         mirror: Option<Trial>,
-        predicted: Option<DVector<f64>>,
+        predicted: Option<Vec6>,
         st: &mut CompensateState,
         iterations: &mut usize,
         equilibria: &mut usize,
@@ -814,7 +843,7 @@ impl Solver<'_> {
                 return Err(fail(Status::NotConverged, outside));
             }
             *iterations += 1;
-            let step = task.project(&jacobian).lu().solve(&(-&best.task)).filter(|s| s.iter().all(|v| v.is_finite()));
+            let step = task.step(&jacobian, &best.task);
             let Some(step) = step else {
                 if refreshed {
                     return Err(fail(Status::NotConverged, outside));
@@ -827,7 +856,7 @@ impl Solver<'_> {
             let mut fraction = 1.0;
             let mut trial = Err(Status::NotConverged);
             for _ in 0..MAX_HALVINGS {
-                trial = self.evaluate(task, &(&best.y + &step * fraction), &mut st.compensated, false, equilibria);
+                trial = self.evaluate(task, &(best.y + step * fraction), &mut st.compensated, false, equilibria);
                 match &trial {
                     Ok(_) => break,
                     Err(s) => outside |= matches!(s, Status::Unreachable | Status::IllConditioned),
@@ -867,8 +896,8 @@ impl Solver<'_> {
         st: &mut CompensateState,
         equilibria: &mut usize,
     ) -> Result<Mat6, Status> {
-        for k in 0..task.basis.ncols() {
-            let mut y = at.y.clone();
+        for k in 0..task.dimension {
+            let mut y = at.y;
             y[k] += DIFFERENCE_STEP_MM;
             let t = self.evaluate(task, &y, &mut st.compensated, false, equilibria)?;
             let q = task.column(k);
@@ -882,11 +911,7 @@ impl Solver<'_> {
 /// Broyden's update of the Jacobian (weighted coordinates) from two evaluated commands: J += (dr - J dc)
 /// dc^T / |dc|^2, so that J maps the step dc onto the change dr it caused.
 fn broyden(jacobian: &mut Mat6, task: &Task, from: &Trial, to: &Trial) {
-    let dy = &to.y - &from.y;
-    let dc: Vec6 = {
-        let w = &task.basis * dy;
-        Vec6::from_column_slice(w.as_slice())
-    };
+    let dc = task.motion(&(to.y - from.y));
     let size = dc.norm_squared();
     if size >= SECANT_MIN_STEP_MM.powi(2) && size.is_finite() {
         let dr = to.error_w - from.error_w;
