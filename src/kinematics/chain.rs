@@ -241,12 +241,23 @@ impl PlacedJoint {
 #[derive(Clone, Copy, Debug)]
 struct HessianTerm {
     index: usize,
+    /// The offset of the unknown's column in the column-major matrix.
+    column: usize,
     gain: f64,
     revolute: bool,
     axis: Vec3,
     motion: Vec3,
     u: Vec3,
     s: Vec3,
+}
+
+/// What a revolute joint gives its pairs with the joints after it in `add_point_hessian`: its column's
+/// offset, gain and world axis.
+#[derive(Clone, Copy, Debug)]
+struct EarlierRevolute {
+    column: usize,
+    gain: f64,
+    axis: Vec3,
 }
 
 /// A mass's place in the base frame during one evaluation, and how many joints lie before it.
@@ -271,8 +282,9 @@ pub struct ChainJacobians {
     virtual_filled: bool,
     placed: Vec<PlacedJoint>,
     masses: Vec<PlacedMass>,
-    /// Scratch of `add_point_hessian`: its per-joint vectors.
+    /// Scratch of `add_point_hessian`: its per-joint vectors, and the revolute joints' of them so far.
     hessian_terms: Vec<HessianTerm>,
+    earlier_revolute: Vec<EarlierRevolute>,
 }
 
 /// Where a coordinate sits among the unknowns of an equilibrium: passive coordinates first, then virtual
@@ -385,6 +397,7 @@ impl ChainJacobians {
         // Per joint with an unknown (actuated ones take no part), in chain order, what its pairs read:
         // as the later joint k its u_k and (revolute) s_k = f x w_k, as the earlier joint l its axis
         // (revolute) and dx_l, the motion of x: once per joint rather than once per pair.
+        let rows = out.nrows();
         let mut terms = std::mem::take(&mut self.hessian_terms);
         terms.clear();
         terms.extend(self.placed[..upto].iter().filter_map(|pk| {
@@ -398,26 +411,30 @@ impl ChainJacobians {
             } else {
                 (wk, wk.cross(f), Vec3::zeros())
             };
-            Some(HessianTerm { index, gain: pk.joint.gain, revolute, axis: wk, motion, u, s })
+            Some(HessianTerm { index, column: index * rows, gain: pk.joint.gain, revolute, axis: wk, motion, u, s })
         }));
         // Entry (k, l) of the column-major matrix by its offset (one bounds check where a 2-D index makes two).
-        let rows = out.nrows();
         debug_assert!(terms.iter().all(|t| t.index < rows), "an unknown's index within the matrix");
         let entries = out.as_mut_slice();
-        // A pair whose d is zero adds nothing: the entries start at +0 and never become -0, so skipping
-        // the addition of a zero leaves the same bits.
+        // A pair whose d is zero (an earlier prismatic l; a prismatic k with any later l) adds nothing: the
+        // entries start at +0 and never become -0, so skipping the addition of a zero leaves the same bits.
+        // The revolute joints before k are kept apart as k goes on, so the zero pairs are skipped without a
+        // test each.
+        let mut earlier_revolute = std::mem::take(&mut self.earlier_revolute);
+        earlier_revolute.clear();
         for (a, tk) in terms.iter().enumerate() {
-            let (earlier, rest) = terms.split_at(a);
-            for tl in earlier.iter().filter(|tl| tl.revolute) {
-                entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.axis.dot(&tk.u);
+            for tl in &earlier_revolute {
+                entries[tl.column + tk.index] += tk.gain * tl.gain * tl.axis.dot(&tk.u);
             }
             if tk.revolute {
-                for tl in rest {
-                    entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.motion.dot(&tk.s);
+                for tl in &terms[a..] {
+                    entries[tl.column + tk.index] += tk.gain * tl.gain * tl.motion.dot(&tk.s);
                 }
+                earlier_revolute.push(EarlierRevolute { column: tk.column, gain: tk.gain, axis: tk.axis });
             }
         }
         self.hessian_terms = terms;
+        self.earlier_revolute = earlier_revolute;
     }
 
     /// Computes the Jacobian columns of the virtual coordinates from the last evaluation.

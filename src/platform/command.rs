@@ -116,19 +116,16 @@ impl Manipulator {
         // not follow (constraints and actuations).
         let (mut constraints, mut actuations) = (Orthonormal6::default(), Orthonormal6::default());
         for k in 0..self.legs.len() {
-            let Some(mut joints) = self.legs[k].joint_twists(pose, &mut state.legs[k]) else {
+            let Some(joints) = self.legs[k].joint_twists(pose, &mut state.legs[k]) else {
                 return self.directions_by_stiffness(pose, state);
             };
-            for t in joints.passive.iter_mut().chain(joints.actuated.iter_mut()) {
-                *t = weigh_rotations(t, self.length_scale);
-            }
+            let weighted = |t: Vec6| weigh_rotations(&t, self.length_scale);
             let mut follows = Orthonormal6::default();
-            let spans = |set: &mut Orthonormal6, twists: &[Vec6]| twists.chunks(6).all(|part| set.span(part));
-            if !spans(&mut follows, &joints.passive) {
+            if !follows.span_all(joints.passive().map(weighted)) {
                 return Ok(Directions::NotFinite);
             }
             actuations.span_complement_of(&follows);
-            if !spans(&mut follows, &joints.actuated) {
+            if !follows.span_all(joints.actuated().map(weighted)) {
                 return Ok(Directions::NotFinite);
             }
             constraints.span_complement_of(&follows);

@@ -353,13 +353,10 @@ impl Leg {
     /// After `place`: the twists at the reference point (base frame) along which the leg's actuated and
     /// passive joints move its end, the rigid leg's kinematics; None for an MSA leg (its joints are
     /// elements of a structure, not coordinates of a chain) or where the placement failed.
-    pub fn joint_twists(&self, platform: &Frame, state: &mut LegState) -> Option<JointTwists> {
+    pub fn joint_twists<'s>(&self, platform: &Frame, state: &'s mut LegState) -> Option<JointTwists<'s>> {
         let Leg::Vjm(l) = self else { return None };
         let jac = state.ik.joints_at_solution(&l.chain, &state.coords)?;
-        Some(JointTwists {
-            actuated: twists_at_reference_point(&jac.actuated, platform, jac),
-            passive: twists_at_reference_point(&jac.passive, platform, jac),
-        })
+        Some(JointTwists { back: point_shift(&(platform.pos - jac.end.pos)), jac })
     }
 
     /// After `place`: the platform twist at the reference point that a unit change of each actuated
@@ -385,12 +382,24 @@ fn twists_at_reference_point(twists: &[Vec6], platform: &Frame, jac: &ChainJacob
     twists.iter().map(|t| back * t).collect()
 }
 
-/// The twists of a VJM leg's joints at its placement (`Leg::joint_twists`), at the reference point.
-pub struct JointTwists {
+/// The twists of a VJM leg's joints at its placement (`Leg::joint_twists`), at the reference point: the
+/// placement's own columns moved there as they are read (nothing is allocated).
+pub struct JointTwists<'s> {
+    jac: &'s ChainJacobians,
+    /// `twists_at_reference_point`'s shift.
+    back: Mat6,
+}
+
+impl JointTwists<'_> {
     /// One per actuated coordinate.
-    pub actuated: Vec<Vec6>,
+    pub fn actuated(&self) -> impl Iterator<Item = Vec6> + '_ {
+        self.jac.actuated.iter().map(|t| self.back * t)
+    }
+
     /// One per passive coordinate.
-    pub passive: Vec<Vec6>,
+    pub fn passive(&self) -> impl Iterator<Item = Vec6> + '_ {
+        self.jac.passive.iter().map(|t| self.back * t)
+    }
 }
 
 /// The wrench the platform applies to a leg once the leg's own Newton correction is made, at the

@@ -7,6 +7,7 @@ use super::leg::{LegLinear, LegState};
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use crate::kinematics::frame::apply_twist;
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec6};
+use crate::linalg::SmallLu;
 
 /// The manipulator held at a platform pose, its legs placed for the commanded pose before.
 #[derive(Clone, Copy, Debug)]
@@ -252,7 +253,7 @@ impl Manipulator {
         let mut slowest = 0.0f64;
         // The manipulator's stiffness factorised once per linearisation: chord steps reuse it. The carried
         // one is factorised only where a chord step comes first.
-        let mut stiffness_lu = (!full).then(|| stiffness.lu());
+        let mut stiffness_lu = (!full).then(|| SmallLu::new(&stiffness));
         for it in 0..MAX_NEWTON {
             let (weight, d_weight) = self.weight(t);
             if !full {
@@ -265,11 +266,11 @@ impl Manipulator {
                     leg.linearize_into(t, s, l).map_err(leg_failure(i))?;
                 }
                 stiffness = lins.iter().map(|l| l.stiffness).sum::<Mat6>() - d_weight * weight_share;
-                stiffness_lu = Some(stiffness.lu());
+                stiffness_lu = Some(SmallLu::new(&stiffness));
             }
             // The payload's weight (a share of it under load continuation) is a load the legs carry.
             let force: Vec6 = lins.iter().map(|l| l.corrected_force).sum::<Vec6>() - weight * weight_share;
-            let Some(step) = stiffness_lu.get_or_insert_with(|| stiffness.lu()).solve(&(load - force)) else {
+            let Some(step) = stiffness_lu.get_or_insert_with(|| SmallLu::new(&stiffness)).solve(&(load - force)) else {
                 return Err(DeflectionFailure::SingularStiffness { load_fraction: f64::NAN });
             };
             let step_size = weigh_rotations(&step, self.length_scale).norm() / self.length_scale;
@@ -361,7 +362,7 @@ impl Manipulator {
             return None;
         }
         let k = self.unloaded(commanded, state).ok()?.stiffness;
-        let step = k.lu().solve(&(wrench + self.weight(commanded).0))?;
+        let step = SmallLu::new(&k).solve(&(wrench + self.weight(commanded).0))?;
         Some(apply_twist(commanded, &step))
     }
 

@@ -32,6 +32,7 @@ use super::point::Status;
 use super::warm_start::{LoadedHistory, Trail};
 use crate::batch::{stream, Study, Tally};
 use crate::kinematics::frame::{apply_twist, rotation_vector, weigh_rotations, Frame, Mat6, Vec6};
+use crate::linalg::SmallLu;
 use crate::model::grid::{PointSet, PosePoint};
 use crate::output::table::{header_line, names, Column, Record, Row};
 use crate::platform::command::Directions;
@@ -113,8 +114,8 @@ pub struct Compensation {
     pub mirror: Option<Vec6>,
     /// The command (the pose the nominal inverse kinematics is given).
     pub command: Option<Frame>,
-    /// The actuator coordinates the command gives, leg by leg (mm or rad).
-    pub actuators: Vec<Vec<f64>>,
+    /// The actuator coordinates the command gives, every leg's in turn (mm or rad).
+    pub actuators: Vec<f64>,
     /// For a serial arm, the same command in its controller's angles (the inverse of its `controller` map).
     pub controller: Option<Vec<f64>>,
     /// The error with the command, from an independent forward solve.
@@ -205,10 +206,8 @@ impl Row for CompensationRow<'_> {
             Vec6::new(c.pos.x, c.pos.y, c.pos.z, rv.x, rv.y, rv.z)
         });
         r.six(names::COMMAND, command.as_ref());
-        for (i, leg) in l.actuators.iter().enumerate() {
-            for (j, name) in leg.iter().enumerate() {
-                r.optional(name, res.actuators.get(i).and_then(|a| a.get(j)).copied());
-            }
+        for (k, name) in l.actuators.iter().flatten().enumerate() {
+            r.optional(name, res.actuators.get(k).copied());
         }
         for (k, name) in l.arm.iter().flatten().enumerate() {
             r.optional(name, res.controller.as_ref().map(|a| a[k]));
@@ -521,7 +520,7 @@ impl Task {
                     $($n => {
                         let q = self.basis.fixed_columns::<$n>(0);
                         let block = q.tr_mul(&(jacobian * q));
-                        let step = block.lu().solve(&-residual.fixed_rows::<$n>(0))?;
+                        let step = SmallLu::new(&block).solve(&-residual.fixed_rows::<$n>(0))?;
                         let mut padded = Vec6::zeros();
                         padded.fixed_rows_mut::<$n>(0).copy_from(&step);
                         Some(padded)
@@ -575,12 +574,12 @@ struct Reached {
 }
 
 impl Solver<'_> {
-    /// The actuator coordinates the command found gives (the nominal placement of the check), leg by leg,
-    /// and for a serial arm the controller's angles whose map gives them.
-    fn commanded(&self, st: &CompensateState) -> (Vec<Vec<f64>>, Option<Vec<f64>>) {
-        let actuators: Vec<Vec<f64>> = st.check.nominal.actuators().map(<[f64]>::to_vec).collect();
+    /// The actuator coordinates the command found gives (the nominal placement of the check), every leg's
+    /// in turn, and for a serial arm (one leg) the controller's angles whose map gives them.
+    fn commanded(&self, st: &CompensateState) -> (Vec<f64>, Option<Vec<f64>>) {
+        let actuators = st.check.nominal.actuators().flatten().copied().collect();
         let controller = (self.nominal.joint_space.as_ref())
-            .and_then(|space| actuators.first().and_then(|q| space.controller_angles(q)));
+            .and_then(|space| st.check.nominal.actuators().next().and_then(|q| space.controller_angles(q)));
         (actuators, controller)
     }
 
