@@ -172,9 +172,21 @@ impl Clone for Coordinates {
 
     /// Into the existing buffers (warm starts are saved and restored at every point).
     fn clone_from(&mut self, source: &Self) {
-        self.actuated.clone_from(&source.actuated);
-        self.passive.clone_from(&source.passive);
-        self.virtual_.clone_from(&source.virtual_);
+        copy_values(&mut self.actuated, &source.actuated);
+        copy_values(&mut self.passive, &source.passive);
+        copy_values(&mut self.virtual_, &source.virtual_);
+    }
+}
+
+/// `to.clone_from(from)`, as one copy where the lengths agree (the same chain's coordinates always do):
+/// `Vec::clone_from` truncates, copies and extends by the rest, a few dozen instructions more for a
+/// handful of values, two dozen times per compensated target.
+fn copy_values(to: &mut Vec<f64>, from: &[f64]) {
+    if to.len() == from.len() {
+        to.copy_from_slice(from);
+    } else {
+        to.clear();
+        to.extend_from_slice(from);
     }
 }
 
@@ -277,9 +289,11 @@ pub struct ChainJacobians {
     pub actuated: Vec<Vec6>,
     /// Twist columns of the passive coordinates.
     pub passive: Vec<Vec6>,
-    /// Filled by `fill_virtual`; zero until then.
+    /// Filled by `fill_virtual`; empty until then (a read fails rather than finding stale numbers).
     pub virtual_: Vec<Vec6>,
     virtual_filled: bool,
+    /// The chain's number of virtual coordinates, for `fill_virtual`.
+    n_virtual: usize,
     placed: Vec<PlacedJoint>,
     masses: Vec<PlacedMass>,
     /// Scratch of `add_point_hessian`: its per-joint vectors, and the revolute joints' of them so far.
@@ -442,6 +456,7 @@ impl ChainJacobians {
         if self.virtual_filled {
             return;
         }
+        reset(&mut self.virtual_, self.n_virtual);
         let p = self.end.pos;
         for pj in &self.placed {
             if pj.joint.role == Role::Virtual {
@@ -662,7 +677,9 @@ impl Chain {
         let f = self.place_joints_only(c, out);
         reset(&mut out.actuated, self.n_actuated);
         reset(&mut out.passive, self.n_passive);
-        reset(&mut out.virtual_, self.n_virtual);
+        // Zeroed where they are filled: most evaluations (inverse kinematics' iterates) never are.
+        out.virtual_.clear();
+        out.n_virtual = self.n_virtual;
         out.virtual_filled = false;
         for pj in &out.placed {
             let col = match pj.joint.role {

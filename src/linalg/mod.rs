@@ -69,13 +69,18 @@ impl Orthonormal6 {
     /// is not finite or has an entry beyond `MAX_ENTRY`.
     pub fn span(&mut self, vectors: &[nalgebra::Vector6<f64>]) -> bool {
         assert!(vectors.len() <= 6, "at most six vectors at a time");
-        if !vectors.iter().flatten().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY) {
-            return false;
-        }
-        self.largest = vectors.iter().map(|v| v.norm_squared()).fold(self.largest, f64::max);
         let mut candidates = [nalgebra::Vector6::zeros(); 6];
         candidates[..vectors.len()].copy_from_slice(vectors);
-        self.grow(&mut candidates[..vectors.len()], SPAN_SHARE * SPAN_SHARE * self.largest);
+        self.span_candidates(&mut candidates[..vectors.len()])
+    }
+
+    /// `span` of the candidates, which it overwrites.
+    fn span_candidates(&mut self, candidates: &mut [nalgebra::Vector6<f64>]) -> bool {
+        if !candidates.iter().flatten().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY) {
+            return false;
+        }
+        self.largest = candidates.iter().map(|v| v.norm_squared()).fold(self.largest, f64::max);
+        self.grow(candidates, SPAN_SHARE * SPAN_SHARE * self.largest);
         true
     }
 
@@ -87,24 +92,20 @@ impl Orthonormal6 {
             part[count] = v;
             count += 1;
             if count == 6 {
-                if !self.span(&part) {
+                if !self.span_candidates(&mut part) {
                     return false;
                 }
                 count = 0;
             }
         }
-        count == 0 || self.span(&part[..count])
+        count == 0 || self.span_candidates(&mut part[..count])
     }
 
     /// Adds the directions orthogonal to `other` (`complement`: unit vectors, so the rank decision's scale
     /// is at least 1).
     pub fn span_complement_of(&mut self, other: &Orthonormal6) {
         let mut candidates = [nalgebra::Vector6::zeros(); 6];
-        let mut count = 0;
-        for (c, direction) in candidates.iter_mut().zip(other.complement()) {
-            *c = direction;
-            count += 1;
-        }
+        let count = other.complement_into(&mut candidates);
         self.largest = self.largest.max(1.0);
         self.grow(&mut candidates[..count], SPAN_SHARE * SPAN_SHARE * self.largest);
     }
@@ -114,6 +115,13 @@ impl Orthonormal6 {
     /// diagonal; while a direction is missing the largest is at least 1/6 (the trace is the dimension
     /// left), so the largest column, normalised, is a direction, and P loses it.
     pub fn complement(&self) -> impl Iterator<Item = nalgebra::Vector6<f64>> {
+        let mut new = [nalgebra::Vector6::zeros(); 6];
+        let count = self.complement_into(&mut new);
+        new.into_iter().take(count)
+    }
+
+    /// `complement` into the first entries of `new`; returns their count.
+    fn complement_into(&self, new: &mut [nalgebra::Vector6<f64>; 6]) -> usize {
         // P is not formed: its diagonal is kept, and the one column a direction is taken from is made when
         // it is chosen, each entry reduced by the directions in their order (the same products in the same
         // order as P's, at a fifth of the cost where one or two directions are missing).
@@ -125,7 +133,6 @@ impl Orthonormal6 {
         }
         // The new directions apart from the set's (which are not copied), each reduced by the set's and
         // then by the new ones before it.
-        let mut new = [nalgebra::Vector6::zeros(); 6];
         let missing = 6 - self.len;
         for n in 0..missing {
             let k = (0..6).fold(0, |best, k| if diagonal[k] > diagonal[best] { k } else { best });
@@ -146,7 +153,7 @@ impl Orthonormal6 {
             }
             new[n] = q;
         }
-        new.into_iter().take(missing)
+        missing
     }
 
     /// Adds the candidates' parts outside the set, largest first, while its squared norm is above
@@ -237,7 +244,7 @@ impl<const N: usize> SmallLu<N> {
         let mut exchanges: [usize; N] = std::array::from_fn(|i| i);
         for i in 0..N {
             let (mut p, mut best) = (i, a[i][i].abs());
-            for (r, v) in a[i].iter().enumerate().skip(i + 1) {
+            for (r, v) in (i + 1..).zip(&a[i][i + 1..]) {
                 if v.abs() > best {
                     (p, best) = (r, v.abs());
                 }
@@ -498,7 +505,11 @@ impl SaddlePointLu {
             *basic = pc;
         }
         let t = &self.reduced_rows[k..];
-        self.basic_inverse = std::array::from_fn(|i| std::array::from_fn(|c| t[c][pivot_rows[i]]));
+        for (row, &pr) in self.basic_inverse.iter_mut().zip(&pivot_rows) {
+            for (v, column) in row.iter_mut().zip(t) {
+                *v = column[pr];
+            }
+        }
         let basic = self.basic;
         // The six basic coordinates are distinct (each pivot's column a unit column after it): f are free.
         let f = k - CONSTRAINTS;
@@ -514,8 +525,11 @@ impl SaddlePointLu {
             *xc = std::array::from_fn(|i| self.reduced_rows[c][pivot_rows[i]]);
         }
         self.w_basic_columns.resize(k, [0.0; CONSTRAINTS]);
-        for (r, wb) in self.w_basic_columns.iter_mut().enumerate() {
-            *wb = std::array::from_fn(|i| w[basic[i] * k + r]);
+        // Each basic column of W read whole (contiguous), its entries spread over the rows' arrays.
+        for (i, &b) in basic.iter().enumerate() {
+            for (wb, v) in self.w_basic_columns.iter_mut().zip(&w[b * k..b * k + k]) {
+                wb[i] = *v;
+            }
         }
         self.w_basic_rows.resize(k, [0.0; CONSTRAINTS]);
         for (c, wb) in self.w_basic_rows.iter_mut().enumerate() {

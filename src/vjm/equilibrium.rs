@@ -17,7 +17,7 @@ use nalgebra::{DMatrix, DVector};
 use super::spring::SpringGroup;
 use crate::kinematics::chain::{Chain, ChainJacobians, Coordinates};
 use crate::kinematics::frame::{weigh_rotations, Frame, Mat6, Vec3, Vec6};
-use crate::linalg::SaddlePointLu;
+use crate::linalg::{all_finite, SaddlePointLu};
 
 /// What a loaded chain needs besides its kinematics.
 pub struct LoadedChain<'a> {
@@ -366,7 +366,7 @@ impl LoadedChain<'_> {
             return false;
         }
         ws.factors.solve_rows(&mut ws.rhs);
-        if !ws.rhs.iter().flatten().all(|v| v.is_finite()) {
+        if !all_finite(ws.rhs.as_flattened()) {
             return false;
         }
         // Filled in place (a resize, then stores), as every buffer of a linearisation.
