@@ -226,8 +226,8 @@ macro_rules! with_known_size {
 /// platform's 6 x 6 stiffness at each step of the loaded solve, a compensation's block on its task
 /// directions). It makes nalgebra's `LU` arithmetic, operation for operation (the pivot the first largest
 /// size in its column; the multipliers times the pivot's reciprocal; each update y - u l; a solve's back
-/// substitution dividing by the pivot), so its solutions are nalgebra's to the bit, in about a quarter of
-/// the instructions, which nalgebra's generic views spend on set-up for a matrix this small.
+/// substitution dividing by the pivot), so its solutions are nalgebra's to the bit, in about half the
+/// instructions (nalgebra's generic views spend the rest on set-up for a matrix this small).
 #[derive(Clone, Copy, Debug)]
 pub struct SmallLu<const N: usize> {
     /// By columns: L's multipliers below the diagonal (its unit diagonal implied), U on and above it.
