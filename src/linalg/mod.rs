@@ -65,40 +65,32 @@ impl Orthonormal6 {
         &self.directions[..self.len]
     }
 
-    /// Adds the span of `vectors` (at most six at a time). False, leaving the set unusable, where a vector
-    /// is not finite or has an entry beyond `MAX_ENTRY`.
-    pub fn span(&mut self, vectors: &[nalgebra::Vector6<f64>]) -> bool {
-        assert!(vectors.len() <= 6, "at most six vectors at a time");
-        let mut candidates = [nalgebra::Vector6::zeros(); 6];
-        candidates[..vectors.len()].copy_from_slice(vectors);
-        self.span_candidates(&mut candidates[..vectors.len()])
-    }
-
-    /// `span` of the candidates, which it overwrites.
-    fn span_candidates(&mut self, candidates: &mut [nalgebra::Vector6<f64>]) -> bool {
-        if !candidates.iter().flatten().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY) {
-            return false;
-        }
-        self.largest = candidates.iter().map(|v| v.norm_squared()).fold(self.largest, f64::max);
-        self.grow(candidates, SPAN_SHARE * SPAN_SHARE * self.largest);
-        true
-    }
-
-    /// Adds the span of `vectors`, six at a time (`span`); false as `span` is.
-    pub fn span_all(&mut self, vectors: impl IntoIterator<Item = nalgebra::Vector6<f64>>) -> bool {
+    /// Adds the span of `vectors`, six at a time. False, leaving the set unusable, where a vector is not
+    /// finite or has an entry beyond `MAX_ENTRY`.
+    pub fn span(&mut self, vectors: impl IntoIterator<Item = nalgebra::Vector6<f64>>) -> bool {
         let mut part = [nalgebra::Vector6::zeros(); 6];
         let mut count = 0;
         for v in vectors {
             part[count] = v;
             count += 1;
             if count == 6 {
-                if !self.span_candidates(&mut part) {
+                if !self.span_part(&mut part) {
                     return false;
                 }
                 count = 0;
             }
         }
-        count == 0 || self.span_candidates(&mut part[..count])
+        count == 0 || self.span_part(&mut part[..count])
+    }
+
+    /// `span` of at most six vectors, which it overwrites.
+    fn span_part(&mut self, candidates: &mut [nalgebra::Vector6<f64>]) -> bool {
+        if !candidates.iter().flatten().all(|v| v.is_finite() && v.abs() <= MAX_ENTRY) {
+            return false;
+        }
+        self.largest = candidates.iter().map(|v| v.norm_squared()).fold(self.largest, f64::max);
+        self.grow(candidates, SPAN_SHARE * SPAN_SHARE * self.largest);
+        true
     }
 
     /// Adds the directions orthogonal to `other` (`complement`: unit vectors, so the rank decision's scale
@@ -1148,7 +1140,7 @@ mod tests {
 
     /// Gaussian elimination with partial pivoting is one sequence of roundings: the stack LU's solutions
     /// are nalgebra's `LU` solutions to the bit, on matrices whose pivots need row exchanges (entries
-    /// spread over twelve orders of magnitude), on one with a zero column part-way (passed over, then no
+    /// spread over six orders of magnitude), on one with a zero column part-way (passed over, then no
     /// solution), on an exactly singular one and on sizes 1, 3 and 6; and they solve the system (residual
     /// at round-off).
     #[test]
@@ -1230,9 +1222,7 @@ mod tests {
                     })
                     .collect();
                 let mut set = Orthonormal6::default();
-                for part in vectors.chunks(6) {
-                    assert!(set.span(part));
-                }
+                assert!(set.span(vectors.iter().copied()));
                 let complement: Vec<nalgebra::Vector6<f64>> = set.complement().collect();
                 let columns = DMatrix::from_fn(6, count, |r, c| vectors[c][r]);
                 let svd_rank = span_basis(&columns).unwrap().ncols();
@@ -1251,7 +1241,7 @@ mod tests {
         }
         let mut not_finite = [nalgebra::Vector6::repeat(1.0)];
         not_finite[0][3] = f64::NAN;
-        assert!(!Orthonormal6::default().span(&not_finite));
+        assert!(!Orthonormal6::default().span(not_finite));
         assert_eq!(Orthonormal6::default().complement().count(), 6);
     }
 

@@ -121,11 +121,11 @@ impl Manipulator {
             };
             let weighted = |t: Vec6| weigh_rotations(&t, self.length_scale);
             let mut follows = Orthonormal6::default();
-            if !follows.span_all(joints.passive().map(weighted)) {
+            if !follows.span(joints.passive().map(weighted)) {
                 return Ok(Directions::NotFinite);
             }
             actuations.span_complement_of(&follows);
-            if !follows.span_all(joints.actuated().map(weighted)) {
+            if !follows.span(joints.actuated().map(weighted)) {
                 return Ok(Directions::NotFinite);
             }
             constraints.span_complement_of(&follows);

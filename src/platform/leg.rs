@@ -356,7 +356,7 @@ impl Leg {
     pub fn joint_twists<'s>(&self, platform: &Frame, state: &'s mut LegState) -> Option<JointTwists<'s>> {
         let Leg::Vjm(l) = self else { return None };
         let jac = state.ik.joints_at_solution(&l.chain, &state.coords)?;
-        Some(JointTwists { back: point_shift(&(platform.pos - jac.end.pos)), jac })
+        Some(JointTwists { back: back_to_reference_point(platform, jac), jac })
     }
 
     /// After `place`: the platform twist at the reference point that a unit change of each actuated
@@ -378,15 +378,20 @@ impl Leg {
 /// Twists of a chain's joints at its end point EP seen at the platform's reference point RP: the inverse of
 /// `point_shift(v)`, v = EP - RP.
 fn twists_at_reference_point(twists: &[Vec6], platform: &Frame, jac: &ChainJacobians) -> Vec<Vec6> {
-    let back = point_shift(&(platform.pos - jac.end.pos));
+    let back = back_to_reference_point(platform, jac);
     twists.iter().map(|t| back * t).collect()
+}
+
+/// The shift that moves a twist at the chain's end point to the platform's reference point.
+fn back_to_reference_point(platform: &Frame, jac: &ChainJacobians) -> Mat6 {
+    point_shift(&(platform.pos - jac.end.pos))
 }
 
 /// The twists of a VJM leg's joints at its placement (`Leg::joint_twists`), at the reference point: the
 /// placement's own columns moved there as they are read (nothing is allocated).
 pub struct JointTwists<'s> {
     jac: &'s ChainJacobians,
-    /// `twists_at_reference_point`'s shift.
+    /// `back_to_reference_point`.
     back: Mat6,
 }
 

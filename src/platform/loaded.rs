@@ -252,8 +252,8 @@ impl Manipulator {
         // The slowest contraction of the chord steps since the last full one (see `full` below).
         let mut slowest = 0.0f64;
         // The manipulator's stiffness factorised once per linearisation: chord steps reuse it. The carried
-        // one is factorised only where a chord step comes first.
-        let mut stiffness_lu = (!full).then(|| SmallLu::new(&stiffness));
+        // one is factorised only where a chord step comes first (at the first solve, below).
+        let mut stiffness_lu: Option<SmallLu<6>> = None;
         for it in 0..MAX_NEWTON {
             let (weight, d_weight) = self.weight(t);
             if !full {
