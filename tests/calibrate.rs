@@ -7,7 +7,9 @@
 use std::path::Path;
 
 use rand::Rng;
-use stiff::diagnose::calibrate::{self, ArmEffect, ArmKind, Calibration, Options, Verdict};
+use stiff::diagnose::calibrate::{
+    self, ArmEffect, ArmKind, Calibration, CalibrationOptions as Options, CalibrationVerdict as Verdict,
+};
 use stiff::diagnose::positions::PositionData;
 use stiff::kinematics::frame::{rotation_from_vector, Mat3, Vec3};
 use stiff::platform::manipulator::Manipulator;
@@ -172,16 +174,17 @@ fn registration_alone_is_recovered_to_round_off_and_a_vertical_first_axis_is_not
     let h = Hidden::registration_only();
     let csv = synthetic(&h, 30, 0.0, &[], false, 5);
     let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.01)));
-    assert_eq!(c.verdict, Verdict::None, "{}", calibrate::text(&c, "rigid"));
-    let fitted = |name: &str| c.nuisance.iter().find(|n| n.name.contains(name)).unwrap().value;
+    assert_eq!(c.report.verdict, Verdict::None, "{}", calibrate::text(&c.report, "rigid"));
+    let fitted = |name: &str| c.report.nuisance.iter().find(|n| n.name.contains(name)).unwrap().value;
     let (t, rv, target) = (fitted("translation"), fitted("rotation"), fitted("target"));
     assert!((Vec3::from(t) - h.translation).norm() < 1e-9, "{t:?}");
     assert!((Vec3::from(rv) * 1e-3 - h.rotation).norm() < 1e-12, "{rv:?}");
     assert!((Vec3::from(target) - h.target).norm() < 1e-9, "{target:?}");
-    for stage in &c.stages {
+    for stage in &c.report.stages {
         assert!(stage.fit.max < 1e-9 && stage.check.max < 1e-9, "{stage:?}");
     }
-    let j1 = c.not_identifiable.iter().find(|n| n.starts_with("joint-offset:J1:")).expect("J1's offset reported");
+    let j1 =
+        c.report.not_identifiable.iter().find(|n| n.starts_with("joint-offset:J1:")).expect("J1's offset reported");
     assert!(j1.contains("rotation about z"), "{j1}");
 }
 
@@ -213,9 +216,9 @@ fn offsets_a_compliance_and_a_gross_row_are_named_and_the_held_out_rows_sit_at_t
         let gross = [7 + seed as usize];
         let csv = synthetic(&h, 60, 0.05, &gross, true, 100 + seed);
         let (data, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
-        let report = calibrate::text(&c, "FANUC");
-        assert_eq!(c.verdict, Verdict::Effect, "seed {seed}: {report}");
-        let mut named: Vec<String> = c.accepted.iter().map(|a| a.label.clone()).collect();
+        let report = calibrate::text(&c.report, "FANUC");
+        assert_eq!(c.report.verdict, Verdict::Effect, "seed {seed}: {report}");
+        let mut named: Vec<String> = c.report.accepted.iter().map(|a| a.label.clone()).collect();
         named.sort();
         assert_eq!(
             named,
@@ -223,15 +226,16 @@ fn offsets_a_compliance_and_a_gross_row_are_named_and_the_held_out_rows_sit_at_t
             "seed {seed}: {report}"
         );
         for (e, value) in truth {
-            let a = c.accepted.iter().find(|a| a.label == e.label(&m.joint_space.as_ref().unwrap().names)).unwrap();
+            let a =
+                c.report.accepted.iter().find(|a| a.label == e.label(&m.joint_space.as_ref().unwrap().names)).unwrap();
             checks += 1;
             covered += usize::from((a.values[0] - value).abs() <= 1.96 * a.se[0]);
         }
         // Named whether fitted or held out (a held-out row is judged against the fitted rows' scale).
         let held = if data.rows[gross[0]].check { ", held out" } else { "" };
         let gross_name = format!("c{} (line {}{held})", gross[0], gross[0] + 2);
-        assert_eq!(c.left_out.iter().map(|l| l.row.clone()).collect::<Vec<_>>(), [gross_name], "{report}");
-        let last = c.stages.last().unwrap();
+        assert_eq!(c.report.left_out.iter().map(|l| l.row.clone()).collect::<Vec<_>>(), [gross_name], "{report}");
+        let last = c.report.stages.last().unwrap();
         assert!(last.check.rms < 0.087 * 1.35, "seed {seed}: {report}");
         assert!(last.fit.rms < 0.087 * 1.25, "seed {seed}: {report}");
     }
@@ -249,8 +253,8 @@ fn null_data_names_no_effect() {
     for seed in 0..20 {
         let csv = synthetic(&h, 45, 0.05, &[], true, 500 + seed);
         let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
-        named += usize::from(c.verdict != Verdict::None);
-        assert!(c.left_out.is_empty(), "{}", calibrate::text(&c, "FANUC"));
+        named += usize::from(c.report.verdict != Verdict::None);
+        assert!(c.report.left_out.is_empty(), "{}", calibrate::text(&c.report, "FANUC"));
     }
     assert!(named <= 1, "{named} of 20 null data sets named an effect");
 }
@@ -286,12 +290,12 @@ fn the_fanuc_deflections_give_the_independent_fits_stiffnesses_and_held_out_erro
         ..options(None)
     };
     let (_, split) = calibrate_text(&m, &table(true), dir.path(), &[], &every);
-    let check = &split.stages[0].check;
+    let check = &split.report.stages[0].check;
     assert_eq!(check.rows, 14);
     assert!((check.rms - 0.415).abs() < 0.0015, "held-out RMS {}", check.rms);
     let (_, all) = calibrate_text(&m, &table(false), dir.path(), &[], &every);
     let independent = [8.61e5, 2.72e6, 1.96e6, 2.71e5, 4.25e5, 2.06e5];
-    for (k, a) in all.accepted.iter().enumerate() {
+    for (k, a) in all.report.accepted.iter().enumerate() {
         assert_eq!(a.label, format!("joint-compliance:{}", names[k]));
         let stiffness = 1.0 / ((1.0 / K_JOINT[k] + a.values[0]) * 1e3);
         assert!(
@@ -302,7 +306,7 @@ fn the_fanuc_deflections_give_the_independent_fits_stiffnesses_and_held_out_erro
         );
         assert!(a.se[0] > 0.0 && a.shown.contains("stiffness"), "{}", a.shown);
     }
-    let fit = &all.stages[0].fit;
+    let fit = &all.report.stages[0].fit;
     // The nominal part of the prediction is the loaded equilibrium (with and without the cable), Salisbury's
     // is linear: they differ at second order, a few micrometres here.
     let largest = fit.max_axis.iter().fold(0.0f64, |a, b| a.max(*b));
@@ -487,18 +491,18 @@ fn synth_writes_joint_space_data_that_the_calibration_explains() {
     let names = &m.joint_space.as_ref().unwrap().names;
     let d = PositionData::read(&data, names).unwrap();
     let c = calibrate::calibrate(&m, &d, &[], &options(Some(0.05))).unwrap();
-    let report = calibrate::text(&c, "FANUC");
-    let mut named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+    let report = calibrate::text(&c.report, "FANUC");
+    let mut named: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
     named.sort();
     assert_eq!(named, ["joint-compliance:J3", "joint-offset:J2", "joint-offset:J5", "payload"], "{report}");
     for (label, truth) in
         [("joint-offset:J2", 1.5e-3), ("joint-offset:J5", -2.0e-3), ("joint-compliance:J3", c3), ("payload", 20.0)]
     {
-        let a = c.accepted.iter().find(|a| a.label == label).unwrap();
+        let a = c.report.accepted.iter().find(|a| a.label == label).unwrap();
         assert!((a.values[0] - truth).abs() < 4.0 * a.se[0], "{label}: {report}");
     }
-    let translation = Vec3::from(c.nuisance.iter().find(|n| n.name.contains("translation")).unwrap().value);
-    let target = Vec3::from(c.nuisance.iter().find(|n| n.name.contains("target")).unwrap().value);
+    let translation = Vec3::from(c.report.nuisance.iter().find(|n| n.name.contains("translation")).unwrap().value);
+    let target = Vec3::from(c.report.nuisance.iter().find(|n| n.name.contains("target")).unwrap().value);
     assert!(
         (translation - Vec3::new(1500.0, -300.0, 200.0)).norm() < 0.1
             && (target - Vec3::new(20.0, -10.0, 30.0)).norm() < 0.1,
@@ -507,11 +511,12 @@ fn synth_writes_joint_space_data_that_the_calibration_explains() {
     let text = std::fs::read_to_string(&data).unwrap();
     let mut made: Vec<String> =
         text.lines().skip(1).filter(|l| l.ends_with(",1")).map(|l| l.split(',').next().unwrap().to_string()).collect();
-    let mut found: Vec<String> = c.left_out.iter().map(|g| g.row.split(' ').next().unwrap().to_string()).collect();
+    let mut found: Vec<String> =
+        c.report.left_out.iter().map(|g| g.row.split(' ').next().unwrap().to_string()).collect();
     made.sort();
     found.sort();
     assert!(!made.is_empty() && made == found, "made gross {made:?}, named {found:?}");
-    assert!(c.stages.last().unwrap().check.rms < 0.087 * 1.35, "{report}");
+    assert!(c.report.stages.last().unwrap().check.rms < 0.087 * 1.35, "{report}");
 }
 
 /// Regression: after forward selection and backward elimination, a swap replaced an effect by a simpler one
@@ -526,13 +531,13 @@ fn a_swap_does_not_leave_an_effect_the_others_make_unnecessary() {
     let m = fanuc(false, dir.path());
     let d = PositionData::read(&data, &m.joint_space.as_ref().unwrap().names).unwrap();
     let c = calibrate::calibrate(&m, &d, &[], &options(Some(0.05))).unwrap();
-    let mut named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+    let mut named: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
     named.sort();
     assert_eq!(
         named,
         ["joint-compliance:J3", "joint-offset:J2", "joint-offset:J5", "payload"],
         "{}",
-        calibrate::text(&c, "FANUC")
+        calibrate::text(&c.report, "FANUC")
     );
 }
 
@@ -558,8 +563,12 @@ fn a_frame_compliance_about_the_joints_axis_is_the_joints_compliance() {
     let d = PositionData::read(&data, &m.joint_space.as_ref().unwrap().names).unwrap();
     let fitted = vec![effect(ArmKind::FrameCompliance, "J2")];
     let c = calibrate::calibrate(&m, &d, &[], &Options { fitted, max_effects: 0, ..options(Some(0.01)) }).unwrap();
-    let a = &c.accepted[0];
-    assert!(a.se[5].is_finite() && (a.values[5] - added).abs() < 4.0 * a.se[5], "{}", calibrate::text(&c, "FANUC"));
+    let a = &c.report.accepted[0];
+    assert!(
+        a.se[5].is_finite() && (a.values[5] - added).abs() < 4.0 * a.se[5],
+        "{}",
+        calibrate::text(&c.report, "FANUC")
+    );
     assert!(a.se[5] < 0.1 * added, "{}", a.shown);
 }
 
@@ -587,14 +596,22 @@ fn a_tilted_bases_gravity_direction_loads_the_joints() {
     }
     let truth = 0.8 / K_JOINT[2];
     let (_, c) = calibrate_text(&m, &tilted, dir.path(), &[], &options(Some(0.02)));
-    let report = calibrate::text(&c, "FANUC");
-    assert_eq!(c.accepted.iter().map(|a| a.label.as_str()).collect::<Vec<_>>(), ["joint-compliance:J3"], "{report}");
-    assert!((c.accepted[0].values[0] - truth).abs() < 4.0 * c.accepted[0].se[0], "{report}");
+    let report = calibrate::text(&c.report, "FANUC");
+    assert_eq!(
+        c.report.accepted.iter().map(|a| a.label.as_str()).collect::<Vec<_>>(),
+        ["joint-compliance:J3"],
+        "{report}"
+    );
+    assert!((c.report.accepted[0].values[0] - truth).abs() < 4.0 * c.report.accepted[0].se[0], "{report}");
     let (_, level) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.02)));
-    let right = level.accepted.len() == 1
-        && level.accepted[0].label == "joint-compliance:J3"
-        && (level.accepted[0].values[0] - truth).abs() < 4.0 * level.accepted[0].se[0];
-    assert!(!right, "the level model should not explain tilted data as well: {}", calibrate::text(&level, "FANUC"));
+    let right = level.report.accepted.len() == 1
+        && level.report.accepted[0].label == "joint-compliance:J3"
+        && (level.report.accepted[0].values[0] - truth).abs() < 4.0 * level.report.accepted[0].se[0];
+    assert!(
+        !right,
+        "the level model should not explain tilted data as well: {}",
+        calibrate::text(&level.report, "FANUC")
+    );
 }
 
 /// `stiff synth` on the FANUC at the configurations `points`: a hidden instrument frame and target, J2 and J5
@@ -847,11 +864,11 @@ fn a_per_row_payload_is_weighed_into_the_rows_load() {
         without += &format!("{row}\n");
     }
     let (_, c) = calibrate_text(&m, &with, dir.path(), &[], &options(Some(0.05)));
-    assert_eq!(c.verdict, Verdict::None, "{:?}", c.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
-    let rms = c.stages.last().unwrap().fit.rms;
+    assert_eq!(c.report.verdict, Verdict::None, "{:?}", c.report.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
+    let rms = c.report.stages.last().unwrap().fit.rms;
     assert!(rms < 0.05, "fit RMS {rms} mm with the payloads weighed");
     let (_, c) = calibrate_text(&m, &without, dir.path(), &[], &options(Some(0.05)));
-    assert_ne!(c.verdict, Verdict::None, "the payloads' sag left out must show");
+    assert_ne!(c.report.verdict, Verdict::None, "the payloads' sag left out must show");
 }
 
 /// Measurements drifting over their order (thermal growth, an instrument settling): this file's generator
@@ -880,9 +897,9 @@ fn a_drift_over_the_measurements_order_is_named() {
         JOINTS.iter().flat_map(|j| [effect(ArmKind::JointOffset, j), effect(ArmKind::JointCompliance, j)]).collect();
     offered.extend([ArmEffect { kind: ArmKind::Payload, joint: 0 }, ArmEffect { kind: ArmKind::Drift, joint: 0 }]);
     let (_, c) = calibrate_text(&m, &csv, dir.path(), &offered, &options(Some(0.05)));
-    let names: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
-    assert_eq!(names, ["drift"], "{:?}", c.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
-    let a = &c.accepted[0];
+    let names: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
+    assert_eq!(names, ["drift"], "{:?}", c.report.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
+    let a = &c.report.accepted[0];
     for k in 0..3 {
         assert!((a.values[k] - rate[k]).abs() < 4.0 * a.se[k], "{}", a.shown);
     }
@@ -939,9 +956,9 @@ fn a_compliance_at_the_tool_is_named_from_the_force_it_carries() {
     let mut offered: Vec<ArmEffect> = JOINTS.iter().map(|j| effect(ArmKind::JointCompliance, j)).collect();
     offered.push(ArmEffect { kind: ArmKind::ToolCompliance, joint: 0 });
     let (_, c) = calibrate_text(&m, &csv, dir.path(), &offered, &options(Some(0.02 / 3f64.sqrt())));
-    let names: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
-    assert_eq!(names, ["tool-compliance"], "{:?}", c.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
-    let a = &c.accepted[0];
+    let names: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
+    assert_eq!(names, ["tool-compliance"], "{:?}", c.report.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
+    let a = &c.report.accepted[0];
     for (k, hidden) in [0.0, 0.0, 3e-4].iter().enumerate() {
         assert!((a.values[k] - hidden).abs() < 4.0 * a.se[k], "{}", a.shown);
     }
@@ -1049,21 +1066,21 @@ fn orientations_are_predicted_exactly_and_read_alike_as_quaternions_roll_pitch_y
     for written in [Written::Quaternion, Written::RollPitchYawDegrees, Written::RotationVector] {
         let csv = synthetic_oriented(&h, 30, (0.0, 0.0), &axes, (written, false), 8);
         let (data, c) = calibrate_text(&m, &csv, dir.path(), &[], &o);
-        let report = calibrate::text(&c, "rigid");
+        let report = calibrate::text(&c.report, "rigid");
         assert!(data.unread.is_empty(), "{:?}", data.unread);
-        let nuisance = |name: &str| Vec3::from(c.nuisance.iter().find(|n| n.name.contains(name)).unwrap().value);
+        let nuisance = |name: &str| Vec3::from(c.report.nuisance.iter().find(|n| n.name.contains(name)).unwrap().value);
         assert!((nuisance("translation") - h.translation).norm() < 1e-9, "{report}");
         assert!((nuisance("rotation") * 1e-3 - h.rotation).norm() < 1e-12, "{report}");
         assert!((nuisance("place") - h.target).norm() < 1e-9, "{report}");
-        for (a, truth) in c.accepted.iter().zip([1.0e-3, -2.0e-3, 1.5e-3]) {
+        for (a, truth) in c.report.accepted.iter().zip([1.0e-3, -2.0e-3, 1.5e-3]) {
             assert!((a.values[0] - truth).abs() < 1e-11, "{}: {:e}\n{report}", a.label, a.values[0]);
         }
-        let stage = c.stages.last().unwrap();
+        let stage = c.report.stages.last().unwrap();
         let [fit, check] = stage.orientation.as_ref().expect("orientation errors");
         assert!(fit.rows == 20 && check.rows == 10, "{report}");
         assert!(fit.max < 1e-8 && check.max < 1e-8, "{report}");
         assert!(stage.fit.max < 1e-9, "{report}");
-        offsets.push(c.accepted.iter().map(|a| a.values[0]).collect::<Vec<_>>());
+        offsets.push(c.report.accepted.iter().map(|a| a.values[0]).collect::<Vec<_>>());
     }
     for other in &offsets[1..] {
         for (q, o) in offsets[0].iter().zip(other) {
@@ -1099,7 +1116,7 @@ fn a_measured_orientation_sharpens_a_wrist_offset_and_names_nothing_on_null_data
         .collect();
     assert!(positions.starts_with("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,sigma_mm,set\n"));
     let (_, without) = calibrate_text(&m, &positions, dir.path(), &[], &o);
-    let (a, b) = (&with.accepted[0], &without.accepted[0]);
+    let (a, b) = (&with.report.accepted[0], &without.report.accepted[0]);
     assert!(
         a.se[0] < 0.8 * b.se[0],
         "with {:e} +- {:e}, without {:e} +- {:e}",
@@ -1112,13 +1129,13 @@ fn a_measured_orientation_sharpens_a_wrist_offset_and_names_nothing_on_null_data
         assert!((e.values[0] - 1.0e-3).abs() < 4.0 * e.se[0], "{:e} +- {:e}", e.values[0], e.se[0]);
     }
     let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(None));
-    let named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
-    assert_eq!(named, ["joint-offset:J4"], "{}", calibrate::text(&c, "FANUC"));
+    let named: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
+    assert_eq!(named, ["joint-offset:J4"], "{}", calibrate::text(&c.report, "FANUC"));
     let h = Hidden::registration_only();
     for seed in 0..3 {
         let csv = synthetic_oriented(&h, 45, (0.05, 0.1), &axes, (Written::Quaternion, true), 300 + seed);
         let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(None));
-        assert_eq!(c.verdict, Verdict::None, "seed {seed}: {}", calibrate::text(&c, "FANUC"));
+        assert_eq!(c.report.verdict, Verdict::None, "seed {seed}: {}", calibrate::text(&c.report, "FANUC"));
     }
 }
 
@@ -1207,17 +1224,17 @@ fn synth_measures_orientations_that_the_calibration_explains() {
     let m = fanuc(false, dir.path());
     let d = PositionData::read(&data, &m.joint_space.as_ref().unwrap().names).unwrap();
     let c = calibrate::calibrate(&m, &d, &[], &options(None)).unwrap();
-    let report = calibrate::text(&c, "FANUC");
-    let mut named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+    let report = calibrate::text(&c.report, "FANUC");
+    let mut named: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
     named.sort();
     assert_eq!(named, ["joint-compliance:J2", "joint-offset:J4"], "{report}");
     for (label, truth) in [("joint-offset:J4", 2e-3), ("joint-compliance:J2", 1e-9)] {
-        let a = c.accepted.iter().find(|a| a.label == label).unwrap();
+        let a = c.report.accepted.iter().find(|a| a.label == label).unwrap();
         assert!((a.values[0] - truth).abs() < 4.0 * a.se[0], "{label}: {report}");
     }
-    let axes = Vec3::from(c.nuisance.iter().find(|n| n.name.contains("axes")).unwrap().value);
+    let axes = Vec3::from(c.report.nuisance.iter().find(|n| n.name.contains("axes")).unwrap().value);
     assert!((axes - Vec3::new(100.0, 200.0, -300.0)).norm() < 0.1, "{report}");
-    let [_, check] = c.stages.last().unwrap().orientation.clone().unwrap();
+    let [_, check] = c.report.stages.last().unwrap().orientation.clone().unwrap();
     assert!(check.rows == 14 && check.rms < 0.17 * 1.35, "{report}");
 }
 
@@ -1255,10 +1272,10 @@ fn a_gross_orientation_is_judged_against_the_orientations_own_scale() {
     }
     assert!(lines[0].split(',').nth(15) == Some("sigma_mrad"));
     let (_, c) = calibrate_text(&m, &(lines.join("\n") + "\n"), dir.path(), &[], &options(None));
-    let named: Vec<(&str, &str)> = c.left_out.iter().map(|g| (g.row.as_str(), g.unit)).collect();
-    assert_eq!(named, [("c7 (line 9, orientation)", "mrad")], "{}", calibrate::text(&c, "FANUC"));
+    let named: Vec<(&str, &str)> = c.report.left_out.iter().map(|g| (g.row.as_str(), g.unit.as_str())).collect();
+    assert_eq!(named, [("c7 (line 9, orientation)", "mrad")], "{}", calibrate::text(&c.report, "FANUC"));
     // About 3 mrad off, in the unit given.
-    assert!((c.left_out[0].misfit - 3.0).abs() < 0.5, "{}", c.left_out[0].misfit);
+    assert!((c.report.left_out[0].misfit - 3.0).abs() < 0.5, "{}", c.report.left_out[0].misfit);
 }
 
 /// A plan for an instrument that measures orientations too (`plan --orientation-noise`): its signatures'
@@ -1324,14 +1341,14 @@ fn a_joints_play_is_named_from_the_sign_of_its_load() {
     h.play[1] = 1e-3;
     let csv = synthetic(&h, 60, 0.05, &[], true, 41);
     let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
-    let report = calibrate::text(&c, "FANUC");
-    let named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+    let report = calibrate::text(&c.report, "FANUC");
+    let named: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
     assert_eq!(named, ["backlash:J2"], "{report}");
-    let a = &c.accepted[0];
+    let a = &c.report.accepted[0];
     assert!((a.values[0] - 1e-3).abs() < 4.0 * a.se[0], "{report}");
     let csv = synthetic(&Hidden::registration_only(), 60, 0.05, &[], true, 41);
     let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
-    assert_eq!(c.verdict, Verdict::None, "{}", calibrate::text(&c, "FANUC"));
+    assert_eq!(c.report.verdict, Verdict::None, "{}", calibrate::text(&c.report, "FANUC"));
 }
 
 /// `stiff synth --effect backlash:J2=0.001` measures each configuration with J2's model coordinate 1 mrad off
@@ -1354,8 +1371,8 @@ fn synth_hides_a_joints_play_that_the_calibration_names() {
     let m = fanuc(false, dir.path());
     let d = PositionData::read(&data, &m.joint_space.as_ref().unwrap().names).unwrap();
     let c = calibrate::calibrate(&m, &d, &[], &options(Some(0.05))).unwrap();
-    let report = calibrate::text(&c, "FANUC");
-    let named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+    let report = calibrate::text(&c.report, "FANUC");
+    let named: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
     assert_eq!(named, ["backlash:J2"], "{report}");
-    assert!((c.accepted[0].values[0] - 1e-3).abs() < 4.0 * c.accepted[0].se[0], "{report}");
+    assert!((c.report.accepted[0].values[0] - 1e-3).abs() < 4.0 * c.report.accepted[0].se[0], "{report}");
 }

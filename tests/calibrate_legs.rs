@@ -8,7 +8,9 @@
 use std::path::Path;
 
 use rand::Rng;
-use stiff::diagnose::calibrate::{self, ArmEffect, ArmKind, Calibration, Options, Verdict};
+use stiff::diagnose::calibrate::{
+    self, ArmEffect, ArmKind, Calibration, CalibrationOptions as Options, CalibrationVerdict as Verdict,
+};
 use stiff::diagnose::positions::PositionData;
 use stiff::kinematics::frame::{rotation_from_vector, Mat3, Vec3};
 use stiff::platform::manipulator::Manipulator;
@@ -161,8 +163,8 @@ fn a_parallel_robots_actuator_offsets_are_recovered_exactly_from_positions_at_co
     };
     let csv = synthetic(&h, 30, 0.0, &[], 3);
     let (_, c) = calibrated(&m, &csv, dir.path(), &options(1e-9, (0..3).map(offset).collect()));
-    let report = calibrate::text(&c, MODEL);
-    for (k, a) in c.accepted.iter().take(3).enumerate() {
+    let report = calibrate::text(&c.report, MODEL);
+    for (k, a) in c.report.accepted.iter().take(3).enumerate() {
         assert!(
             (a.values[0] - h.offsets[k]).abs() < 1e-9,
             "leg {}: {} against {}\n{report}",
@@ -171,12 +173,12 @@ fn a_parallel_robots_actuator_offsets_are_recovered_exactly_from_positions_at_co
             h.offsets[k]
         );
     }
-    let last = c.stages.last().unwrap();
+    let last = c.report.stages.last().unwrap();
     assert!(last.fit.max < 1e-9 && last.check.max < 1e-9, "{last:?}\n{report}");
-    let rotation = c.nuisance.iter().find(|n| n.name.contains("rotation")).unwrap().value;
+    let rotation = c.report.nuisance.iter().find(|n| n.name.contains("rotation")).unwrap().value;
     assert!((Vec3::from(rotation) * 1e-3 - h.rotation).norm() < 1e-9, "{rotation:?}\n{report}");
-    assert!(c.not_identifiable.iter().any(|n| n.contains("target's place")), "{report}");
-    assert_ne!(c.verdict, Verdict::Unexplained, "{report}");
+    assert!(c.report.not_identifiable.iter().any(|n| n.contains("target's place")), "{report}");
+    assert_ne!(c.report.verdict, Verdict::Unexplained, "{report}");
 }
 
 /// Two actuators' offsets behind a hidden instrument frame, 0.02 mm noise, one gross row in 60 poses and a
@@ -204,20 +206,20 @@ fn a_parallel_robots_offsets_are_named_among_every_leg_effect_and_confirmed_on_h
         (0..3).flat_map(|joint| kinds.iter().map(move |&kind| ArmEffect { kind, joint })).collect();
     candidates.push(ArmEffect { kind: ArmKind::Payload, joint: 0 });
     let c = calibrate::calibrate(&m, &data, &candidates, &options(0.02, Vec::new())).unwrap();
-    let report = calibrate::text(&c, MODEL);
-    let named: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
-    assert_eq!(c.verdict, Verdict::Effect, "{report}");
+    let report = calibrate::text(&c.report, MODEL);
+    let named: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
+    assert_eq!(c.report.verdict, Verdict::Effect, "{report}");
     let mut sorted = named.clone();
     sorted.sort();
     assert_eq!(sorted, ["joint-offset:1", "joint-offset:3"], "{report}");
-    for a in &c.accepted {
+    for a in &c.report.accepted {
         let truth = h.offsets[a.joint.parse::<usize>().unwrap() - 1];
         assert!((a.values[0] - truth).abs() < 4.0 * a.se[0], "{}: {} +- {}\n{report}", a.label, a.values[0], a.se[0]);
         assert_eq!(a.confirmed, Some(true), "{report}");
     }
-    assert_eq!(c.left_out.len(), 1, "{report}");
-    assert!(c.left_out[0].row.starts_with("p7"), "{report}");
-    let last = c.stages.last().unwrap();
+    assert_eq!(c.report.left_out.len(), 1, "{report}");
+    assert!(c.report.left_out[0].row.starts_with("p7"), "{report}");
+    let last = c.report.stages.last().unwrap();
     assert!(last.check.rms < 0.05, "{last:?}\n{report}");
 }
 
@@ -316,17 +318,17 @@ fn over_seeds_a_parallel_robots_offsets_are_named_with_honest_intervals_and_null
             offsets: [0.4, 0.0, -0.25],
         };
         let (_, c) = calibrated(&m, &synthetic(&h, 45, 0.02, &[], 100 + seed), dir.path(), &options(0.02, Vec::new()));
-        let mut labels: Vec<&str> = c.accepted.iter().map(|a| a.label.as_str()).collect();
+        let mut labels: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
         labels.sort();
         exact += usize::from(labels == ["joint-offset:1", "joint-offset:3"]);
-        for a in c.accepted.iter().filter(|a| a.kind == ArmKind::JointOffset) {
+        for a in c.report.accepted.iter().filter(|a| a.kind == ArmKind::JointOffset.name()) {
             let truth = h.offsets[a.joint.parse::<usize>().unwrap() - 1];
             values += 1;
             covered += usize::from((a.values[0] - truth).abs() < 1.96 * a.se[0]);
         }
         h.offsets = [0.0; 3];
         let (_, c) = calibrated(&m, &synthetic(&h, 45, 0.02, &[], 200 + seed), dir.path(), &options(0.02, Vec::new()));
-        quiet += usize::from(c.verdict == Verdict::None);
+        quiet += usize::from(c.report.verdict == Verdict::None);
     }
     assert!(exact >= 11, "named exactly in {exact} of 12");
     assert!(covered as f64 >= 0.9 * values as f64, "{covered} of {values} covered");
@@ -472,11 +474,11 @@ fn a_parallel_robots_actuator_readings_give_the_pose_the_controller_reached() {
     let legs: Vec<String> = ["1", "2", "3"].map(String::from).to_vec();
     let data = PositionData::read_at_poses(&path, std::fs::File::open(&path).unwrap(), &legs).unwrap();
     let c = calibrate::calibrate(&m, &data, &[], &options).unwrap();
-    let report = calibrate::text(&c, MODEL);
-    for (k, a) in c.accepted.iter().take(3).enumerate() {
+    let report = calibrate::text(&c.report, MODEL);
+    for (k, a) in c.report.accepted.iter().take(3).enumerate() {
         assert!((a.values[0] - h.offsets[k]).abs() < 1e-9, "leg {}: {}\n{report}", k + 1, a.values[0]);
     }
-    assert!(c.stages.last().unwrap().fit.max < 1e-9, "{report}");
+    assert!(c.report.stages.last().unwrap().fit.max < 1e-9, "{report}");
     let (_, c) = calibrated(&m, &without, dir.path(), &options);
-    assert!(c.stages.last().unwrap().fit.max > 0.01, "{}", calibrate::text(&c, MODEL));
+    assert!(c.report.stages.last().unwrap().fit.max > 0.01, "{}", calibrate::text(&c.report, MODEL));
 }

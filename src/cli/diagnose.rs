@@ -189,6 +189,7 @@ fn joint_space_data(input: &[u8]) -> bool {
 fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulator, input: &[u8]) -> Result<()> {
     use crate::diagnose::calibrate::{self, ArmEffect};
     use crate::diagnose::positions::PositionData;
+    use crate::output::calibration::{CalibrationFile, CalibrationVerdict};
     if a.linear {
         bail!("--linear is not available for measured positions: the calibration's predictions are first order about each row's loaded equilibrium");
     }
@@ -226,7 +227,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
             .map(|e| ArmEffect::parse(e.trim(), &joints).map_err(|why| anyhow::anyhow!("{flag}: {why}")))
             .collect()
     };
-    let options = calibrate::Options {
+    let options = calibrate::CalibrationOptions {
         alpha: a.alpha,
         sigma: a.sigma,
         sigma_rad: a.sigma_mrad.map(|s| s * 1e-3),
@@ -240,17 +241,17 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     let c = calibrate::calibrate(m, &data, &candidates, &options)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
-    write_stdout(&calibrate::text(&c, &name))?;
-    let json = serde_json::json!({ "model": name, "calibration": c });
+    write_stdout(&calibrate::text(&c.report, &name))?;
+    let file = CalibrationFile { model: name, calibration: c.report.clone() };
     if let Some(mut sink) = json_sink {
-        serde_json::to_writer_pretty(&mut *sink.writer(), &json)?;
+        // Through a JSON value, whose keys are sorted, as every JSON file stiff writes.
+        serde_json::to_writer_pretty(&mut *sink.writer(), &serde_json::to_value(&file)?)?;
         sink.finish()?;
     }
     if let Some(mut sink) = plot_sink {
-        let report: crate::plot::calibration::CalibrationReport = serde_json::from_value(json)?;
         let title = format!("{}, data {}", a.model.model.display(), a.data.display());
         let options = crate::plot::PlotOptions { title: Some(title), ..Default::default() };
-        let svg = crate::plot::calibration::calibration(&report, &options)?;
+        let svg = crate::plot::calibration::calibration(&file, &options)?;
         let path = a.plot.as_deref().expect("a sink only with --plot");
         sink.writer().write_all(&picture_bytes(&svg, path)?)?;
         sink.finish()?;
@@ -258,13 +259,13 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     if let Some(sink) = model_sink {
         write_corrected(sink, &a.model.model, |source, dir| calibrate::corrected_model(source, dir, &c))?;
     }
-    let fails = match (a.fail_on, c.verdict) {
-        (None, _) | (_, calibrate::Verdict::None) => false,
+    let fails = match (a.fail_on, c.report.verdict) {
+        (None, _) | (_, CalibrationVerdict::None) => false,
         (Some(FailOn::Effect), _) => true,
-        (Some(FailOn::Unexplained), v) => v == calibrate::Verdict::Unexplained,
+        (Some(FailOn::Unexplained), v) => v == CalibrationVerdict::Unexplained,
     };
     if fails {
-        bail!("verdict `{:?}` (--fail-on)", c.verdict);
+        bail!("verdict `{:?}` (--fail-on)", c.report.verdict);
     }
     Ok(())
 }

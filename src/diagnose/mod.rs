@@ -11,4 +11,5 @@ pub mod positions;
 pub mod report;
 pub mod screen;
 pub mod select;
+pub mod stats;
 pub mod synth;

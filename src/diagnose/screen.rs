@@ -4,7 +4,7 @@
 //!
 //! The decision is robust: each row's misfit is the length of its weighted residual (in standard
 //! deviations), compared with a scale taken from the median of all rows' misfits, which a minority of gross
-//! rows cannot move. A row is gross where its misfit exceeds `GROSS_FACTOR` times that scale (and the
+//! rows cannot move. A row is gross where its misfit exceeds `stats::GROSS_FACTOR_DEFLECTIONS` times that scale (and the
 //! stated noise level, where it is known). The rows are first screened against the nominal model; once the
 //! effects are fitted, every row is screened again against the corrected model (an effect can make clean
 //! rows look far off the nominal, and hide a gross row under its own misfit), until the set left out no
@@ -16,19 +16,10 @@ use super::data::Dataset;
 use super::error::DiagnoseError;
 use super::fit::Problem;
 use super::select::{diagnose, noise, Diagnosis, Options, SigmaSource, Verdict};
+use super::stats::{robust_scale, GROSS_FACTOR_DEFLECTIONS};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::model::effect::Effect;
 use crate::platform::manipulator::Manipulator;
-
-/// A row whose misfit is beyond this many robust scales is gross. For pure noise the misfit of a row is the
-/// length of a standard normal 3-vector: beyond 30 with probability below 1e-190, so no honest row is ever
-/// left out; a systematic effect's misfit varies from row to row by the load and the pose, rarely by more
-/// than a factor of ten around its median.
-pub const GROSS_FACTOR: f64 = 30.0;
-
-/// The median length of a standard normal 3-vector (chi with 3 degrees of freedom): the robust scale is the
-/// median misfit divided by it, one standard deviation for pure noise.
-const MEDIAN_CHI3: f64 = 1.5382;
 
 /// Rounds of screening and fitting at most: each one changes the set left out, or the screening ends.
 pub const MAX_ROUNDS: usize = 3;
@@ -103,14 +94,13 @@ fn gross_among(rows: &[usize], r: &DVector<f64>, scale_rows: &[usize], floor: f6
         return Vec::new();
     }
     trusted.sort_by(f64::total_cmp);
-    let median = trusted[trusted.len() / 2];
-    let scale = (median / MEDIAN_CHI3).max(floor);
+    let scale = robust_scale(&trusted).max(floor);
     // A zero scale (more than half the rows fitted exactly, and no noise level known) decides nothing.
     if scale.is_nan() || scale <= 0.0 {
         return Vec::new();
     }
     // A misfit that is not a number (an overflow) is gross too.
-    let gross = |m: f64| m.is_nan() || m > GROSS_FACTOR * scale;
+    let gross = |m: f64| m.is_nan() || m > GROSS_FACTOR_DEFLECTIONS * scale;
     (0..rows.len()).filter(|&i| gross(misfit(i))).map(|i| rows[i]).collect()
 }
 

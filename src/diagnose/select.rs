@@ -8,12 +8,12 @@
 //! cannot tell apart), `unexplained`, `noise` (a residual variance that grows with the load).
 
 use nalgebra::{DMatrix, DVector};
-use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use super::data::Dataset;
 use super::error::{DiagnoseError, PoseError};
 use super::fit::{effects_of, fit, jacobian, Candidate, Fit, Problem};
 use super::measurement::gravity_of;
+use super::stats::{chi2_sf, f_sf, STRONG_EVIDENCE};
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::linalg::{outside_span, span_basis};
 use crate::model::effect::{Effect, Kind, Target};
@@ -290,8 +290,6 @@ const RANK_DEFICIENT: f64 = 1e8;
 pub(crate) const ABSORBED_SHARE: f64 = 0.05;
 /// A fitted value counts as away from neutral when at least this many standard errors from it.
 const SIGNIFICANT_T: f64 = 3.0;
-/// Delta BIC below -10: "very strong" evidence (Kass and Raftery 1995, Bayes factors, JASA 90:773).
-const STRONG_BIC: f64 = 10.0;
 /// A rival whose best fit stays within this noise-free separation (sigma^2 units) of the best candidate's
 /// fitted prediction is tied with it: the observed excess SSR of the wrong one has mean s and standard
 /// deviation about 2 sqrt(s), so at s = 16 it still comes out below zero in 2% of data sets.
@@ -362,19 +360,6 @@ fn visible_end_errors(problem: &Problem, k: usize, rows: &[usize]) -> Option<DMa
         return None;
     }
     Some(DMatrix::from_fn(6, keep.len(), |r, c| v_t[(keep[c], r)] * unit(r)))
-}
-
-/// Upper-tail probabilities by the distributions' survival functions: `1 - cdf` underflows to 0 beyond
-/// p ~ 1e-16, which made every strong effect look equally (infinitely) significant.
-fn chi2_sf(x: f64, dof: usize) -> f64 {
-    ChiSquared::new(dof.max(1) as f64).map(|d| d.sf(x)).unwrap_or(f64::NAN)
-}
-
-fn f_sf(x: f64, d1: usize, d2: usize) -> f64 {
-    if d1 == 0 || d2 == 0 || !x.is_finite() {
-        return if x.is_infinite() { 0.0 } else { 1.0 };
-    }
-    FisherSnedecor::new(d1 as f64, d2 as f64).map(|d| d.sf(x.max(0.0))).unwrap_or(f64::NAN)
 }
 
 /// Per-axis sums of squares (mm^2) of the weighted residuals `r` of `rows`, turned back into mm.
@@ -526,7 +511,8 @@ impl Step<'_> {
         row.plausible = plausible(c, &row.values, &row.se);
         // Residuals are w (measured - predicted): their change is w (pred_with - pred_without).
         row.change = &base.residuals - &f.residuals;
-        row.passes = row.p_value < alpha_c && row.delta_bic < -STRONG_BIC && row.plausible && row.significant_params;
+        row.passes =
+            row.p_value < alpha_c && row.delta_bic < -STRONG_EVIDENCE && row.plausible && row.significant_params;
         row.fit = Some(f);
         row
     }
@@ -986,7 +972,7 @@ const MAX_REFINE: usize = 6;
 
 /// Backward elimination and swaps over the accepted set, so the simplest sufficient set wins where forward
 /// selection took a larger effect first (leg-geometry with 5 values where an actuator offset explains the
-/// same): drop an effect the others make unnecessary (its removal costs less than `STRONG_BIC`), else
+/// same): drop an effect the others make unnecessary (its removal costs less than `STRONG_EVIDENCE`), else
 /// replace one by another candidate where that lowers the BIC with plausible values at least
 /// `SIGNIFICANT_T` standard errors from neutral.
 fn refine(
@@ -1006,7 +992,7 @@ fn refine(
                 let (set, start) = without_effect(&accepted, &current.theta, i);
                 let f = fit(problem, &set, rows, Some(&start))?;
                 let cost = bic(&f) - now;
-                if cost < STRONG_BIC && drop.as_ref().is_none_or(|(c, _, _)| cost < *c) {
+                if cost < STRONG_EVIDENCE && drop.as_ref().is_none_or(|(c, _, _)| cost < *c) {
                     drop = Some((cost, i, f));
                 }
             }
@@ -1083,24 +1069,4 @@ fn per_pose_residuals(problem: &Problem, rows: &[usize], current: &Fit) -> Resul
         }
     }
     Ok(out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Regression: p-values were `1 - cdf`, which is 0 below 1e-16. Closed forms: the chi-square
-    /// distribution with 2 degrees of freedom has sf(x) = exp(-x/2); the F distribution with d1 = 2 has
-    /// sf(x) = (1 + 2x/d2)^(-d2/2).
-    #[test]
-    fn p_values_keep_their_digits_far_in_the_tail() {
-        for x in [1.0, 40.0, 200.0, 1000.0] {
-            let exact = (-x / 2.0f64).exp();
-            assert!((chi2_sf(x, 2) - exact).abs() <= 1e-10 * exact, "chi2 sf({x}) {} vs {exact}", chi2_sf(x, 2));
-        }
-        for (x, d2) in [(3.0, 20usize), (200.0, 30), (5000.0, 40)] {
-            let exact = (1.0 + 2.0 * x / d2 as f64).powf(-(d2 as f64) / 2.0);
-            assert!((f_sf(x, 2, d2) - exact).abs() <= 1e-8 * exact, "F sf({x}) {} vs {exact}", f_sf(x, 2, d2));
-        }
-    }
 }

@@ -1,4 +1,5 @@
 //! CSV rows and Parquet tables, text reports, and files written atomically.
+pub mod calibration;
 pub mod diagnosis;
 #[cfg(feature = "parquet")]
 pub mod parquet;

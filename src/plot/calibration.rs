@@ -5,63 +5,16 @@
 //! measured, a second panel beside it draws their errors (mrad) alike.
 
 use anyhow::Result;
-use serde::Deserialize;
 
 use super::svg::{frame, text_width, Axis, Svg};
 use super::{heading, PlotOptions};
-
-/// The part of a calibration's JSON (`diagnose --json` on joint-space data) the picture draws.
-#[derive(Deserialize)]
-pub struct CalibrationReport {
-    /// The description calibrated.
-    pub model: String,
-    /// The calibration.
-    pub calibration: Calibration,
-}
-
-/// The verdict and the stages of a calibration.
-#[derive(Deserialize)]
-pub struct Calibration {
-    /// `none`, `effect` or `unexplained`.
-    pub verdict: String,
-    /// The registration, then each accepted effect added.
-    pub stages: Vec<Stage>,
-}
-
-/// One stage's errors.
-#[derive(Deserialize)]
-pub struct Stage {
-    /// `registration`, `+ joint-offset:J2`, ...
-    pub model: String,
-    /// Parameters the data see at this stage.
-    pub parameters: usize,
-    /// The fitted rows' errors.
-    pub fit: Errors,
-    /// The held-out rows' errors (gross rows left out).
-    pub check: Errors,
-    /// The orientations' errors (fitted, held out), mrad, where orientations were measured.
-    #[serde(default)]
-    pub orientation: Option<[Errors; 2]>,
-}
-
-/// The position error's statistics over some rows, mm.
-#[derive(Deserialize)]
-pub struct Errors {
-    /// Rows.
-    pub rows: usize,
-    /// RMS of the error's length.
-    pub rms: f64,
-    /// Its 95th percentile.
-    pub p95: f64,
-    /// Its largest value.
-    pub max: f64,
-}
+use crate::output::calibration::{CalibrationFile, ErrorStats};
 
 const FIT: &str = "#1f5fa8";
 const CHECK: &str = "#e08a2c";
 
 /// Grouped bars of a calibration's errors per stage.
-pub fn calibration(v: &CalibrationReport, o: &PlotOptions) -> Result<String> {
+pub fn calibration(v: &CalibrationFile, o: &PlotOptions) -> Result<String> {
     let stages = &v.calibration.stages;
     if stages.is_empty() {
         anyhow::bail!("the calibration has no stages: nothing to draw");
@@ -73,9 +26,9 @@ pub fn calibration(v: &CalibrationReport, o: &PlotOptions) -> Result<String> {
     let (left, plot_height) = (80.0, 280.0);
     let plot_width = (group * stages.len() as f64).max(240.0);
     // The position panel, and the orientation panel where every stage has one.
-    let mut panels: Vec<(&str, Vec<[&Errors; 2]>)> =
+    let mut panels: Vec<(&str, Vec<[&ErrorStats; 2]>)> =
         vec![("position error [mm]", stages.iter().map(|st| [&st.fit, &st.check]).collect())];
-    let orientations: Option<Vec<[&Errors; 2]>> =
+    let orientations: Option<Vec<[&ErrorStats; 2]>> =
         stages.iter().map(|st| st.orientation.as_ref().map(|[f, c]| [f, c])).collect();
     if let Some(errors) = orientations {
         panels.push(("orientation error [mrad]", errors));
@@ -83,7 +36,7 @@ pub fn calibration(v: &CalibrationReport, o: &PlotOptions) -> Result<String> {
     let panel_step = left + plot_width;
     let width = panel_step * panels.len() as f64 + 200.0;
     let mut s = Svg::new(width, 0.0);
-    let what = format!("calibration of {}: verdict {}", v.model, v.calibration.verdict);
+    let what = format!("calibration of {}: verdict {}", v.model, v.calibration.verdict.as_str());
     let top = heading(&mut s, width, o, &what) + 30.0;
     for (p, (axis_label, errors)) in panels.iter().enumerate() {
         let from = left + panel_step * p as f64;
@@ -116,13 +69,13 @@ pub fn calibration(v: &CalibrationReport, o: &PlotOptions) -> Result<String> {
 /// One panel's bars: per stage the fitted rows' RMS (and the held-out rows', where there are any), with the
 /// 95th percentile as a bar across and the largest error as a dot above it, between `top` and `top +
 /// height`. Returns the panel's value axis.
-fn bar_panel(s: &mut Svg, errors: &[[&Errors; 2]], held_out: bool, x: &Axis, (top, height): (f64, f64)) -> Axis {
+fn bar_panel(s: &mut Svg, errors: &[[&ErrorStats; 2]], held_out: bool, x: &Axis, (top, height): (f64, f64)) -> Axis {
     let values = errors.iter().flatten().filter(|e| e.rows > 0).flat_map(|e| [e.rms, e.p95, e.max]);
     let y = Axis::new(values.chain([0.0]), top + height, top);
     let bar = if held_out { 18.0 } else { 22.0 };
     for (k, [fit, check]) in errors.iter().enumerate() {
         let centre = x.px(k as f64);
-        let bars: Vec<(&Errors, &str)> = if held_out { vec![(fit, FIT), (check, CHECK)] } else { vec![(fit, FIT)] };
+        let bars: Vec<(&ErrorStats, &str)> = if held_out { vec![(fit, FIT), (check, CHECK)] } else { vec![(fit, FIT)] };
         for (j, (e, colour)) in bars.iter().enumerate() {
             if e.rows == 0 {
                 continue;

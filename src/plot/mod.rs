@@ -65,7 +65,7 @@ pub fn plot_reader(input: impl std::io::Read, o: &PlotOptions) -> Result<String>
         let value: serde_json::Value = serde_json::from_reader(input).context(what)?;
         // A serial arm's calibration (joint-space data) or a diagnosis of displacements at poses.
         if value.get("calibration").is_some() {
-            let report: calibration::CalibrationReport = serde_json::from_value(value).context(what)?;
+            let report: crate::output::calibration::CalibrationFile = serde_json::from_value(value).context(what)?;
             return calibration::calibration(&report, o);
         }
         let report: DiagnosisReport = serde_json::from_value(value).context(what)?;

@@ -1,0 +1,139 @@
+//! A parallel robot's first order completed by its exact loaded equilibrium: the miss of the first-order
+//! prediction against the robot with the effects a description holds built in, kept per set of effects and
+//! refitted (`PositionProblem::fit_exact`). A serial arm's fit is exact already.
+
+use super::effect::{ArmEffect, ArmKind, Seen};
+use super::fit::{Params, PositionFit};
+use super::problem::PositionProblem;
+use crate::diagnose::positions::Observed;
+use crate::kinematics::frame::{Vec3, Vec6};
+use crate::model::effect::{Effect, Kind, Target};
+use crate::platform::manipulator::Manipulator;
+
+/// Most refits of a parallel robot's first order completed by its exact misses (`PositionProblem::fit_exact`).
+const EXACT_PASSES: usize = 8;
+
+impl PositionProblem<'_> {
+    /// The miss kept for these effects at row `r` (`exact_misses`), zero where none is kept.
+    /// Where none is kept for exactly these, the one kept for their longest leading part: the selection tries
+    /// each candidate after the model it has (whose misses `select` keeps), so a candidate is judged against
+    /// the model's exact prediction, its own first order added.
+    pub(super) fn kept_miss(&self, effects: &[ArmEffect], r: usize) -> Vec6 {
+        let misses = self.misses.borrow();
+        let exact = misses.iter().find(|(e, _)| e == effects);
+        let leading = || misses.iter().filter(|(e, _)| effects.starts_with(e)).max_by_key(|(e, _)| e.len());
+        exact.or_else(leading).map_or_else(Vec6::zeros, |(_, m)| m[r])
+    }
+
+    /// A parallel robot's effects act at first order (`unit_moves`): an actuator offset of 1 mm on legs of
+    /// 300 mm leaves about 3 um of second order, an actuator's compliance and a payload the change of C and
+    /// K_i with the pose. This is, per row, the twist (reference point, base frame) from that first-order
+    /// prediction with `effects` at `params` to the loaded equilibrium of the robot with the effects a
+    /// description holds built in (actuator offsets, added actuator compliances as factors on their springs,
+    /// a payload of positive mass), as `stiff synth` and every study compute it; the effects no description
+    /// holds (a leg's end-point error, play) stay first order. None where none is built in, for a serial arm
+    /// (whose offsets are exact and whose compliances act at first order about its loaded equilibrium), or
+    /// where a row has no equilibrium.
+    pub(super) fn exact_misses(&self, effects: &[ArmEffect], params: &Params) -> Option<Vec<Vec6>> {
+        if self.space.is_some() {
+            return None;
+        }
+        let built: Vec<(&ArmEffect, &Vec<f64>, Effect)> =
+            effects.iter().zip(&params.effects).filter_map(|(e, v)| Some((e, v, self.model_form(e, v)?))).collect();
+        if built.is_empty() {
+            return None;
+        }
+        let model_form: Vec<Effect> = built.iter().map(|(_, _, f)| f.clone()).collect();
+        let mut real: Vec<Option<Manipulator>> = vec![None; self.tilted.len() + 1];
+        let mut state = self.m.new_state();
+        let mut misses = Vec::with_capacity(self.data.rows.len());
+        for (r, row) in self.data.rows.iter().enumerate() {
+            if r > 0 && self.data.rows[r - 1].line == row.line {
+                misses.push(misses[r - 1]);
+                continue;
+            }
+            let (Some(pose), Observed::Position { .. } | Observed::Orientation { .. }) = (row.pose, row.observed)
+            else {
+                misses.push(Vec6::zeros());
+                continue;
+            };
+            let robot = real[self.tilt_of[r].map_or(0, |t| t + 1)]
+                .get_or_insert_with(|| crate::model::effect::with_model_effects(self.arm(r), &model_form));
+            if self.unusable.iter().any(|(u, _)| *u == r) {
+                misses.push(Vec6::zeros());
+                continue;
+            }
+            robot.place(&pose, &mut state).ok()?;
+            let exact = robot.deflect(&pose, &row.wrench, None, &mut state).ok()?.displacement;
+            // The first order of the built-in effects, as a twist: what a point at the reference point sees
+            // (its translation) and what the tool's turn sees (its rotation).
+            let (s, zero) = &self.statics[r];
+            let payload = self.fitted_payload_weight(r, effects, params, s, zero);
+            let mut linear = self.deflection[r];
+            for (e, v, _) in &built {
+                let moves = self.unit_moves(r, e, s, zero, &Seen::Point(Vec3::zeros()), &payload);
+                let turns = self.unit_moves(r, e, s, zero, &Seen::Turn, &payload);
+                for ((m, t), value) in moves.iter().zip(&turns).zip(v.iter()) {
+                    linear += Vec6::new(m.x, m.y, m.z, t.x, t.y, t.z) * *value;
+                }
+            }
+            misses.push(exact - linear);
+        }
+        Some(misses)
+    }
+
+    /// A parallel robot's effect `e` at `values` as the description's model-form effect every study builds in
+    /// (`model::effect::with_model_effects`): an actuator offset, an added actuator compliance as the factor
+    /// on its spring (where it has one and stays positive), a payload of positive mass (stored as (m, m c),
+    /// as the fit's parameters are); None for the others, which no description holds.
+    pub(super) fn model_form(&self, e: &ArmEffect, values: &[f64]) -> Option<Effect> {
+        let leg = Target::Leg(e.joint);
+        match e.kind {
+            ArmKind::JointOffset => Some(Effect { kind: Kind::ActuatorOffset, target: leg, values: values.to_vec() }),
+            ArmKind::JointCompliance => {
+                let nominal = self.nominal_compliance(e.joint).filter(|n| n + values[0] > 0.0)?;
+                let factor = (nominal + values[0]) / nominal;
+                Some(Effect { kind: Kind::ActuatorCompliance, target: leg, values: vec![factor] })
+            }
+            ArmKind::Payload if values[0] > 0.0 => {
+                Some(Effect { kind: Kind::GravityOffset, target: Target::None, values: values.to_vec() })
+            }
+            _ => None,
+        }
+    }
+
+    /// The fit of `effects` on `rows` from `start`, a parallel robot's first order completed by its misses
+    /// (`exact_misses`): kept for these effects and refitted until the prediction moves by less than a tenth
+    /// of a standard deviation. Each pass shrinks the miss by about the effects' relative size (an offset
+    /// of 1 mm on legs of 300 mm: 300 times), so a few passes reach round-off; at most `EXACT_PASSES`.
+    pub(super) fn fit_exact(&self, rows: &[usize], effects: &[ArmEffect], start: &Params) -> Option<PositionFit> {
+        let mut fit = self.fit(rows, effects, start)?;
+        for _ in 0..EXACT_PASSES {
+            let Some(misses) = self.exact_misses(effects, &fit.params) else { break };
+            let kept: Vec<Vec6> = (0..misses.len()).map(|r| self.kept_miss(effects, r)).collect();
+            let moved = rows
+                .iter()
+                .map(|&r| {
+                    let change = misses[r] - kept[r];
+                    let seen = match self.data.rows[r].observed {
+                        Observed::Position { target, .. } => {
+                            Seen::Point(self.statics[r].0.frame.rot * fit.params.targets[target])
+                        }
+                        Observed::Orientation { .. } => Seen::Turn,
+                        Observed::Displacement(_) => Seen::Point(Vec3::zeros()),
+                    };
+                    seen.of(&change).norm() * self.weight[r]
+                })
+                .fold(0.0, f64::max);
+            let mut all = self.misses.borrow_mut();
+            all.retain(|(e, _)| e != effects);
+            all.push((effects.to_vec(), misses));
+            drop(all);
+            if moved.is_nan() || moved <= 0.1 {
+                break;
+            }
+            fit = self.fit(rows, effects, &fit.params)?;
+        }
+        Some(fit)
+    }
+}

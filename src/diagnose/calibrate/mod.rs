@@ -1,0 +1,445 @@
+//! Calibration of a serial arm against what a lab measures (`positions.rs`): where a target on the tool was,
+//! in an instrument's frame, at configurations given by the controller's joint coordinates, under the arm's
+//! own weight and the rows' wrenches; or the tool point's displacement under a wrench. A parallel robot's
+//! legs are calibrated by the same routine from positions at commanded poses, its legs' actuators read as
+//! the joints (`platform_statics`), its first order completed by its exact loaded equilibrium
+//! (`exact.rs`).
+//!
+//! The set-up is fitted, not blamed: each instrument set-up's frame (a rotation and a translation) and each
+//! target's place on the tool are nuisance parameters of every fit. The effects a serial arm can miss are
+//! then offered one at a time and kept where the data need them (forward selection by F-tests at
+//! alpha / candidates, as the other diagnosis does with its tests):
+//! - `joint-offset:J`: the encoder's zero, added to the controller's angle (absolute data only: a
+//!   displacement does not see it);
+//! - `joint-compliance:J`: a compliance about (along) the joint's axis added to the model's, the joint
+//!   turning by it times the load it carries (the links' weight, the payload, the wrench);
+//! - `backlash:J`: play that follows the sign of the joint's load, the joint turning by b sign(load).
+//!
+//! Compliance and backlash act at first order about the model's own loaded equilibrium (the deflections of
+//! robots are a thousandth of their reach, so the second order is a millionth). A direction the data cannot
+//! see (a vertical first axis makes the base's yaw and joint 1's offset one parameter) is found from the
+//! rank of the fit's Jacobian and reported, never fitted. Gross rows (a misfit no plausible model gives,
+//! against a median-based scale) are named and left out. Rows marked `check` are never fitted; the report
+//! gives the position error of fit and check rows after the registration alone and after each effect.
+//!
+//! The stages, each a file: the effects' vocabulary (`effect.rs`), what the rows need from the model
+//! (`problem.rs`), a row's prediction (`predict.rs`), one fit and its parameters (`fit.rs`, on the shared
+//! least-squares driver), a parallel robot's exact completion (`exact.rs`), the selection and the gross rows
+//! (`select.rs`), the report and the corrected description (`report.rs`), synthetic data (`synth.rs`) and a
+//! plan's signatures (`signatures.rs`). This file holds the entry point, its options and its result.
+
+mod effect;
+mod exact;
+mod fit;
+mod predict;
+mod problem;
+mod report;
+mod select;
+mod signatures;
+mod synth;
+
+pub use effect::{ArmEffect, ArmKind};
+pub use report::{corrected_model, correction_table, text};
+pub use signatures::{signatures, Signatures};
+pub use synth::{
+    configurations, synthesize_leg_positions, synthesize_positions, Configuration, PositionSynth, SynthRow,
+};
+
+use problem::PositionProblem;
+use select::{choose_effects, error_stats, gross_rows, gross_rows_against, nested_test, Selection};
+
+use super::positions::{Observed, PositionData};
+use super::stats::chi2_sf;
+use crate::kinematics::frame::{Frame, Vec3};
+use crate::model::effect::Effect;
+pub use crate::output::calibration::{
+    AcceptedEffect, CalibrationReport, CalibrationVerdict, CandidateTest, ErrorStats, GrossRow, Nuisance, Stage,
+};
+use crate::platform::manipulator::Manipulator;
+
+/// CalibrationOptions of a calibration.
+#[derive(Clone, Debug)]
+pub struct CalibrationOptions {
+    /// Significance level of the selection (each step tests at alpha / candidates).
+    pub alpha: f64,
+    /// Standard deviation of a measured coordinate, mm, where the rows do not give one.
+    pub sigma: Option<f64>,
+    /// Standard deviation of a measured orientation about each axis, rad, where the rows do not give one.
+    pub sigma_rad: Option<f64>,
+    /// Effects always fitted (a fixed list, as a geometric calibration fits its parameters).
+    pub fitted: Vec<ArmEffect>,
+    /// Most effects selected.
+    pub max_effects: usize,
+}
+
+/// A calibration's outcome: its report (what `--json` writes and the text reports) beside the effects
+/// accepted, typed, in the report's order, which the corrected description is written from.
+#[derive(Clone, Debug)]
+pub struct Calibration {
+    /// What the calibration found, as written.
+    pub report: CalibrationReport,
+    /// The effects of `report.accepted`, in its order.
+    pub effects: Vec<ArmEffect>,
+    /// A parallel robot's accepted effects as the model-form effects a description holds (`model_form`; None
+    /// for one it holds not), in the order of `effects`; None for a serial arm.
+    pub leg_corrections: Option<Vec<Option<Effect>>>,
+}
+
+/// The failures of a calibration.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrationError {
+    /// The model is not a serial arm with a joint space.
+    #[error("{0} is not a serial arm read from URDF: joint-space measurements need one")]
+    NotAnArm(String),
+    /// A row's configuration has no finite pose or no loaded equilibrium.
+    #[error("{name} (line {line}): {why}")]
+    Row {
+        /// The row's name.
+        name: String,
+        /// Its line.
+        line: usize,
+        /// What failed.
+        why: String,
+    },
+    /// Too few rows to fit what must be fitted.
+    #[error("{0}")]
+    TooFew(String),
+    /// An effect named that the robot cannot have here.
+    #[error("{0}")]
+    NotOffered(String),
+}
+
+/// The joints a calibration of `m` names: a serial arm's, or a parallel robot's legs by number (1-based, as
+/// `[[actuator_offset]]` and the diagnosis's effects name them), each leg's actuator its joint.
+pub fn joint_names(m: &Manipulator) -> Vec<String> {
+    match &m.joint_space {
+        Some(space) => space.names.clone(),
+        None => (1..=m.legs.len()).map(|k| k.to_string()).collect(),
+    }
+}
+
+/// A parallel robot's rows that give its actuators' readings: each row's pose becomes the rigid robot's at
+/// those readings (`Manipulator::pose_at_actuators`), the commanded pose only its start, so that what the
+/// controller did not reach is not taken for an effect.
+fn at_actuator_readings(m: &Manipulator, data: &PositionData) -> Result<PositionData, CalibrationError> {
+    let mut out = data.clone();
+    let mut state = m.new_state();
+    let mut last: Option<(usize, Frame)> = None;
+    for r in &mut out.rows {
+        let Some(start) = r.pose.filter(|_| !r.joints.is_empty()) else { continue };
+        let pose = match last.filter(|(line, _)| *line == r.line) {
+            Some((_, pose)) => pose,
+            None => m.pose_at_actuators(&r.joints, &start, &mut state).ok_or_else(|| CalibrationError::Row {
+                name: r.name.clone(),
+                line: r.line,
+                why: "the actuators' readings give no pose near the commanded one (a reading outside the reach, or \
+                      far from the commanded pose)"
+                    .into(),
+            })?,
+        };
+        last = Some((r.line, pose));
+        r.pose = Some(pose);
+    }
+    Ok(out)
+}
+
+/// Calibrates the arm `m` against `data`: registration fitted, effects selected among `candidates` (all
+/// of the arm's joints' where empty), gross rows left out, check rows reported.
+pub fn calibrate(
+    m: &Manipulator,
+    data: &PositionData,
+    candidates: &[ArmEffect],
+    options: &CalibrationOptions,
+) -> Result<Calibration, CalibrationError> {
+    let solved;
+    let data = if m.joint_space.is_none() && data.rows.iter().any(|r| !r.joints.is_empty()) {
+        solved = at_actuator_readings(m, data)?;
+        &solved
+    } else {
+        data
+    };
+    let weighed;
+    let data = if data.rows.iter().any(|r| r.payload.is_some()) {
+        weighed = data.with_payload_weights(m);
+        &weighed
+    } else {
+        data
+    };
+    let weighed_orientations = data.without_unweighted_orientations(options.sigma_rad);
+    let data = &weighed_orientations;
+    let problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
+    let candidates: Vec<ArmEffect> =
+        if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
+    if let Some(e) = candidates.iter().chain(&options.fitted).find(|e| !problem.offers(e)) {
+        return Err(CalibrationError::NotOffered(format!(
+            "{}: {}",
+            e.label(&problem.joints),
+            if problem.space.is_some() {
+                "a serial arm has no such effect"
+            } else {
+                "a parallel robot's legs are calibrated by joint-offset, joint-compliance and backlash of their \
+                 actuators, joint-geometry (the leg's end-point error), payload, tool-compliance and drift; a \
+                 compliance at a frame is a serial arm's (for a leg's links, diagnose displacements under load: \
+                 link-compliance)"
+            }
+        )));
+    }
+    let sigma_known = data.rows.iter().all(|r| {
+        r.sigma.is_some()
+            || match r.observed {
+                Observed::Orientation { .. } => options.sigma_rad.is_some(),
+                _ => options.sigma.is_some(),
+            }
+    });
+    let usable = |r: &usize| !problem.unusable.iter().any(|(k, _)| k == r);
+    let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
+    let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).collect();
+    let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
+    if fit_rows.is_empty() {
+        let why: Vec<String> = problem.unusable.iter().map(|(_, why)| why.clone()).collect();
+        return Err(CalibrationError::TooFew(format!(
+            "no row to fit: every row is held out (set = check) or has no prediction{}",
+            if why.is_empty() { String::new() } else { format!(" ({})", why.join("; ")) }
+        )));
+    }
+    // A set-up or target seen only in held-out rows has no registration or place to predict them with.
+    for (names, what, of) in [
+        (
+            &data.setups,
+            "set-up",
+            (|o: &Observed| o.target_and_setup().map(|(_, setup)| setup)) as fn(&Observed) -> Option<usize>,
+        ),
+        (&data.targets, "target", |o: &Observed| o.target_and_setup().map(|(target, _)| target)),
+    ] {
+        for (k, name) in names.iter().enumerate() {
+            if !fit_rows.iter().any(|&r| of(&data.rows[r].observed) == Some(k)) {
+                let named = if name.is_empty() { format!("the {what}") } else { format!("{what} `{name}`") };
+                return Err(CalibrationError::TooFew(format!(
+                    "{named} has no fitted rows (only check rows, or rows without a prediction): its {} cannot be fitted; mark some of its rows `fit`",
+                    if what == "set-up" { "frame" } else { "place on the tool" }
+                )));
+            }
+        }
+    }
+    let p = problem.nuisance_count() + options.fitted.iter().map(ArmEffect::size).sum::<usize>();
+    if 3 * fit_rows.len() <= p {
+        return Err(CalibrationError::TooFew(format!(
+            "{} fitted rows give {} coordinates, too few for the {p} parameters of the registration and the effects fitted",
+            fit_rows.len(),
+            3 * fit_rows.len()
+        )));
+    }
+    // Gross rows: screened against the registration alone (a fit that gross rows pull is screened again),
+    // then against the model selected, until the set stops changing.
+    let mut gross: Vec<usize> = Vec::new();
+    for _ in 0..3 {
+        let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
+        let start = problem.start(&kept, &options.fitted);
+        let Some(f) = problem.fit(&kept, &options.fitted, &start) else { break };
+        let next = gross_rows(&problem, &problem.residuals(&options.fitted, &f.params), &fit_rows);
+        if next == gross {
+            break;
+        }
+        gross = next;
+    }
+    let mut outcome = None;
+    for _ in 0..3 {
+        let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
+        let selection = choose_effects(&problem, &kept, &candidates, options, sigma_known)?;
+        let next = gross_rows(&problem, &problem.residuals(&selection.model, &selection.fit.params), &fit_rows);
+        let settled = next == gross;
+        outcome = Some((kept, selection));
+        if settled {
+            break;
+        }
+        gross = next;
+    }
+    let (kept, Selection { mut model, mut fit, steps, mut hidden }) = outcome.expect("at least one selection");
+    hidden.extend(one_sided);
+    // A joint's geometry holds its offset (a leg's end-point error along its actuator, an arm joint's turn
+    // about its own axis). Chosen while other effects were still missing, or with a parallel robot's offset
+    // at first order (an offset of 0.5 mm leaves 1 um of second order, which a geometry's other directions
+    // absorb), it may stand in for the offset alone: where the offset, each fitted exactly, explains the data
+    // as well (the geometry's other directions do not pass at alpha), the offset is kept instead.
+    if problem.absolute {
+        for k in options.fitted.len()..model.len() {
+            let offset = ArmEffect { kind: ArmKind::JointOffset, joint: model[k].joint };
+            if model[k].kind != ArmKind::JointGeometry || model.contains(&offset) || !candidates.contains(&offset) {
+                continue;
+            }
+            let mut simpler = model.clone();
+            simpler[k] = offset;
+            let mut start = fit.params.clone();
+            start.effects[k] = vec![0.0];
+            let (Some(with_offset), Some(with_geometry)) =
+                (problem.fit_exact(&kept, &simpler, &start), problem.fit_exact(&kept, &model, &fit.params))
+            else {
+                continue;
+            };
+            let (_, p) = nested_test(with_offset.rss, with_offset.rank, &with_geometry, sigma_known);
+            if with_offset.rank > with_geometry.rank.saturating_sub(model[k].size()) && p >= options.alpha {
+                model = simpler;
+                fit = with_offset;
+            }
+        }
+    }
+    // A parallel robot's first order completed (a serial arm's fit is final).
+    let fit = match problem.space {
+        None => problem.fit_exact(&kept, &model, &fit.params).unwrap_or(fit),
+        Some(_) => fit,
+    };
+    let residuals = problem.residuals(&model, &fit.params);
+    // Held-out rows are judged by the same rule against the fitted rows' scale: a gross one is named and left
+    // out of the held-out errors too.
+    let gross_checks = gross_rows_against(&problem, &residuals, &kept, &check_rows);
+    let all_checks = check_rows.clone();
+    let check_rows: Vec<usize> = check_rows.into_iter().filter(|r| !gross_checks.contains(r)).collect();
+    gross.extend(&gross_checks);
+    let scale = (fit.rss / fit.dof() as f64).sqrt();
+    let variance = scale * scale;
+    let nuisance_count = problem.nuisance_count();
+    // A parameter in a direction the data cannot see has no standard error.
+    let seen = |k: usize| !fit.hidden.iter().any(|d| d.iter().any(|(j, _)| *j == k));
+    let mut k = nuisance_count;
+    let mut accepted = Vec::new();
+    for (i, e) in model.iter().enumerate() {
+        let values = fit.params.effects[i].clone();
+        let se: Vec<f64> = (k..k + e.size())
+            .map(|j| if seen(j) { (fit.covariance[(j, j)] * variance).sqrt() } else { f64::NAN })
+            .collect();
+        k += e.size();
+        accepted.push(AcceptedEffect {
+            label: e.label(&problem.joints),
+            kind: e.kind.name().to_string(),
+            joint: match e.kind {
+                ArmKind::Payload | ArmKind::Drift | ArmKind::ToolCompliance => String::new(),
+                _ => problem.joints[e.joint].clone(),
+            },
+            shown: problem.shown(e, &values, &se),
+            values,
+            se,
+            confirmed: None,
+        });
+    }
+    let se3 = |k: usize, factor: f64| [0, 1, 2].map(|a| (fit.covariance[(k + a, k + a)] * variance).sqrt() * factor);
+    let mut nuisance = Vec::new();
+    if problem.absolute {
+        for (s, name) in data.setups.iter().enumerate() {
+            let label = if name.is_empty() { "instrument".to_string() } else { format!("set-up {name}") };
+            let rotation = crate::kinematics::frame::rotation_vector(&fit.params.rotations[s]);
+            nuisance.push(Nuisance {
+                name: format!("{label}: translation, mm"),
+                value: fit.params.translations[s].into(),
+                se: se3(6 * s, 1.0),
+            });
+            nuisance.push(Nuisance {
+                name: format!("{label}: rotation vector, mrad"),
+                value: (rotation * 1e3).into(),
+                se: se3(6 * s + 3, 1e3),
+            });
+        }
+        for (t, name) in data.targets.iter().enumerate() {
+            let label = if name.is_empty() { "target".to_string() } else { format!("target {name}") };
+            nuisance.push(Nuisance {
+                name: format!("{label}: place in the tool frame, mm"),
+                value: fit.params.targets[t].into(),
+                se: se3(6 * data.setups.len() + 3 * t, 1.0),
+            });
+            if let Some(k) = problem.turn_parameter(t) {
+                let turn = crate::kinematics::frame::rotation_vector(&fit.params.turns[t]);
+                nuisance.push(Nuisance {
+                    name: format!("{label}: axes in the tool frame, rotation vector, mrad"),
+                    value: (turn * 1e3).into(),
+                    se: se3(k, 1e3),
+                });
+            }
+        }
+    }
+    // The rows of `rows` that are orientations (`turning`) or positions and displacements.
+    let only = |rows: &[usize], turning: bool| -> Vec<usize> {
+        rows.iter().copied().filter(|&k| data.rows[k].observed.is_orientation() == turning).collect()
+    };
+    let oriented = data.rows.iter().any(|r| r.observed.is_orientation());
+    // Errors after the registration alone, then after each effect in the order accepted.
+    let mut stages = Vec::new();
+    let registration: Vec<ArmEffect> = options.fitted.clone();
+    let mut staged = registration.clone();
+    let order: Vec<ArmEffect> = model[options.fitted.len()..].to_vec();
+    for k in 0..=order.len() {
+        if k > 0 {
+            staged.push(order[k - 1]);
+        }
+        let label = if k == 0 {
+            let first = if problem.absolute { "registration" } else { "model" };
+            match options.fitted.len() {
+                0 => first.to_string(),
+                n => format!("{first} + {n} fitted"),
+            }
+        } else {
+            format!("+ {}", order[k - 1].label(&problem.joints))
+        };
+        let f = if k == order.len() {
+            Some(fit.clone())
+        } else {
+            problem.fit_exact(&kept, &staged, &problem.start(&kept, &staged))
+        };
+        let Some(f) = f else { continue };
+        let r = problem.residuals(&staged, &f.params);
+        let in_mrad: Vec<Option<Vec3>> = r.iter().map(|v| v.map(|v| v * 1e3)).collect();
+        stages.push(Stage {
+            model: label,
+            parameters: f.rank,
+            fit: error_stats(&r, &only(&kept, false)),
+            check: error_stats(&r, &only(&check_rows, false)),
+            check_all: error_stats(&r, &only(&all_checks, false)),
+            orientation: oriented
+                .then(|| [error_stats(&in_mrad, &only(&kept, true)), error_stats(&in_mrad, &only(&check_rows, true))]),
+        });
+    }
+    if !check_rows.is_empty() && stages.len() == order.len() + 1 {
+        for (k, a) in accepted[options.fitted.len()..].iter_mut().enumerate() {
+            a.confirmed = Some(stages[k + 1].check.rms < stages[k].check.rms);
+        }
+    }
+    let noisy = sigma_known && chi2_sf(fit.rss, fit.dof()) < options.alpha;
+    let verdict = match (noisy, model.len() > options.fitted.len()) {
+        (true, _) => CalibrationVerdict::Unexplained,
+        (false, true) => CalibrationVerdict::Effect,
+        (false, false) => CalibrationVerdict::None,
+    };
+    let report = CalibrationReport {
+        verdict,
+        accepted,
+        steps,
+        nuisance,
+        not_identifiable: hidden,
+        left_out: gross
+            .iter()
+            .map(|&r| {
+                let turning = data.rows[r].observed.is_orientation();
+                GrossRow {
+                    row: format!(
+                        "{} (line {}{}{})",
+                        data.rows[r].name,
+                        data.rows[r].line,
+                        if data.rows[r].check { ", held out" } else { "" },
+                        if turning { ", orientation" } else { "" }
+                    ),
+                    misfit: residuals[r].map_or(f64::NAN, |v| v.norm()) * if turning { 1e3 } else { 1.0 },
+                    unit: if turning { "mrad" } else { "mm" }.to_string(),
+                }
+            })
+            .collect(),
+        stages,
+        unusable: problem.unusable.iter().map(|(_, why)| why.clone()).collect(),
+        residual_scale: scale,
+        sigma_known,
+        rows: (kept.len(), check_rows.len()),
+        unread: data.unread.clone(),
+    };
+    let leg_corrections = problem
+        .space
+        .is_none()
+        .then(|| model.iter().zip(&fit.params.effects).map(|(e, values)| problem.model_form(e, values)).collect());
+    Ok(Calibration { report, effects: model, leg_corrections })
+}

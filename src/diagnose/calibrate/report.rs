@@ -1,0 +1,394 @@
+//! A calibration as its reader sees it: the parameters named, the values in the units a user reads, the
+//! text report, and the corrected description (`corrected_model`) with what was found as
+//! `[[joint_correction]]`, `[[payload]]` and the leg tables.
+
+use super::effect::{ArmEffect, ArmKind};
+use super::problem::PositionProblem;
+use super::{AcceptedEffect, Calibration, CalibrationReport, CandidateTest, ErrorStats, Stage};
+
+impl PositionProblem<'_> {
+    /// The name of parameter `k` of a fit with `effects`.
+    pub(super) fn parameter_name(&self, k: usize, effects: &[ArmEffect]) -> String {
+        let setups = if self.absolute { self.data.setups.len() } else { 0 };
+        let axis = ["x", "y", "z"];
+        let setup_name = |s: usize| match self.data.setups[s].as_str() {
+            "" => "the instrument".to_string(),
+            name => format!("set-up {name}"),
+        };
+        if k < 6 * setups {
+            let (s, a) = (k / 6, k % 6);
+            return if a < 3 {
+                format!("{}'s translation {}", setup_name(s), axis[a])
+            } else {
+                format!("{}'s rotation about {}", setup_name(s), axis[a - 3])
+            };
+        }
+        let k = k - 6 * setups;
+        let targets = if self.absolute { self.data.targets.len() } else { 0 };
+        let target_name = |t: usize| match self.data.targets[t].as_str() {
+            "" => "the target".to_string(),
+            t => format!("target {t}"),
+        };
+        if k < 3 * targets {
+            return format!("{}'s place {}", target_name(k / 3), axis[k % 3]);
+        }
+        let k = k - 3 * targets;
+        let turns = if self.absolute { self.turn_count() } else { 0 };
+        if k < 3 * turns {
+            let t = self.turn_of.iter().position(|&o| o == Some(k / 3)).expect("a turn's target");
+            return format!("{}'s turn about the tool's {}", target_name(t), axis[k % 3]);
+        }
+        let mut k = k - 3 * turns;
+        for e in effects {
+            if k < e.size() {
+                let part = match e.kind {
+                    ArmKind::JointGeometry => {
+                        let what = [
+                            "translation x",
+                            "translation y",
+                            "translation z",
+                            "rotation x",
+                            "rotation y",
+                            "rotation z",
+                        ];
+                        format!(" {}", what[k])
+                    }
+                    ArmKind::Payload => [" mass", " moment x", " moment y", " moment z"][k].to_string(),
+                    ArmKind::FrameCompliance => {
+                        let what = ["along x", "along y", "along z", "about x", "about y", "about z"];
+                        format!(" {}", what[k])
+                    }
+                    ArmKind::Drift => [" x", " y", " z"][k].to_string(),
+                    ArmKind::ToolCompliance => [" along x", " along y", " along z"][k].to_string(),
+                    _ => String::new(),
+                };
+                return format!("{}{part}", e.label(&self.joints));
+            }
+            k -= e.size();
+        }
+        "?".into()
+    }
+
+    pub(super) fn describe_hidden(&self, direction: &[(usize, f64)], effects: &[ArmEffect]) -> String {
+        direction
+            .iter()
+            .map(|(k, w)| format!("{w:+.3} {}", self.parameter_name(*k, effects)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The value of an accepted effect as a user reads it.
+    pub(super) fn shown(&self, e: &ArmEffect, values: &[f64], ses: &[f64]) -> String {
+        let prismatic = self.prismatic[e.joint];
+        let (value, se) = (values[0], ses[0]);
+        let listed = |values: &[f64], ses: &[f64], scale: f64, digits: usize| {
+            let part = |v: f64, s: f64| {
+                let number = |x: f64| if x.abs() < 1e6 { format!("{x:.digits$}") } else { format!("{x:.3e}") };
+                if s.is_finite() {
+                    format!("{} +- {}", number(v * scale), number(s * scale))
+                } else {
+                    format!("{} (not seen)", number(v * scale))
+                }
+            };
+            values.iter().zip(ses).map(|(v, s)| part(*v, *s)).collect::<Vec<_>>().join(", ")
+        };
+        match e.kind {
+            ArmKind::JointGeometry if self.space.is_none() => format!(
+                "the leg's end-point error: translation ({}) mm, rotation ({}) mrad, base axes at the reference point",
+                listed(&values[..3], &ses[..3], 1.0, 4),
+                listed(&values[3..], &ses[3..], 1e3, 3)
+            ),
+            ArmKind::JointGeometry => format!(
+                "translation ({}) mm, rotation ({}) mrad, in the joint's frame",
+                listed(&values[..3], &ses[..3], 1.0, 4),
+                listed(&values[3..], &ses[3..], 1e3, 3)
+            ),
+            ArmKind::Drift => format!("({}) um per row, along the base's x, y, z", listed(values, ses, 1e3, 4)),
+            ArmKind::ToolCompliance => {
+                format!("({}) um/N along the tool frame's x, y, z", listed(values, ses, 1e3, 4))
+            }
+            ArmKind::FrameCompliance => format!(
+                "compliance along the frame's axes ({}) um/N, about them ({}) urad/(N m)",
+                listed(&values[..3], &ses[..3], 1e3, 4),
+                listed(&values[3..], &ses[3..], 1e9, 4)
+            ),
+            ArmKind::Payload => {
+                let centre: Vec<f64> = values[1..].iter().map(|s| s / value).collect();
+                let centre_se: Vec<f64> = ses[1..].iter().map(|s| s / value.abs()).collect();
+                format!(
+                    "{} kg at ({}) mm in the tool frame",
+                    listed(&values[..1], &ses[..1], 1.0, 3),
+                    listed(&centre, &centre_se, 1.0, 1)
+                )
+            }
+            ArmKind::JointOffset | ArmKind::Backlash if prismatic => format!("{} mm", listed(values, ses, 1.0, 4)),
+            ArmKind::JointOffset | ArmKind::Backlash => format!("{} mrad", listed(values, ses, 1e3, 3)),
+            ArmKind::JointCompliance => {
+                let (unit, stiffness_unit, to_user) =
+                    if prismatic { ("mm/N", "N/mm", 1.0) } else { ("rad/(N m)", "N m/rad", 1e3) };
+                // Scientific notation with the standard error where the data see the value.
+                let pm = |v: f64, s: f64, digits: usize| {
+                    if s.is_finite() {
+                        format!("{v:.digits$e} +- {s:.digits$e}")
+                    } else {
+                        format!("{v:.digits$e} (not seen)")
+                    }
+                };
+                let added = format!("added compliance {} {unit}", pm(value * to_user, se * to_user, 4));
+                match self.nominal_compliance(e.joint) {
+                    Some(nominal) => {
+                        let total = nominal + value;
+                        format!(
+                            "{added}: stiffness {} {stiffness_unit} (the model's {:.4e}; factor {} on its compliance)",
+                            pm(1.0 / (total * to_user), se / (total * total * to_user), 4),
+                            1.0 / (nominal * to_user),
+                            listed(&[total / nominal], &[se / nominal], 1.0, 3)
+                        )
+                    }
+                    None => {
+                        let k = 1.0 / (value * to_user);
+                        format!("{added}: stiffness {k:.4e} {stiffness_unit} (the model has it rigid)")
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The description (`source`, read from `model_dir`) with the calibration's corrections added, so that every
+/// study of the corrected file sees them: offsets, compliances and geometry as `[[joint_correction]]` tables,
+/// a payload as `[[payload]]`; play, which no model holds, as a comment.
+pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibration) -> String {
+    use std::fmt::Write;
+    let mut out = crate::diagnose::report::with_absolute_references(source, model_dir);
+    let report = &c.report;
+    let _ = writeln!(
+        out,
+        "\n# Added by stiff diagnose (calibration, verdict {}): {}",
+        report.verdict.as_str(),
+        if report.accepted.is_empty() {
+            "no effect".to_string()
+        } else {
+            report.accepted.iter().map(|a| a.label.clone()).collect::<Vec<_>>().join(", ")
+        }
+    );
+    for (k, (a, e)) in report.accepted.iter().zip(&c.effects).enumerate() {
+        if let Some(legs) = &c.leg_corrections {
+            match &legs[k] {
+                Some(effect) => crate::diagnose::report::write_correction(&mut out, effect),
+                None => out.push_str(&leg_not_written(a, e.kind)),
+            }
+            continue;
+        }
+        match e.kind {
+            ArmKind::Backlash => {
+                let _ = writeln!(
+                    out,
+                    "\n# {}: {} (not written: a description of a URDF arm holds no play yet)",
+                    a.label, a.shown
+                );
+            }
+            ArmKind::Drift => {
+                let _ = writeln!(
+                    out,
+                    "\n# {}: {} (not written: a drift belongs to the measurements, not the robot)",
+                    a.label, a.shown
+                );
+            }
+            ArmKind::ToolCompliance => {
+                let _ = writeln!(
+                    out,
+                    "\n# {}: {} (not written: a description of a URDF arm holds no spring at its tool yet)",
+                    a.label, a.shown
+                );
+            }
+            ArmKind::FrameCompliance => match spring_compliances(&a.values, &a.se) {
+                Some(values) => {
+                    if a.values.iter().any(|v| *v < 0.0) {
+                        let _ = writeln!(
+                            out,
+                            "\n# {}: {} (below zero within two standard errors: rigid)",
+                            a.label, a.shown
+                        );
+                    }
+                    out.push_str(&correction_table(e.kind, &a.joint, &values));
+                }
+                None => {
+                    let _ = writeln!(
+                        out,
+                        "\n# {}: {} (not written: a compliance below zero by more than two standard errors is no \
+                         spring; fit it with --fit naming fewer effects, or measure more configurations)",
+                        a.label, a.shown
+                    );
+                }
+            },
+            kind => out.push_str(&correction_table(kind, &a.joint, &a.values)),
+        }
+    }
+    out
+}
+
+/// A parallel robot's accepted effect that no description holds (`model_form` gives none), as a comment
+/// saying why it is not written.
+pub(super) fn leg_not_written(a: &AcceptedEffect, kind: ArmKind) -> String {
+    let why = match kind {
+        ArmKind::JointCompliance => {
+            "the leg's actuator has no spring to scale, or its compliance would fall below zero"
+        }
+        ArmKind::Payload => "a payload's mass must be above zero",
+        ArmKind::JointGeometry => "a description holds no leg's end-point error; stiff assemble takes it",
+        ArmKind::Backlash => "a description holds no play yet",
+        ArmKind::Drift => "a drift belongs to the measurements, not the robot",
+        _ => "a description holds no spring there",
+    };
+    format!("\n# {}: {} (not written: {why})\n", a.label, a.shown)
+}
+
+/// Fitted compliances as a spring's: a value below zero within two standard errors (or not seen) is zero,
+/// rigid in that direction; None where one is below zero by more.
+pub(super) fn spring_compliances(values: &[f64], se: &[f64]) -> Option<Vec<f64>> {
+    values
+        .iter()
+        .zip(se.iter().map(Some).chain(std::iter::repeat(None)))
+        .map(|(v, se)| match (*v >= 0.0, se.filter(|s| s.is_finite())) {
+            (true, _) => Some(*v),
+            (false, Some(s)) if *v >= -2.0 * s => Some(0.0),
+            (false, None) => Some(0.0),
+            _ => None,
+        })
+        .collect()
+}
+
+/// One effect as the description's table: `[[joint_correction]]` for an offset, compliance, geometry or
+/// frame compliance, `[[payload]]` for a payload (`values` its mass and first moment in the tool frame);
+/// play has none.
+pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
+    let list = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
+    match kind {
+        ArmKind::JointOffset => format!("\n[[joint_correction]]\njoint = {joint:?}\noffset = {:?}\n", values[0]),
+        ArmKind::JointCompliance => format!("\n[[joint_correction]]\njoint = {joint:?}\ncompliance = {:?}\n", values[0]),
+        ArmKind::JointGeometry => format!(
+            "\n# The directions the data did not see are kept at the fit's smallest change.\n[[joint_correction]]\njoint = {joint:?}\ngeometry = [{}]\n",
+            list(values)
+        ),
+        ArmKind::Payload => {
+            let centre: Vec<f64> = values[1..].iter().map(|s| s / values[0]).collect();
+            format!("\n[[payload]]\nmass_kg = {:?}\ncentre = [{}]\n", values[0], list(&centre))
+        }
+        ArmKind::FrameCompliance => {
+            format!("\n[[joint_correction]]\njoint = {joint:?}\nframe_compliance = [{}]\n", list(values))
+        }
+        ArmKind::Backlash | ArmKind::Drift | ArmKind::ToolCompliance => String::new(),
+    }
+}
+
+/// The calibration as text: the verdict, the effects with values, the registration, what could not be
+/// seen, the gross rows, and the errors of fit and check rows per stage.
+pub fn text(c: &CalibrationReport, model: &str) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let verdict = c.verdict.as_str();
+    let _ = writeln!(s, "Calibration of {model}: {} rows fitted, {} held out", c.rows.0, c.rows.1);
+    if let Some(last) = c.stages.last() {
+        if let Some([fit, check]) = &last.orientation {
+            let _ = writeln!(
+                s,
+                "  (each a position or an orientation: {} and {} fitted, {} and {} held out, gross rows left out)",
+                last.fit.rows, fit.rows, last.check.rows, check.rows
+            );
+        }
+    }
+    if !c.unread.is_empty() {
+        let _ = writeln!(s, "columns not read (no rule uses them): {}", c.unread.join(", "));
+    }
+    let _ = writeln!(s, "verdict: {verdict}");
+    if c.accepted.is_empty() {
+        let _ = writeln!(s, "effects: none needed");
+    }
+    for a in &c.accepted {
+        let held_out = match a.confirmed {
+            Some(true) => "; the held-out rows confirm it (their RMS error falls)",
+            Some(false) => "; NOT confirmed: the held-out rows' RMS error grows with it",
+            None => "",
+        };
+        let _ = writeln!(s, "effect: {}: {}{held_out}", a.label, a.shown);
+    }
+    let _ = writeln!(
+        s,
+        "residual: {:.4} {} per coordinate after the fit{}",
+        c.residual_scale,
+        if c.sigma_known { "sigma" } else { "mm" },
+        if c.sigma_known { "" } else { " (the noise level was not given: no test of what is left)" }
+    );
+    for n in &c.nuisance {
+        let _ = writeln!(
+            s,
+            "fitted {}: {:.4} {:.4} {:.4} (+- {:.2e} {:.2e} {:.2e})",
+            n.name, n.value[0], n.value[1], n.value[2], n.se[0], n.se[1], n.se[2]
+        );
+    }
+    for h in &c.not_identifiable {
+        let _ = writeln!(s, "not identifiable: {h}");
+    }
+    for why in &c.unusable {
+        let _ = writeln!(s, "row left out, no prediction: {why}");
+    }
+    for g in &c.left_out {
+        let _ = writeln!(s, "gross row left out: {}: {:.4} {} from the model", g.row, g.misfit, g.unit);
+    }
+    for (k, step) in c.steps.iter().enumerate() {
+        let mut tested: Vec<&CandidateTest> = step.iter().filter(|t| t.f.is_some()).collect();
+        tested.sort_by(|a, b| a.p.partial_cmp(&b.p).unwrap_or(std::cmp::Ordering::Equal));
+        let best: Vec<String> = tested
+            .iter()
+            .take(3)
+            .map(|t| format!("{} F {:.3} p {:.2e}", t.label, t.f.unwrap_or(f64::NAN), t.p.unwrap_or(f64::NAN)))
+            .collect();
+        let _ = writeln!(s, "step {}: {} candidates tested; best {}", k + 1, tested.len(), best.join(", "));
+    }
+    let _ = writeln!(s, "position error, mm (check: held out; all: held out with its gross rows):");
+    let _ =
+        writeln!(s, "                                   rows      rms_x    rms_y    rms_z    rms      p95      max");
+    for st in &c.stages {
+        let with_gross = if st.check_all.rows > st.check.rows { st.check_all.rows } else { 0 };
+        for (set, e) in [("fit", &st.fit), ("check", &st.check), ("all", &st.check_all)] {
+            if e.rows == 0 || (set == "all" && with_gross == 0) {
+                continue;
+            }
+            stage_line(&mut s, st, set, e);
+        }
+    }
+    if c.stages.iter().any(|st| st.orientation.is_some()) {
+        let _ = writeln!(s, "orientation error, mrad (the rotation vector from measured to predicted):");
+        let _ = writeln!(
+            s,
+            "                                   rows      rms_x    rms_y    rms_z    rms      p95      max"
+        );
+        for st in &c.stages {
+            for (set, e) in ["fit", "check"].iter().zip(st.orientation.iter().flatten()) {
+                if e.rows > 0 {
+                    stage_line(&mut s, st, set, e);
+                }
+            }
+        }
+    }
+    s
+}
+
+/// One line of the table of errors per stage.
+pub(super) fn stage_line(s: &mut String, st: &Stage, set: &str, e: &ErrorStats) {
+    use std::fmt::Write;
+    let _ = writeln!(
+        s,
+        "  {:<28} {:<5} {:>5} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4} {:8.4}",
+        format!("{} ({} par.)", st.model, st.parameters),
+        set,
+        e.rows,
+        e.rms_axis[0],
+        e.rms_axis[1],
+        e.rms_axis[2],
+        e.rms,
+        e.p95,
+        e.max
+    );
+}

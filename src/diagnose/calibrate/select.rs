@@ -1,0 +1,264 @@
+//! Which effects the data need: forward selection by F tests at alpha / candidates with strong evidence
+//! (`choose_effects`), backward elimination and swaps; the gross rows left out of every fit; the position
+//! errors of a set of rows.
+
+use super::effect::ArmEffect;
+use super::fit::PositionFit;
+use super::problem::PositionProblem;
+use super::{CalibrationError, CalibrationOptions, CandidateTest, ErrorStats};
+use crate::diagnose::stats::{bic_unknown_noise, chi2_sf, f_sf, robust_scale, GROSS_FACTOR_POSITIONS, STRONG_EVIDENCE};
+use crate::kinematics::frame::Vec3;
+
+/// The error statistics of `rows` (unweighted residuals, mm).
+pub(super) fn error_stats(residuals: &[Option<Vec3>], rows: &[usize]) -> ErrorStats {
+    let r: Vec<Vec3> = rows.iter().filter_map(|&k| residuals[k]).collect();
+    if r.is_empty() {
+        return ErrorStats::default();
+    }
+    let n = r.len() as f64;
+    let mut lengths: Vec<f64> = r.iter().map(|v| v.norm()).collect();
+    lengths.sort_by(f64::total_cmp);
+    let rms_axis = [0, 1, 2].map(|a| (r.iter().map(|v| v[a] * v[a]).sum::<f64>() / n).sqrt());
+    // The 95th percentile by the nearest rank.
+    let p95 = lengths[((0.95 * n).ceil() as usize).clamp(1, lengths.len()) - 1];
+    ErrorStats {
+        rows: r.len(),
+        rms_axis,
+        rms: (lengths.iter().map(|l| l * l).sum::<f64>() / n).sqrt(),
+        p95,
+        max: *lengths.last().expect("not empty"),
+        max_axis: [0, 1, 2].map(|a| r.iter().map(|v| v[a].abs()).fold(0.0, f64::max)),
+    }
+}
+
+/// The gross rows among `rows`: weighted misfit beyond `stats::GROSS_FACTOR_POSITIONS` robust standard deviations.
+pub(super) fn gross_rows(problem: &PositionProblem, residuals: &[Option<Vec3>], rows: &[usize]) -> Vec<usize> {
+    gross_rows_against(problem, residuals, rows, rows)
+}
+
+/// The gross rows among `tested`, against the robust scale of the rows `scaled` (a held-out row is judged
+/// by the fitted rows' scale). Positions and orientations are judged each against their own kind's scale,
+/// so that a stated sigma of one kind that is off does not make the other's rows look gross.
+pub(super) fn gross_rows_against(
+    problem: &PositionProblem,
+    residuals: &[Option<Vec3>],
+    scaled: &[usize],
+    tested: &[usize],
+) -> Vec<usize> {
+    let misfit = |r: usize| residuals[r].map_or(f64::INFINITY, |v| v.norm() * problem.weight[r]);
+    let turning = |r: &usize| problem.data.rows[*r].observed.is_orientation();
+    let mut gross = Vec::new();
+    for kind in [false, true] {
+        let mut sorted: Vec<f64> =
+            scaled.iter().filter(|r| turning(r) == kind).map(|&r| misfit(r)).filter(|m| m.is_finite()).collect();
+        if sorted.len() < 5 {
+            continue;
+        }
+        sorted.sort_by(f64::total_cmp);
+        let scale = robust_scale(&sorted);
+        gross.extend(
+            tested.iter().copied().filter(|r| turning(r) == kind && misfit(*r) > GROSS_FACTOR_POSITIONS * scale),
+        );
+    }
+    gross.sort_unstable();
+    gross
+}
+
+/// The test of adding an effect to a fit of residual sum `rss0` (weighted) and rank `rank0`, giving `with`: its F
+/// statistic against the residual's own scale, and its p-value; where the noise is known, the larger of the
+/// F test's and the chi-square test's of the drop (both must reject: the drop must stand out from what is
+/// left and from the noise, so that round-off on noise-free data is never a discovery).
+pub(super) fn nested_test(rss0: f64, rank0: usize, with: &PositionFit, sigma_known: bool) -> (f64, f64) {
+    // The parameters the data see: an effect of several parameters counts the directions it adds.
+    let added = with.rank.saturating_sub(rank0).max(1);
+    let drop = (rss0 - with.rss).max(0.0);
+    let statistic = drop / added as f64 / (with.rss / with.dof() as f64).max(1e-300);
+    let mut p = f_sf(statistic, added, with.dof());
+    if sigma_known {
+        p = p.max(chi2_sf(drop, added));
+    }
+    (statistic, p)
+}
+
+/// What a selection ends with: the effects in the model (the fitted ones first, then in the order accepted),
+/// its fit, every step's tests and the directions found hidden.
+pub(super) struct Selection {
+    pub(super) model: Vec<ArmEffect>,
+    pub(super) fit: PositionFit,
+    pub(super) steps: Vec<Vec<CandidateTest>>,
+    pub(super) hidden: Vec<String>,
+}
+
+/// Forward selection on `rows`: effects offered one at a time, each step accepting the best one whose F
+/// test passes at alpha / the candidates tested.
+pub(super) fn choose_effects(
+    problem: &PositionProblem,
+    rows: &[usize],
+    candidates: &[ArmEffect],
+    options: &CalibrationOptions,
+    sigma_known: bool,
+) -> Result<Selection, CalibrationError> {
+    let mut model = options.fitted.clone();
+    let start = problem.start(rows, &model);
+    let too_few =
+        || CalibrationError::TooFew("the fit found no pose for a row, or too few rows for the parameters".into());
+    let mut fit = problem.fit(rows, &model, &start).ok_or_else(too_few)?;
+    let mut steps = Vec::new();
+    let mut hidden: Vec<String> = fit.hidden.iter().map(|d| problem.describe_hidden(d, &model)).collect();
+    let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
+    // Rounds of forward selection, backward elimination and swaps: an effect chosen early, while the model
+    // still missed others, can absorb parts of several and leave each too weak to pass alone; a swap frees
+    // them, and the next forward steps take them.
+    for _ in 0..3 {
+        while model.len() < options.fitted.len() + options.max_effects {
+            let mut step = Vec::new();
+            let mut best: Option<(f64, f64, ArmEffect, PositionFit)> = None;
+            let untested: Vec<ArmEffect> = candidates.iter().filter(|c| !model.contains(c)).copied().collect();
+            let mut tested = 0;
+            for c in &untested {
+                let mut trial = model.clone();
+                trial.push(*c);
+                let mut start = fit.params.clone();
+                start.effects.push(vec![0.0; c.size()]);
+                let label = c.label(&problem.joints);
+                let Some(f) = problem.fit(rows, &trial, &start) else {
+                    step.push(CandidateTest {
+                        label,
+                        f: None,
+                        p: None,
+                        note: Some("a row has no pose with it".into()),
+                    });
+                    continue;
+                };
+                if f.rank <= fit.rank {
+                    // The candidate's parameters follow the nuisance ones and the model's.
+                    let own = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
+                    let own = own..own + c.size();
+                    let alone = f.hidden.iter().any(|d| d.len() == 1 && own.contains(&d[0].0));
+                    let note = if alone {
+                        // Its column is zero: a compliance or play whose joint carries no load (or the same sign of
+                        // load in every row, for play), or an offset that moves nothing measured.
+                        "moves no measured point in these rows (its joint's load is zero, or of one sign for play)"
+                            .into()
+                    } else {
+                        // The directions that hold the candidate (the model's own hidden ones are reported
+                        // once, for the model).
+                        let with: Vec<String> = f
+                            .hidden
+                            .iter()
+                            .filter(|d| d.iter().any(|(k, _)| own.contains(k)))
+                            .map(|d| problem.describe_hidden(d, &trial))
+                            .collect();
+                        match with.len() {
+                            1 => format!(
+                                "not identifiable from these rows: one combination ({}) moves no point",
+                                with[0]
+                            ),
+                            n => format!(
+                                "not identifiable from these rows: {n} combinations move no point: ({})",
+                                with.join("); (")
+                            ),
+                        }
+                    };
+                    step.push(CandidateTest { label, f: None, p: None, note: Some(note) });
+                    continue;
+                }
+                tested += 1;
+                let (statistic, p) = nested_test(fit.rss, fit.rank, &f, sigma_known);
+                step.push(CandidateTest { label, f: Some(statistic), p: Some(p), note: None });
+                // The smallest p-value is the best (it weighs an effect's drop by the directions it adds); the
+                // larger F among equal p-values.
+                if best.as_ref().is_none_or(|b| p < b.1 || (p == b.1 && statistic > b.0)) {
+                    best = Some((statistic, p, *c, f));
+                }
+            }
+            let threshold = options.alpha / tested.max(1) as f64;
+            // Accepted when its test passes and the evidence for it is strong (the BIC lower by more than 10,
+            // as the other diagnosis asks): an effect of six parameters on few rows must pay for them.
+            let accept = best
+                .filter(|(_, p, _, f)| *p < threshold && bic(f) < bic(&fit) - STRONG_EVIDENCE)
+                .map(|(statistic, _, c, f)| (statistic, c, f));
+            steps.push(step);
+            match accept {
+                Some((_, c, f)) => {
+                    model.push(c);
+                    // A parallel robot's model completed by its exact misses, against which the next
+                    // candidates are judged (`kept_miss`); a serial arm's fit is already exact.
+                    fit = match problem.space {
+                        None => problem.fit_exact(rows, &model, &f.params).unwrap_or(f),
+                        Some(_) => f,
+                    };
+                }
+                None => break,
+            }
+        }
+        // Backward elimination and swaps, until the swaps change nothing (a swap may leave an effect that the
+        // others make unnecessary, which the next elimination drops).
+        let mut swapped = false;
+        for _ in 0..3 {
+            // Backward elimination: an effect selected early that later ones make unnecessary (a proxy for the
+            // effect found after it) is dropped, the least needed first, while its removal's test does not reject.
+            loop {
+                let selected = options.fitted.len()..model.len();
+                let threshold = options.alpha / selected.len().max(1) as f64;
+                let mut weakest: Option<(f64, usize, PositionFit)> = None;
+                for k in selected {
+                    let mut without = model.clone();
+                    without.remove(k);
+                    let mut start = fit.params.clone();
+                    start.effects.remove(k);
+                    let Some(f) = problem.fit(rows, &without, &start) else { continue };
+                    let (_, p) = nested_test(f.rss, f.rank, &fit, sigma_known);
+                    if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
+                        weakest = Some((p, k, f));
+                    }
+                }
+                match weakest {
+                    Some((_, k, f)) => {
+                        model.remove(k);
+                        fit = f;
+                    }
+                    None => break,
+                }
+            }
+            // Swaps: an effect chosen early, while the model still missed others, may do the work of a simpler
+            // one (a joint's geometry standing in for the offset of the joint before it): the accepted effect
+            // whose replacement by a candidate with fewer parameters lowers the BIC (n ln(rss/n) + rank ln n)
+            // most is replaced (or one of as many parameters that explains more).
+            let mut best: Option<(f64, usize, ArmEffect, PositionFit)> = None;
+            for k in options.fitted.len()..model.len() {
+                for c in candidates.iter().filter(|c| !model.contains(c) && c.size() <= model[k].size()) {
+                    let mut swapped = model.clone();
+                    swapped[k] = *c;
+                    let mut start = fit.params.clone();
+                    start.effects[k] = vec![0.0; c.size()];
+                    let Some(f) = problem.fit(rows, &swapped, &start) else { continue };
+                    let gain = bic(&fit) - bic(&f);
+                    if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
+                        best = Some((gain, k, *c, f));
+                    }
+                }
+            }
+            match best {
+                Some((_, k, c, f)) => {
+                    model[k] = c;
+                    fit = f;
+                    swapped = true;
+                }
+                None => break,
+            }
+        }
+        if !swapped {
+            break;
+        }
+    }
+    // Each candidate's first reason once (a later step finds the same direction again).
+    for t in steps.iter().flatten() {
+        if let Some(note) = &t.note {
+            if !hidden.iter().any(|h| h.starts_with(&format!("{}: ", t.label))) {
+                hidden.push(format!("{}: {}", t.label, note));
+            }
+        }
+    }
+    Ok(Selection { model, fit, steps, hidden })
+}
