@@ -8,6 +8,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::data::Dataset;
 use super::error::{DiagnoseError, PoseError};
+use super::lm::{self, LeastSquares};
 use super::measurement::{gravity_of, PoseModel};
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use crate::model::effect::{scaled, with_model_effects, Effect, Form, Kind, Target};
@@ -551,55 +552,44 @@ pub fn fit(problem: &Problem, cands: &[Candidate], rows: &[usize], start: Option
 /// the square of the factor's step, so two or three suffice.
 const RECENTRES: usize = 3;
 
-/// One Levenberg-Marquardt fit from the neutral values (or `start`), on `rows`.
+/// One Levenberg-Marquardt fit from the neutral values (or `start`), on `rows` (`lm::solve`); the
+/// covariance only where the data see every parameter.
 fn fit_once(problem: &Problem, cands: &[Candidate], rows: &[usize], start: Option<&[f64]>) -> Result<Fit, PoseError> {
-    let mut theta: Vec<f64> = match start {
+    let theta: Vec<f64> = match start {
         Some(s) => s.to_vec(),
         None => cands.iter().flat_map(|c| c.neutral()).collect(),
     };
-    let mut r = problem.residuals(&effects_of(cands, &theta), rows)?;
-    let mut ssr = r.norm_squared();
-    let mut mu = 1e-3;
-    let mut jac = jacobian(problem, cands, &theta, 0, rows)?;
-    for _ in 0..60 {
-        if theta.is_empty() {
-            break;
-        }
-        let jtj = jac.transpose() * &jac;
-        let g = jac.transpose() * &r;
-        let mut improved = false;
-        for _ in 0..12 {
-            let mut a = jtj.clone();
-            for k in 0..a.nrows() {
-                a[(k, k)] += mu * jtj[(k, k)].max(1e-12);
-            }
-            let Some(step) = a.cholesky().map(|c| c.solve(&(-&g))) else {
-                mu *= 10.0;
-                continue;
-            };
-            let trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
-            let Ok(rt) = problem.residuals(&effects_of(cands, &trial), rows) else {
-                mu *= 10.0;
-                continue;
-            };
-            let st = rt.norm_squared();
-            if st < ssr {
-                let done = (ssr - st) <= 1e-12 * ssr.max(1e-300)
-                    || step.norm() <= 1e-12 * (1.0 + trial.iter().map(|v| v.abs()).fold(0.0, f64::max));
-                theta = trial;
-                r = rt;
-                ssr = st;
-                mu = (mu / 10.0).max(1e-12);
-                improved = !done;
-                break;
-            }
-            mu *= 10.0;
-        }
-        if !improved {
-            break;
-        }
-        jac = jacobian(problem, cands, &theta, 0, rows)?;
+    let s = lm::solve(&OnCandidates { problem, cands, rows, parameters: theta.len() }, theta)?;
+    let covariance = s.full_rank().then_some(s.covariance);
+    Ok(Fit { theta: s.point, ssr: s.rss, covariance, residuals: s.residuals })
+}
+
+/// The candidates' fit on `rows` as the least-squares core sees it: their parameters, the weighted residuals
+/// and the Jacobian of the prediction by central differences (the negated `jacobian`).
+struct OnCandidates<'p, 'a> {
+    problem: &'p Problem<'a>,
+    cands: &'p [Candidate],
+    rows: &'p [usize],
+    parameters: usize,
+}
+
+impl LeastSquares for OnCandidates<'_, '_> {
+    type Point = Vec<f64>;
+    type Error = PoseError;
+
+    fn parameters(&self) -> usize {
+        self.parameters
     }
-    let covariance = (jac.transpose() * &jac).try_inverse();
-    Ok(Fit { theta, ssr, covariance, residuals: r })
+
+    fn evaluate(&self, theta: &Vec<f64>, jac: Option<&mut DMatrix<f64>>) -> Result<DVector<f64>, PoseError> {
+        let r = self.problem.residuals(&effects_of(self.cands, theta), self.rows)?;
+        if let Some(jac) = jac {
+            *jac = -jacobian(self.problem, self.cands, theta, 0, self.rows)?;
+        }
+        Ok(r)
+    }
+
+    fn step(&self, theta: &Vec<f64>, step: &DVector<f64>) -> Vec<f64> {
+        theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect()
+    }
 }

@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod data;
 pub mod error;
 pub mod fit;
+pub mod lm;
 pub mod measurement;
 pub mod plan;
 pub mod positions;

@@ -2,18 +2,16 @@
 //! effects'), their start (Kabsch's registration from the nominal tool points) and the Levenberg-Marquardt
 //! fit from it.
 
+use std::cell::RefCell;
+
 use nalgebra::{DMatrix, DVector};
 
 use super::effect::ArmEffect;
 use super::problem::PositionProblem;
+use crate::diagnose::lm::{self, LeastSquares};
 use crate::diagnose::positions::Observed;
 use crate::kinematics::frame::{rotation_from_vector, Mat3, Vec3};
 use crate::platform::manipulator::ManipulatorState;
-
-/// Relative singular value of the column-scaled Jacobian below which a direction is not identifiable: a
-/// combination of parameters that moves the points by less than a millionth of what each does alone would
-/// amplify the noise a millionfold.
-const IDENTIFIABLE: f64 = 1e-6;
 
 /// The parameters of one fit.
 #[derive(Clone, Debug)]
@@ -102,102 +100,26 @@ impl PositionProblem<'_> {
         params
     }
 
-    /// Levenberg-Marquardt over the parameters on `rows`, from `start`.
+    /// Levenberg-Marquardt over the parameters on `rows`, from `start` (`lm::solve`).
     pub(super) fn fit(&self, rows: &[usize], effects: &[ArmEffect], start: &Params) -> Option<PositionFit> {
         let p = self.nuisance_count() + effects.iter().map(ArmEffect::size).sum::<usize>();
-        let n = 3 * rows.len();
-        let mut params = start.clone();
-        let mut state = self.m.new_state();
-        let mut jac_row = DMatrix::zeros(3, p);
-        let evaluate =
-            |params: &Params, state: &mut ManipulatorState, jac_row: &mut DMatrix<f64>, with_jacobian: bool| {
-                let mut jac = DMatrix::zeros(if with_jacobian { n } else { 0 }, p);
-                let mut e = DVector::zeros(n);
-                for (i, &r) in rows.iter().enumerate() {
-                    let prediction = self.predict(r, effects, params, state, with_jacobian.then_some(&mut *jac_row))?;
-                    let residual = (self.measured(r) - prediction) * self.weight[r];
-                    e.fixed_rows_mut::<3>(3 * i).copy_from(&residual);
-                    if with_jacobian {
-                        jac.view_mut((3 * i, 0), (3, p)).copy_from(&*jac_row);
-                    }
-                }
-                Some((jac, e))
-            };
-        let mut lambda = 1e-6;
-        let (mut jac, mut e) = evaluate(&params, &mut state, &mut jac_row, true)?;
-        let mut rss = e.norm_squared();
-        if p == 0 {
-            // Nothing to fit (displacements, no effect): the model as it is.
-            return Some(PositionFit {
-                params,
-                rss,
-                observations: n,
-                rank: 0,
-                covariance: DMatrix::zeros(0, 0),
-                hidden: Vec::new(),
-            });
-        }
-        for _ in 0..100 {
-            let scale = column_scales(&jac);
-            let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
-            let svd = scaled.clone().svd(true, true);
-            let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
-            let top = svd.singular_values.max();
-            let ue = u.transpose() * &e;
-            let mut improved = false;
-            while lambda < 1e12 {
-                let mut step = DVector::zeros(p);
-                for (k, &s) in svd.singular_values.iter().enumerate() {
-                    if s > IDENTIFIABLE * top {
-                        let damped = s / (s * s + lambda * top * top);
-                        step += v_t.row(k).transpose() * (ue[k] * damped);
-                    }
-                }
-                let step = step.component_div(&scale);
-                let trial = self.apply(&params, &step);
-                if let Some((_, e_trial)) = evaluate(&trial, &mut state, &mut jac_row, false) {
-                    let rss_trial = e_trial.norm_squared();
-                    if rss_trial < rss {
-                        let converged = rss - rss_trial <= 1e-10 * rss.max(1e-300);
-                        params = trial;
-                        rss = rss_trial;
-                        // A floor on the damping: steps along directions the data barely see (below a
-                        // hundredth of a percent of the best seen) stay damped.
-                        lambda = (lambda / 10.0).max(1e-8);
-                        improved = !converged;
-                        break;
-                    }
-                }
-                lambda *= 10.0;
-            }
-            if !improved {
-                break;
-            }
-            (jac, e) = evaluate(&params, &mut state, &mut jac_row, true)?;
-            rss = e.norm_squared();
-        }
-        // Rank and covariance at the solution, on the column-scaled Jacobian.
-        let scale = column_scales(&jac);
-        let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
-        let svd = scaled.svd(false, true);
-        let v_t = svd.v_t.as_ref()?;
-        let top = svd.singular_values.max();
-        let mut covariance = DMatrix::zeros(p, p);
-        let mut hidden = Vec::new();
-        let mut rank = 0;
-        for (k, &s) in svd.singular_values.iter().enumerate() {
-            let v = v_t.row(k).transpose();
-            if s > IDENTIFIABLE * top {
-                rank += 1;
-                covariance += &v * v.transpose() / (s * s);
-            } else {
-                // Named in the column-scaled parameters (each column's effect on the points at unit norm), so
-                // that a rotation and a translation weigh alike.
-                hidden.push((0..p).filter(|&j| v[j].abs() > 0.05).map(|j| (j, v[j])).collect());
-            }
-        }
-        let covariance = DMatrix::from_fn(p, p, |i, j| covariance[(i, j)] / (scale[i] * scale[j]));
-        Some(PositionFit { params, rss, observations: n, rank, covariance, hidden })
+        let on_rows = OnRows {
+            problem: self,
+            rows,
+            effects,
+            parameters: p,
+            state: RefCell::new(self.m.new_state()),
+            jac_row: RefCell::new(DMatrix::zeros(3, p)),
+        };
+        let s = lm::solve(&on_rows, start.clone()).ok()?;
+        Some(PositionFit {
+            params: s.point,
+            rss: s.rss,
+            observations: 3 * rows.len(),
+            rank: s.rank,
+            covariance: s.covariance,
+            hidden: s.hidden,
+        })
     }
 
     pub(super) fn apply(&self, params: &Params, step: &DVector<f64>) -> Params {
@@ -233,8 +155,6 @@ impl PositionProblem<'_> {
     }
 }
 
-/// Each column's norm, the scale its parameter is fitted and judged in; a column of zeros (a parameter that
-/// moves nothing here) keeps scale 1, so that round-off in the steps is not blown up by dividing by it.
 /// The rotation nearest `m` (Frobenius norm): U V^T of its SVD, with the sign that keeps it proper.
 pub(super) fn nearest_rotation(m: &Mat3) -> Mat3 {
     let svd = m.svd(true, true);
@@ -246,6 +166,48 @@ pub(super) fn nearest_rotation(m: &Mat3) -> Mat3 {
     u * d * v_t
 }
 
-pub(super) fn column_scales(jac: &DMatrix<f64>) -> DVector<f64> {
-    DVector::from_iterator(jac.ncols(), jac.column_iter().map(|c| if c.norm() > 0.0 { c.norm() } else { 1.0 }))
+/// A fit of `effects` on `rows` as the least-squares core sees it: the rows' weighted residuals and their
+/// prediction's Jacobian, the set-ups' rotations and targets' turns stepped on their manifold (`apply`).
+struct OnRows<'p, 'a> {
+    problem: &'p PositionProblem<'a>,
+    rows: &'p [usize],
+    effects: &'p [ArmEffect],
+    parameters: usize,
+    /// The evaluations' state (their placements start from the last) and one row's Jacobian.
+    state: RefCell<ManipulatorState>,
+    jac_row: RefCell<DMatrix<f64>>,
+}
+
+impl LeastSquares for OnRows<'_, '_> {
+    type Point = Params;
+    /// A row without a pose at this point.
+    type Error = ();
+
+    fn parameters(&self) -> usize {
+        self.parameters
+    }
+
+    fn evaluate(&self, params: &Params, jacobian: Option<&mut DMatrix<f64>>) -> Result<DVector<f64>, ()> {
+        let (n, p) = (3 * self.rows.len(), self.parameters);
+        let (state, jac_row) = (&mut *self.state.borrow_mut(), &mut *self.jac_row.borrow_mut());
+        let mut jacobian = jacobian.map(|j| {
+            *j = DMatrix::zeros(n, p);
+            j
+        });
+        let mut e = DVector::zeros(n);
+        for (i, &r) in self.rows.iter().enumerate() {
+            let with = jacobian.is_some().then_some(&mut *jac_row);
+            let prediction = self.problem.predict(r, self.effects, params, state, with).ok_or(())?;
+            let residual = (self.problem.measured(r) - prediction) * self.problem.weight[r];
+            e.fixed_rows_mut::<3>(3 * i).copy_from(&residual);
+            if let Some(jac) = jacobian.as_deref_mut() {
+                jac.view_mut((3 * i, 0), (3, p)).copy_from(&*jac_row);
+            }
+        }
+        Ok(e)
+    }
+
+    fn step(&self, params: &Params, step: &DVector<f64>) -> Params {
+        self.problem.apply(params, step)
+    }
 }
