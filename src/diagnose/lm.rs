@@ -27,6 +27,9 @@ const MAX_STEPS: usize = 100;
 /// within about 1e-5 of a standard error of the minimum).
 const CONVERGED: f64 = 1e-10;
 
+/// A direction of the parameters, by its entries above 0.05: (parameter index, weight).
+pub type Direction = Vec<(usize, f64)>;
+
 /// A weighted least-squares problem.
 pub trait LeastSquares {
     /// Where the problem is evaluated: its parameters, in whatever form they live.
@@ -63,7 +66,7 @@ pub struct Solution<P> {
     /// Each direction the data cannot see, in the column-scaled parameters (each column's effect on the
     /// prediction at unit norm, so that a rotation and a translation weigh alike): (parameter, weight) of
     /// its entries above 0.05.
-    pub hidden: Vec<Vec<(usize, f64)>>,
+    pub hidden: Vec<Direction>,
 }
 
 impl<P> Solution<P> {
@@ -148,7 +151,7 @@ pub fn solve<L: LeastSquares>(problem: &L, start: L::Point) -> Result<Solution<L
 
 /// The rank of `jac` (column-scaled), the covariance (J^T J)^+ over the directions it sees, and the ones it
 /// does not see (`Solution`).
-fn seen_directions(jac: &DMatrix<f64>) -> (usize, DMatrix<f64>, Vec<Vec<(usize, f64)>>) {
+fn seen_directions(jac: &DMatrix<f64>) -> (usize, DMatrix<f64>, Vec<Direction>) {
     let (n, p) = jac.shape();
     let scale = column_scales(jac);
     let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
