@@ -9,28 +9,18 @@ use toml::Spanned;
 use super::effect::{with_model_effects, Effect, EffectError, Form, Kind};
 use super::error::{read_text, InputError, Locator};
 use super::schema::{
-    AxisSpec, BeamSpec, ElementSpec, JointCorrectionSpec, JointStiffnessSpec, LegSpec, LinkSpringSpec, ModelFile, Num,
-    ParallelogramSpec, TransformSpec, UrdfSpec,
+    AxisSpec, BeamSpec, ElementSpec, JointCorrectionSpec, LegSpec, ModelFile, Num, ParallelogramSpec, TransformSpec,
 };
-use super::urdf::UrdfJointKind;
 use crate::beam::{beam_compliance, BeamSection};
+use crate::expr::ExprSrc;
 use crate::expr::Scope;
-use crate::expr::{Expr, ExprSrc};
 use crate::kinematics::chain::{Chain, Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::{Leg, VjmLeg};
 use crate::platform::manipulator::{JointSpace, Manipulator, Payload};
 use crate::platform::msa_leg::MsaLeg;
 use crate::vjm::parallelogram::Parallelogram;
-use crate::vjm::spring::{one_coordinate, CoordinateStiffness, SpringGroup, SIX_DOF};
-
-/// The `[[joint_correction]]` tables of joint `name`, in file order.
-fn corrections_of<'a>(
-    corrections: &'a [Spanned<JointCorrectionSpec>],
-    name: &'a str,
-) -> impl Iterator<Item = &'a JointCorrectionSpec> + 'a {
-    corrections.iter().map(Spanned::get_ref).filter(move |c| c.joint.get_ref() == name)
-}
+use crate::vjm::spring::{SpringGroup, SIX_DOF};
 
 /// A description as built: the manipulator (with the spring scalings of its `[[effect]]` entries applied)
 /// and, side by side, the effects that are terms of the measurement model (used by diagnose and synth).
@@ -190,9 +180,9 @@ pub(super) struct Builder<'a> {
 
 /// Coordinates and springs collected while walking one chain.
 #[derive(Default)]
-struct ChainParts {
-    elements: Vec<Element>,
-    springs: Vec<SpringGroup>,
+pub(super) struct ChainParts {
+    pub(super) elements: Vec<Element>,
+    pub(super) springs: Vec<SpringGroup>,
     preload: Vec<f64>,
     /// Passive joints by name, with their coordinate index (for `follows` and parallelogram angles).
     passive_names: Vec<(String, usize)>,
@@ -203,7 +193,7 @@ struct ChainParts {
 
 impl ChainParts {
     /// The leg these parts make, written once (not copied, not placed), its masses under `gravity`.
-    fn into_leg(self, name: String, gravity: Vec3) -> Leg {
+    pub(super) fn into_leg(self, name: String, gravity: Vec3) -> Leg {
         let chain = Chain::new(self.elements);
         let length_scale = chain.length_scale().max(1.0);
         Leg::Vjm(VjmLeg {
@@ -223,7 +213,7 @@ impl ChainParts {
         self.passive_names.iter().find(|(n, _)| n == name.get_ref()).map(|(_, i)| *i)
     }
 
-    fn joint(&mut self, kind: JointKind, axis: Vec3, role: Role) {
+    pub(super) fn joint(&mut self, kind: JointKind, axis: Vec3, role: Role) {
         let counter = match role {
             Role::Actuated => &mut self.n_actuated,
             Role::Passive => &mut self.n_passive,
@@ -235,7 +225,7 @@ impl ChainParts {
     }
 
     /// Virtual joints for a spring group of `dim` coordinates with the given stiffness block.
-    fn spring(
+    pub(super) fn spring(
         &mut self,
         name: String,
         joints: &[(JointKind, Vec3)],
@@ -316,7 +306,7 @@ impl Builder<'_> {
         Ok(v / n)
     }
 
-    fn transform(
+    pub(super) fn transform(
         &self,
         translation: &Option<[Num; 3]>,
         rotation_axis: &Option<Spanned<AxisSpec>>,
@@ -635,7 +625,7 @@ impl Builder<'_> {
     /// A 6-dof spring's compliance from exactly one of a stiffness matrix, a compliance matrix and a beam
     /// (with the beam's axis); `exactly_one` says what to give otherwise. None where a stiffness matrix
     /// cannot be inverted.
-    fn six_dof_compliance(
+    pub(super) fn six_dof_compliance(
         &self,
         span: std::ops::Range<usize>,
         stiffness_matrix: &Option<Spanned<Vec<Vec<Num>>>>,
@@ -655,359 +645,16 @@ impl Builder<'_> {
     }
 
     /// A spring's symmetric stiffness and its compliance, both finite, or a located error.
-    fn invertible(&self, span: std::ops::Range<usize>, compliance: Option<Mat6>) -> Result<(Mat6, Mat6), InputError> {
+    pub(super) fn invertible(
+        &self,
+        span: std::ops::Range<usize>,
+        compliance: Option<Mat6>,
+    ) -> Result<(Mat6, Mat6), InputError> {
         let finite = |m: &Mat6| m.iter().all(|v| v.is_finite());
         let not_invertible = "the spring's matrix cannot be inverted (or is not finite: check its numbers)";
         let compliance = compliance.filter(finite).ok_or_else(|| self.loc.at(span.clone(), not_invertible))?;
         let stiffness = compliance.try_inverse().filter(finite).ok_or_else(|| self.loc.at(span, not_invertible))?;
         Ok(((stiffness + stiffness.transpose()) * 0.5, compliance))
-    }
-
-    /// A leg read from URDF (`crate::model::urdf`): per joint on the path, its fixed origin, then the joint
-    /// (actuated, with the spring `joints` gives it; a `<mimic>` joint driven by its master's coordinate
-    /// times the multiplier, after its offset), then the child link's mass; the tool transform last. Returns
-    /// the leg and its joint space (the actuated joints' names and the controller's map).
-    fn urdf_leg(
-        &self,
-        leg_name: &str,
-        spec: &Spanned<UrdfSpec>,
-        gravity: Vec3,
-        corrections: &[Spanned<JointCorrectionSpec>],
-    ) -> Result<(Leg, JointSpace), InputError> {
-        let u = spec.get_ref();
-        let path = super::urdf::resolve(self.loc.path, u.file.get_ref());
-        let text = read_text(&path)?;
-        let read = super::urdf::read_chain(&path, &text, u.root.get_ref(), u.tip.get_ref())?;
-        let on_path: Vec<&str> = read.joints.iter().map(|j| j.name.as_str()).collect();
-        let named_joint = |name: &str, span: std::ops::Range<usize>, table: &str| -> Result<(), InputError> {
-            match read.joints.iter().find(|j| j.name == name) {
-                Some(j) if j.kind != UrdfJointKind::Fixed && j.mimic.is_none() => Ok(()),
-                Some(_) => Err(self.loc.at(
-                    span,
-                    format!("joint `{name}` in `{table}` is fixed or a <mimic> joint: it has no coordinate of its own"),
-                )),
-                None => Err(self.loc.at(
-                    span,
-                    format!(
-                        "joint `{name}` in `{table}` is not on the chain from `{}` to `{}` of {} (joints: {})",
-                        u.root.get_ref(),
-                        u.tip.get_ref(),
-                        path.display(),
-                        on_path.join(", ")
-                    ),
-                )),
-            }
-        };
-        for (name, j) in &u.joints {
-            named_joint(name, j.span(), "joints")?;
-        }
-        for (name, f) in &u.controller {
-            named_joint(name, f.span(), "controller")?;
-        }
-        for (name, v) in &u.seed {
-            named_joint(name, v.span(), "seed")?;
-        }
-        for c in corrections {
-            let joint = &c.get_ref().joint;
-            named_joint(joint.get_ref(), joint.span(), "joint_correction")?;
-        }
-        let links: Vec<&str> =
-            std::iter::once(u.root.get_ref().as_str()).chain(read.joints.iter().map(|j| j.child.as_str())).collect();
-        for (name, l) in &u.links {
-            if !links.contains(&name.as_str()) {
-                return Err(self.loc.at(
-                    l.span(),
-                    format!(
-                        "link `{name}` in `links` is not on the chain from `{}` to `{}` of {} (links: {})",
-                        u.root.get_ref(),
-                        u.tip.get_ref(),
-                        path.display(),
-                        links.join(", ")
-                    ),
-                ));
-            }
-        }
-        // A link's 6-dof spring at its frame, where `links` gives one.
-        let link_spring = |name: &str, parts: &mut ChainParts| -> Result<(), InputError> {
-            let Some(l) = u.links.get(name) else { return Ok(()) };
-            let LinkSpringSpec { stiffness_matrix, compliance_matrix, beam } = l.get_ref();
-            let exactly_one = "a link's spring needs exactly one of `stiffness_matrix`, `compliance_matrix` and `beam`";
-            let (compliance, axis) =
-                self.six_dof_compliance(l.span(), stiffness_matrix, compliance_matrix, beam, exactly_one)?;
-            let (stiffness, compliance) = self.invertible(l.span(), compliance)?;
-            parts.spring(name.to_string(), &SIX_DOF, stiffness, compliance, &[0.0; 6], None);
-            if let Some(spring) = parts.springs.last_mut() {
-                spring.beam_axis = axis;
-            }
-            Ok(())
-        };
-        // A joint's corrections: its added compliance and the change of the fixed transform leading to it.
-        let added_compliance = |name: &str| -> Result<f64, InputError> {
-            let mut sum = 0.0;
-            for c in corrections_of(corrections, name) {
-                if let Some(v) = &c.compliance {
-                    sum += self.num(v)?;
-                }
-            }
-            Ok(sum)
-        };
-        let geometry = |name: &str| -> Result<Option<Frame>, InputError> {
-            let mut moved: Option<Frame> = None;
-            for c in corrections_of(corrections, name) {
-                if let Some(g) = &c.geometry {
-                    let v: Vec<f64> = g.iter().map(|n| self.num(n)).collect::<Result<_, _>>()?;
-                    let change = Frame::new(
-                        crate::kinematics::frame::rotation_from_vector(&Vec3::new(v[3], v[4], v[5])),
-                        Vec3::new(v[0], v[1], v[2]),
-                    );
-                    moved = Some(moved.map_or(change, |m| m.compose(&change)));
-                }
-            }
-            Ok(moved)
-        };
-        // A joint's frame compliance: the directions the corrections make compliant (summed), each a virtual
-        // joint of one spring at the frame leading to the joint.
-        let frame_compliance = |name: &str, parts: &mut ChainParts| -> Result<(), InputError> {
-            let mut sum = [0.0; 6];
-            let mut span = None;
-            for c in corrections_of(corrections, name) {
-                if let Some(v) = &c.frame_compliance {
-                    for (s, n) in sum.iter_mut().zip(v.get_ref()) {
-                        *s += self.num(n)?;
-                    }
-                    span = Some(v.span());
-                }
-            }
-            let Some(span) = span else { return Ok(()) };
-            if sum.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
-                return Err(self.loc.at(
-                    span,
-                    format!("joint `{name}`: its frame compliance {sum:?} must be finite and >= 0 in every direction (0: rigid)"),
-                ));
-            }
-            let directions: Vec<usize> = (0..6).filter(|&k| sum[k] > 0.0).collect();
-            let (mut stiffness, mut compliance) = (Mat6::zeros(), Mat6::zeros());
-            for (i, &k) in directions.iter().enumerate() {
-                compliance[(i, i)] = sum[k];
-                stiffness[(i, i)] = 1.0 / sum[k];
-            }
-            let joints: Vec<(JointKind, Vec3)> = directions.iter().map(|&k| SIX_DOF[k]).collect();
-            if !joints.is_empty() {
-                parts.spring(format!("{name} frame"), &joints, stiffness, compliance, &vec![0.0; joints.len()], None);
-            }
-            Ok(())
-        };
-        // A mimic joint's ultimate master (a mimic of a mimic composed), its gain and offset.
-        let master_of = |j: &super::urdf::UrdfJoint| -> Result<Option<(String, f64, f64)>, InputError> {
-            let Some((mut master, mut gain, mut offset)) = j.mimic.clone() else { return Ok(None) };
-            let mut seen = vec![j.name.clone()];
-            loop {
-                if seen.contains(&master) {
-                    seen.push(master);
-                    return Err(self.loc.at(
-                        spec.span(),
-                        format!("{}: the <mimic> joints form a loop: {}", path.display(), seen.join(" -> ")),
-                    ));
-                }
-                let m = read.joints.iter().find(|k| k.name == master).ok_or_else(|| {
-                    self.loc.at(
-                        spec.span(),
-                        format!("{}: joint `{}` mimics `{master}`, which is not on the chain", path.display(), j.name),
-                    )
-                })?;
-                match &m.mimic {
-                    Some((next, k, o)) => {
-                        seen.push(master.clone());
-                        offset += gain * o;
-                        gain *= k;
-                        master = next.clone();
-                    }
-                    None => return Ok(Some((master, gain, offset))),
-                }
-            }
-        };
-        let mut parts = ChainParts::default();
-        let mut names: Vec<String> = Vec::new();
-        let mut pending: Vec<(usize, String, f64)> = Vec::new();
-        link_spring(u.root.get_ref(), &mut parts)?;
-        for j in &read.joints {
-            parts.elements.push(Element::Fixed(j.origin));
-            let kind = match j.kind {
-                UrdfJointKind::Fixed => None,
-                UrdfJointKind::Revolute => Some(JointKind::Revolute),
-                UrdfJointKind::Prismatic => Some(JointKind::Prismatic),
-            };
-            if let Some(jk) = kind {
-                let offset_motion = |value: f64| match jk {
-                    JointKind::Revolute => Frame::new(rotation_about(&j.axis, value), Vec3::zeros()),
-                    JointKind::Prismatic => Frame::translation(j.axis * value),
-                };
-                match master_of(j)? {
-                    Some((master, gain, offset)) => {
-                        if offset != 0.0 {
-                            parts.elements.push(Element::Fixed(offset_motion(offset)));
-                        }
-                        // The master's coordinate index is known once the path is read: filled in below.
-                        pending.push((parts.elements.len(), master, gain));
-                        parts.elements.push(Element::Joint(Joint {
-                            kind: jk,
-                            axis: j.axis,
-                            role: Role::Actuated,
-                            index: 0,
-                            gain,
-                        }));
-                    }
-                    None => {
-                        names.push(j.name.clone());
-                        if let Some(change) = geometry(&j.name)? {
-                            parts.elements.push(Element::Fixed(change));
-                        }
-                        frame_compliance(&j.name, &mut parts)?;
-                        parts.joint(jk, j.axis, Role::Actuated);
-                        let joint_spec = u.joints.get(&j.name);
-                        let added = added_compliance(&j.name)?;
-                        // The joint's spring: its compliance (for a formula of its coordinate, the value at
-                        // zero, which stands for it where one number is asked) and the formula; None: rigid.
-                        let spring = match joint_spec.map(|k| self.coordinate_stiffness(k)).transpose()?.flatten() {
-                            Some((stiffness, formula)) => {
-                                let of_coordinate = CoordinateStiffness {
-                                    coordinate: names.len() - 1,
-                                    stiffness,
-                                    formula,
-                                    added_compliance: added,
-                                    compliance_factor: 1.0,
-                                };
-                                Some((of_coordinate.compliance(&Default::default()), Some(of_coordinate)))
-                            }
-                            None => {
-                                let given = joint_spec.map(|k| self.joint_stiffness(k)).transpose()?;
-                                let compliance = given.map_or(0.0, |k| 1.0 / k) + added;
-                                if compliance < 0.0 || (compliance == 0.0 && given.is_some()) {
-                                    return Err(self.loc.at(
-                                        spec.span(),
-                                        format!("joint `{}`: its compliance with the correction added is {compliance:e}, not positive", j.name),
-                                    ));
-                                }
-                                (compliance > 0.0).then_some((compliance, None))
-                            }
-                        };
-                        if let Some((compliance, of_coordinate)) = spring {
-                            let (km, cm) = one_coordinate(compliance);
-                            parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
-                            parts.springs.last_mut().expect("just pushed").of_coordinate = of_coordinate;
-                        }
-                    }
-                }
-            }
-            link_spring(&j.child, &mut parts)?;
-            if let Some((kg, centre)) = j.child_mass {
-                parts.elements.push(Element::Mass { kg, centre });
-            }
-        }
-        for (at, master, gain) in pending {
-            let index = names.iter().position(|n| *n == master).expect("a master without a mimic is on the path");
-            if let Element::Joint(joint) = &mut parts.elements[at] {
-                *joint = Joint { index, gain, ..*joint };
-            }
-        }
-        if let Some(TransformSpec { translation, rotation_axis, rotation_deg }) = &u.tool {
-            parts.elements.push(Element::Fixed(self.transform(
-                translation,
-                rotation_axis,
-                rotation_deg,
-                spec.span(),
-            )?));
-        }
-        if names.is_empty() {
-            return Err(self.loc.at(
-                spec.span(),
-                format!("the chain from `{}` to `{}` has no moving joint", u.root.get_ref(), u.tip.get_ref()),
-            ));
-        }
-        let controller = names
-            .iter()
-            .map(|n| {
-                u.controller
-                    .get(n)
-                    .map(|f| {
-                        crate::expr::compile(
-                            f.get_ref(),
-                            &mut |name: &str| match names.iter().position(|m| m == name) {
-                                Some(i) => Ok(crate::expr::Expr::Slot(i)),
-                                None => self.params.get(name).map(|v| crate::expr::Expr::Const(*v)).ok_or_else(|| {
-                                    format!("unknown name `{name}` (the joints: {}; or a parameter)", names.join(", "))
-                                }),
-                            },
-                        )
-                        .map_err(|e| self.loc.at(f.span(), e))
-                    })
-                    .transpose()
-            })
-            .collect::<Result<Vec<_>, InputError>>()?;
-        let mut offsets = vec![0.0; names.len()];
-        for c in corrections {
-            if let Some(o) = &c.get_ref().offset {
-                let k = names.iter().position(|n| n == c.get_ref().joint.get_ref()).expect("checked on the path");
-                offsets[k] += self.num(o)?;
-            }
-        }
-        let space = JointSpace { names, controller, offsets };
-        let mut leg = parts.into_leg(leg_name.to_string(), gravity);
-        if !u.seed.is_empty() {
-            // The seed is given in the controller's angles, like the points: mapped to the model's coordinates.
-            let angles = space
-                .names
-                .iter()
-                .map(|n| u.seed.get(n).map_or(Ok(0.0), |v| self.num(v)))
-                .collect::<Result<Vec<f64>, InputError>>()?;
-            if let Leg::Vjm(v) = &mut leg {
-                v.home = space.model_coordinates(&angles);
-            }
-        }
-        Ok((leg, space))
-    }
-
-    /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.
-    /// A joint's stiffness given as a formula of its own coordinate `q` (rad, or mm for a prismatic joint;
-    /// a gravity compensator's joint), compiled with the parameters' values as constants, with the text
-    /// it was written as: None where the spring is a number.
-    fn coordinate_stiffness(&self, k: &Spanned<JointStiffnessSpec>) -> Result<Option<(Expr, String)>, InputError> {
-        let spec = k.get_ref();
-        let (n, inverted) = match (&spec.stiffness, &spec.compliance) {
-            (Some(s), None) => (s, false),
-            (None, Some(c)) => (c, true),
-            _ => return Ok(None),
-        };
-        let ExprSrc::Formula(text) = n.get_ref() else { return Ok(None) };
-        let mut uses_q = false;
-        let mut resolve = |name: &str| -> Result<Expr, String> {
-            match self.params.get(name) {
-                Some(v) => Ok(Expr::Const(*v)),
-                None if name == "q" => {
-                    uses_q = true;
-                    Ok(Expr::Slot(0))
-                }
-                None => Err(format!("unknown parameter `{name}` (`q` is the joint's own coordinate)")),
-            }
-        };
-        let formula = n.get_ref().compile(&mut resolve).map_err(|e| self.loc.at(n.span(), e))?;
-        if !uses_q {
-            return Ok(None);
-        }
-        let formula = match inverted {
-            true => Expr::Binary(crate::expr::Op::Div, Box::new(Expr::Const(1.0)), Box::new(formula)),
-            false => formula,
-        };
-        let written = if inverted { format!("1 / ({text})") } else { text.clone() };
-        Ok(Some((formula, written)))
-    }
-
-    fn joint_stiffness(&self, k: &Spanned<JointStiffnessSpec>) -> Result<f64, InputError> {
-        match (&k.get_ref().stiffness, &k.get_ref().compliance) {
-            (Some(s), None) => self.positive(s, "stiffness"),
-            (None, Some(c)) => Ok(1.0 / self.positive(c, "compliance")?),
-            _ => Err(self.loc.at(k.span(), "give exactly one of `stiffness` (N mm/rad or N/mm) and `compliance`")),
-        }
     }
 
     fn model(&self, file: &ModelFile, depth: usize) -> Result<Model, InputError> {

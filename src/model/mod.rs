@@ -2,6 +2,7 @@
 pub mod assembly_errors;
 pub mod build;
 mod build_msa;
+mod build_urdf;
 pub mod effect;
 pub mod error;
 pub mod grid;

@@ -1,0 +1,442 @@
+//! A serial arm's leg from its URDF (`urdf.rs` reads the path from the root to the tip): per joint on the
+//! path its fixed origin, the `[[joint_correction]]` geometry and frame compliance before it, the joint
+//! with the spring `[leg.urdf] joints` gives it (a `<mimic>` joint on its master's coordinate), the link
+//! springs `links` gives and the child link's mass; the tool transform last; and the arm's `JointSpace`
+//! (its joints' names, the controller's angle map, the corrections' offsets).
+
+use toml::Spanned;
+
+use super::build::{Builder, ChainParts};
+use super::error::{read_text, InputError};
+use super::schema::{JointCorrectionSpec, JointStiffnessSpec, LinkSpringSpec, TransformSpec, UrdfSpec};
+use super::urdf::{UrdfChain, UrdfJoint, UrdfJointKind};
+use crate::expr::{Expr, ExprSrc};
+use crate::kinematics::chain::{Element, Joint, JointKind, Role};
+use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
+use crate::platform::leg::Leg;
+use crate::platform::manipulator::JointSpace;
+use crate::vjm::spring::{one_coordinate, CoordinateStiffness, SIX_DOF};
+
+/// The `[[joint_correction]]` tables of joint `name`, in file order.
+fn corrections_of<'a>(
+    corrections: &'a [Spanned<JointCorrectionSpec>],
+    name: &'a str,
+) -> impl Iterator<Item = &'a JointCorrectionSpec> + 'a {
+    corrections.iter().map(Spanned::get_ref).filter(move |c| c.joint.get_ref() == name)
+}
+
+/// One URDF description being built: its table, the chain read from its file, and the corrections.
+struct UrdfLeg<'s> {
+    spec: &'s Spanned<UrdfSpec>,
+    path: std::path::PathBuf,
+    read: UrdfChain,
+    corrections: &'s [Spanned<JointCorrectionSpec>],
+}
+
+impl UrdfLeg<'_> {
+    fn u(&self) -> &UrdfSpec {
+        self.spec.get_ref()
+    }
+
+    /// `the chain from ROOT to TIP of FILE`, as the messages name it.
+    fn chain_named(&self) -> String {
+        format!(
+            "the chain from `{}` to `{}` of {}",
+            self.u().root.get_ref(),
+            self.u().tip.get_ref(),
+            self.path.display()
+        )
+    }
+}
+
+impl Builder<'_> {
+    /// A leg read from URDF (`crate::model::urdf`): per joint on the path, its fixed origin, then the joint
+    /// (actuated, with the spring `joints` gives it; a `<mimic>` joint driven by its master's coordinate
+    /// times the multiplier, after its offset), then the child link's mass; the tool transform last. Returns
+    /// the leg and its joint space (the actuated joints' names and the controller's map).
+    pub(super) fn urdf_leg(
+        &self,
+        leg_name: &str,
+        spec: &Spanned<UrdfSpec>,
+        gravity: Vec3,
+        corrections: &[Spanned<JointCorrectionSpec>],
+    ) -> Result<(Leg, JointSpace), InputError> {
+        let u = spec.get_ref();
+        let path = super::urdf::resolve(self.loc.path, u.file.get_ref());
+        let text = read_text(&path)?;
+        let read = super::urdf::read_chain(&path, &text, u.root.get_ref(), u.tip.get_ref())?;
+        let arm = UrdfLeg { spec, path, read, corrections };
+        self.check_urdf_names(&arm)?;
+        let mut parts = ChainParts::default();
+        let mut names: Vec<String> = Vec::new();
+        // Mimic joints' places in the chain, their masters and gains: the masters' indices are known once the
+        // path is read.
+        let mut pending: Vec<(usize, String, f64)> = Vec::new();
+        self.link_spring(u, u.root.get_ref(), &mut parts)?;
+        for j in &arm.read.joints {
+            parts.elements.push(Element::Fixed(j.origin));
+            let kind = match j.kind {
+                UrdfJointKind::Fixed => None,
+                UrdfJointKind::Revolute => Some(JointKind::Revolute),
+                UrdfJointKind::Prismatic => Some(JointKind::Prismatic),
+            };
+            if let Some(jk) = kind {
+                match self.master_of(&arm, j)? {
+                    Some((master, gain, offset)) => {
+                        if offset != 0.0 {
+                            parts.elements.push(Element::Fixed(joint_motion(jk, &j.axis, offset)));
+                        }
+                        pending.push((parts.elements.len(), master, gain));
+                        let joint = Joint { kind: jk, axis: j.axis, role: Role::Actuated, index: 0, gain };
+                        parts.elements.push(Element::Joint(joint));
+                    }
+                    None => {
+                        names.push(j.name.clone());
+                        self.elastic_joint(&arm, j, jk, names.len() - 1, &mut parts)?;
+                    }
+                }
+            }
+            self.link_spring(u, &j.child, &mut parts)?;
+            if let Some((kg, centre)) = j.child_mass {
+                parts.elements.push(Element::Mass { kg, centre });
+            }
+        }
+        for (at, master, gain) in pending {
+            let index = names.iter().position(|n| *n == master).expect("a master without a mimic is on the path");
+            if let Element::Joint(joint) = &mut parts.elements[at] {
+                *joint = Joint { index, gain, ..*joint };
+            }
+        }
+        if let Some(TransformSpec { translation, rotation_axis, rotation_deg }) = &u.tool {
+            let tool = self.transform(translation, rotation_axis, rotation_deg, spec.span())?;
+            parts.elements.push(Element::Fixed(tool));
+        }
+        if names.is_empty() {
+            return Err(self.loc.at(
+                spec.span(),
+                format!("the chain from `{}` to `{}` has no moving joint", u.root.get_ref(), u.tip.get_ref()),
+            ));
+        }
+        let controller = self.controller_map(u, &names)?;
+        let offsets = self.joint_offsets(corrections, &names)?;
+        let space = JointSpace { names, controller, offsets };
+        let mut leg = parts.into_leg(leg_name.to_string(), gravity);
+        if !u.seed.is_empty() {
+            // The seed is given in the controller's angles, like the points: mapped to the model's coordinates.
+            let angles = space
+                .names
+                .iter()
+                .map(|n| u.seed.get(n).map_or(Ok(0.0), |v| self.num(v)))
+                .collect::<Result<Vec<f64>, InputError>>()?;
+            if let Leg::Vjm(v) = &mut leg {
+                v.home = space.model_coordinates(&angles);
+            }
+        }
+        Ok((leg, space))
+    }
+
+    /// Every joint the description names (`joints`, `controller`, `seed`, `[[joint_correction]]`) is a
+    /// moving joint of the path with a coordinate of its own, and every link `links` names is on the path.
+    fn check_urdf_names(&self, arm: &UrdfLeg) -> Result<(), InputError> {
+        let u = arm.u();
+        let on_path: Vec<&str> = arm.read.joints.iter().map(|j| j.name.as_str()).collect();
+        let named_joint = |name: &str, span: std::ops::Range<usize>, table: &str| -> Result<(), InputError> {
+            match arm.read.joints.iter().find(|j| j.name == name) {
+                Some(j) if j.kind != UrdfJointKind::Fixed && j.mimic.is_none() => Ok(()),
+                Some(_) => Err(self.loc.at(
+                    span,
+                    format!("joint `{name}` in `{table}` is fixed or a <mimic> joint: it has no coordinate of its own"),
+                )),
+                None => Err(self.loc.at(
+                    span,
+                    format!(
+                        "joint `{name}` in `{table}` is not on {} (joints: {})",
+                        arm.chain_named(),
+                        on_path.join(", ")
+                    ),
+                )),
+            }
+        };
+        for (name, j) in &u.joints {
+            named_joint(name, j.span(), "joints")?;
+        }
+        for (name, f) in &u.controller {
+            named_joint(name, f.span(), "controller")?;
+        }
+        for (name, v) in &u.seed {
+            named_joint(name, v.span(), "seed")?;
+        }
+        for c in arm.corrections {
+            let joint = &c.get_ref().joint;
+            named_joint(joint.get_ref(), joint.span(), "joint_correction")?;
+        }
+        let links: Vec<&str> = std::iter::once(u.root.get_ref().as_str())
+            .chain(arm.read.joints.iter().map(|j| j.child.as_str()))
+            .collect();
+        for (name, l) in &u.links {
+            if !links.contains(&name.as_str()) {
+                return Err(self.loc.at(
+                    l.span(),
+                    format!("link `{name}` in `links` is not on {} (links: {})", arm.chain_named(), links.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A link's 6-dof spring at its frame, where `links` gives one.
+    fn link_spring(&self, u: &UrdfSpec, name: &str, parts: &mut ChainParts) -> Result<(), InputError> {
+        let Some(l) = u.links.get(name) else { return Ok(()) };
+        let LinkSpringSpec { stiffness_matrix, compliance_matrix, beam } = l.get_ref();
+        let exactly_one = "a link's spring needs exactly one of `stiffness_matrix`, `compliance_matrix` and `beam`";
+        let (compliance, axis) =
+            self.six_dof_compliance(l.span(), stiffness_matrix, compliance_matrix, beam, exactly_one)?;
+        let (stiffness, compliance) = self.invertible(l.span(), compliance)?;
+        parts.spring(name.to_string(), &SIX_DOF, stiffness, compliance, &[0.0; 6], None);
+        if let Some(spring) = parts.springs.last_mut() {
+            spring.beam_axis = axis;
+        }
+        Ok(())
+    }
+
+    /// A joint with a coordinate of its own (number `coordinate`): the change of the fixed transform leading
+    /// to it and its frame compliance (its corrections), the joint, and its spring.
+    fn elastic_joint(
+        &self,
+        arm: &UrdfLeg,
+        j: &UrdfJoint,
+        jk: JointKind,
+        coordinate: usize,
+        parts: &mut ChainParts,
+    ) -> Result<(), InputError> {
+        if let Some(change) = self.geometry_change(arm.corrections, &j.name)? {
+            parts.elements.push(Element::Fixed(change));
+        }
+        self.frame_compliance(arm.corrections, &j.name, parts)?;
+        parts.joint(jk, j.axis, Role::Actuated);
+        if let Some((compliance, of_coordinate)) = self.joint_spring(arm, j, coordinate)? {
+            let (km, cm) = one_coordinate(compliance);
+            parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
+            parts.springs.last_mut().expect("just pushed").of_coordinate = of_coordinate;
+        }
+        Ok(())
+    }
+
+    /// A joint's spring: its compliance (for a formula of its coordinate, the value at zero, which stands for
+    /// it where one number is asked) with the corrections' added compliance, and the formula; None: rigid.
+    fn joint_spring(
+        &self,
+        arm: &UrdfLeg,
+        j: &UrdfJoint,
+        coordinate: usize,
+    ) -> Result<Option<(f64, Option<CoordinateStiffness>)>, InputError> {
+        let joint_spec = arm.u().joints.get(&j.name);
+        let added = self.added_compliance(arm.corrections, &j.name)?;
+        if let Some((stiffness, formula)) = joint_spec.map(|k| self.coordinate_stiffness(k)).transpose()?.flatten() {
+            let of_coordinate =
+                CoordinateStiffness { coordinate, stiffness, formula, added_compliance: added, compliance_factor: 1.0 };
+            return Ok(Some((of_coordinate.compliance(&Default::default()), Some(of_coordinate))));
+        }
+        let given = joint_spec.map(|k| self.joint_stiffness(k)).transpose()?;
+        let compliance = given.map_or(0.0, |k| 1.0 / k) + added;
+        if compliance < 0.0 || (compliance == 0.0 && given.is_some()) {
+            return Err(self.loc.at(
+                arm.spec.span(),
+                format!("joint `{}`: its compliance with the correction added is {compliance:e}, not positive", j.name),
+            ));
+        }
+        Ok((compliance > 0.0).then_some((compliance, None)))
+    }
+
+    /// A joint's added compliance: the sum of its corrections'.
+    fn added_compliance(&self, corrections: &[Spanned<JointCorrectionSpec>], name: &str) -> Result<f64, InputError> {
+        let mut sum = 0.0;
+        for c in corrections_of(corrections, name) {
+            if let Some(v) = &c.compliance {
+                sum += self.num(v)?;
+            }
+        }
+        Ok(sum)
+    }
+
+    /// The change of the fixed transform leading to a joint: its corrections' geometries composed.
+    fn geometry_change(
+        &self,
+        corrections: &[Spanned<JointCorrectionSpec>],
+        name: &str,
+    ) -> Result<Option<Frame>, InputError> {
+        let mut moved: Option<Frame> = None;
+        for c in corrections_of(corrections, name) {
+            if let Some(g) = &c.geometry {
+                let v: Vec<f64> = g.iter().map(|n| self.num(n)).collect::<Result<_, _>>()?;
+                let change = Frame::new(
+                    crate::kinematics::frame::rotation_from_vector(&Vec3::new(v[3], v[4], v[5])),
+                    Vec3::new(v[0], v[1], v[2]),
+                );
+                moved = Some(moved.map_or(change, |m| m.compose(&change)));
+            }
+        }
+        Ok(moved)
+    }
+
+    /// A joint's frame compliance: the directions the corrections make compliant (summed), each a virtual
+    /// joint of one spring at the frame leading to the joint.
+    fn frame_compliance(
+        &self,
+        corrections: &[Spanned<JointCorrectionSpec>],
+        name: &str,
+        parts: &mut ChainParts,
+    ) -> Result<(), InputError> {
+        let mut sum = [0.0; 6];
+        let mut span = None;
+        for c in corrections_of(corrections, name) {
+            if let Some(v) = &c.frame_compliance {
+                for (s, n) in sum.iter_mut().zip(v.get_ref()) {
+                    *s += self.num(n)?;
+                }
+                span = Some(v.span());
+            }
+        }
+        let Some(span) = span else { return Ok(()) };
+        if sum.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
+            return Err(self.loc.at(
+                span,
+                format!("joint `{name}`: its frame compliance {sum:?} must be finite and >= 0 in every direction (0: rigid)"),
+            ));
+        }
+        let directions: Vec<usize> = (0..6).filter(|&k| sum[k] > 0.0).collect();
+        let (mut stiffness, mut compliance) = (Mat6::zeros(), Mat6::zeros());
+        for (i, &k) in directions.iter().enumerate() {
+            compliance[(i, i)] = sum[k];
+            stiffness[(i, i)] = 1.0 / sum[k];
+        }
+        let joints: Vec<(JointKind, Vec3)> = directions.iter().map(|&k| SIX_DOF[k]).collect();
+        if !joints.is_empty() {
+            parts.spring(format!("{name} frame"), &joints, stiffness, compliance, &vec![0.0; joints.len()], None);
+        }
+        Ok(())
+    }
+
+    /// A mimic joint's ultimate master (a mimic of a mimic composed), its gain and offset; None for a joint
+    /// with a coordinate of its own.
+    fn master_of(&self, arm: &UrdfLeg, j: &UrdfJoint) -> Result<Option<(String, f64, f64)>, InputError> {
+        let Some((mut master, mut gain, mut offset)) = j.mimic.clone() else { return Ok(None) };
+        let mut seen = vec![j.name.clone()];
+        loop {
+            if seen.contains(&master) {
+                seen.push(master);
+                return Err(self.loc.at(
+                    arm.spec.span(),
+                    format!("{}: the <mimic> joints form a loop: {}", arm.path.display(), seen.join(" -> ")),
+                ));
+            }
+            let m = arm.read.joints.iter().find(|k| k.name == master).ok_or_else(|| {
+                self.loc.at(
+                    arm.spec.span(),
+                    format!("{}: joint `{}` mimics `{master}`, which is not on the chain", arm.path.display(), j.name),
+                )
+            })?;
+            match &m.mimic {
+                Some((next, k, o)) => {
+                    seen.push(master.clone());
+                    offset += gain * o;
+                    gain *= k;
+                    master = next.clone();
+                }
+                None => return Ok(Some((master, gain, offset))),
+            }
+        }
+    }
+
+    /// The controller's angle map: per joint, its formula over the joints' angles and the parameters, where
+    /// `controller` gives one (None: the angle is the coordinate).
+    fn controller_map(&self, u: &UrdfSpec, names: &[String]) -> Result<Vec<Option<Expr>>, InputError> {
+        names
+            .iter()
+            .map(|n| {
+                u.controller
+                    .get(n)
+                    .map(|f| {
+                        crate::expr::compile(
+                            f.get_ref(),
+                            &mut |name: &str| match names.iter().position(|m| m == name) {
+                                Some(i) => Ok(Expr::Slot(i)),
+                                None => self.params.get(name).map(|v| Expr::Const(*v)).ok_or_else(|| {
+                                    format!("unknown name `{name}` (the joints: {}; or a parameter)", names.join(", "))
+                                }),
+                            },
+                        )
+                        .map_err(|e| self.loc.at(f.span(), e))
+                    })
+                    .transpose()
+            })
+            .collect()
+    }
+
+    /// Each joint's offset added to its controller angle: its corrections' offsets summed.
+    fn joint_offsets(
+        &self,
+        corrections: &[Spanned<JointCorrectionSpec>],
+        names: &[String],
+    ) -> Result<Vec<f64>, InputError> {
+        let mut offsets = vec![0.0; names.len()];
+        for c in corrections {
+            if let Some(o) = &c.get_ref().offset {
+                let k = names.iter().position(|n| n == c.get_ref().joint.get_ref()).expect("checked on the path");
+                offsets[k] += self.num(o)?;
+            }
+        }
+        Ok(offsets)
+    }
+
+    /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.
+    /// A joint's stiffness given as a formula of its own coordinate `q` (rad, or mm for a prismatic joint;
+    /// a gravity compensator's joint), compiled with the parameters' values as constants, with the text
+    /// it was written as: None where the spring is a number.
+    fn coordinate_stiffness(&self, k: &Spanned<JointStiffnessSpec>) -> Result<Option<(Expr, String)>, InputError> {
+        let spec = k.get_ref();
+        let (n, inverted) = match (&spec.stiffness, &spec.compliance) {
+            (Some(s), None) => (s, false),
+            (None, Some(c)) => (c, true),
+            _ => return Ok(None),
+        };
+        let ExprSrc::Formula(text) = n.get_ref() else { return Ok(None) };
+        let mut uses_q = false;
+        let mut resolve = |name: &str| -> Result<Expr, String> {
+            match self.params.get(name) {
+                Some(v) => Ok(Expr::Const(*v)),
+                None if name == "q" => {
+                    uses_q = true;
+                    Ok(Expr::Slot(0))
+                }
+                None => Err(format!("unknown parameter `{name}` (`q` is the joint's own coordinate)")),
+            }
+        };
+        let formula = n.get_ref().compile(&mut resolve).map_err(|e| self.loc.at(n.span(), e))?;
+        if !uses_q {
+            return Ok(None);
+        }
+        let formula = match inverted {
+            true => Expr::Binary(crate::expr::Op::Div, Box::new(Expr::Const(1.0)), Box::new(formula)),
+            false => formula,
+        };
+        let written = if inverted { format!("1 / ({text})") } else { text.clone() };
+        Ok(Some((formula, written)))
+    }
+
+    fn joint_stiffness(&self, k: &Spanned<JointStiffnessSpec>) -> Result<f64, InputError> {
+        match (&k.get_ref().stiffness, &k.get_ref().compliance) {
+            (Some(s), None) => self.positive(s, "stiffness"),
+            (None, Some(c)) => Ok(1.0 / self.positive(c, "compliance")?),
+            _ => Err(self.loc.at(k.span(), "give exactly one of `stiffness` (N mm/rad or N/mm) and `compliance`")),
+        }
+    }
+}
+
+/// A joint's motion by `value` (rad, or mm for a prismatic joint) along its axis: a mimic joint's offset.
+fn joint_motion(kind: JointKind, axis: &Vec3, value: f64) -> Frame {
+    match kind {
+        JointKind::Revolute => Frame::new(rotation_about(axis, value), Vec3::zeros()),
+        JointKind::Prismatic => Frame::translation(axis * value),
+    }
+}
