@@ -45,6 +45,7 @@ pub use synth::{
     configurations, synthesize_leg_positions, synthesize_positions, Configuration, PositionSynth, SynthRow,
 };
 
+use fit::PositionFit;
 use problem::PositionProblem;
 use select::{choose_effects, error_stats, gross_rows, gross_rows_against, nested_test, Selection};
 
@@ -151,6 +152,81 @@ pub fn calibrate(
     candidates: &[ArmEffect],
     options: &CalibrationOptions,
 ) -> Result<Calibration, CalibrationError> {
+    let data = &prepared(m, data, options.sigma_rad)?;
+    let problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
+    let candidates: Vec<ArmEffect> =
+        if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
+    offered(&problem, &candidates, options)?;
+    let sigma_known = data.rows.iter().all(|r| {
+        r.sigma.is_some()
+            || match r.observed {
+                Observed::Orientation { .. } => options.sigma_rad.is_some(),
+                _ => options.sigma.is_some(),
+            }
+    });
+    let usable = |r: &usize| !problem.unusable.iter().any(|(k, _)| k == r);
+    let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
+    let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).collect();
+    let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
+    check_fittable(&problem, data, &fit_rows, options)?;
+    let (kept, selection, mut gross) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
+    let Selection { mut model, mut fit, steps, mut hidden } = selection;
+    hidden.extend(one_sided);
+    if problem.absolute {
+        offsets_for_geometries(&problem, &kept, &candidates, options, sigma_known, &mut model, &mut fit);
+    }
+    // A parallel robot's first order completed (a serial arm's fit is final).
+    let fit = match problem.space {
+        None => problem.fit_exact(&kept, &model, &fit.params).unwrap_or(fit),
+        Some(_) => fit,
+    };
+    let residuals = problem.residuals(&model, &fit.params);
+    // Held-out rows are judged by the same rule against the fitted rows' scale: a gross one is named and left
+    // out of the held-out errors too.
+    let gross_checks = gross_rows_against(&problem, &residuals, &kept, &check_rows);
+    let all_checks = check_rows.clone();
+    let check_rows: Vec<usize> = check_rows.into_iter().filter(|r| !gross_checks.contains(r)).collect();
+    gross.extend(&gross_checks);
+    let scale = (fit.rss / fit.dof() as f64).sqrt();
+    let variance = scale * scale;
+    let mut accepted = accepted_effects(&problem, &model, &fit, variance);
+    let nuisance = if problem.absolute { nuisance_values(&problem, data, &fit, variance) } else { Vec::new() };
+    let stages = stage_errors(&problem, options, &model, &fit, [&kept, &check_rows, &all_checks]);
+    if !check_rows.is_empty() && stages.len() == model.len() - options.fitted.len() + 1 {
+        for (k, a) in accepted[options.fitted.len()..].iter_mut().enumerate() {
+            a.confirmed = Some(stages[k + 1].check.rms < stages[k].check.rms);
+        }
+    }
+    let noisy = sigma_known && chi2_sf(fit.rss, fit.dof()) < options.alpha;
+    let verdict = match (noisy, model.len() > options.fitted.len()) {
+        (true, _) => CalibrationVerdict::Unexplained,
+        (false, true) => CalibrationVerdict::Effect,
+        (false, false) => CalibrationVerdict::None,
+    };
+    let report = CalibrationReport {
+        verdict,
+        accepted,
+        steps,
+        nuisance,
+        not_identifiable: hidden,
+        left_out: gross_report(data, &gross, &residuals),
+        stages,
+        unusable: problem.unusable.iter().map(|(_, why)| why.clone()).collect(),
+        residual_scale: scale,
+        sigma_known,
+        rows: (kept.len(), check_rows.len()),
+        unread: data.unread.clone(),
+    };
+    let leg_corrections = problem
+        .space
+        .is_none()
+        .then(|| model.iter().zip(&fit.params.effects).map(|(e, values)| problem.model_form(e, values)).collect());
+    Ok(Calibration { report, effects: model, leg_corrections })
+}
+
+/// The data as the fit reads them: a parallel robot's rows at the pose its actuators' readings give, each
+/// row's payload weighed into its load, and orientations without a standard deviation left out.
+fn prepared(m: &Manipulator, data: &PositionData, sigma_rad: Option<f64>) -> Result<PositionData, CalibrationError> {
     let solved;
     let data = if m.joint_space.is_none() && data.rows.iter().any(|r| !r.joints.is_empty()) {
         solved = at_actuator_readings(m, data)?;
@@ -165,11 +241,15 @@ pub fn calibrate(
     } else {
         data
     };
-    let weighed_orientations = data.without_unweighted_orientations(options.sigma_rad);
-    let data = &weighed_orientations;
-    let problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
-    let candidates: Vec<ArmEffect> =
-        if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
+    Ok(data.without_unweighted_orientations(sigma_rad).into_owned())
+}
+
+/// Every effect named (`candidates`, `options.fitted`) is one the robot can have.
+fn offered(
+    problem: &PositionProblem,
+    candidates: &[ArmEffect],
+    options: &CalibrationOptions,
+) -> Result<(), CalibrationError> {
     if let Some(e) = candidates.iter().chain(&options.fitted).find(|e| !problem.offers(e)) {
         return Err(CalibrationError::NotOffered(format!(
             "{}: {}",
@@ -184,17 +264,17 @@ pub fn calibrate(
             }
         )));
     }
-    let sigma_known = data.rows.iter().all(|r| {
-        r.sigma.is_some()
-            || match r.observed {
-                Observed::Orientation { .. } => options.sigma_rad.is_some(),
-                _ => options.sigma.is_some(),
-            }
-    });
-    let usable = |r: &usize| !problem.unusable.iter().any(|(k, _)| k == r);
-    let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
-    let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).collect();
-    let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
+    Ok(())
+}
+
+/// The fitted rows can fit what every fit fits: each set-up and target seen, more coordinates than the
+/// registration's and the fixed effects' parameters.
+fn check_fittable(
+    problem: &PositionProblem,
+    data: &PositionData,
+    fit_rows: &[usize],
+    options: &CalibrationOptions,
+) -> Result<(), CalibrationError> {
     if fit_rows.is_empty() {
         let why: Vec<String> = problem.unusable.iter().map(|(_, why)| why.clone()).collect();
         return Err(CalibrationError::TooFew(format!(
@@ -229,14 +309,25 @@ pub fn calibrate(
             3 * fit_rows.len()
         )));
     }
-    // Gross rows: screened against the registration alone (a fit that gross rows pull is screened again),
-    // then against the model selected, until the set stops changing.
+    Ok(())
+}
+
+/// The selection on the fitted rows without their gross ones, and the gross rows: screened against the
+/// registration alone (a fit that gross rows pull is screened again), then against the model selected,
+/// until the set stops changing. Returns the rows kept, the selection and the gross rows.
+fn screened_selection(
+    problem: &PositionProblem,
+    fit_rows: &[usize],
+    candidates: &[ArmEffect],
+    options: &CalibrationOptions,
+    sigma_known: bool,
+) -> Result<(Vec<usize>, Selection, Vec<usize>), CalibrationError> {
     let mut gross: Vec<usize> = Vec::new();
     for _ in 0..3 {
         let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
         let start = problem.start(&kept, &options.fitted);
         let Some(f) = problem.fit(&kept, &options.fitted, &start) else { break };
-        let next = gross_rows(&problem, &problem.residuals(&options.fitted, &f.params), &fit_rows);
+        let next = gross_rows(problem, &problem.residuals(&options.fitted, &f.params), fit_rows);
         if next == gross {
             break;
         }
@@ -245,8 +336,8 @@ pub fn calibrate(
     let mut outcome = None;
     for _ in 0..3 {
         let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
-        let selection = choose_effects(&problem, &kept, &candidates, options, sigma_known)?;
-        let next = gross_rows(&problem, &problem.residuals(&selection.model, &selection.fit.params), &fit_rows);
+        let selection = choose_effects(problem, &kept, candidates, options, sigma_known)?;
+        let next = gross_rows(problem, &problem.residuals(&selection.model, &selection.fit.params), fit_rows);
         let settled = next == gross;
         outcome = Some((kept, selection));
         if settled {
@@ -254,53 +345,57 @@ pub fn calibrate(
         }
         gross = next;
     }
-    let (kept, Selection { mut model, mut fit, steps, mut hidden }) = outcome.expect("at least one selection");
-    hidden.extend(one_sided);
-    // A joint's geometry holds its offset (a leg's end-point error along its actuator, an arm joint's turn
-    // about its own axis). Chosen while other effects were still missing, or with a parallel robot's offset
-    // at first order (an offset of 0.5 mm leaves 1 um of second order, which a geometry's other directions
-    // absorb), it may stand in for the offset alone: where the offset, each fitted exactly, explains the data
-    // as well (the geometry's other directions do not pass at alpha), the offset is kept instead.
-    if problem.absolute {
-        for k in options.fitted.len()..model.len() {
-            let offset = ArmEffect { kind: ArmKind::JointOffset, joint: model[k].joint };
-            if model[k].kind != ArmKind::JointGeometry || model.contains(&offset) || !candidates.contains(&offset) {
-                continue;
-            }
-            let mut simpler = model.clone();
-            simpler[k] = offset;
-            let mut start = fit.params.clone();
-            start.effects[k] = vec![0.0];
-            let (Some(with_offset), Some(with_geometry)) =
-                (problem.fit_exact(&kept, &simpler, &start), problem.fit_exact(&kept, &model, &fit.params))
-            else {
-                continue;
-            };
-            let (_, p) = nested_test(with_offset.rss, with_offset.rank, &with_geometry, sigma_known);
-            if with_offset.rank > with_geometry.rank.saturating_sub(model[k].size()) && p >= options.alpha {
-                model = simpler;
-                fit = with_offset;
-            }
+    let (kept, selection) = outcome.expect("at least one selection");
+    Ok((kept, selection, gross))
+}
+
+/// A joint's geometry holds its offset (a leg's end-point error along its actuator, an arm joint's turn
+/// about its own axis). Chosen while other effects were still missing, or with a parallel robot's offset
+/// at first order (an offset of 0.5 mm leaves 1 um of second order, which a geometry's other directions
+/// absorb), it may stand in for the offset alone: where the offset, each fitted exactly, explains the data
+/// as well (the geometry's other directions do not pass at alpha), the offset is kept instead.
+fn offsets_for_geometries(
+    problem: &PositionProblem,
+    kept: &[usize],
+    candidates: &[ArmEffect],
+    options: &CalibrationOptions,
+    sigma_known: bool,
+    model: &mut Vec<ArmEffect>,
+    fit: &mut PositionFit,
+) {
+    for k in options.fitted.len()..model.len() {
+        let offset = ArmEffect { kind: ArmKind::JointOffset, joint: model[k].joint };
+        if model[k].kind != ArmKind::JointGeometry || model.contains(&offset) || !candidates.contains(&offset) {
+            continue;
+        }
+        let mut simpler = model.clone();
+        simpler[k] = offset;
+        let mut start = fit.params.clone();
+        start.effects[k] = vec![0.0];
+        let (Some(with_offset), Some(with_geometry)) =
+            (problem.fit_exact(kept, &simpler, &start), problem.fit_exact(kept, model, &fit.params))
+        else {
+            continue;
+        };
+        let (_, p) = nested_test(with_offset.rss, with_offset.rank, &with_geometry, sigma_known);
+        if with_offset.rank > with_geometry.rank.saturating_sub(model[k].size()) && p >= options.alpha {
+            *model = simpler;
+            *fit = with_offset;
         }
     }
-    // A parallel robot's first order completed (a serial arm's fit is final).
-    let fit = match problem.space {
-        None => problem.fit_exact(&kept, &model, &fit.params).unwrap_or(fit),
-        Some(_) => fit,
-    };
-    let residuals = problem.residuals(&model, &fit.params);
-    // Held-out rows are judged by the same rule against the fitted rows' scale: a gross one is named and left
-    // out of the held-out errors too.
-    let gross_checks = gross_rows_against(&problem, &residuals, &kept, &check_rows);
-    let all_checks = check_rows.clone();
-    let check_rows: Vec<usize> = check_rows.into_iter().filter(|r| !gross_checks.contains(r)).collect();
-    gross.extend(&gross_checks);
-    let scale = (fit.rss / fit.dof() as f64).sqrt();
-    let variance = scale * scale;
-    let nuisance_count = problem.nuisance_count();
+}
+
+/// The effects of `model` with their values and standard errors (none for a direction the data cannot see),
+/// as the report gives them.
+fn accepted_effects(
+    problem: &PositionProblem,
+    model: &[ArmEffect],
+    fit: &PositionFit,
+    variance: f64,
+) -> Vec<AcceptedEffect> {
     // A parameter in a direction the data cannot see has no standard error.
     let seen = |k: usize| !fit.hidden.iter().any(|d| d.iter().any(|(j, _)| *j == k));
-    let mut k = nuisance_count;
+    let mut k = problem.nuisance_count();
     let mut accepted = Vec::new();
     for (i, e) in model.iter().enumerate() {
         let values = fit.params.effects[i].clone();
@@ -321,40 +416,56 @@ pub fn calibrate(
             confirmed: None,
         });
     }
+    accepted
+}
+
+/// The registration's and targets' fitted values (mm, mrad) with their standard errors.
+fn nuisance_values(problem: &PositionProblem, data: &PositionData, fit: &PositionFit, variance: f64) -> Vec<Nuisance> {
     let se3 = |k: usize, factor: f64| [0, 1, 2].map(|a| (fit.covariance[(k + a, k + a)] * variance).sqrt() * factor);
     let mut nuisance = Vec::new();
-    if problem.absolute {
-        for (s, name) in data.setups.iter().enumerate() {
-            let label = if name.is_empty() { "instrument".to_string() } else { format!("set-up {name}") };
-            let rotation = crate::kinematics::frame::rotation_vector(&fit.params.rotations[s]);
+    for (s, name) in data.setups.iter().enumerate() {
+        let label = if name.is_empty() { "instrument".to_string() } else { format!("set-up {name}") };
+        let rotation = crate::kinematics::frame::rotation_vector(&fit.params.rotations[s]);
+        nuisance.push(Nuisance {
+            name: format!("{label}: translation, mm"),
+            value: fit.params.translations[s].into(),
+            se: se3(6 * s, 1.0),
+        });
+        nuisance.push(Nuisance {
+            name: format!("{label}: rotation vector, mrad"),
+            value: (rotation * 1e3).into(),
+            se: se3(6 * s + 3, 1e3),
+        });
+    }
+    for (t, name) in data.targets.iter().enumerate() {
+        let label = if name.is_empty() { "target".to_string() } else { format!("target {name}") };
+        nuisance.push(Nuisance {
+            name: format!("{label}: place in the tool frame, mm"),
+            value: fit.params.targets[t].into(),
+            se: se3(6 * data.setups.len() + 3 * t, 1.0),
+        });
+        if let Some(k) = problem.turn_parameter(t) {
+            let turn = crate::kinematics::frame::rotation_vector(&fit.params.turns[t]);
             nuisance.push(Nuisance {
-                name: format!("{label}: translation, mm"),
-                value: fit.params.translations[s].into(),
-                se: se3(6 * s, 1.0),
+                name: format!("{label}: axes in the tool frame, rotation vector, mrad"),
+                value: (turn * 1e3).into(),
+                se: se3(k, 1e3),
             });
-            nuisance.push(Nuisance {
-                name: format!("{label}: rotation vector, mrad"),
-                value: (rotation * 1e3).into(),
-                se: se3(6 * s + 3, 1e3),
-            });
-        }
-        for (t, name) in data.targets.iter().enumerate() {
-            let label = if name.is_empty() { "target".to_string() } else { format!("target {name}") };
-            nuisance.push(Nuisance {
-                name: format!("{label}: place in the tool frame, mm"),
-                value: fit.params.targets[t].into(),
-                se: se3(6 * data.setups.len() + 3 * t, 1.0),
-            });
-            if let Some(k) = problem.turn_parameter(t) {
-                let turn = crate::kinematics::frame::rotation_vector(&fit.params.turns[t]);
-                nuisance.push(Nuisance {
-                    name: format!("{label}: axes in the tool frame, rotation vector, mrad"),
-                    value: (turn * 1e3).into(),
-                    se: se3(k, 1e3),
-                });
-            }
         }
     }
+    nuisance
+}
+
+/// The errors after the registration alone, then after each effect in the order accepted, of the rows
+/// `[fitted, held out, held out with their gross ones]`.
+fn stage_errors(
+    problem: &PositionProblem,
+    options: &CalibrationOptions,
+    model: &[ArmEffect],
+    fit: &PositionFit,
+    [kept, check_rows, all_checks]: [&[usize]; 3],
+) -> Vec<Stage> {
+    let data = problem.data;
     // The rows of `rows` that are orientations (`turning`) or positions and displacements.
     let only = |rows: &[usize], turning: bool| -> Vec<usize> {
         rows.iter().copied().filter(|&k| data.rows[k].observed.is_orientation() == turning).collect()
@@ -381,7 +492,7 @@ pub fn calibrate(
         let f = if k == order.len() {
             Some(fit.clone())
         } else {
-            problem.fit_exact(&kept, &staged, &problem.start(&kept, &staged))
+            problem.fit_exact(kept, &staged, &problem.start(kept, &staged))
         };
         let Some(f) = f else { continue };
         let r = problem.residuals(&staged, &f.params);
@@ -389,57 +500,33 @@ pub fn calibrate(
         stages.push(Stage {
             model: label,
             parameters: f.rank,
-            fit: error_stats(&r, &only(&kept, false)),
-            check: error_stats(&r, &only(&check_rows, false)),
-            check_all: error_stats(&r, &only(&all_checks, false)),
+            fit: error_stats(&r, &only(kept, false)),
+            check: error_stats(&r, &only(check_rows, false)),
+            check_all: error_stats(&r, &only(all_checks, false)),
             orientation: oriented
-                .then(|| [error_stats(&in_mrad, &only(&kept, true)), error_stats(&in_mrad, &only(&check_rows, true))]),
+                .then(|| [error_stats(&in_mrad, &only(kept, true)), error_stats(&in_mrad, &only(check_rows, true))]),
         });
     }
-    if !check_rows.is_empty() && stages.len() == order.len() + 1 {
-        for (k, a) in accepted[options.fitted.len()..].iter_mut().enumerate() {
-            a.confirmed = Some(stages[k + 1].check.rms < stages[k].check.rms);
-        }
-    }
-    let noisy = sigma_known && chi2_sf(fit.rss, fit.dof()) < options.alpha;
-    let verdict = match (noisy, model.len() > options.fitted.len()) {
-        (true, _) => CalibrationVerdict::Unexplained,
-        (false, true) => CalibrationVerdict::Effect,
-        (false, false) => CalibrationVerdict::None,
-    };
-    let report = CalibrationReport {
-        verdict,
-        accepted,
-        steps,
-        nuisance,
-        not_identifiable: hidden,
-        left_out: gross
-            .iter()
-            .map(|&r| {
-                let turning = data.rows[r].observed.is_orientation();
-                GrossRow {
-                    row: format!(
-                        "{} (line {}{}{})",
-                        data.rows[r].name,
-                        data.rows[r].line,
-                        if data.rows[r].check { ", held out" } else { "" },
-                        if turning { ", orientation" } else { "" }
-                    ),
-                    misfit: residuals[r].map_or(f64::NAN, |v| v.norm()) * if turning { 1e3 } else { 1.0 },
-                    unit: if turning { "mrad" } else { "mm" }.to_string(),
-                }
-            })
-            .collect(),
-        stages,
-        unusable: problem.unusable.iter().map(|(_, why)| why.clone()).collect(),
-        residual_scale: scale,
-        sigma_known,
-        rows: (kept.len(), check_rows.len()),
-        unread: data.unread.clone(),
-    };
-    let leg_corrections = problem
-        .space
-        .is_none()
-        .then(|| model.iter().zip(&fit.params.effects).map(|(e, values)| problem.model_form(e, values)).collect());
-    Ok(Calibration { report, effects: model, leg_corrections })
+    stages
+}
+
+/// The gross rows as the report names them, with their misfit against the model selected.
+fn gross_report(data: &PositionData, gross: &[usize], residuals: &[Option<Vec3>]) -> Vec<GrossRow> {
+    gross
+        .iter()
+        .map(|&r| {
+            let turning = data.rows[r].observed.is_orientation();
+            GrossRow {
+                row: format!(
+                    "{} (line {}{}{})",
+                    data.rows[r].name,
+                    data.rows[r].line,
+                    if data.rows[r].check { ", held out" } else { "" },
+                    if turning { ", orientation" } else { "" }
+                ),
+                misfit: residuals[r].map_or(f64::NAN, |v| v.norm()) * if turning { 1e3 } else { 1.0 },
+                unit: if turning { "mrad" } else { "mm" }.to_string(),
+            }
+        })
+        .collect()
 }
