@@ -241,6 +241,372 @@ impl OrientationColumns {
     }
 }
 
+/// Errors located in the file being read.
+struct Located<'p>(&'p Path);
+
+impl Located<'_> {
+    fn at(&self, line: usize, column: usize, message: String) -> InputError {
+        InputError::At { path: self.0.to_path_buf(), line, column, message }
+    }
+}
+
+/// Where each kind of column is in a measurement file's header, read once and checked: what the rows give
+/// (joints or a commanded pose), what they measured (positions in groups, with orientations, or
+/// displacements), and the optional columns.
+struct Columns {
+    header: Vec<String>,
+    joints: Vec<usize>,
+    /// A commanded pose's position and rotation vector (the rotation's optional).
+    pose: Option<Vec<Option<usize>>>,
+    groups: Vec<Group>,
+    orientations: Vec<Option<OrientationColumns>>,
+    displacement: Option<Vec<usize>>,
+    wrench: Vec<Option<usize>>,
+    sigma: Option<usize>,
+    sigma_mrad: Option<usize>,
+    setup: Option<usize>,
+    set: Option<usize>,
+    id: Option<usize>,
+    target: Option<usize>,
+    gravity: Option<Vec<usize>>,
+    payload: Option<usize>,
+    centre: Vec<Option<usize>>,
+}
+
+/// One line's values, which every row of the line shares.
+struct LineValues {
+    joints: Vec<f64>,
+    /// A commanded pose's six numbers.
+    commanded: Option<Vec<f64>>,
+    pose: Option<Frame>,
+    wrench: Vec6,
+    sigma: Option<f64>,
+    sigma_rad: Option<f64>,
+    check: bool,
+    gravity: Option<Vec3>,
+    payload: Option<(f64, Vec3)>,
+}
+
+impl Columns {
+    /// The columns of `header`: `joints` the names of the `q_<name>` columns, `poses` whether each row gives
+    /// a commanded pose.
+    fn of(header: Vec<String>, joints: &[String], poses: bool, at: &Located) -> Result<Columns, InputError> {
+        let find = |name: &str| header.iter().position(|h| h == name);
+        let joint_columns = joint_columns(&header, joints, poses, at)?;
+        let pose = pose_columns(&header, poses, at)?;
+        let groups = position_groups(&header);
+        let displacement: Option<Vec<usize>> = DISPLACEMENT[..3].iter().map(|c| find(c)).collect();
+        if groups.is_empty() && displacement.is_none() {
+            return Err(at.at(
+                1,
+                1,
+                "no measured columns: give the target's position in the instrument's frame (mx_mm,my_mm,mz_mm or mx_m,my_m,mz_m; several targets mx1_mm,... or a `target` column) or the displacement under the row's wrench (dx_mm,dy_mm,dz_mm)".into(),
+            ));
+        }
+        if !groups.is_empty() && displacement.is_some() {
+            return Err(at.at(
+                1,
+                1,
+                "both positions (mx...) and displacements (dx_mm...): one file holds one kind of measurement".into(),
+            ));
+        }
+        let target = find(TARGET);
+        if target.is_some() && groups.len() > 1 {
+            return Err(at.at(
+                1,
+                1,
+                "a `target` column names the target of one group of mx/my/mz columns, not of several".into(),
+            ));
+        }
+        let payload = find(PAYLOAD_KG);
+        let centre: Vec<Option<usize>> = PAYLOAD_CENTRE.iter().map(|c| find(c)).collect();
+        if payload.is_none() && centre.iter().any(Option::is_some) {
+            return Err(at.at(
+                1,
+                1,
+                format!("a payload's centre ({}) needs its mass ({PAYLOAD_KG})", PAYLOAD_CENTRE.join(",")),
+            ));
+        }
+        let orientations = groups.iter().map(|g| orientation_columns(&header, &g.suffix)).collect();
+        Ok(Columns {
+            joints: joint_columns,
+            pose,
+            groups,
+            orientations,
+            displacement,
+            wrench: WRENCH.iter().map(|c| find(c)).collect(),
+            sigma: find(SIGMA),
+            sigma_mrad: find(SIGMA_MRAD),
+            setup: find(SETUP),
+            set: find(SET),
+            id: find(POSE_ID),
+            target,
+            gravity: GRAVITY.iter().map(|c| find(c)).collect(),
+            payload,
+            centre,
+            header,
+        })
+    }
+
+    /// The header's columns no rule reads.
+    fn unread(&self) -> Vec<String> {
+        let mut read: Vec<usize> = self.joints.clone();
+        read.extend(self.pose.iter().flatten().flatten());
+        read.extend(self.groups.iter().flat_map(|g| g.columns));
+        read.extend(self.orientations.iter().flatten().flat_map(OrientationColumns::columns));
+        read.extend(self.sigma_mrad.iter().filter(|_| self.orientations.iter().any(Option::is_some)));
+        read.extend(self.displacement.iter().flatten());
+        read.extend(self.wrench.iter().flatten());
+        read.extend([self.sigma, self.setup, self.set, self.id, self.target, self.payload].iter().flatten());
+        read.extend(self.gravity.iter().flatten());
+        read.extend(self.centre.iter().flatten());
+        (0..self.header.len()).filter(|c| !read.contains(c)).map(|c| self.header[c].clone()).collect()
+    }
+
+    /// The names of the orientation columns read.
+    fn orientation_names(&self) -> Vec<String> {
+        self.orientations
+            .iter()
+            .flatten()
+            .flat_map(OrientationColumns::columns)
+            .map(|c| self.header[c].clone())
+            .collect()
+    }
+
+    /// The values of `record` (at `line`) every row of its line shares.
+    fn line(&self, record: &csv::StringRecord, line: usize, at: &Located) -> Result<LineValues, InputError> {
+        let text = |c: usize| record.get(c).unwrap_or("");
+        let number = |c: usize| -> Result<f64, InputError> {
+            checked_number(text(c), &self.header[c]).map_err(|e| at.at(line, c + 1, e))
+        };
+        let joints: Vec<f64> = self.joints.iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
+        let commanded: Option<Vec<f64>> = self
+            .pose
+            .as_ref()
+            .map(|columns| columns.iter().map(|c| c.map_or(Ok(0.0), number)).collect::<Result<_, _>>())
+            .transpose()?;
+        let pose = commanded
+            .as_ref()
+            .map(|v| Frame::from_position_rotvec(Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5])));
+        let mut wrench = Vec6::zeros();
+        for (k, c) in self.wrench.iter().enumerate() {
+            if let Some(c) = *c {
+                wrench[k] = if text(c).is_empty() { 0.0 } else { number(c)? };
+            }
+        }
+        let sigma = match self.sigma {
+            Some(c) if !text(c).is_empty() => Some(checked_sigma(number(c)?).map_err(|e| at.at(line, c + 1, e))?),
+            _ => None,
+        };
+        let sigma_rad = match self.sigma_mrad {
+            Some(c) if !text(c).is_empty() => {
+                let s = number(c)?;
+                if !(s > 0.0 && s.is_finite()) {
+                    return Err(at.at(line, c + 1, format!("{SIGMA_MRAD} is a standard deviation: > 0, not {s}")));
+                }
+                Some(s * 1e-3)
+            }
+            _ => None,
+        };
+        let check = match self.set.map(text) {
+            None | Some("") | Some("fit") => false,
+            Some("check") => true,
+            Some(other) => {
+                return Err(at.at(line, self.set.unwrap_or(0) + 1, format!("set is `fit` or `check`, not `{other}`")))
+            }
+        };
+        let gravity = match &self.gravity {
+            Some(g) => {
+                let v = Vec3::new(number(g[0])?, number(g[1])?, number(g[2])?);
+                if v.norm() == 0.0 {
+                    return Err(at.at(
+                        line,
+                        g[0] + 1,
+                        "the gravity direction (gravity_x,gravity_y,gravity_z) is zero".into(),
+                    ));
+                }
+                Some(v.normalize())
+            }
+            None => None,
+        };
+        let payload = match self.payload {
+            Some(c) if !text(c).is_empty() => {
+                let kg = number(c)?;
+                if kg < 0.0 {
+                    return Err(at.at(line, c + 1, format!("{PAYLOAD_KG} is a mass: >= 0, not {kg}")));
+                }
+                let mut centre = Vec3::zeros();
+                for (k, column) in self.centre.iter().enumerate() {
+                    if let Some(column) = *column {
+                        centre[k] = if text(column).is_empty() { 0.0 } else { number(column)? };
+                    }
+                }
+                (kg > 0.0).then_some((kg, centre))
+            }
+            _ => None,
+        };
+        Ok(LineValues { joints, commanded, pose, wrench, sigma, sigma_rad, check, gravity, payload })
+    }
+
+    /// The rows of `record`'s line (a displacement; or a position, and its orientation where given, per
+    /// target seen), each named (`pose_id`, else its number), with its configuration, set-up and target
+    /// labels numbered in the order first met.
+    fn push_rows(
+        &self,
+        record: &csv::StringRecord,
+        line: usize,
+        values: LineValues,
+        at: &Located,
+        data: &mut PositionData,
+        configurations: &mut Vec<Vec<f64>>,
+    ) -> Result<(), InputError> {
+        let text = |c: usize| record.get(c).unwrap_or("");
+        let number = |c: usize| -> Result<f64, InputError> {
+            checked_number(text(c), &self.header[c]).map_err(|e| at.at(line, c + 1, e))
+        };
+        let name = self
+            .id
+            .map(text)
+            .filter(|t| !t.is_empty())
+            .map_or_else(|| format!("row {}", data.rows.len() + 1), String::from);
+        let LineValues { joints, commanded, pose, wrench, sigma, sigma_rad, check, gravity, payload } = values;
+        let identity = commanded.unwrap_or_else(|| joints.clone());
+        let configuration = match configurations.iter().position(|c| *c == identity) {
+            Some(k) => k,
+            None => {
+                configurations.push(identity);
+                configurations.len() - 1
+            }
+        };
+        let row = |observed: Observed| PositionRow {
+            name: name.clone(),
+            line,
+            joints: joints.clone(),
+            pose,
+            wrench,
+            observed,
+            sigma: match observed {
+                Observed::Orientation { .. } => sigma_rad,
+                _ => sigma,
+            },
+            check,
+            gravity,
+            configuration,
+            payload,
+        };
+        if let Some(d) = &self.displacement {
+            data.rows.push(row(Observed::Displacement(Vec3::new(number(d[0])?, number(d[1])?, number(d[2])?))));
+            return Ok(());
+        }
+        let setup_name = self.setup.map(text).unwrap_or("").to_string();
+        let setup = index_of(&mut data.setups, setup_name);
+        for (g, orientation) in self.groups.iter().zip(&self.orientations) {
+            // A group with an empty cell is a target not seen at that row.
+            if g.columns.iter().any(|&c| text(c).is_empty()) {
+                continue;
+            }
+            let target_name = match self.target {
+                Some(c) => text(c).to_string(),
+                None => g.suffix.clone(),
+            };
+            let target = index_of(&mut data.targets, target_name);
+            let v = [number(g.columns[0])?, number(g.columns[1])?, number(g.columns[2])?];
+            data.rows.push(row(Observed::Position { target, setup, at: Vec3::new(v[0], v[1], v[2]) * g.to_mm }));
+            // Its orientation, where this row gives one (empty cells: not seen).
+            let Some(o) = orientation else { continue };
+            let columns = o.columns();
+            if columns.iter().any(|&c| text(c).is_empty()) {
+                continue;
+            }
+            match o.rotation(number)? {
+                Ok(turn) => data.rows.push(row(Observed::Orientation { target, setup, at: turn })),
+                Err(why) => return Err(at.at(line, columns[0] + 1, why)),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The joint columns, in the order of `joints`: a serial arm's, every one; at commanded poses the actuators'
+/// readings, all or none.
+fn joint_columns(header: &[String], joints: &[String], poses: bool, at: &Located) -> Result<Vec<usize>, InputError> {
+    let given: Vec<String> = header.iter().filter_map(|h| h.strip_prefix(JOINT_PREFIX)).map(String::from).collect();
+    // At commanded poses the actuators' readings are optional: without them the rows read no joints.
+    let joints: &[String] = if poses && given.is_empty() { &[] } else { joints };
+    if joints.is_empty() && !given.is_empty() {
+        return Err(at.at(
+            1,
+            1,
+            format!(
+                "joint coordinates ({JOINT_PREFIX}{}) are a serial arm's; a parallel robot's rows give the commanded pose ({})",
+                given[0],
+                POSITION.join(",")
+            ),
+        ));
+    }
+    let missing: Vec<&String> = joints.iter().filter(|j| !given.contains(j)).collect();
+    let extra: Vec<&String> = given.iter().filter(|g| !joints.contains(g)).collect();
+    if !missing.is_empty() || !extra.is_empty() {
+        let list = |v: &[&String]| {
+            if v.is_empty() {
+                "none".to_string()
+            } else {
+                v.iter().map(|n| format!("{JOINT_PREFIX}{n}")).collect::<Vec<_>>().join(", ")
+            }
+        };
+        return Err(at.at(
+            1,
+            1,
+            match poses {
+                false => format!(
+                    "the joint columns must be {JOINT_PREFIX} and each of the arm's joints ({}): missing {}; not joints of the arm {}",
+                    joints.join(", "),
+                    list(&missing),
+                    list(&extra)
+                ),
+                true => format!(
+                    "the actuators' readings are {JOINT_PREFIX} and the number of each leg with one actuator ({}), all of them or none: missing {}; not such legs {}",
+                    joints.join(", "),
+                    list(&missing),
+                    list(&extra)
+                ),
+            },
+        ));
+    }
+    Ok(joints
+        .iter()
+        .map(|j| header.iter().position(|h| *h == format!("{JOINT_PREFIX}{j}")).expect("checked"))
+        .collect())
+}
+
+/// A parallel robot's rows are commanded poses: the position's columns, and the orientation's where given
+/// (all three or none). None where the rows give joints.
+fn pose_columns(header: &[String], poses: bool, at: &Located) -> Result<Option<Vec<Option<usize>>>, InputError> {
+    if !poses {
+        return Ok(None);
+    }
+    let columns: Vec<Option<usize>> =
+        POSITION.iter().chain(ORIENTATION.iter()).map(|c| header.iter().position(|h| h == c)).collect();
+    let missing: Vec<&str> = POSITION.iter().zip(&columns).filter(|(_, c)| c.is_none()).map(|(n, _)| *n).collect();
+    if !missing.is_empty() {
+        return Err(at.at(
+            1,
+            1,
+            format!(
+                "each row gives the platform's commanded pose: {} (and {} where it turns); missing {}",
+                POSITION.join(","),
+                ORIENTATION.join(","),
+                missing.join(", ")
+            ),
+        ));
+    }
+    let turns = columns[3..].iter().filter(|c| c.is_some()).count();
+    if turns != 0 && turns != 3 {
+        return Err(at.at(1, 1, format!("the commanded orientation needs all of {}", ORIENTATION.join(","))));
+    }
+    Ok(Some(columns))
+}
+
 impl PositionData {
     /// Reads a measurement file; `joints` are a serial arm's joint names (the columns `q_<name>` must be
     /// exactly these), or empty for a parallel robot, whose rows give the commanded pose instead (`x_mm,
@@ -263,291 +629,35 @@ impl PositionData {
     }
 
     /// The reader: `joints` the names of the `q_<name>` columns (all required for a serial arm; all or none
-    /// at `poses`), `poses` whether each row gives a commanded pose.
+    /// at `poses`), `poses` whether each row gives a commanded pose. The header is read once, into the
+    /// columns of each kind (`Columns::of`); then each line's values (`Columns::line`) and its rows, each
+    /// named and given its configuration, set-up and target (`Columns::push_rows`).
     fn read_rows(
         path: &Path,
         input: impl std::io::Read,
         joints: &[String],
         poses: bool,
     ) -> Result<PositionData, InputError> {
-        let at = |line: usize, column: usize, message: String| InputError::At {
-            path: path.to_path_buf(),
-            line,
-            column,
-            message,
-        };
+        let at = Located(path);
         let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(input);
         let header: Vec<String> =
-            reader.headers().map_err(|e| at(1, 1, e.to_string()))?.iter().map(String::from).collect();
-        let find = |name: &str| header.iter().position(|h| h == name);
-        let given: Vec<String> = header.iter().filter_map(|h| h.strip_prefix(JOINT_PREFIX)).map(String::from).collect();
-        // At commanded poses the actuators' readings are optional: without them the rows read no joints.
-        let joints: &[String] = if poses && given.is_empty() { &[] } else { joints };
-        if joints.is_empty() && !given.is_empty() {
-            return Err(at(
-                1,
-                1,
-                format!(
-                    "joint coordinates ({JOINT_PREFIX}{}) are a serial arm's; a parallel robot's rows give the commanded pose ({})",
-                    given[0],
-                    POSITION.join(",")
-                ),
-            ));
-        }
-        let missing: Vec<&String> = joints.iter().filter(|j| !given.contains(j)).collect();
-        let extra: Vec<&String> = given.iter().filter(|g| !joints.contains(g)).collect();
-        if !missing.is_empty() || !extra.is_empty() {
-            let list = |v: &[&String]| {
-                if v.is_empty() {
-                    "none".to_string()
-                } else {
-                    v.iter().map(|n| format!("{JOINT_PREFIX}{n}")).collect::<Vec<_>>().join(", ")
-                }
-            };
-            return Err(at(
-                1,
-                1,
-                match poses {
-                    false => format!(
-                        "the joint columns must be {JOINT_PREFIX} and each of the arm's joints ({}): missing {}; not joints of the arm {}",
-                        joints.join(", "),
-                        list(&missing),
-                        list(&extra)
-                    ),
-                    true => format!(
-                        "the actuators' readings are {JOINT_PREFIX} and the number of each leg with one actuator ({}), all of them or none: missing {}; not such legs {}",
-                        joints.join(", "),
-                        list(&missing),
-                        list(&extra)
-                    ),
-                },
-            ));
-        }
-        let joint_columns: Vec<usize> =
-            joints.iter().map(|j| find(&format!("{JOINT_PREFIX}{j}")).expect("checked")).collect();
-        // A parallel robot's rows are commanded poses: the position's columns, and the orientation's where
-        // given (all three or none).
-        let pose_columns: Option<Vec<Option<usize>>> =
-            poses.then(|| POSITION.iter().chain(ORIENTATION.iter()).map(|c| find(c)).collect());
-        if let Some(columns) = &pose_columns {
-            let missing: Vec<&str> =
-                POSITION.iter().zip(columns).filter(|(_, c)| c.is_none()).map(|(n, _)| *n).collect();
-            if !missing.is_empty() {
-                return Err(at(
-                    1,
-                    1,
-                    format!(
-                        "each row gives the platform's commanded pose: {} (and {} where it turns); missing {}",
-                        POSITION.join(","),
-                        ORIENTATION.join(","),
-                        missing.join(", ")
-                    ),
-                ));
-            }
-            let turns = columns[3..].iter().filter(|c| c.is_some()).count();
-            if turns != 0 && turns != 3 {
-                return Err(at(1, 1, format!("the commanded orientation needs all of {}", ORIENTATION.join(","))));
-            }
-        }
-        let groups = position_groups(&header);
-        let displacement: Option<Vec<usize>> = DISPLACEMENT[..3].iter().map(|c| find(c)).collect();
-        if groups.is_empty() && displacement.is_none() {
-            return Err(at(
-                1,
-                1,
-                "no measured columns: give the target's position in the instrument's frame (mx_mm,my_mm,mz_mm or mx_m,my_m,mz_m; several targets mx1_mm,... or a `target` column) or the displacement under the row's wrench (dx_mm,dy_mm,dz_mm)".into(),
-            ));
-        }
-        if !groups.is_empty() && displacement.is_some() {
-            return Err(at(
-                1,
-                1,
-                "both positions (mx...) and displacements (dx_mm...): one file holds one kind of measurement".into(),
-            ));
-        }
-        let target_column = find(TARGET);
-        if target_column.is_some() && groups.len() > 1 {
-            return Err(at(
-                1,
-                1,
-                "a `target` column names the target of one group of mx/my/mz columns, not of several".into(),
-            ));
-        }
-        let wrench_columns: Vec<Option<usize>> = WRENCH.iter().map(|c| find(c)).collect();
-        let (sigma_column, setup_column, set_column, id_column) = (find(SIGMA), find(SETUP), find(SET), find(POSE_ID));
-        let gravity_columns: Option<Vec<usize>> = GRAVITY.iter().map(|c| find(c)).collect();
-        let payload_column = find(PAYLOAD_KG);
-        let centre_columns: Vec<Option<usize>> = PAYLOAD_CENTRE.iter().map(|c| find(c)).collect();
-        if payload_column.is_none() && centre_columns.iter().any(Option::is_some) {
-            return Err(at(
-                1,
-                1,
-                format!("a payload's centre ({}) needs its mass ({PAYLOAD_KG})", PAYLOAD_CENTRE.join(",")),
-            ));
-        }
-        let orientations: Vec<Option<OrientationColumns>> =
-            groups.iter().map(|g| orientation_columns(&header, &g.suffix)).collect();
-        let sigma_mrad_column = find(SIGMA_MRAD);
-        let mut read: Vec<usize> = joint_columns.clone();
-        read.extend(pose_columns.iter().flatten().flatten());
-        read.extend(groups.iter().flat_map(|g| g.columns));
-        read.extend(orientations.iter().flatten().flat_map(OrientationColumns::columns));
-        read.extend(sigma_mrad_column.iter().filter(|_| orientations.iter().any(Option::is_some)));
-        read.extend(displacement.iter().flatten());
-        read.extend(wrench_columns.iter().flatten());
-        read.extend(
-            [sigma_column, setup_column, set_column, id_column, target_column, payload_column].iter().flatten(),
-        );
-        read.extend(gravity_columns.iter().flatten());
-        read.extend(centre_columns.iter().flatten());
-        let unread = (0..header.len()).filter(|c| !read.contains(c)).map(|c| header[c].clone()).collect();
-        let orientation_columns =
-            orientations.iter().flatten().flat_map(OrientationColumns::columns).map(|c| header[c].clone()).collect();
+            reader.headers().map_err(|e| at.at(1, 1, e.to_string()))?.iter().map(String::from).collect();
+        let columns = Columns::of(header, joints, poses, &at)?;
         let mut data = PositionData {
             rows: Vec::new(),
             targets: Vec::new(),
             setups: Vec::new(),
             configurations: 0,
-            unread,
-            orientation_columns,
+            unread: columns.unread(),
+            orientation_columns: columns.orientation_names(),
         };
         // The configurations seen so far: joint coordinates, or a commanded pose's six numbers.
         let mut configurations: Vec<Vec<f64>> = Vec::new();
         for record in reader.records() {
-            let record = record.map_err(|e| at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
+            let record = record.map_err(|e| at.at(e.position().map_or(0, |p| p.line() as usize), 1, e.to_string()))?;
             let line = record.position().map_or(0, |p| p.line() as usize);
-            let text = |c: usize| record.get(c).unwrap_or("");
-            let number = |c: usize| -> Result<f64, InputError> {
-                checked_number(text(c), &header[c]).map_err(|e| at(line, c + 1, e))
-            };
-            let joints: Vec<f64> = joint_columns.iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
-            let commanded: Option<Vec<f64>> = pose_columns
-                .as_ref()
-                .map(|columns| columns.iter().map(|c| c.map_or(Ok(0.0), number)).collect::<Result<_, _>>())
-                .transpose()?;
-            let pose = commanded
-                .as_ref()
-                .map(|v| Frame::from_position_rotvec(Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5])));
-            let mut wrench = Vec6::zeros();
-            for (k, c) in wrench_columns.iter().enumerate() {
-                if let Some(c) = *c {
-                    wrench[k] = if text(c).is_empty() { 0.0 } else { number(c)? };
-                }
-            }
-            let sigma = match sigma_column {
-                Some(c) if !text(c).is_empty() => Some(checked_sigma(number(c)?).map_err(|e| at(line, c + 1, e))?),
-                _ => None,
-            };
-            let sigma_rad = match sigma_mrad_column {
-                Some(c) if !text(c).is_empty() => {
-                    let s = number(c)?;
-                    if !(s > 0.0 && s.is_finite()) {
-                        return Err(at(line, c + 1, format!("{SIGMA_MRAD} is a standard deviation: > 0, not {s}")));
-                    }
-                    Some(s * 1e-3)
-                }
-                _ => None,
-            };
-            let check = match set_column.map(text) {
-                None | Some("") | Some("fit") => false,
-                Some("check") => true,
-                Some(other) => {
-                    return Err(at(
-                        line,
-                        set_column.unwrap_or(0) + 1,
-                        format!("set is `fit` or `check`, not `{other}`"),
-                    ))
-                }
-            };
-            let gravity = match &gravity_columns {
-                Some(g) => {
-                    let v = Vec3::new(number(g[0])?, number(g[1])?, number(g[2])?);
-                    if v.norm() == 0.0 {
-                        return Err(at(
-                            line,
-                            g[0] + 1,
-                            "the gravity direction (gravity_x,gravity_y,gravity_z) is zero".into(),
-                        ));
-                    }
-                    Some(v.normalize())
-                }
-                None => None,
-            };
-            let payload = match payload_column {
-                Some(c) if !text(c).is_empty() => {
-                    let kg = number(c)?;
-                    if kg < 0.0 {
-                        return Err(at(line, c + 1, format!("{PAYLOAD_KG} is a mass: >= 0, not {kg}")));
-                    }
-                    let mut centre = Vec3::zeros();
-                    for (k, column) in centre_columns.iter().enumerate() {
-                        if let Some(column) = *column {
-                            centre[k] = if text(column).is_empty() { 0.0 } else { number(column)? };
-                        }
-                    }
-                    (kg > 0.0).then_some((kg, centre))
-                }
-                _ => None,
-            };
-            let name = id_column
-                .map(text)
-                .filter(|t| !t.is_empty())
-                .map_or_else(|| format!("row {}", data.rows.len() + 1), String::from);
-            let identity = commanded.unwrap_or_else(|| joints.clone());
-            let configuration = match configurations.iter().position(|c| *c == identity) {
-                Some(k) => k,
-                None => {
-                    configurations.push(identity);
-                    configurations.len() - 1
-                }
-            };
-            let mut push = |observed: Observed| {
-                data.rows.push(PositionRow {
-                    name: name.clone(),
-                    line,
-                    joints: joints.clone(),
-                    pose,
-                    wrench,
-                    observed,
-                    sigma: match observed {
-                        Observed::Orientation { .. } => sigma_rad,
-                        _ => sigma,
-                    },
-                    check,
-                    gravity,
-                    configuration,
-                    payload,
-                })
-            };
-            if let Some(d) = &displacement {
-                push(Observed::Displacement(Vec3::new(number(d[0])?, number(d[1])?, number(d[2])?)));
-                continue;
-            }
-            let setup_name = setup_column.map(text).unwrap_or("").to_string();
-            let setup = index_of(&mut data.setups, setup_name);
-            for (g, orientation) in groups.iter().zip(&orientations) {
-                // A group with an empty cell is a target not seen at that row.
-                if g.columns.iter().any(|&c| text(c).is_empty()) {
-                    continue;
-                }
-                let target_name = match target_column {
-                    Some(c) => text(c).to_string(),
-                    None => g.suffix.clone(),
-                };
-                let target = index_of(&mut data.targets, target_name);
-                let v = [number(g.columns[0])?, number(g.columns[1])?, number(g.columns[2])?];
-                push(Observed::Position { target, setup, at: Vec3::new(v[0], v[1], v[2]) * g.to_mm });
-                // Its orientation, where this row gives one (empty cells: not seen).
-                let Some(o) = orientation else { continue };
-                let columns = o.columns();
-                if columns.iter().any(|&c| text(c).is_empty()) {
-                    continue;
-                }
-                match o.rotation(number)? {
-                    Ok(at) => push(Observed::Orientation { target, setup, at }),
-                    Err(why) => return Err(at(line, columns[0] + 1, why)),
-                }
-            }
+            let values = columns.line(&record, line, &at)?;
+            columns.push_rows(&record, line, values, &at, &mut data, &mut configurations)?;
         }
         if data.rows.is_empty() {
             return Err(InputError::Whole { path: path.to_path_buf(), message: "no measurements".into() });
