@@ -111,67 +111,7 @@ pub(super) fn choose_effects(
     // them, and the next forward steps take them.
     for _ in 0..3 {
         while model.len() < options.fitted.len() + options.max_effects {
-            let mut step = Vec::new();
-            let mut best: Option<(f64, f64, ArmEffect, PositionFit)> = None;
-            let untested: Vec<ArmEffect> = candidates.iter().filter(|c| !model.contains(c)).copied().collect();
-            let mut tested = 0;
-            for c in &untested {
-                let mut trial = model.clone();
-                trial.push(*c);
-                let mut start = fit.params.clone();
-                start.effects.push(vec![0.0; c.size()]);
-                let label = c.label(&problem.joints);
-                let Some(f) = problem.fit(rows, &trial, &start) else {
-                    step.push(CandidateTest {
-                        label,
-                        f: None,
-                        p: None,
-                        note: Some("a row has no pose with it".into()),
-                    });
-                    continue;
-                };
-                if f.rank <= fit.rank {
-                    // The candidate's parameters follow the nuisance ones and the model's.
-                    let own = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
-                    let own = own..own + c.size();
-                    let alone = f.hidden.iter().any(|d| d.len() == 1 && own.contains(&d[0].0));
-                    let note = if alone {
-                        // Its column is zero: a compliance or play whose joint carries no load (or the same sign of
-                        // load in every row, for play), or an offset that moves nothing measured.
-                        "moves no measured point in these rows (its joint's load is zero, or of one sign for play)"
-                            .into()
-                    } else {
-                        // The directions that hold the candidate (the model's own hidden ones are reported
-                        // once, for the model).
-                        let with: Vec<String> = f
-                            .hidden
-                            .iter()
-                            .filter(|d| d.iter().any(|(k, _)| own.contains(k)))
-                            .map(|d| problem.describe_hidden(d, &trial))
-                            .collect();
-                        match with.len() {
-                            1 => format!(
-                                "not identifiable from these rows: one combination ({}) moves no point",
-                                with[0]
-                            ),
-                            n => format!(
-                                "not identifiable from these rows: {n} combinations move no point: ({})",
-                                with.join("); (")
-                            ),
-                        }
-                    };
-                    step.push(CandidateTest { label, f: None, p: None, note: Some(note) });
-                    continue;
-                }
-                tested += 1;
-                let (statistic, p) = nested_test(fit.rss, fit.rank, &f, sigma_known);
-                step.push(CandidateTest { label, f: Some(statistic), p: Some(p), note: None });
-                // The smallest p-value is the best (it weighs an effect's drop by the directions it adds); the
-                // larger F among equal p-values.
-                if best.as_ref().is_none_or(|b| p < b.1 || (p == b.1 && statistic > b.0)) {
-                    best = Some((statistic, p, *c, f));
-                }
-            }
+            let (step, best, tested) = forward_step(problem, rows, candidates, &model, &fit, sigma_known);
             let threshold = options.alpha / tested.max(1) as f64;
             // Accepted when its test passes and the evidence for it is strong (the BIC lower by more than 10,
             // as the other diagnosis asks): an effect of six parameters on few rows must pay for them.
@@ -196,49 +136,12 @@ pub(super) fn choose_effects(
         // others make unnecessary, which the next elimination drops).
         let mut swapped = false;
         for _ in 0..3 {
-            // Backward elimination: an effect selected early that later ones make unnecessary (a proxy for the
-            // effect found after it) is dropped, the least needed first, while its removal's test does not reject.
-            loop {
-                let selected = options.fitted.len()..model.len();
-                let threshold = options.alpha / selected.len().max(1) as f64;
-                let mut weakest: Option<(f64, usize, PositionFit)> = None;
-                for k in selected {
-                    let mut without = model.clone();
-                    without.remove(k);
-                    let mut start = fit.params.clone();
-                    start.effects.remove(k);
-                    let Some(f) = problem.fit(rows, &without, &start) else { continue };
-                    let (_, p) = nested_test(f.rss, f.rank, &fit, sigma_known);
-                    if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
-                        weakest = Some((p, k, f));
-                    }
-                }
-                match weakest {
-                    Some((_, k, f)) => {
-                        model.remove(k);
-                        fit = f;
-                    }
-                    None => break,
-                }
-            }
+            eliminate_backward(problem, rows, options, sigma_known, &mut model, &mut fit);
             // Swaps: an effect chosen early, while the model still missed others, may do the work of a simpler
             // one (a joint's geometry standing in for the offset of the joint before it): the accepted effect
             // whose replacement by a candidate with fewer parameters lowers the BIC (n ln(rss/n) + rank ln n)
             // most is replaced (or one of as many parameters that explains more).
-            let mut best: Option<(f64, usize, ArmEffect, PositionFit)> = None;
-            for k in options.fitted.len()..model.len() {
-                for c in candidates.iter().filter(|c| !model.contains(c) && c.size() <= model[k].size()) {
-                    let mut swapped = model.clone();
-                    swapped[k] = *c;
-                    let mut start = fit.params.clone();
-                    start.effects[k] = vec![0.0; c.size()];
-                    let Some(f) = problem.fit(rows, &swapped, &start) else { continue };
-                    let gain = bic(&fit) - bic(&f);
-                    if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
-                        best = Some((gain, k, *c, f));
-                    }
-                }
-            }
+            let best = best_swap(problem, rows, candidates, options, &model, &fit);
             match best {
                 Some((_, k, c, f)) => {
                     model[k] = c;
@@ -261,4 +164,136 @@ pub(super) fn choose_effects(
         }
     }
     Ok(Selection { model, fit, steps, hidden })
+}
+
+/// A candidate tested best: its F statistic, its p-value, the candidate and its fit.
+type Best = (f64, f64, ArmEffect, PositionFit);
+
+/// One forward step: every candidate not in `model` fitted beside it and tested against `fit`. Returns each
+/// candidate's test, the best tested (smallest p-value; the larger F among equal ones) with its fit, and
+/// how many were tested.
+fn forward_step(
+    problem: &PositionProblem,
+    rows: &[usize],
+    candidates: &[ArmEffect],
+    model: &[ArmEffect],
+    fit: &PositionFit,
+    sigma_known: bool,
+) -> (Vec<CandidateTest>, Option<Best>, usize) {
+    let mut step = Vec::new();
+    let mut best: Option<Best> = None;
+    let untested: Vec<ArmEffect> = candidates.iter().filter(|c| !model.contains(c)).copied().collect();
+    let mut tested = 0;
+    for c in &untested {
+        let mut trial = model.to_vec();
+        trial.push(*c);
+        let mut start = fit.params.clone();
+        start.effects.push(vec![0.0; c.size()]);
+        let label = c.label(&problem.joints);
+        let Some(f) = problem.fit(rows, &trial, &start) else {
+            step.push(CandidateTest { label, f: None, p: None, note: Some("a row has no pose with it".into()) });
+            continue;
+        };
+        if f.rank <= fit.rank {
+            // The candidate's parameters follow the nuisance ones and the model's.
+            let own = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
+            let own = own..own + c.size();
+            let alone = f.hidden.iter().any(|d| d.len() == 1 && own.contains(&d[0].0));
+            let note = if alone {
+                // Its column is zero: a compliance or play whose joint carries no load (or the same sign of
+                // load in every row, for play), or an offset that moves nothing measured.
+                "moves no measured point in these rows (its joint's load is zero, or of one sign for play)".into()
+            } else {
+                // The directions that hold the candidate (the model's own hidden ones are reported
+                // once, for the model).
+                let with: Vec<String> = f
+                    .hidden
+                    .iter()
+                    .filter(|d| d.iter().any(|(k, _)| own.contains(k)))
+                    .map(|d| problem.describe_hidden(d, &trial))
+                    .collect();
+                match with.len() {
+                    1 => format!("not identifiable from these rows: one combination ({}) moves no point", with[0]),
+                    n => format!(
+                        "not identifiable from these rows: {n} combinations move no point: ({})",
+                        with.join("); (")
+                    ),
+                }
+            };
+            step.push(CandidateTest { label, f: None, p: None, note: Some(note) });
+            continue;
+        }
+        tested += 1;
+        let (statistic, p) = nested_test(fit.rss, fit.rank, &f, sigma_known);
+        step.push(CandidateTest { label, f: Some(statistic), p: Some(p), note: None });
+        // The smallest p-value is the best (it weighs an effect's drop by the directions it adds); the
+        // larger F among equal p-values.
+        if best.as_ref().is_none_or(|b| p < b.1 || (p == b.1 && statistic > b.0)) {
+            best = Some((statistic, p, *c, f));
+        }
+    }
+    (step, best, tested)
+}
+
+/// Backward elimination: an effect selected early that later ones make unnecessary (a proxy for the effect
+/// found after it) is dropped, the least needed first, while its removal's test does not reject.
+fn eliminate_backward(
+    problem: &PositionProblem,
+    rows: &[usize],
+    options: &CalibrationOptions,
+    sigma_known: bool,
+    model: &mut Vec<ArmEffect>,
+    fit: &mut PositionFit,
+) {
+    loop {
+        let selected = options.fitted.len()..model.len();
+        let threshold = options.alpha / selected.len().max(1) as f64;
+        let mut weakest: Option<(f64, usize, PositionFit)> = None;
+        for k in selected {
+            let mut without = model.clone();
+            without.remove(k);
+            let mut start = fit.params.clone();
+            start.effects.remove(k);
+            let Some(f) = problem.fit(rows, &without, &start) else { continue };
+            let (_, p) = nested_test(f.rss, f.rank, fit, sigma_known);
+            if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
+                weakest = Some((p, k, f));
+            }
+        }
+        match weakest {
+            Some((_, k, f)) => {
+                model.remove(k);
+                *fit = f;
+            }
+            None => break,
+        }
+    }
+}
+
+/// The best swap: the accepted effect whose replacement by a candidate with as many or fewer parameters
+/// lowers the BIC most, with the candidate and its fit; None where none lowers it.
+fn best_swap(
+    problem: &PositionProblem,
+    rows: &[usize],
+    candidates: &[ArmEffect],
+    options: &CalibrationOptions,
+    model: &[ArmEffect],
+    fit: &PositionFit,
+) -> Option<(f64, usize, ArmEffect, PositionFit)> {
+    let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
+    let mut best: Option<(f64, usize, ArmEffect, PositionFit)> = None;
+    for k in options.fitted.len()..model.len() {
+        for c in candidates.iter().filter(|c| !model.contains(c) && c.size() <= model[k].size()) {
+            let mut swapped = model.to_vec();
+            swapped[k] = *c;
+            let mut start = fit.params.clone();
+            start.effects[k] = vec![0.0; c.size()];
+            let Some(f) = problem.fit(rows, &swapped, &start) else { continue };
+            let gain = bic(fit) - bic(&f);
+            if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
+                best = Some((gain, k, *c, f));
+            }
+        }
+    }
+    best
 }
