@@ -26,11 +26,13 @@
 //! (`problem.rs`), a row's prediction (`predict.rs`), one fit and its parameters (`fit.rs`, on the shared
 //! least-squares driver), a parallel robot's exact completion (`exact.rs`), the selection and the gross rows
 //! (`select.rs`), the report and the corrected description (`report.rs`), synthetic data (`synth.rs`) and a
-//! plan's signatures (`signatures.rs`). This file holds the entry point, its options and its result.
+//! plan's signatures (`signatures.rs`); the options, the result and the failures are `options.rs`. This file
+//! holds the entry point, `calibrate`, in its steps.
 
 mod effect;
 mod exact;
 mod fit;
+mod options;
 mod predict;
 mod problem;
 mod report;
@@ -39,6 +41,8 @@ mod signatures;
 mod synth;
 
 pub use effect::{ArmEffect, ArmKind};
+pub use options::{Calibration, CalibrationError, CalibrationOptions};
+pub use problem::joint_names;
 pub use report::{corrected_model, correction_table, text};
 pub use signatures::{signatures, Signatures};
 pub use synth::{
@@ -52,72 +56,10 @@ use select::{choose_effects, error_stats, gross_rows, gross_rows_against, nested
 use super::positions::{Observed, PositionData};
 use super::stats::chi2_sf;
 use crate::kinematics::frame::{Frame, Vec3};
-use crate::model::effect::Effect;
 pub use crate::output::calibration::{
     AcceptedEffect, CalibrationReport, CalibrationVerdict, CandidateTest, ErrorStats, GrossRow, Nuisance, Stage,
 };
 use crate::platform::manipulator::Manipulator;
-
-/// CalibrationOptions of a calibration.
-#[derive(Clone, Debug)]
-pub struct CalibrationOptions {
-    /// Significance level of the selection (each step tests at alpha / candidates).
-    pub alpha: f64,
-    /// Standard deviation of a measured coordinate, mm, where the rows do not give one.
-    pub sigma: Option<f64>,
-    /// Standard deviation of a measured orientation about each axis, rad, where the rows do not give one.
-    pub sigma_rad: Option<f64>,
-    /// Effects always fitted (a fixed list, as a geometric calibration fits its parameters).
-    pub fitted: Vec<ArmEffect>,
-    /// Most effects selected.
-    pub max_effects: usize,
-}
-
-/// A calibration's outcome: its report (what `--json` writes and the text reports) beside the effects
-/// accepted, typed, in the report's order, which the corrected description is written from.
-#[derive(Clone, Debug)]
-pub struct Calibration {
-    /// What the calibration found, as written.
-    pub report: CalibrationReport,
-    /// The effects of `report.accepted`, in its order.
-    pub effects: Vec<ArmEffect>,
-    /// A parallel robot's accepted effects as the model-form effects a description holds (`model_form`; None
-    /// for one it holds not), in the order of `effects`; None for a serial arm.
-    pub leg_corrections: Option<Vec<Option<Effect>>>,
-}
-
-/// The failures of a calibration.
-#[derive(Debug, thiserror::Error)]
-pub enum CalibrationError {
-    /// The model is not a serial arm with a joint space.
-    #[error("{0} is not a serial arm read from URDF: joint-space measurements need one")]
-    NotAnArm(String),
-    /// A row's configuration has no finite pose or no loaded equilibrium.
-    #[error("{name} (line {line}): {why}")]
-    Row {
-        /// The row's name.
-        name: String,
-        /// Its line.
-        line: usize,
-        /// What failed.
-        why: String,
-    },
-    /// Too few rows to fit what must be fitted.
-    #[error("{0}")]
-    TooFew(String),
-    /// An effect named that the robot cannot have here.
-    #[error("{0}")]
-    NotOffered(String),
-}
-
-/// The joints a calibration of `m` names: a serial arm's, or a parallel robot's legs by number (1-based, as
-/// `[[actuator_offset]]` and the diagnosis's effects name them), each leg's actuator its joint.
-pub fn joint_names(m: &Manipulator) -> Vec<String> {
-    match &m.joint_space {
-        Some(space) => space.names.clone(),
-        None => (1..=m.legs.len()).map(|k| k.to_string()).collect(),
-    }
-}
 
 /// A parallel robot's rows that give its actuators' readings: each row's pose becomes the rigid robot's at
 /// those readings (`Manipulator::pose_at_actuators`), the commanded pose only its start, so that what the

@@ -4,7 +4,7 @@
 //! and what the problem offers: its candidates, its nuisance parameters (set-ups, targets, turns).
 
 use super::effect::{effect_gain, ArmEffect, ArmKind};
-use super::{joint_names, CalibrationError};
+use super::options::CalibrationError;
 use crate::diagnose::positions::{Observed, PositionData, PositionRow};
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use crate::platform::manipulator::{ArmStatics, Manipulator, ManipulatorState};
@@ -498,4 +498,13 @@ pub(super) fn turns_of(data: &PositionData) -> Vec<Option<usize>> {
             })
         })
         .collect()
+}
+
+/// The joints a calibration of `m` names: a serial arm's, or a parallel robot's legs by number (1-based, as
+/// `[[actuator_offset]]` and the diagnosis's effects name them), each leg's actuator its joint.
+pub fn joint_names(m: &Manipulator) -> Vec<String> {
+    match &m.joint_space {
+        Some(space) => space.names.clone(),
+        None => (1..=m.legs.len()).map(|k| k.to_string()).collect(),
+    }
 }

@@ -3,8 +3,9 @@
 //! `[[joint_correction]]`, `[[payload]]` and the leg tables.
 
 use super::effect::{ArmEffect, ArmKind};
+use super::options::Calibration;
 use super::problem::PositionProblem;
-use super::{AcceptedEffect, Calibration, CalibrationReport, CandidateTest, ErrorStats, Stage};
+use crate::output::calibration::{AcceptedEffect, CalibrationReport, CandidateTest, ErrorStats, Stage};
 
 impl PositionProblem<'_> {
     /// The name of parameter `k` of a fit with `effects`.

@@ -4,10 +4,11 @@
 
 use super::effect::ArmEffect;
 use super::fit::PositionFit;
+use super::options::{CalibrationError, CalibrationOptions};
 use super::problem::PositionProblem;
-use super::{CalibrationError, CalibrationOptions, CandidateTest, ErrorStats};
 use crate::diagnose::stats::{bic_unknown_noise, chi2_sf, f_sf, robust_scale, GROSS_FACTOR_POSITIONS, STRONG_EVIDENCE};
 use crate::kinematics::frame::Vec3;
+use crate::output::calibration::{CandidateTest, ErrorStats};
 
 /// The error statistics of `rows` (unweighted residuals, mm).
 pub(super) fn error_stats(residuals: &[Option<Vec3>], rows: &[usize]) -> ErrorStats {

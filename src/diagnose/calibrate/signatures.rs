@@ -4,9 +4,9 @@
 use nalgebra::DMatrix;
 
 use super::effect::ArmEffect;
+use super::options::CalibrationError;
 use super::problem::PositionProblem;
 use super::synth::Configuration;
-use super::CalibrationError;
 use crate::diagnose::positions::{Observed, PositionData, PositionRow};
 use crate::kinematics::frame::{Frame, Mat3, Vec3};
 use crate::platform::manipulator::Manipulator;

@@ -2,7 +2,7 @@
 //! its loaded equilibrium, seen by an instrument with noise, gross rows, drift and held-out rows.
 
 use super::effect::load_of;
-use super::CalibrationError;
+use super::options::CalibrationError;
 use crate::kinematics::frame::{rotation_from_vector, Frame, Mat3, Vec3, Vec6};
 use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
