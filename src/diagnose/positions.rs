@@ -373,12 +373,15 @@ impl Columns {
             .collect()
     }
 
+    /// Column `c` of `record` (at `line`) as a number, its error located.
+    fn number(&self, record: &csv::StringRecord, line: usize, c: usize, at: &Located) -> Result<f64, InputError> {
+        checked_number(record.get(c).unwrap_or(""), &self.header[c]).map_err(|e| at.at(line, c + 1, e))
+    }
+
     /// The values of `record` (at `line`) every row of its line shares.
     fn line(&self, record: &csv::StringRecord, line: usize, at: &Located) -> Result<LineValues, InputError> {
         let text = |c: usize| record.get(c).unwrap_or("");
-        let number = |c: usize| -> Result<f64, InputError> {
-            checked_number(text(c), &self.header[c]).map_err(|e| at.at(line, c + 1, e))
-        };
+        let number = |c: usize| self.number(record, line, c, at);
         let joints: Vec<f64> = self.joints.iter().map(|&c| number(c)).collect::<Result<_, _>>()?;
         let commanded: Option<Vec<f64>> = self
             .pose
@@ -461,9 +464,7 @@ impl Columns {
         configurations: &mut Vec<Vec<f64>>,
     ) -> Result<(), InputError> {
         let text = |c: usize| record.get(c).unwrap_or("");
-        let number = |c: usize| -> Result<f64, InputError> {
-            checked_number(text(c), &self.header[c]).map_err(|e| at.at(line, c + 1, e))
-        };
+        let number = |c: usize| self.number(record, line, c, at);
         let name = self
             .id
             .map(text)

@@ -53,6 +53,8 @@ use fit::PositionFit;
 use problem::PositionProblem;
 use select::{choose_effects, error_stats, gross_rows, gross_rows_against, nested_test, Selection};
 
+use std::borrow::Cow;
+
 use super::positions::{Observed, PositionData};
 use super::stats::chi2_sf;
 use crate::kinematics::frame::{Frame, Vec3};
@@ -94,7 +96,8 @@ pub fn calibrate(
     candidates: &[ArmEffect],
     options: &CalibrationOptions,
 ) -> Result<Calibration, CalibrationError> {
-    let data = &prepared(m, data, options.sigma_rad)?;
+    let prepared = prepared(m, data, options.sigma_rad)?;
+    let data = &*prepared;
     let problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
     let candidates: Vec<ArmEffect> =
         if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
@@ -167,23 +170,28 @@ pub fn calibrate(
 }
 
 /// The data as the fit reads them: a parallel robot's rows at the pose its actuators' readings give, each
-/// row's payload weighed into its load, and orientations without a standard deviation left out.
-fn prepared(m: &Manipulator, data: &PositionData, sigma_rad: Option<f64>) -> Result<PositionData, CalibrationError> {
-    let solved;
-    let data = if m.joint_space.is_none() && data.rows.iter().any(|r| !r.joints.is_empty()) {
-        solved = at_actuator_readings(m, data)?;
-        &solved
-    } else {
-        data
+/// row's payload weighed into its load, and orientations without a standard deviation left out; borrowed
+/// where none of these changes them.
+fn prepared<'d>(
+    m: &Manipulator,
+    data: &'d PositionData,
+    sigma_rad: Option<f64>,
+) -> Result<Cow<'d, PositionData>, CalibrationError> {
+    let mut data = Cow::Borrowed(data);
+    if m.joint_space.is_none() && data.rows.iter().any(|r| !r.joints.is_empty()) {
+        data = Cow::Owned(at_actuator_readings(m, &data)?);
+    }
+    if data.rows.iter().any(|r| r.payload.is_some()) {
+        data = Cow::Owned(data.with_payload_weights(m));
+    }
+    let stripped = match data.without_unweighted_orientations(sigma_rad) {
+        Cow::Owned(d) => Some(d),
+        Cow::Borrowed(_) => None,
     };
-    let weighed;
-    let data = if data.rows.iter().any(|r| r.payload.is_some()) {
-        weighed = data.with_payload_weights(m);
-        &weighed
-    } else {
-        data
-    };
-    Ok(data.without_unweighted_orientations(sigma_rad).into_owned())
+    if let Some(d) = stripped {
+        data = Cow::Owned(d);
+    }
+    Ok(data)
 }
 
 /// Every effect named (`candidates`, `options.fitted`) is one the robot can have.
