@@ -213,6 +213,11 @@ impl ChainParts {
         self.passive_names.iter().find(|(n, _)| n == name.get_ref()).map(|(_, i)| *i)
     }
 
+    /// The index the next virtual coordinate takes.
+    pub(super) fn n_virtual(&self) -> usize {
+        self.n_virtual
+    }
+
     pub(super) fn joint(&mut self, kind: JointKind, axis: Vec3, role: Role) {
         let counter = match role {
             Role::Actuated => &mut self.n_actuated,

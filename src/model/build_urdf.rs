@@ -14,7 +14,7 @@ use crate::expr::{Expr, ExprSrc};
 use crate::kinematics::chain::{Element, Joint, JointKind, Role};
 use crate::kinematics::frame::{rotation_about, Frame, Mat6, Vec3};
 use crate::platform::leg::Leg;
-use crate::platform::manipulator::JointSpace;
+use crate::platform::manipulator::{CarriedMass, JointSpace};
 use crate::vjm::spring::{one_coordinate, CoordinateStiffness, SIX_DOF};
 
 /// The `[[joint_correction]]` tables of joint `name`, in file order.
@@ -67,11 +67,24 @@ impl Builder<'_> {
         let read = super::urdf::read_chain(&path, &text, u.root.get_ref(), u.tip.get_ref())?;
         let arm = UrdfLeg { spec, path, read, corrections };
         self.check_urdf_names(&arm)?;
+        // The model's coordinates: the path's moving joints that mimic none, then the masters off the path
+        // that its <mimic> joints follow; each with its spring (None: rigid), made into a spring group where
+        // the chain first reads the coordinate.
+        let coordinates: Vec<&UrdfJoint> = arm
+            .read
+            .joints
+            .iter()
+            .filter(|j| j.kind != UrdfJointKind::Fixed && j.mimic.is_none())
+            .chain(&arm.read.masters)
+            .collect();
+        let names: Vec<String> = coordinates.iter().map(|j| j.name.clone()).collect();
+        let springs = coordinates
+            .iter()
+            .enumerate()
+            .map(|(c, j)| self.joint_spring(&arm, j, Some(c)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut spring_first: Vec<Option<usize>> = vec![None; names.len()];
         let mut parts = ChainParts::default();
-        let mut names: Vec<String> = Vec::new();
-        // Mimic joints' places in the chain, their masters and gains: the masters' indices are known once the
-        // path is read.
-        let mut pending: Vec<(usize, String, f64)> = Vec::new();
         self.link_spring(u, u.root.get_ref(), &mut parts)?;
         for j in &arm.read.joints {
             parts.elements.push(Element::Fixed(j.origin));
@@ -81,30 +94,56 @@ impl Builder<'_> {
                 UrdfJointKind::Prismatic => Some(JointKind::Prismatic),
             };
             if let Some(jk) = kind {
-                match self.master_of(&arm, j)? {
+                if let Some(change) = self.geometry_change(arm.corrections, &j.name)? {
+                    parts.elements.push(Element::Fixed(change));
+                }
+                self.frame_compliance(arm.corrections, &j.name, &mut parts)?;
+                let (coordinate, gain) = match self.master_of(&arm, j)? {
                     Some((master, gain, offset)) => {
                         if offset != 0.0 {
                             parts.elements.push(Element::Fixed(joint_motion(jk, &j.axis, offset)));
                         }
-                        pending.push((parts.elements.len(), master, gain));
-                        let joint = Joint { kind: jk, axis: j.axis, role: Role::Actuated, index: 0, gain };
-                        parts.elements.push(Element::Joint(joint));
+                        (names.iter().position(|n| *n == master).expect("a master is a coordinate"), gain)
                     }
                     None => {
-                        names.push(j.name.clone());
-                        self.elastic_joint(&arm, j, jk, names.len() - 1, &mut parts)?;
+                        (names.iter().position(|n| *n == j.name).expect("a joint mimicking none is a coordinate"), 1.0)
+                    }
+                };
+                let joint = Joint { kind: jk, axis: j.axis, role: Role::Actuated, index: coordinate, gain };
+                parts.elements.push(Element::Joint(joint));
+                // The coordinate's spring deflects every joint that reads it, by its gain: a mimic joint is a
+                // transmission its master's spring drives (the URDF relation holds under load).
+                if let Some((compliance, of_coordinate)) = &springs[coordinate] {
+                    match spring_first[coordinate] {
+                        Some(first) => parts.elements.push(Element::Joint(Joint {
+                            kind: jk,
+                            axis: j.axis,
+                            role: Role::Virtual,
+                            index: first,
+                            gain,
+                        })),
+                        None => {
+                            spring_first[coordinate] = Some(parts.n_virtual());
+                            let (km, cm) = one_coordinate(*compliance);
+                            parts.spring(names[coordinate].clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
+                            parts.springs.last_mut().expect("just pushed").of_coordinate = of_coordinate.clone();
+                            if let Some(Element::Joint(v)) = parts.elements.last_mut() {
+                                v.gain = gain;
+                            }
+                        }
+                    }
+                }
+                // A mimic joint's own compliance, in series after the transmission.
+                if j.mimic.is_some() {
+                    if let Some((compliance, _)) = self.joint_spring(&arm, j, None)? {
+                        let (km, cm) = one_coordinate(compliance);
+                        parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
                     }
                 }
             }
             self.link_spring(u, &j.child, &mut parts)?;
             if let Some((kg, centre)) = j.child_mass {
                 parts.elements.push(Element::Mass { kg, centre });
-            }
-        }
-        for (at, master, gain) in pending {
-            let index = names.iter().position(|n| *n == master).expect("a master without a mimic is on the path");
-            if let Element::Joint(joint) = &mut parts.elements[at] {
-                *joint = Joint { index, gain, ..*joint };
             }
         }
         if let Some(TransformSpec { translation, rotation_axis, rotation_deg }) = &u.tool {
@@ -119,7 +158,10 @@ impl Builder<'_> {
         }
         let controller = self.controller_map(u, &names)?;
         let offsets = self.joint_offsets(corrections, &names)?;
-        let space = JointSpace { names, controller, offsets };
+        let limits = coordinates.iter().map(|j| j.limits).collect();
+        let masses = arm.read.masses;
+        let carried = CarriedMass { kg: masses.carried, off_path_kg: masses.off_path, on_base_kg: masses.on_base };
+        let space = JointSpace { names, controller, offsets, limits, carried };
         let mut leg = parts.into_leg(leg_name.to_string(), gravity);
         if !u.seed.is_empty() {
             // The seed is given in the controller's angles, like the points: mapped to the model's coordinates.
@@ -140,35 +182,58 @@ impl Builder<'_> {
     fn check_urdf_names(&self, arm: &UrdfLeg) -> Result<(), InputError> {
         let u = arm.u();
         let on_path: Vec<&str> = arm.read.joints.iter().map(|j| j.name.as_str()).collect();
-        let named_joint = |name: &str, span: std::ops::Range<usize>, table: &str| -> Result<(), InputError> {
-            match arm.read.joints.iter().find(|j| j.name == name) {
-                Some(j) if j.kind != UrdfJointKind::Fixed && j.mimic.is_none() => Ok(()),
-                Some(_) => Err(self.loc.at(
+        // What a table may name: a coordinate (a moving joint of the path that mimics none, or a master off
+        // the path that one follows), or any moving joint of the path (a <mimic> joint has a place there:
+        // its own spring in series, its frame and geometry).
+        let named_joint = |name: &str, span: std::ops::Range<usize>, table: &str, on_chain: bool| {
+            let path_joint = arm.read.joints.iter().find(|j| j.name == name);
+            let master = arm.read.masters.iter().any(|j| j.name == name);
+            match path_joint {
+                Some(j) if j.kind == UrdfJointKind::Fixed => {
+                    Err(self.loc.at(span, format!("joint `{name}` in `{table}` is fixed: it does not move")))
+                }
+                Some(j) if j.mimic.is_some() && !on_chain => Err(self.loc.at(
                     span,
-                    format!("joint `{name}` in `{table}` is fixed or a <mimic> joint: it has no coordinate of its own"),
+                    format!(
+                        "joint `{name}` in `{table}` is a <mimic> joint: it has no coordinate of its own (name its master, `{}`)",
+                        j.mimic.as_ref().map_or("", |m| m.0.as_str())
+                    ),
+                )),
+                Some(_) => Ok(()),
+                None if master && !on_chain => Ok(()),
+                None if master => Err(self.loc.at(
+                    span,
+                    format!("joint `{name}` in `{table}` is off {}: only the <mimic> joints that follow it are on it", arm.chain_named()),
                 )),
                 None => Err(self.loc.at(
                     span,
-                    format!(
-                        "joint `{name}` in `{table}` is not on {} (joints: {})",
-                        arm.chain_named(),
-                        on_path.join(", ")
-                    ),
+                    format!("joint `{name}` in `{table}` is not on {} (joints: {})", arm.chain_named(), on_path.join(", ")),
                 )),
             }
         };
+        let is_master = |name: &str| arm.read.masters.iter().any(|m| m.name == name);
+        // A spring may sit on a coordinate or, for a <mimic> joint, in series after its transmission.
         for (name, j) in &u.joints {
-            named_joint(name, j.span(), "joints")?;
+            named_joint(name, j.span(), "joints", !is_master(name))?;
         }
         for (name, f) in &u.controller {
-            named_joint(name, f.span(), "controller")?;
+            named_joint(name, f.span(), "controller", false)?;
         }
         for (name, v) in &u.seed {
-            named_joint(name, v.span(), "seed")?;
+            named_joint(name, v.span(), "seed", false)?;
         }
         for c in arm.corrections {
-            let joint = &c.get_ref().joint;
-            named_joint(joint.get_ref(), joint.span(), "joint_correction")?;
+            let c = c.get_ref();
+            let (name, span) = (c.joint.get_ref().as_str(), c.joint.span());
+            if c.offset.is_some() {
+                named_joint(name, span.clone(), "joint_correction` `offset", false)?;
+            }
+            if c.geometry.is_some() || c.frame_compliance.is_some() {
+                named_joint(name, span.clone(), "joint_correction", true)?;
+            }
+            if c.compliance.is_some() {
+                named_joint(name, span, "joint_correction", !is_master(name))?;
+            }
         }
         let links: Vec<&str> = std::iter::once(u.root.get_ref().as_str())
             .chain(arm.read.joints.iter().map(|j| j.child.as_str()))
@@ -199,40 +264,28 @@ impl Builder<'_> {
         Ok(())
     }
 
-    /// A joint with a coordinate of its own (number `coordinate`): the change of the fixed transform leading
-    /// to it and its frame compliance (its corrections), the joint, and its spring.
-    fn elastic_joint(
-        &self,
-        arm: &UrdfLeg,
-        j: &UrdfJoint,
-        jk: JointKind,
-        coordinate: usize,
-        parts: &mut ChainParts,
-    ) -> Result<(), InputError> {
-        if let Some(change) = self.geometry_change(arm.corrections, &j.name)? {
-            parts.elements.push(Element::Fixed(change));
-        }
-        self.frame_compliance(arm.corrections, &j.name, parts)?;
-        parts.joint(jk, j.axis, Role::Actuated);
-        if let Some((compliance, of_coordinate)) = self.joint_spring(arm, j, coordinate)? {
-            let (km, cm) = one_coordinate(compliance);
-            parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
-            parts.springs.last_mut().expect("just pushed").of_coordinate = of_coordinate;
-        }
-        Ok(())
-    }
-
     /// A joint's spring: its compliance (for a formula of its coordinate, the value at zero, which stands for
     /// it where one number is asked) with the corrections' added compliance, and the formula; None: rigid.
+    /// `coordinate`: the joint's coordinate, or None for a mimic joint's own spring in series with its
+    /// transmission (a number: a formula of its coordinate has none to read).
     fn joint_spring(
         &self,
         arm: &UrdfLeg,
         j: &UrdfJoint,
-        coordinate: usize,
+        coordinate: Option<usize>,
     ) -> Result<Option<(f64, Option<CoordinateStiffness>)>, InputError> {
         let joint_spec = arm.u().joints.get(&j.name);
         let added = self.added_compliance(arm.corrections, &j.name)?;
         if let Some((stiffness, formula)) = joint_spec.map(|k| self.coordinate_stiffness(k)).transpose()?.flatten() {
+            let Some(coordinate) = coordinate else {
+                return Err(self.loc.at(
+                    joint_spec.expect("a formula was read").span(),
+                    format!(
+                        "joint `{}` is a <mimic> joint: its own stiffness is a number, not a formula of `q`",
+                        j.name
+                    ),
+                ));
+            };
             let of_coordinate =
                 CoordinateStiffness { coordinate, stiffness, formula, added_compliance: added, compliance_factor: 1.0 };
             return Ok(Some((of_coordinate.compliance(&Default::default()), Some(of_coordinate))));
@@ -330,7 +383,7 @@ impl Builder<'_> {
                     format!("{}: the <mimic> joints form a loop: {}", arm.path.display(), seen.join(" -> ")),
                 ));
             }
-            let m = arm.read.joints.iter().find(|k| k.name == master).ok_or_else(|| {
+            let m = arm.read.joints.iter().chain(&arm.read.masters).find(|k| k.name == master).ok_or_else(|| {
                 self.loc.at(
                     arm.spec.span(),
                     format!("{}: joint `{}` mimics `{master}`, which is not on the chain", arm.path.display(), j.name),

@@ -35,6 +35,22 @@ pub struct JointSpace {
     /// Per joint, added to the controller's angle before the map (an encoder's zero offset found by
     /// calibration, `[[joint_correction]]`).
     pub offsets: Vec<f64>,
+    /// Per joint, its range (lower, upper; rad or mm) where the description gives one (URDF's `<limit>`).
+    pub limits: Vec<Option<(f64, f64)>>,
+    /// The mass the arm carries, as the description shares it.
+    pub carried: CarriedMass,
+}
+
+/// How a serial arm's mass is shared (kg): what its moving links carry, the part of it on bodies off the
+/// root-to-tip path (branches, a tool beyond the tip), and what weighs on the base instead.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CarriedMass {
+    /// Carried by the moving links, kg.
+    pub kg: f64,
+    /// Of `kg`, on bodies off the path, kg.
+    pub off_path_kg: f64,
+    /// On the base, not carried by any joint, kg.
+    pub on_base_kg: f64,
 }
 
 impl JointSpace {
