@@ -363,6 +363,18 @@ impl ChainJacobians {
         out
     }
 
+    /// Generalised forces of a force `f` (N, fixed in the base frame) at a point `x` carried by the chain's
+    /// end (a payload's weight at its centre), added into `out` as `add_generalised_forces` does.
+    pub fn add_point_force(&self, x: &Vec3, f: &Vec3, n_passive: usize, out: &mut [f64]) {
+        self.add_point_forces(x, f, &Vec3::zeros(), self.placed.len(), n_passive, out);
+    }
+
+    /// The derivative of `add_point_force` with respect to the unknowns, as `add_load_hessian`'s.
+    pub fn add_point_force_hessian(&mut self, x: &Vec3, f: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
+        let upto = self.placed.len();
+        self.add_point_hessian(x, f, &Vec3::zeros(), upto, n_passive, out);
+    }
+
     fn add_point_forces(&self, x: &Vec3, f: &Vec3, m: &Vec3, upto: usize, n_passive: usize, out: &mut [f64]) {
         for pj in &self.placed[..upto] {
             let Some(k) = unknown_index(&pj.joint, n_passive) else { continue };

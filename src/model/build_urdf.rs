@@ -226,7 +226,7 @@ impl Builder<'_> {
             let c = c.get_ref();
             let (name, span) = (c.joint.get_ref().as_str(), c.joint.span());
             if c.offset.is_some() {
-                named_joint(name, span.clone(), "joint_correction` `offset", false)?;
+                named_joint(name, span.clone(), "joint_correction", false)?;
             }
             if c.geometry.is_some() || c.frame_compliance.is_some() {
                 named_joint(name, span.clone(), "joint_correction", true)?;

@@ -270,6 +270,22 @@ pub fn analyse(k: &Mat6, magnitude: &Vec6, length_scale: f64, symmetric: bool) -
     Analysis { outcome: Outcome::IllConditioned, condition, positive_definite }
 }
 
+/// The condition number of a full-rank stiffness as `analyse` computes it (1-norm, of the equilibrated
+/// matrix, from its LU inverse); infinite where that has none.
+pub fn condition(k: &Mat6, magnitude: &Vec6, length_scale: f64) -> f64 {
+    let ke = equilibrated(k, magnitude, length_scale).0;
+    ke.lu().try_inverse().filter(|inv| all_finite(inv.as_slice())).map_or(f64::INFINITY, |inv| norm1(&ke) * norm1(&inv))
+}
+
+/// A serial arm's compliance C of rank below 6 (`serial.rs`): its rank and a basis of its rigid directions,
+/// the unit wrenches (N, N mm; moments weighed by the length scale, as the free twists are) C maps to no
+/// displacement. The same one decision as `rank_deficiency`'s, on the length-scaled compliance D^-1 C D^-1
+/// (every entry in mm/N): a unit wrench w is rigid where |C w| <= `FREE_DIRECTION_TOLERANCE` |C|. None at
+/// full rank.
+pub fn rigid_directions(c: &Mat6, length_scale: f64) -> Option<(usize, Vec<Vec6>)> {
+    rank_deficiency(c, 1.0 / length_scale)
+}
+
 /// The matrix 1-norm: the largest column sum of magnitudes.
 fn norm1(m: &Mat6) -> f64 {
     m.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max)

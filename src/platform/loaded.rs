@@ -53,6 +53,9 @@ pub struct Deflection {
     pub stable: bool,
     /// Newton iterations at the manipulator level, over all load steps.
     pub iterations: usize,
+    /// The tangent compliance, where it was computed directly (a serial arm, `serial.rs`: singular where
+    /// the arm is rigid along some direction, and `held.stiffness` then not finite).
+    pub compliance: Option<Mat6>,
 }
 
 /// The platform's loaded equilibrium without its tangent (`Manipulator::settle`).
@@ -142,6 +145,27 @@ impl std::fmt::Display for DeflectionFailure {
 }
 
 impl std::error::Error for DeflectionFailure {}
+
+/// A serial arm's loaded answer as a `Deflection`: the holding wrench is the one applied, the stiffness the
+/// inverse of the tangent compliance (not finite where the arm is rigid along some direction).
+fn arm_deflection(a: &super::serial::ArmAnswer, wrench: &Vec6) -> Deflection {
+    let stiffness = a.compliance.try_inverse().unwrap_or(Mat6::from_element(f64::NAN));
+    let held = Held {
+        force: *wrench,
+        stiffness,
+        magnitude: Vec6::from_fn(|i, _| stiffness[(i, i)].abs()),
+        unstable_legs: if a.stable { 0 } else { 1 },
+        iterations: a.iterations,
+    };
+    Deflection {
+        pose: a.pose,
+        displacement: a.displacement,
+        held,
+        stable: a.stable,
+        iterations: a.iterations,
+        compliance: Some(a.compliance),
+    }
+}
 
 const MAX_NEWTON: usize = 30;
 /// Convergence of the manipulator-level Newton method: the last step below this times the length scale
@@ -377,10 +401,13 @@ impl Manipulator {
         start: Option<&Frame>,
         state: &mut ManipulatorState,
     ) -> Result<Deflection, DeflectionFailure> {
+        if let Some(arm) = self.arm_deflect(commanded, wrench, state) {
+            return arm.map(|a| arm_deflection(&a, wrench));
+        }
         let (t, held, iterations) = self.continuation(commanded, wrench, start, state, Finish::Tangent)?;
         let held = held.expect("a tangent solve ends on a full linearisation");
         let stable = self.stable(&held);
-        Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations })
+        Ok(Deflection { pose: t, displacement: commanded.error_to(&t), held, stable, iterations, compliance: None })
     }
 
     /// Stable under force control: the tangent stiffness positive definite and every leg stable.
@@ -399,6 +426,10 @@ impl Manipulator {
         start: Option<&Frame>,
         state: &mut ManipulatorState,
     ) -> Result<(Settled, bool), DeflectionFailure> {
+        if let Some(arm) = self.arm_deflect(commanded, wrench, state) {
+            return arm
+                .map(|a| (Settled { pose: a.pose, displacement: a.displacement, iterations: a.iterations }, a.stable));
+        }
         let (t, held, iterations) = self.continuation(commanded, wrench, start, state, Finish::Stability)?;
         let held = held.expect("a stability solve ends on a full linearisation");
         Ok((Settled { pose: t, displacement: commanded.error_to(&t), iterations }, self.stable(&held)))
@@ -415,6 +446,9 @@ impl Manipulator {
         start: Option<&Frame>,
         state: &mut ManipulatorState,
     ) -> Result<Settled, DeflectionFailure> {
+        if let Some(arm) = self.arm_deflect(commanded, wrench, state) {
+            return arm.map(|a| Settled { pose: a.pose, displacement: a.displacement, iterations: a.iterations });
+        }
         let (t, _, iterations) = self.continuation(commanded, wrench, start, state, Finish::Pose)?;
         Ok(Settled { pose: t, displacement: commanded.error_to(&t), iterations })
     }

@@ -7,4 +7,5 @@ pub mod leg_state;
 pub mod loaded;
 pub mod manipulator;
 pub mod msa_leg;
+pub mod serial;
 pub mod vjm_leg;

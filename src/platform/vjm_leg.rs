@@ -119,7 +119,7 @@ impl VjmLeg {
     }
 
     /// `evaluation` with the coordinates it was made at, both borrowed from `state`.
-    fn evaluated<'a>(&self, state: &'a mut LegState) -> (&'a ChainJacobians, &'a Coordinates) {
+    pub(super) fn evaluated<'a>(&self, state: &'a mut LegState) -> (&'a ChainJacobians, &'a Coordinates) {
         self.evaluation(state);
         let state = &*state;
         (state.ik.kept().unwrap_or(&state.jac), &state.coords)

@@ -78,6 +78,8 @@ pub struct MapSummary {
     pub ill_conditioned: u64,
     /// Points whose numbers overflowed.
     pub overflow: u64,
+    /// Points of a serial arm rigid along some direction.
+    pub rigid_directions: u64,
 }
 
 impl MapSummary {
@@ -92,6 +94,7 @@ impl MapSummary {
             Status::Unstable => self.unstable += 1,
             Status::IllConditioned => self.ill_conditioned += 1,
             Status::Overflow => self.overflow += 1,
+            Status::RigidDirections => self.rigid_directions += 1,
         }
     }
 }
@@ -107,6 +110,7 @@ impl MapSummary {
             (self.not_converged, "not_converged"),
             (self.unstable, "unstable"),
             (self.overflow, "overflow"),
+            (self.rigid_directions, "rigid_directions"),
         ];
         let parts: Vec<String> = counts.iter().filter(|(n, _)| *n > 0).map(|(n, s)| format!("{n} {s}")).collect();
         format!("{} points: {}", self.points, parts.join(", "))
@@ -123,6 +127,7 @@ impl Tally for MapSummary {
         self.unstable += o.unstable;
         self.ill_conditioned += o.ill_conditioned;
         self.overflow += o.overflow;
+        self.rigid_directions += o.rigid_directions;
     }
 }
 

@@ -8,7 +8,7 @@ use crate::kinematics::frame::{Mat6, Vec3, Vec6};
 use crate::linalg::all_finite;
 use crate::model::grid::PosePoint;
 use crate::output::report::{fmt6, matrix, TWIST, WRENCH};
-use crate::platform::compliance::{analyse, principal, Outcome, PrincipalCompliance};
+use crate::platform::compliance::{analyse, condition, principal, rigid_directions, Outcome, PrincipalCompliance};
 use crate::platform::leg::LegFailure;
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
@@ -35,11 +35,15 @@ pub enum Status {
     IllConditioned,
     /// A number overflowed (non-finite stiffness or displacement), e.g. under an astronomically large load.
     Overflow,
+    /// A serial arm whose elastic joints leave directions the tip cannot move along (fewer than six springs,
+    /// or a configuration where their motions lose rank): the compliance is written and singular, the
+    /// stiffness is infinite along those directions (`PointResult::rigid`); nothing is free.
+    RigidDirections,
 }
 
 impl Status {
     /// Every status, in the order of `as_str`'s list.
-    pub const ALL: [Status; 8] = [
+    pub const ALL: [Status; 9] = [
         Status::Ok,
         Status::Unreachable,
         Status::Singular,
@@ -48,6 +52,7 @@ impl Status {
         Status::Unstable,
         Status::IllConditioned,
         Status::Overflow,
+        Status::RigidDirections,
     ];
 
     /// The status's name in CSV and reports.
@@ -61,6 +66,7 @@ impl Status {
             Status::Unstable => "unstable",
             Status::IllConditioned => "ill_conditioned",
             Status::Overflow => "overflow",
+            Status::RigidDirections => "rigid_directions",
         }
     }
 
@@ -96,6 +102,9 @@ pub struct PointResult {
     pub deflection: Option<Vec6>,
     /// Free directions of a singular manipulator.
     pub free: Vec<Vec6>,
+    /// Rigid directions of a serial arm (`Status::RigidDirections`): unit wrenches (N, N mm; moments
+    /// weighed by the length scale) that deflect nothing, a basis of the null space of C.
+    pub rigid: Vec<Vec6>,
     /// Manipulator-level Newton iterations (loaded mode).
     pub iterations: usize,
     /// Why nothing was computed, where a leg or the loaded equilibrium failed.
@@ -136,6 +145,7 @@ impl PointResult {
             principal: None,
             deflection: None,
             free: Vec::new(),
+            rigid: Vec::new(),
             iterations: 0,
             failure: None,
         }
@@ -171,6 +181,44 @@ impl PointResult {
         }
     }
 
+    /// A result from a serial arm's compliance C (`platform::serial`): where C has rank below 6 the arm is
+    /// rigid along the rest (`RigidDirections`: C written, no stiffness); otherwise K = C^-1 analysed as
+    /// `from_stiffness` does (condition, definiteness), with C itself written (it was computed directly).
+    /// A direction K resists least is never called free: an arm has no passive joint, so nothing is free
+    /// (a nearly singular configuration is `ill_conditioned`).
+    fn from_compliance(c: Mat6, length_scale: f64, loaded: bool) -> Self {
+        if !all_finite(c.as_slice()) {
+            return PointResult::failed(Status::Overflow);
+        }
+        let rigid_result = |rank: usize, rigid: Vec<Vec6>| PointResult {
+            status: Status::RigidDirections,
+            rank: Some(rank),
+            condition: Some(f64::INFINITY),
+            compliance: Some(c),
+            principal: principal(&c),
+            rigid,
+            ..PointResult::failed(Status::RigidDirections)
+        };
+        if let Some((rank, rigid)) = rigid_directions(&c, length_scale) {
+            return rigid_result(rank, rigid);
+        }
+        let Some(k) = c.try_inverse() else { return rigid_result(5, Vec::new()) };
+        let k = if loaded { k } else { (k + k.transpose()) * 0.5 };
+        let magnitude = Vec6::from_fn(|i, _| k[(i, i)].abs());
+        let r = PointResult::from_stiffness(k, &magnitude, length_scale, loaded);
+        match r.status {
+            Status::Ok => PointResult { compliance: Some(c), principal: principal(&c), ..r },
+            Status::Singular => PointResult {
+                status: Status::IllConditioned,
+                rank: Some(6),
+                condition: Some(condition(&k, &magnitude, length_scale)),
+                free: Vec::new(),
+                ..r
+            },
+            _ => r,
+        }
+    }
+
     /// Marks a row whose numbers overflowed: nothing non-finite is ever written under `ok`.
     fn check_finite(mut self) -> Self {
         let finite = |m: &Option<Mat6>| m.is_none_or(|m| all_finite(m.as_slice()));
@@ -186,6 +234,17 @@ impl PointResult {
 
 /// The unloaded stiffness and compliance at the point's pose.
 pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorState) -> PointResult {
+    if let Some(answer) = m.arm_unloaded(&p.frame(), state) {
+        let mut r = match answer {
+            Ok(a) => PointResult::from_compliance(a.compliance, m.length_scale, false),
+            Err(e) => return PointResult::failed_at(e),
+        };
+        r.deflection = match (&r.compliance, &p.wrench) {
+            (Some(c), Some(w)) => Some(c * w),
+            _ => None,
+        };
+        return r.check_finite();
+    }
     let agg = match m.unloaded(&p.frame(), state) {
         Ok(a) => a,
         Err(e) => return PointResult::failed_at(e),
@@ -278,12 +337,15 @@ pub fn loaded_point(
                 state.keep_line_start();
             }
             history.push(p.position, d.displacement, &state.legs);
-            let mut r = PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true);
+            let mut r = match d.compliance {
+                Some(c) => PointResult::from_compliance(c, m.length_scale, true),
+                None => PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true),
+            };
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;
             // An unstable equilibrium says more than its conditioning: ill-conditioned or not, it is not where
             // the platform stays.
-            if matches!(r.status, Status::Ok | Status::IllConditioned) && !d.stable {
+            if matches!(r.status, Status::Ok | Status::IllConditioned | Status::RigidDirections) && !d.stable {
                 r.status = Status::Unstable;
             }
             r.check_finite()

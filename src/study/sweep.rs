@@ -283,7 +283,7 @@ impl Statistics {
 #[derive(Clone, Debug, Default)]
 pub struct DesignSummary {
     /// Points of each status, in `Status::ALL` order.
-    pub counts: [u64; 8],
+    pub counts: [u64; Status::ALL.len()],
     /// Points mapped.
     pub points: u64,
     /// `c_tran_max` (mm/N).
