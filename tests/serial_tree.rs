@@ -316,3 +316,31 @@ fn bad_trees_are_located_errors() {
         }
     }
 }
+
+/// Units a user gets wrong: joint values outside the URDF's limits (degrees given as radians) get one
+/// warning per file naming the first such row and joint, and the run goes on with the values as given; a
+/// points file with both a pose and joint coordinates says which it used; the mass the arm carries is said
+/// once.
+#[test]
+fn joint_values_outside_the_limits_are_said_once() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("arm.urdf"), PLANAR3).unwrap();
+    let toml = "name = \"arm\"\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"arm.urdf\"\nroot = \"base\"\ntip = \"tool\"\njoints = { J1 = { stiffness = 1e7 }, J2 = { stiffness = 1e7 }, J3 = { stiffness = 1e7 } }\n";
+    std::fs::write(dir.path().join("arm.toml"), toml).unwrap();
+    let run = |points: &str| {
+        std::fs::write(dir.path().join("p.csv"), points).unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+            .current_dir(dir.path())
+            .args(["map", "arm.toml", "--points", "p.csv", "-o", "out.csv", "-q"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let err = run("q_J1,q_J2,q_J3\n0.3,0.2,0.1\n45,10,5\n90,0,0\n");
+    assert_eq!(err.matches("warning:").count(), 1, "{err}");
+    assert!(err.contains("p.csv, line 3") && err.contains("joint `J1` is at 45") && err.contains("[-3, 3]"), "{err}");
+    assert!(err.contains("the arm carries 0.000000 kg"), "{err}");
+    let err = run("x_mm,y_mm,z_mm,q_J1,q_J2,q_J3\n1,2,3,0.3,0.2,0.1\n");
+    assert!(!err.contains("warning:") && err.contains("the joint coordinates are used"), "{err}");
+}

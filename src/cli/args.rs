@@ -49,8 +49,24 @@ impl ModelArgs {
     pub(crate) fn load_model(&self) -> Result<Model> {
         let source = read_text(&self.model)?;
         let overrides = self.set.iter().cloned().collect();
-        Ok(parse_with(&self.model, &source, &overrides, 0)?)
+        let model = parse_with(&self.model, &source, &overrides, 0)?;
+        say_carried_mass(&model.manipulator);
+        Ok(model)
     }
+}
+
+/// Says on stderr, once per run, the mass a serial arm carries and how much of it hangs off the root-to-tip
+/// path (README: what a URDF arm's weight includes).
+fn say_carried_mass(m: &Manipulator) {
+    static SAID: std::sync::Once = std::sync::Once::new();
+    let Some(space) = &m.joint_space else { return };
+    let c = space.carried;
+    SAID.call_once(|| {
+        eprintln!(
+            "{}: the arm carries {:.6} kg on its moving links, {:.6} kg of it off the root-to-tip path (branches held at their URDF zero, bodies beyond the tip); {:.6} kg weighs on the base",
+            m.name, c.kg, c.off_path_kg, c.on_base_kg
+        );
+    });
 }
 
 #[derive(Args, Debug)]
@@ -257,6 +273,15 @@ pub(crate) fn arm_points(m: &Manipulator, mut points: PointSet, file: Option<&Pa
             crate::study::point::joint_order(m, &points.joint_names).map_err(|e| anyhow::anyhow!("{file}{e}"))?;
         points.order_joints(&order);
         points.has_orientation = true;
+        if points.pose_and_joints {
+            eprintln!(
+                "note: {file}the points give both a pose (x_mm, y_mm, z_mm) and joint coordinates (q_<joint>): the joint coordinates are used, the pose columns are not read"
+            );
+        }
+        if let Some(space) = &m.joint_space {
+            let warn = Box::new(|message: String| eprintln!("warning: {message}"));
+            points.watch_limits(crate::model::grid::LimitWatch { space: space.clone(), warn });
+        }
     }
     Ok(points)
 }

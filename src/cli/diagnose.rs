@@ -197,7 +197,14 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     // its effects name its legs' actuators by number.
     let joints = calibrate::joint_names(m);
     let mut data = match &m.joint_space {
-        Some(space) => PositionData::read_from(&a.data, input, &space.names)?,
+        Some(space) => {
+            let data = PositionData::read_from(&a.data, input, &space.names)?;
+            if let Some((row, outside)) = data.rows.iter().find_map(|r| space.outside_limits(&r.joints).map(|o| (r, o)))
+            {
+                eprintln!("warning: {}, line {}: {outside}", a.data.display(), row.line);
+            }
+            data
+        }
         None => {
             // The actuators' readings a parallel robot's rows may give: q_<leg> for each leg with one actuator.
             let readable: Vec<String> = m

@@ -166,6 +166,15 @@ enum Source {
     },
 }
 
+/// The joint space whose limits a points file's joint coordinates are checked against, and what to do with
+/// the first row outside them (the command prints a warning).
+pub struct LimitWatch {
+    /// The arm's joints, in the order the points are read in (`PointSet::order_joints` has run).
+    pub space: crate::platform::manipulator::JointSpace,
+    /// Called once, with the file, line and what is outside.
+    pub warn: Box<dyn FnMut(String) + Send>,
+}
+
 /// A stream of poses, read in blocks.
 pub struct PointSet {
     /// True when the input sets an orientation (the map then reports it).
@@ -176,7 +185,13 @@ pub struct PointSet {
     pub len: Option<u64>,
     /// The joints of the points file's `q_<joint>` columns, in their order (empty: poses are given as poses).
     pub joint_names: Vec<String>,
+    /// True when a points file gives both a pose (`x_mm`, ...) and joint coordinates (`q_<joint>`): the
+    /// joint coordinates are used.
+    pub pose_and_joints: bool,
     source: Source,
+    /// Where the joint coordinates read are checked against the arm's limits, the first row outside them
+    /// handed to the watch's warning (once).
+    limit_watch: Option<LimitWatch>,
     /// The input index of the next point read.
     next_index: u64,
     /// The index where reading stops (a shard's portion), if before the end.
@@ -191,7 +206,9 @@ impl PointSet {
             has_wrench: points.iter().any(|p| p.wrench.is_some()),
             len: Some(points.len() as u64),
             joint_names: Vec::new(),
+            pose_and_joints: false,
             source: Source::Grid { grid: None, named: points, next: 0 },
+            limit_watch: None,
             next_index: 0,
             end_index: None,
         }
@@ -272,7 +289,9 @@ impl PointSet {
             has_wrench,
             len: Some(len),
             joint_names: Vec::new(),
+            pose_and_joints: false,
             source: Source::Grid { grid, named, next: 0 },
+            limit_watch: None,
             next_index: 0,
             end_index: None,
         })
@@ -316,13 +335,16 @@ impl PointSet {
         let wrench = group(&WRENCH_COLUMNS)?.map(|v| [v[0], v[1], v[2], v[3], v[4], v[5]]);
         let joint_names = joint_columns.iter().map(|(_, n)| n.clone()).collect();
         let joints = joint_columns.iter().map(|(i, _)| *i).collect();
+        let pose_and_joints = xyz.is_some() && !joint_columns.is_empty();
         let columns = CsvColumns { name: find(names::NAME), xyz, joints, orientation, wrench };
         Ok(Self {
             has_orientation: columns.orientation.is_some(),
             has_wrench: columns.wrench.is_some(),
             len: None,
             joint_names,
+            pose_and_joints,
             source: Source::Csv { path: path.to_path_buf(), reader, columns, record: csv::ByteRecord::new() },
+            limit_watch: None,
             next_index: 0,
             end_index: None,
         })
@@ -335,6 +357,11 @@ impl PointSet {
         if let Source::Csv { columns, .. } = &mut self.source {
             columns.joints = order.iter().map(|&i| columns.joints[i]).collect();
         }
+    }
+
+    /// Checks the joint coordinates read from now on against `watch`'s limits (a points file of a serial arm).
+    pub fn watch_limits(&mut self, watch: LimitWatch) {
+        self.limit_watch = Some(watch);
     }
 
     /// The volume each point of a box grid stands for (mm^3: the product of its three spacings), where the
@@ -416,6 +443,7 @@ impl PointSet {
     }
 
     fn read_source(&mut self, n: usize, out: &mut Vec<PosePoint>) -> Result<usize, InputError> {
+        let watch = &mut self.limit_watch;
         match &mut self.source {
             Source::Grid { grid, named, next } => {
                 let in_grid = grid.as_ref().map_or(0, |g| g.len());
@@ -468,6 +496,12 @@ impl PointSet {
                         None => Vec3::zeros(),
                     };
                     let joints = columns.joints.iter().map(|&c| field(c)).collect::<Result<Vec<f64>, _>>()?;
+                    if let Some(w) = watch.as_mut() {
+                        if let Some(outside) = w.space.outside_limits(&joints) {
+                            (w.warn)(format!("{}, line {line}: {outside}", path.display()));
+                            *watch = None;
+                        }
+                    }
                     let rotation = match &columns.orientation {
                         Some(c) => Vec3::new(field(c[0])?, field(c[1])?, field(c[2])?),
                         None => Vec3::zeros(),

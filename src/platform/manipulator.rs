@@ -54,6 +54,26 @@ pub struct CarriedMass {
 }
 
 impl JointSpace {
+    /// Where the controller's angles `controller` put a joint outside the range its description gives
+    /// (URDF's `<limit>`, on the model's coordinate): what a user reads, naming the joint, the value and the
+    /// range; None where every joint is within its range (or has none).
+    pub fn outside_limits(&self, controller: &[f64]) -> Option<String> {
+        if controller.len() != self.names.len() {
+            return None;
+        }
+        let q = self.model_coordinates(controller);
+        self.limits.iter().zip(&q).zip(&self.names).find_map(|((range, v), name)| {
+            let (lower, upper) = (*range)?;
+            (!(lower..=upper).contains(v)).then(|| {
+                format!(
+                    "joint `{name}` is at {v} (the model's coordinate), outside its URDF limits [{lower}, {upper}] (rad, or mm \
+                     for a prismatic joint): degrees given as radians, or metres where millimetres are meant? The values \
+                     are used as given; said for the first such row only"
+                )
+            })
+        })
+    }
+
     /// How the model's coordinates change per unit of the controller's angle `j` at `controller` (central
     /// differences of the map: exact for the linear couplings of parallelograms and reversed joints).
     pub fn coordinate_rates(&self, controller: &[f64], j: usize) -> Vec<f64> {
