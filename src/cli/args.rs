@@ -56,14 +56,18 @@ impl ModelArgs {
 }
 
 /// Says on stderr, once per run, the mass a serial arm carries and how much of it hangs off the root-to-tip
-/// path (README: what a URDF arm's weight includes).
+/// path, where some does (README: what a URDF arm's weight includes): bodies a user may not know the model
+/// carries (a branch, a tool beyond the tip).
 fn say_carried_mass(m: &Manipulator) {
     static SAID: std::sync::Once = std::sync::Once::new();
     let Some(space) = &m.joint_space else { return };
     let c = space.carried;
+    if c.off_path_kg <= 0.0 {
+        return;
+    }
     SAID.call_once(|| {
         eprintln!(
-            "{}: the arm carries {:.6} kg on its moving links, {:.6} kg of it off the root-to-tip path (branches held at their URDF zero, bodies beyond the tip); {:.6} kg weighs on the base",
+            "note: {}: the arm carries {:.6} kg on its moving links, {:.6} kg of it off the root-to-tip path (branches held at their URDF zero, bodies beyond the tip); {:.6} kg weighs on the base",
             m.name, c.kg, c.off_path_kg, c.on_base_kg
         );
     });

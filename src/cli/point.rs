@@ -19,7 +19,7 @@ pub(crate) const EXAMPLES: &str = "Examples:
   stiff point manipulators/orthoglide-3puu.toml --at 0,0,0 --wrench 215,-10,-25,1000,21500,0 --json -o q0.json
   stiff point manipulators/fanuc-r2000ic.toml --joints=-1.047,-0.291,-0.505,0.066,-1.098,2.529 --wrench=-120,-78,-15,0,0,0
 
-Exit status: 0 the pose has a compliance (status ok), 1 it has not (unreachable, singular, unstable, ...:\nthe report says why) or the run failed, 2 usage error.";
+Exit status: 0 the pose has a compliance (status ok, or rigid_directions: a serial arm with rigid joints), 1 it has not (unreachable, singular, unstable, ...:\nthe report says why) or the run failed, 2 usage error.";
 
 #[derive(Args, Debug)]
 pub(crate) struct PointArgs {
@@ -76,7 +76,7 @@ pub(crate) fn run(a: PointArgs) -> Result<()> {
     let statuses: Vec<Status> = std::iter::once(r.status).chain(loaded.as_ref().map(|l| l.status)).collect();
     // The report is written first (a singular pose's free directions are the answer a user wants); the
     // exit status then says the pose has no compliance.
-    if let Some(s) = statuses.iter().find(|s| **s != Status::Ok) {
+    if let Some(s) = statuses.iter().find(|s| !matches!(s, Status::Ok | Status::RigidDirections)) {
         bail!("the pose is {} (the report says why)", s.as_str());
     }
     Ok(())

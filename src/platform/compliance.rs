@@ -143,7 +143,9 @@ pub fn symmetric_eigenvalues3(m: &Mat3) -> Option<[f64; 3]> {
         return Some([smallest, tr - largest - smallest, largest]);
     }
     let isolated = if r > 0.0 { largest } else { smallest };
-    let pair = deflated_pair(m, isolated)?;
+    // No plane to deflate onto: m - isolated I is zero to round-off, all three roots are `isolated` (a
+    // multiple of the identity whose trace / 3 was rounded, so that p came out as round-off, not zero).
+    let pair = deflated_pair(m, isolated).unwrap_or((isolated, isolated));
     let mut v = [isolated, pair.0, pair.1];
     v.sort_by(f64::total_cmp);
     Some(v)
@@ -391,6 +393,17 @@ pub fn spectrum(k: &Mat6, length_scale: f64) -> Option<Spectrum> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Regression: 0.1 I (an isotropic inertia or compliance block) has the triple root 0.1, but its mean
+    /// 0.3 / 3 rounds below 0.1, so the spread p came out as round-off rather than zero and the deflation
+    /// found no plane (m - 0.1 I is zero): None, which the URDF reader took for a non-finite inertia.
+    #[test]
+    fn a_multiple_of_the_identity_has_a_triple_root() {
+        for v in [0.1, 1.0 / 3.0, 7e-9, 2.5e6] {
+            let e = symmetric_eigenvalues3(&(Mat3::identity() * v)).expect("finite");
+            assert!(e.iter().all(|x| (x - v).abs() <= 4.0 * f64::EPSILON * v), "{v}: {e:?}");
+        }
+    }
 
     /// Stability (loaded mode) is decided as the eigenvalues decide it: S = Q diag(lambda) Q^T with a
     /// random orthogonal Q, the smallest eigenvalue at ratios to the largest from 1 down through the rank

@@ -521,6 +521,15 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult, loaded: bool, l
             let _ = writeln!(out, "  {line}");
         }
     }
+    if !r.rigid.is_empty() {
+        let _ = writeln!(
+            out,
+            "rigid directions: unit wrenches (Fx Fy Fz [N], Mx My Mz [N mm]) that deflect nothing, the arm's elastic joints cannot move the tip against them:"
+        );
+        for w in &r.rigid {
+            let _ = writeln!(out, "  {}", fmt6(w));
+        }
+    }
     if let Some(f) = &r.failure {
         let _ = writeln!(out, "why: {f}");
     }
@@ -574,6 +583,8 @@ pub struct ResultJson {
     pub free_directions: Vec<[f64; 6]>,
     /// The same in words (translations, rotations about an axis through a point, screws).
     pub free_motions: Vec<String>,
+    /// Rigid directions of a serial arm (`rigid_directions`): unit wrenches (N; N mm) that deflect nothing.
+    pub rigid_directions: Vec<[f64; 6]>,
     /// Newton iterations of the loaded equilibrium.
     pub iterations: usize,
 }
@@ -597,6 +608,7 @@ impl ResultJson {
             deflection: r.deflection.map(|d| std::array::from_fn(|k| d[k])),
             free_directions: r.free.iter().map(|t| std::array::from_fn(|k| t[k])).collect(),
             free_motions: if r.free.is_empty() { Vec::new() } else { describe_free(&r.free, &reference, length_scale) },
+            rigid_directions: r.rigid.iter().map(|w| std::array::from_fn(|k| w[k])).collect(),
             iterations: r.iterations,
         }
     }
