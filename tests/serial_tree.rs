@@ -354,3 +354,34 @@ fn joint_values_outside_the_limits_are_said_once() {
     let err = run("x_mm,y_mm,z_mm,q_J1,q_J2,q_J3\n1,2,3,0.3,0.2,0.1\n");
     assert!(!err.contains("warning:") && err.contains("the joint coordinates are used"), "{err}");
 }
+
+/// What `diagnose --model-out` writes for an otherwise rigid arm (compliance added to two joints by
+/// `[[joint_correction]]`) loads and predicts: the FANUC with no joint spring but J2 and J3 given added
+/// compliances has C = c2 J_2 J_2^T + c3 J_3 J_3^T (the DH Jacobian of tests/serial.rs), rank 2, and a loaded
+/// equilibrium under its own weight (stable, `rigid_directions`), at random configurations.
+#[test]
+fn a_calibrated_model_of_a_rigid_arm_loads_and_predicts() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy("manipulators/fanuc-r2000ic.urdf", dir.path().join("fanuc-r2000ic.urdf")).unwrap();
+    let source = std::fs::read_to_string(FANUC).unwrap();
+    let rigid: String = source.lines().filter(|l| !l.starts_with("joints =")).map(|l| format!("{l}\n")).collect();
+    let (c2, c3) = (3.0e-10, 5.0e-10);
+    let toml = format!(
+        "{rigid}\n[[joint_correction]]\njoint = \"J2\"\ncompliance = {c2}\n\n[[joint_correction]]\njoint = \"J3\"\ncompliance = {c3}\n"
+    );
+    std::fs::write(dir.path().join("c.toml"), toml).unwrap();
+    let m = stiff::model::load_manipulator(&dir.path().join("c.toml")).unwrap();
+    let mut r = rng(3);
+    for _ in 0..10 {
+        let t = random_angles(&mut r);
+        let (frame, mut state) = placed(&m, &t);
+        let j = crate::serial::dh_jacobian(&crate::serial::model_angles(&t));
+        let (j2, j3) = (j.column(1).into_owned(), j.column(2).into_owned());
+        let want: Mat6 = j2 * j2.transpose() * c2 + j3 * j3.transpose() * c3;
+        let u = unloaded_point(&m, &pose_point(&frame), &mut state);
+        assert_eq!((u.status, u.rank), (Status::RigidDirections, Some(2)));
+        assert!((u.compliance.unwrap() - want).norm() < 1e-9 * want.norm());
+        let d = m.deflect(&frame, &Vec6::zeros(), None, &mut state).unwrap();
+        assert!(d.stable && d.displacement.norm() > 0.0 && d.displacement.iter().all(|v| v.is_finite()));
+    }
+}

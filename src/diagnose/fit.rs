@@ -132,7 +132,7 @@ impl<'a> Problem<'a> {
         let (loaded, tangent) = if with_loaded || loaded_mode {
             let rows = data.rows.iter().zip(&pose_of).map(|(r, &k)| {
                 let d = settled(model, r.position, &r.wrench, &mut state).map_err(|e| fails(&r.pose_id, r.line, e))?;
-                let c = d.held.stiffness.try_inverse().unwrap_or(poses[k].compliance);
+                let c = d.compliance.or_else(|| d.held.stiffness.try_inverse()).unwrap_or(poses[k].compliance);
                 Ok((d.displacement, (c + c.transpose()) * 0.5))
             });
             let both: Vec<(Vec6, Mat6)> = rows.collect::<Result<_, DiagnoseError>>()?;

@@ -65,10 +65,12 @@ impl JointSpace {
         self.limits.iter().zip(&q).zip(&self.names).find_map(|((range, v), name)| {
             let (lower, upper) = (*range)?;
             (!(lower..=upper).contains(v)).then(|| {
+                // Far outside (past the range's own width): more likely a unit than a pose past a stop.
+                let far = *v < lower - (upper - lower) || *v > upper + (upper - lower);
+                let hint = if far { " (degrees given as radians, or metres where millimetres are meant?)" } else { "" };
                 format!(
                     "joint `{name}` is at {v} (the model's coordinate), outside its URDF limits [{lower}, {upper}] (rad, or mm \
-                     for a prismatic joint): degrees given as radians, or metres where millimetres are meant? The values \
-                     are used as given; said for the first such row only"
+                     for a prismatic joint){hint}; the values are used as given; said for the first such row only"
                 )
             })
         })

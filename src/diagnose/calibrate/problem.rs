@@ -353,7 +353,7 @@ pub(super) fn deflections<'m>(
         if !d.stable {
             return Err(failed(r, "the loaded equilibrium is unstable".into()));
         }
-        Ok((d.displacement, d.held.stiffness.try_inverse()))
+        Ok((d.displacement, d.compliance.or_else(|| d.held.stiffness.try_inverse())))
     };
     let mut out = Deflections {
         deflection: Vec::with_capacity(data.rows.len()),
