@@ -1377,3 +1377,89 @@ fn synth_hides_a_joints_play_that_the_calibration_names() {
     assert_eq!(named, ["backlash:J2"], "{report}");
     assert!((c.report.accepted[0].values[0] - 1e-3).abs() < 4.0 * c.report.accepted[0].se[0], "{report}");
 }
+
+/// Regressions from fuzzed position files (the physics: every measurement either enters the fit with its
+/// weight or is named as left out; none counts twice). A blank `mx_mm` cell dropped its row with no message:
+/// it is named with its line and counted in the JSON. A repeated `mx_mm` column, or `mx_mm..` beside
+/// `mx_m..`, counted every row twice (standard errors shrunk by sqrt(2)): located errors. One blank `sigma_mm`
+/// cell turned the statistical test off for the whole file: that row takes the file's median sigma, said.
+#[test]
+fn position_files_name_every_measurement_they_do_not_use_and_count_none_twice() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = Hidden::registration_only();
+    let data = synthetic(&h, 20, 0.05, &[], true, 5).replace(",check\n", ",fit\n");
+    let run = |csv: &str, json: bool| {
+        std::fs::write(dir.path().join("d.csv"), csv).unwrap();
+        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"));
+        command.args(["diagnose", FANUC, "--data"]).arg(dir.path().join("d.csv"));
+        if json {
+            command.arg("--json").arg(dir.path().join("c.json"));
+        }
+        let out = command.output().unwrap();
+        let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+        (out.status.success(), text(&out.stdout), text(&out.stderr))
+    };
+    // A blank cell on the fourth line: named, counted, the other 19 rows fitted.
+    let mut lines: Vec<String> = data.lines().map(String::from).collect();
+    let cells: Vec<&str> = lines[3].split(',').collect();
+    let blanked: Vec<String> =
+        cells.iter().enumerate().map(|(i, c)| if i == 8 { String::new() } else { c.to_string() }).collect();
+    lines[3] = blanked.join(",");
+    let (ok, text, err) = run(&(lines.join("\n") + "\n"), true);
+    assert!(ok, "{err}");
+    assert!(
+        text.contains("19 rows fitted")
+            && text
+                .contains("measurement not used: line 4 (c2): the target not measured there (an empty `my_mm` cell)"),
+        "{text}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("c.json")).unwrap()).unwrap();
+    assert_eq!(v["calibration"]["not_used_count"], 1);
+    // Repeated columns: located errors, nothing fitted.
+    let twice = data.replacen("mx_mm,", "mx_mm,mx_mm,", 1);
+    let twice: String = twice
+        .lines()
+        .enumerate()
+        .map(|(k, l)| {
+            if k == 0 {
+                format!("{l}\n")
+            } else {
+                let c: Vec<&str> = l.split(',').collect();
+                format!("{},{}\n", c[..8].join(","), c[7..].join(","))
+            }
+        })
+        .collect();
+    let (ok, _, err) = run(&twice, false);
+    assert!(!ok && err.contains("line 1, column 9") && err.contains("the column `mx_mm` is given twice"), "{err}");
+    let metres: String = data
+        .lines()
+        .enumerate()
+        .map(|(k, l)| {
+            if k == 0 {
+                format!("{l},mx_m,my_m,mz_m\n")
+            } else {
+                let c: Vec<&str> = l.split(',').collect();
+                let m: Vec<String> =
+                    c[7..10].iter().map(|v| (v.parse::<f64>().unwrap() / 1000.0).to_string()).collect();
+                format!("{l},{}\n", m.join(","))
+            }
+        })
+        .collect();
+    let (ok, _, err) = run(&metres, false);
+    assert!(!ok && err.contains("`mx_mm` and `mx_m` give the same target's position"), "{err}");
+    // A blank sigma cell: the row takes the file's median, the test of what is left stays on.
+    let with_sigma: String = data
+        .lines()
+        .enumerate()
+        .map(|(k, l)| match k {
+            0 => format!("{l},sigma_mm\n"),
+            5 => format!("{l},\n"),
+            _ => format!("{l},0.05\n"),
+        })
+        .collect();
+    let (ok, text, err) = run(&with_sigma, false);
+    assert!(ok, "{err}");
+    assert!(text.contains("note: 1 rows without a sigma_mm (lines 6) take the file's median sigma, 0.05 mm"), "{text}");
+    assert!(!text.contains("the noise level was not given"), "{text}");
+}

@@ -241,13 +241,8 @@ fn masses_off_the_path_weigh_on_the_link_they_hang_from() {
         let mut state = m.new_state();
         let s = m.arm_statics(&q, &Vec6::zeros(), &mut state).unwrap();
         let want = [load(Vec3::zeros(), false), load(o2, true)];
-        for k in 0..2 {
-            assert!(
-                (s.loads[k] - want[k]).abs() < 1e-9 * want[k].abs().max(1.0),
-                "joint {k}: {} vs {}",
-                s.loads[k],
-                want[k]
-            );
+        for (k, (got, want)) in s.loads.iter().zip(want).enumerate() {
+            assert!((got - want).abs() < 1e-9 * want.abs().max(1.0), "joint {k}: {got} vs {want}");
         }
     }
 }

@@ -142,6 +142,11 @@ pub struct PositionData {
     pub unread: Vec<String>,
     /// The columns giving orientations (named in the report where they cannot be weighed).
     pub orientation_columns: Vec<String>,
+    /// Measurements of the file not used, each with its line and why (a target with an empty cell: not
+    /// measured there): named in the report and counted in the JSON, never dropped silently.
+    pub not_used: Vec<String>,
+    /// What the reading changed, said in the report (rows without a `sigma_mm` given the file's median).
+    pub notes: Vec<String>,
 }
 
 /// True when a measurement file's header names joint coordinates: it is read by `PositionData::read` with
@@ -291,10 +296,32 @@ impl Columns {
     /// The columns of `header`: `joints` the names of the `q_<name>` columns, `poses` whether each row gives
     /// a commanded pose.
     fn of(header: Vec<String>, joints: &[String], poses: bool, at: &Located) -> Result<Columns, InputError> {
+        // A repeated column would count its rows twice (and shrink every standard error by sqrt(2)).
+        for (k, h) in header.iter().enumerate() {
+            if let Some(first) = header[..k].iter().position(|f| f == h).filter(|_| !h.is_empty()) {
+                return Err(at.at(
+                    1,
+                    k + 1,
+                    format!("the column `{h}` is given twice (columns {} and {}): keep one", first + 1, k + 1),
+                ));
+            }
+        }
         let find = |name: &str| header.iter().position(|h| h == name);
         let joint_columns = joint_columns(&header, joints, poses, at)?;
         let pose = pose_columns(&header, poses, at)?;
         let groups = position_groups(&header);
+        for (k, g) in groups.iter().enumerate() {
+            if let Some(first) = groups[..k].iter().find(|f| f.suffix == g.suffix) {
+                return Err(at.at(
+                    1,
+                    g.columns[0] + 1,
+                    format!(
+                        "`{}` and `{}` give the same target's position (in mm and in m): keep one",
+                        header[first.columns[0]], header[g.columns[0]]
+                    ),
+                ));
+            }
+        }
         let displacement: Option<Vec<usize>> = DISPLACEMENT[..3].iter().map(|c| find(c)).collect();
         if groups.is_empty() && displacement.is_none() {
             return Err(at.at(
@@ -502,8 +529,17 @@ impl Columns {
         let setup_name = self.setup.map(text).unwrap_or("").to_string();
         let setup = index_of(&mut data.setups, setup_name);
         for (g, orientation) in self.groups.iter().zip(&self.orientations) {
-            // A group with an empty cell is a target not seen at that row.
-            if g.columns.iter().any(|&c| text(c).is_empty()) {
+            // A group with an empty cell is a target not seen at that row: said, not dropped silently.
+            if let Some(&c) = g.columns.iter().find(|&&c| text(c).is_empty()) {
+                let target = match self.target {
+                    Some(t) if !text(t).is_empty() => format!("target `{}`", text(t)),
+                    _ if g.suffix.is_empty() => "the target".to_string(),
+                    _ => format!("target `{}`", g.suffix),
+                };
+                data.not_used.push(format!(
+                    "line {line} ({name}): {target} not measured there (an empty `{}` cell)",
+                    self.header[c]
+                ));
                 continue;
             }
             let target_name = match self.target {
@@ -651,6 +687,8 @@ impl PositionData {
             configurations: 0,
             unread: columns.unread(),
             orientation_columns: columns.orientation_names(),
+            not_used: Vec::new(),
+            notes: Vec::new(),
         };
         // The configurations seen so far: joint coordinates, or a commanded pose's six numbers.
         let mut configurations: Vec<Vec<f64>> = Vec::new();
@@ -664,7 +702,35 @@ impl PositionData {
             return Err(InputError::Whole { path: path.to_path_buf(), message: "no measurements".into() });
         }
         data.configurations = configurations.len();
+        data.fill_missing_sigmas(columns.sigma.is_some());
         Ok(data)
+    }
+
+    /// Rows whose `sigma_mm` cell is empty where others give one take the median of those given (one empty
+    /// cell would otherwise leave the file without a noise level, and the test of what is left off), said
+    /// in the notes with the rows' lines.
+    fn fill_missing_sigmas(&mut self, has_column: bool) {
+        let is_position = |r: &PositionRow| !matches!(r.observed, Observed::Orientation { .. });
+        let mut given: Vec<f64> = self.rows.iter().filter(|r| is_position(r)).filter_map(|r| r.sigma).collect();
+        let missing: Vec<usize> =
+            self.rows.iter().filter(|r| is_position(r) && r.sigma.is_none()).map(|r| r.line).collect();
+        if !has_column || given.is_empty() || missing.is_empty() {
+            return;
+        }
+        given.sort_by(f64::total_cmp);
+        let median = given[given.len() / 2];
+        for r in self.rows.iter_mut().filter(|r| is_position(r) && r.sigma.is_none()) {
+            r.sigma = Some(median);
+        }
+        let mut lines: Vec<usize> = missing;
+        lines.dedup();
+        let shown: Vec<String> = lines.iter().take(10).map(|l| l.to_string()).collect();
+        let more = if lines.len() > 10 { format!(" and {} more", lines.len() - 10) } else { String::new() };
+        self.notes.push(format!(
+            "{} rows without a {SIGMA} (lines {}{more}) take the file's median sigma, {median} mm",
+            lines.len(),
+            shown.join(", ")
+        ));
     }
 
     /// Holds out a fraction of the configurations (all rows measured at each), drawn with `seed`: those

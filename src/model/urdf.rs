@@ -211,7 +211,7 @@ impl Reader<'_> {
         let mass_node =
             child(i, "mass").ok_or_else(|| self.at(i, format!("link `{name}`: <inertial> without <mass>")))?;
         let kg = self.numbers(mass_node, "value", 1, f64::NAN, MAX_MASS_KG)?[0];
-        if !(kg >= 0.0) {
+        if kg.is_nan() || kg < 0.0 {
             return Err(self.at(mass_node, format!("link `{name}`: the mass must be a number >= 0 kg")));
         }
         if let Some(n) = child(i, "inertia") {

@@ -156,6 +156,15 @@ pub struct CalibrationReport {
     pub rows: (usize, usize),
     /// The data's columns no rule read.
     pub unread: Vec<String>,
+    /// Measurements of the file not used, each with its line and why (an empty cell).
+    #[serde(default)]
+    pub not_used: Vec<String>,
+    /// How many measurements of the file were not used (`not_used`'s length).
+    #[serde(default)]
+    pub not_used_count: usize,
+    /// What reading the file changed (rows given the file's median sigma).
+    #[serde(default)]
+    pub notes: Vec<String>,
 }
 
 /// A gross row left out of the fits.

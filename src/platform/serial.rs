@@ -259,7 +259,7 @@ impl ArmSolver<'_> {
 fn energy_minimum(m: &DMatrix<f64>) -> bool {
     let n = m.nrows();
     let d: Vec<f64> = (0..n).map(|i| m[(i, i)]).collect();
-    if d.iter().any(|v| !(*v > 0.0)) {
+    if d.iter().any(|v| v.is_nan() || *v <= 0.0) {
         return false;
     }
     let s = DMatrix::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] + m[(j, i)]) / (d[i] * d[j]).sqrt());

@@ -161,6 +161,9 @@ pub fn calibrate(
         sigma_known,
         rows: (kept.len(), check_rows.len()),
         unread: data.unread.clone(),
+        not_used: data.not_used.clone(),
+        not_used_count: data.not_used.len(),
+        notes: data.notes.clone(),
     };
     let leg_corrections = problem
         .space

@@ -334,6 +334,17 @@ pub fn text(c: &CalibrationReport, model: &str) -> String {
     for why in &c.unusable {
         let _ = writeln!(s, "row left out, no prediction: {why}");
     }
+    // Every measurement of the file not used is named (a long list of occlusions is cut, and counted).
+    const SHOWN: usize = 20;
+    for why in c.not_used.iter().take(SHOWN) {
+        let _ = writeln!(s, "measurement not used: {why}");
+    }
+    if c.not_used.len() > SHOWN {
+        let _ = writeln!(s, "measurement not used: {} more (all in the JSON's `not_used`)", c.not_used.len() - SHOWN);
+    }
+    for note in &c.notes {
+        let _ = writeln!(s, "note: {note}");
+    }
     for g in &c.left_out {
         let _ = writeln!(s, "gross row left out: {}: {:.4} {} from the model", g.row, g.misfit, g.unit);
     }

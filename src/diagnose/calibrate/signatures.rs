@@ -73,6 +73,8 @@ pub fn signatures(
         configurations: configurations.len(),
         unread: Vec::new(),
         orientation_columns: Vec::new(),
+        not_used: Vec::new(),
+        notes: Vec::new(),
     };
     let problem = PositionProblem::new(m, &data, Some(noise), orientation_noise)?;
     // A configuration is usable where its rows have a prediction (its position and orientation share one
