@@ -380,3 +380,28 @@ fn a_calibrated_model_of_a_rigid_arm_loads_and_predicts() {
         assert!(d.stable && d.displacement.norm() > 0.0 && d.displacement.iter().all(|v| v.is_finite()));
     }
 }
+
+/// Regressions from fuzzed descriptions: `file = "/dev/zero"` was read until memory ran out, and a NaN tool
+/// rotation or a tool 1e300 mm long was accepted and then reported as an unreachable pose. Each is refused
+/// when the model is read, with what is wrong.
+#[test]
+fn endless_files_and_non_finite_tools_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("arm.urdf"), PLANAR3).unwrap();
+    let load = |file: &str, tool: &str| {
+        let toml = format!(
+            "name = \"arm\"\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"{file}\"\nroot = \"base\"\ntip = \"tool\"\n{tool}\n"
+        );
+        std::fs::write(dir.path().join("arm.toml"), toml).unwrap();
+        stiff::model::load_manipulator(&dir.path().join("arm.toml")).map(|_| ()).map_err(|e| e.to_string())
+    };
+    assert!(load("arm.urdf", "").is_ok());
+    let e = load("/dev/zero", "").unwrap_err();
+    assert!(e.contains("/dev/zero: not a regular file"), "{e}");
+    let e = load(".", "").unwrap_err();
+    assert!(e.contains("not a regular file"), "{e}");
+    let e = load("arm.urdf", "tool = { rotation_axis = \"z\", rotation_deg = nan }").unwrap_err();
+    assert!(e.contains("arm.toml, line 8") && e.contains("NaN is not a finite number"), "{e}");
+    let e = load("arm.urdf", "tool = { translation = [1e300, 0, 0] }").unwrap_err();
+    assert!(e.contains("arm.toml, line 8") && e.contains("ten kilometres"), "{e}");
+}

@@ -178,6 +178,9 @@ pub(super) struct Builder<'a> {
     pub(super) params: BTreeMap<String, f64>,
 }
 
+/// Largest translation of a transform (mm): ten kilometres is no robot, and past it products overflow.
+const MAX_TRANSLATION_MM: f64 = 1e7;
+
 /// Coordinates and springs collected while walking one chain.
 #[derive(Default)]
 pub(super) struct ChainParts {
@@ -262,9 +265,15 @@ impl ChainParts {
 }
 
 impl Builder<'_> {
+    /// A number of the description, evaluated: finite, or an error located at it (a NaN tool rotation was
+    /// accepted and then reported as an unreachable pose).
     pub(super) fn num(&self, n: &Num) -> Result<f64, InputError> {
         let mut scope = self.params.clone();
-        n.get_ref().eval(&mut scope).map_err(|e| self.loc.at(n.span(), e))
+        let v = n.get_ref().eval(&mut scope).map_err(|e| self.loc.at(n.span(), e))?;
+        if !v.is_finite() {
+            return Err(self.loc.at(n.span(), format!("{v} is not a finite number")));
+        }
+        Ok(v)
     }
 
     pub(super) fn positive(&self, n: &Num, what: &str) -> Result<f64, InputError> {
@@ -322,6 +331,14 @@ impl Builder<'_> {
             Some(t) => self.vec3(t)?,
             None => Vec3::zeros(),
         };
+        if let Some(t) = translation {
+            if let Some(k) = (0..3).find(|&k| pos[k].abs() > MAX_TRANSLATION_MM) {
+                return Err(self.loc.at(
+                    t[k].span(),
+                    format!("the translation {} mm is past {MAX_TRANSLATION_MM:e} mm (ten kilometres)", pos[k]),
+                ));
+            }
+        }
         let rot = match (rotation_axis, rotation_deg) {
             (Some(a), Some(d)) => rotation_about(&self.axis(a)?, self.num(d)?.to_radians()),
             (None, None) => nalgebra::Matrix3::identity(),

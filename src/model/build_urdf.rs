@@ -7,7 +7,7 @@
 use toml::Spanned;
 
 use super::build::{Builder, ChainParts};
-use super::error::{read_text, InputError};
+use super::error::{read_regular_file, InputError};
 use super::schema::{JointCorrectionSpec, JointStiffnessSpec, LinkSpringSpec, TransformSpec, UrdfSpec};
 use super::urdf::{UrdfChain, UrdfJoint, UrdfJointKind};
 use crate::expr::{Expr, ExprSrc};
@@ -63,7 +63,7 @@ impl Builder<'_> {
     ) -> Result<(Leg, JointSpace), InputError> {
         let u = spec.get_ref();
         let path = super::urdf::resolve(self.loc.path, u.file.get_ref());
-        let text = read_text(&path)?;
+        let text = read_regular_file(&path)?;
         let read = super::urdf::read_chain(&path, &text, u.root.get_ref(), u.tip.get_ref())?;
         let arm = UrdfLeg { spec, path, read, corrections };
         self.check_urdf_names(&arm)?;

@@ -114,6 +114,35 @@ pub fn read_text(path: &Path) -> Result<String, InputError> {
     Ok(text)
 }
 
+/// Largest URDF file read (bytes): the largest robot descriptions in use are a few megabytes.
+pub const MAX_DESCRIPTION_BYTES: u64 = 64 << 20;
+
+/// A description file's text (a URDF): a regular file of at most `MAX_DESCRIPTION_BYTES`, else a message
+/// saying what it is (`/dev/zero`, a folder, a pipe would be read until memory runs out, or not at all).
+pub fn read_regular_file(path: &Path) -> Result<String, InputError> {
+    let whole = |message: String| InputError::Whole { path: path.to_path_buf(), message };
+    let meta = std::fs::metadata(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
+    if !meta.is_file() {
+        return Err(whole("not a regular file: give the path of the description file itself".into()));
+    }
+    if meta.len() > MAX_DESCRIPTION_BYTES {
+        return Err(whole(format!(
+            "{} bytes, past the {} MiB a description may have",
+            meta.len(),
+            MAX_DESCRIPTION_BYTES >> 20
+        )));
+    }
+    let mut text = String::new();
+    let file = std::fs::File::open(path).map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
+    // The file may grow while it is read: never more than the limit.
+    std::io::Read::read_to_string(&mut std::io::Read::take(file, MAX_DESCRIPTION_BYTES + 1), &mut text)
+        .map_err(|cause| InputError::Read { path: path.to_path_buf(), cause })?;
+    if text.len() as u64 > MAX_DESCRIPTION_BYTES {
+        return Err(whole(format!("past the {} MiB a description may have", MAX_DESCRIPTION_BYTES >> 20)));
+    }
+    Ok(text)
+}
+
 /// An input opened for streaming: the file, or standard input for `-`, decompressed by its name.
 pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read + Send>, InputError> {
     let failed = |cause| InputError::Read { path: path.to_path_buf(), cause };
