@@ -543,3 +543,26 @@ fn absolute_positions_for_a_parallel_robot_too_few_to_register_say_how_many_are_
     let e = refused(&run(&["diagnose", "manipulators/orthoglide-3puu.toml", "--data", path.to_str().unwrap()]));
     assert!(e.contains("1 fitted rows give 3 coordinates, too few for the 9 parameters"), "{e}");
 }
+
+/// Regression: `map --loaded` on a grid without reference wrenches advised "(or give --wrench)", and
+/// `--loaded --wrench` is refused by the parser. The advice now says to drop `--loaded` and give
+/// `--wrench`, and following it works.
+#[test]
+fn the_advice_for_loaded_without_wrenches_is_runnable() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.csv");
+    let points = dir.path().join("p.csv");
+    std::fs::write(&points, "x_mm,y_mm,z_mm\n0,0,0\n10,0,0\n").unwrap();
+    let map = |load: &[&str]| {
+        let mut args = vec!["map", "manipulators/orthoglide-3puu.toml", "--points", points.to_str().unwrap()];
+        args.extend_from_slice(load);
+        args.extend(["-q", "-o", out.to_str().unwrap()]);
+        run(&args)
+    };
+    let e = refused(&map(&["--loaded"]));
+    assert!(e.contains("drop --loaded and give --wrench FX,FY,FZ,MX,MY,MZ"), "{e}");
+    assert!(!out.exists(), "nothing written");
+    let o = map(&["--wrench", "10,0,0,0,0,0"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 3);
+}

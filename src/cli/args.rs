@@ -346,7 +346,9 @@ impl LoadArgs {
     /// The map's options for `points` under this load (`--loaded` needs the points' wrenches).
     pub(crate) fn map_options(&self, points: &PointSet, stiffness: bool) -> Result<crate::study::map::MapOptions> {
         if self.loaded && !points.has_wrench {
-            bail!("--loaded needs reference wrenches in the grid or points file (or give --wrench)");
+            bail!(
+                "--loaded needs reference wrenches in the grid or points file (columns Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm, or a grid's `wrench`); for one wrench at every point, drop --loaded and give --wrench FX,FY,FZ,MX,MY,MZ"
+            );
         }
         Ok(crate::study::map::MapOptions {
             stiffness,
