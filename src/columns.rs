@@ -14,7 +14,7 @@ pub const ORIENTATION: [&str; 3] = ["pose_rx_rad", "pose_ry_rad", "pose_rz_rad"]
 pub const DISPLACEMENT: [&str; 6] = ["dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad"];
 /// A wrench at the reference point.
 pub const WRENCH: [&str; 6] = ["Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm"];
-/// The outcome of a point or row (README lists the statuses).
+/// The outcome of a point or row (docs/GUIDE.md lists the statuses).
 pub const STATUS: &str = "status";
 /// Maps: the largest principal translational compliance (the default column of a map's picture).
 pub const C_TRAN_MAX: &str = "c_tran_max_mm_per_N";

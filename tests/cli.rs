@@ -297,7 +297,7 @@ fn curve_starts_at_the_unloaded_stiffness() {
         .assert()
         .success();
     let (h, rows) = read_csv(&out);
-    // The documented columns (README), spelled out so a change of the format is a decision, not an accident.
+    // The documented columns (docs/GUIDE.md), spelled out so a change of the format is a decision, not an accident.
     let documented = "step,control,load_factor,Fx_N,Fy_N,Fz_N,Mx_Nmm,My_Nmm,Mz_Nmm,dx_mm,dy_mm,dz_mm,rx_rad,ry_rad,\
         rz_rad,k_tran_min_N_per_mm,k_rot_min_Nmm_per_rad,k_scaled_min_N_per_mm,mode_dx,mode_dy,mode_dz,mode_rx,mode_ry,\
         mode_rz,stable,instability,iterations,status,residual,event,event_load_factor";

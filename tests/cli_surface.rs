@@ -754,3 +754,38 @@ fn columns_select_what_an_assembly_writes() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("nl_dx_mm"));
     assert!(!dir.path().join("a.csv").exists(), "nothing written");
 }
+
+/// README is the front page (what stiff is, the two commands, the tour, where to go next) and the reference
+/// is docs/GUIDE.md: every link from one to a section of the other, or within one, names a heading that
+/// exists (GitHub's anchors: lower case, spaces as hyphens, punctuation dropped).
+#[test]
+fn readme_and_guide_links_name_headings_that_exist() {
+    let anchors = |text: &str| -> Vec<String> {
+        text.lines()
+            .filter(|l| l.starts_with('#'))
+            .map(|l| {
+                let t = l.trim_start_matches('#').trim().to_lowercase();
+                t.chars()
+                    .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-' || *c == '_')
+                    .collect::<String>()
+                    .replace(' ', "-")
+            })
+            .collect()
+    };
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let guide = std::fs::read_to_string("docs/GUIDE.md").unwrap();
+    assert!(readme.lines().count() <= 200, "README is a front page: {} lines", readme.lines().count());
+    let (in_readme, in_guide) = (anchors(&readme), anchors(&guide));
+    for (file, text, own, other, prefix) in [
+        ("README.md", &readme, &in_readme, &in_guide, "docs/GUIDE.md#"),
+        ("docs/GUIDE.md", &guide, &in_guide, &in_readme, "../README.md#"),
+    ] {
+        for link in text.split("](").skip(1).map(|r| &r[..r.find(')').unwrap_or(0)]) {
+            if let Some(a) = link.strip_prefix('#') {
+                assert!(own.iter().any(|h| h == a), "{file}: no heading for #{a}");
+            } else if let Some(a) = link.strip_prefix(prefix) {
+                assert!(other.iter().any(|h| h == a), "{file}: no heading for {link}");
+            }
+        }
+    }
+}

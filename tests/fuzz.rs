@@ -12,7 +12,7 @@
 //! nothing stops it early (output to a file, or every pose unreachable so nothing reaches the closed pipe):
 //! such a case passes the timeout if it did nothing else wrong.
 //!
-//! `cargo test --test suite fuzz::` runs a short seeded campaign (2,000 cases, about ten seconds). The long run (README, "Fuzzing"):
+//! `cargo test --test suite fuzz::` runs a short seeded campaign (2,000 cases, about ten seconds). The long run (docs/GUIDE.md, "Fuzzing"):
 //! `STIFF_FUZZ_CASES=20000 STIFF_FUZZ_SEED=1 cargo test --release --test suite fuzz:: -- --nocapture`.
 
 use crate::common;

@@ -88,7 +88,7 @@ fn rigid_links_written_as_huge_numbers_keep_full_rank() {
 /// points inside the workspace cube and points at 1e-3 .. 5 mm either side of the reach boundary along
 /// random rays (the boundary located by bisection on the MSA file's closed-form reach). Poses within
 /// 1e-4 mm outside the boundary are left out: there a VJM leg's inverse kinematics ends within its reach
-/// tolerance (`ill_conditioned`) while the MSA leg's closed form says `unreachable` (README).
+/// tolerance (`ill_conditioned`) while the MSA leg's closed form says `unreachable` (docs/GUIDE.md).
 #[test]
 fn vjm_and_msa_give_the_same_status_near_and_away_from_the_reach_boundary() {
     let vjm = load("manipulators/orthoglide-3puu.toml");

@@ -56,7 +56,7 @@ impl ModelArgs {
 }
 
 /// Says on stderr, once per run, the mass a serial arm carries and how much of it hangs off the root-to-tip
-/// path, where some does (README: what a URDF arm's weight includes): bodies a user may not know the model
+/// path, where some does (docs/GUIDE.md: what a URDF arm's weight includes): bodies a user may not know the model
 /// carries (a branch, a tool beyond the tip).
 fn say_carried_mass(m: &Manipulator) {
     static SAID: std::sync::Once = std::sync::Once::new();

@@ -73,7 +73,7 @@ struct PointSpec {
 }
 
 /// Most points a grid may hold: at the fastest model's ~200,000 points/s on two cores, 1e10 points are
-/// 14 hours of computing, a long cluster job; a larger request is a typo or wants splitting (README).
+/// 14 hours of computing, a long cluster job; a larger request is a typo or wants splitting (docs/GUIDE.md).
 pub const MAX_GRID_POINTS: u64 = 10_000_000_000;
 
 #[derive(Clone, Debug)]

@@ -1,4 +1,4 @@
-//! The TOML schema of a manipulator description, as written by users (docs in README.md).
+//! The TOML schema of a manipulator description, as written by users (docs in docs/GUIDE.md).
 //! Every table refuses unknown keys; positions are kept (`Spanned`) where validation may need to point.
 
 use std::collections::BTreeMap;

@@ -6,7 +6,7 @@
 //!
 //! The temporary files in use are registered, so that Ctrl-C or SIGTERM removes them before the process
 //! exits (`install_signal_cleanup`). A SIGKILL cannot be caught: it leaves a hidden `.stiff-XXXXXX.partial`
-//! beside the target (README).
+//! beside the target (docs/GUIDE.md).
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, BufWriter, Write};

@@ -105,7 +105,7 @@ impl Manipulator {
 
 /// Every spring whose stiffness depends on the configuration (a formula of its joint's coordinate) has a
 /// positive one there: where it has none the arm has no stiffness at that configuration (`singular_leg`,
-/// README).
+/// docs/GUIDE.md).
 fn springs_positive(leg: &VjmLeg, coords: &Coordinates) -> bool {
     leg.springs.iter().filter(|g| g.varies()).all(|g| {
         let k = g.at(coords).0;

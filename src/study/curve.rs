@@ -2,7 +2,7 @@
 //! direction) or displacement control (a displacement growing along a direction), with the spectrum of the
 //! tangent stiffness and stability at every step.
 //!
-//! Definitions (README, "Force-deflection curves"), implemented exactly:
+//! Definitions (docs/GUIDE.md, "Force-deflection curves"), implemented exactly:
 //! - `stable`: the symmetric part of the manipulator's tangent stiffness is positive definite (decided on the
 //!   equilibrated matrix, `compliance::positive_definite`) and every leg is stable with its end held;
 //!   `instability` names what failed (`platform`, `leg N`).
@@ -697,7 +697,7 @@ impl CurveSummary {
             None => {}
         }
         lines.push(format!(
-            "k_scaled_min weighs rotations by the model's length scale, {length_scale:.6} mm/rad (README: force-deflection curves)"
+            "k_scaled_min weighs rotations by the model's length scale, {length_scale:.6} mm/rad (docs/GUIDE.md: force-deflection curves)"
         ));
         lines.join("\n")
     }

@@ -563,7 +563,7 @@ pub struct PoseJson {
 /// One result: status and why, matrices, principal compliances, deflection, free directions.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ResultJson {
-    /// The status (README: statuses).
+    /// The status (docs/GUIDE.md: statuses).
     pub status: &'static str,
     /// Why there is no compliance, where a leg or the loaded equilibrium failed.
     pub reason: Option<String>,

@@ -68,7 +68,7 @@ impl SpringGroup {
 
     /// Stiffness and compliance at the given coordinates. Where a posture-dependent spring has no
     /// finite value (`Parallelogram::stiffness`, a formula's), both are NaN: the leg's answer is then not
-    /// finite and its point is reported as `overflow` (statuses in README), never a panic.
+    /// finite and its point is reported as `overflow` (statuses in docs/GUIDE.md), never a panic.
     pub fn at(&self, coords: &Coordinates) -> (Mat6, Mat6) {
         if let Some(c) = &self.of_coordinate {
             return one_coordinate(c.compliance(coords));
