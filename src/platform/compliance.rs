@@ -272,11 +272,69 @@ pub fn analyse(k: &Mat6, magnitude: &Vec6, length_scale: f64, symmetric: bool) -
     Analysis { outcome: Outcome::IllConditioned, condition, positive_definite }
 }
 
-/// The condition number of a full-rank stiffness as `analyse` computes it (1-norm, of the equilibrated
-/// matrix, from its LU inverse); infinite where that has none.
-pub fn condition(k: &Mat6, magnitude: &Vec6, length_scale: f64) -> f64 {
-    let ke = equilibrated(k, magnitude, length_scale).0;
-    ke.lu().try_inverse().filter(|inv| all_finite(inv.as_slice())).map_or(f64::INFINITY, |inv| norm1(&ke) * norm1(&inv))
+/// What the analysis of a serial arm's compliance decides (`serial.rs`: C computed directly).
+#[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant)]
+pub enum ArmOutcome {
+    /// Full rank, the equilibrated stiffness's condition within `CONDITION_LIMIT`: K = C^-1.
+    Regular {
+        /// K = C^-1.
+        stiffness: Mat6,
+        /// Its condition number, as `analyse` computes it.
+        condition: f64,
+        /// The symmetric part of K is positive definite (always, unloaded: C is).
+        positive_definite: bool,
+    },
+    /// Full rank, but past `CONDITION_LIMIT` (or, unloaded, indefinite by round-off).
+    IllConditioned {
+        /// Its condition number (infinite where K could not be formed).
+        condition: f64,
+    },
+    /// Rank below 6: the rigid directions (`rigid_directions`).
+    Rigid {
+        /// The rank of C.
+        rank: usize,
+        /// A basis of the rigid unit wrenches.
+        rigid: Vec<Vec6>,
+    },
+    /// C has non-finite entries.
+    NotFinite,
+}
+
+/// A serial arm's compliance C analysed as `analyse` analyses K = C^-1, for one inversion: C inverted
+/// (Cholesky where it is symmetric, LU otherwise, on C equilibrated to a unit diagonal), the equilibrated
+/// K's condition taken from K and from C itself (the equilibrated K's inverse is T^-1 C T^-1: no second
+/// inversion), and the rank decided on C (`rigid_directions`) only where the inversion fails or the
+/// condition is past the limit. `symmetric`: C is symmetric by theory (unloaded).
+pub fn analyse_compliance(c: &Mat6, length_scale: f64, symmetric: bool) -> ArmOutcome {
+    if !all_finite(c.as_slice()) {
+        return ArmOutcome::NotFinite;
+    }
+    let rank_or = |fallback: ArmOutcome| match rigid_directions(c, length_scale) {
+        Some((rank, rigid)) => ArmOutcome::Rigid { rank, rigid },
+        None => fallback,
+    };
+    // C brought to a unit diagonal (its diagonal is positive wherever C has full rank), inverted.
+    let d = Vec6::from_fn(|i, _| c[(i, i)]);
+    if d.iter().any(|v| v.is_nan() || *v <= 0.0) {
+        return rank_or(ArmOutcome::IllConditioned { condition: f64::INFINITY });
+    }
+    let e = d.map(|v| 1.0 / v.sqrt());
+    let ce = Mat6::from_fn(|i, j| c[(i, j)] * e[i] * e[j]);
+    let inverse = if symmetric { crate::linalg::spd_inverse6(&ce) } else { ce.lu().try_inverse() };
+    let Some(inverse) = inverse.filter(|m| all_finite(m.as_slice())) else {
+        return rank_or(ArmOutcome::IllConditioned { condition: f64::INFINITY });
+    };
+    let k = Mat6::from_fn(|i, j| inverse[(i, j)] * e[i] * e[j]);
+    let magnitude = Vec6::from_fn(|i, _| k[(i, i)].abs());
+    let (ke, t) = equilibrated(&k, &magnitude, length_scale);
+    let equilibrated_inverse = Mat6::from_fn(|i, j| c[(i, j)] / (t[i] * t[j]));
+    let condition = norm1(&ke) * norm1(&equilibrated_inverse);
+    if condition <= CONDITION_LIMIT {
+        let positive_definite = symmetric || definite_beyond_rank_tolerance(&ke);
+        return ArmOutcome::Regular { stiffness: k, condition, positive_definite };
+    }
+    rank_or(ArmOutcome::IllConditioned { condition })
 }
 
 /// A serial arm's compliance C of rank below 6 (`serial.rs`): its rank and a basis of its rigid directions,

@@ -73,8 +73,8 @@ impl Manipulator {
             return Some(Err(PoseFailure { leg: 0, failure: LegFailure::SingularChain }));
         }
         let (jac, coords) = leg.evaluated(s);
-        let columns: Vec<Vec6> = jac.virtual_.iter().map(|c| shifted(c, &(platform.pos - jac.end.pos))).collect();
-        let compliance = spring_compliance_at_end(&columns, &leg.springs, coords);
+        let compliance =
+            shifted(&spring_compliance_at_end(&jac.virtual_, &leg.springs, coords), &(platform.pos - jac.end.pos));
         if !all_finite(compliance.as_slice()) {
             return Some(Err(PoseFailure { leg: 0, failure: LegFailure::NotFinite }));
         }
@@ -113,11 +113,16 @@ fn springs_positive(leg: &VjmLeg, coords: &Coordinates) -> bool {
     })
 }
 
-/// A twist moved to the point `arm` away from where it was seen: v + w x arm.
-fn shifted(c: &Vec6, arm: &Vec3) -> Vec6 {
-    let (v, w) = (c.fixed_rows::<3>(0).into_owned(), c.fixed_rows::<3>(3).into_owned());
-    let v = v + w.cross(arm);
-    Vec6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+/// A compliance seen at the end point moved to the point `arm` away (the reference point, where inverse
+/// kinematics left the end within its tolerance of it): twists move as v + w x arm, so C' = A C A^T with
+/// A = [[I, -[arm]x], [0, I]]. The identity where the two points coincide, as they do at joint coordinates.
+fn shifted(c: &Mat6, arm: &Vec3) -> Mat6 {
+    if *arm == Vec3::zeros() {
+        return *c;
+    }
+    let mut a = Mat6::identity();
+    a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-arm.cross_matrix()));
+    a * c * a.transpose()
 }
 
 /// One loaded solve of a serial arm.
@@ -128,17 +133,22 @@ struct ArmSolver<'a> {
     wrench: Vec6,
 }
 
-/// What one evaluation of the arm's statics gives: the residual g - K (theta - theta0) and the Newton
-/// matrix K - H.
+/// What one evaluation of the arm's statics gives: the residual g - K (theta - theta0) and, where asked for,
+/// the Newton matrix K - H.
 struct Statics {
     residual: Vec<f64>,
-    matrix: DMatrix<f64>,
+    matrix: Option<DMatrix<f64>>,
 }
+
+/// A chord step that shrinks the step by less than this has a matrix too far from the state's: the next
+/// step computes it afresh.
+const CHORD_STALL: f64 = 0.1;
 
 impl ArmSolver<'_> {
     /// The statics at `coords` under the share `load` of every load (the wrench, the links' and the
-    /// payload's weight), the chain evaluated there into `jac`.
-    fn statics(&mut self, coords: &Coordinates, load: f64) -> Statics {
+    /// payload's weight), the chain evaluated there into `jac`; the Newton matrix with `with_matrix` (its
+    /// load Hessian costs more than the rest).
+    fn statics(&mut self, coords: &Coordinates, load: f64, with_matrix: bool) -> Statics {
         let n = coords.virtual_.len();
         self.leg.chain.evaluate(coords, self.jac);
         self.jac.fill_virtual();
@@ -146,46 +156,58 @@ impl ArmSolver<'_> {
         let wrench = self.wrench * load;
         let mut residual = vec![0.0; n];
         self.jac.add_generalised_forces(&wrench, &gravity, 0, &mut residual);
-        let mut h = DMatrix::zeros(n, n);
-        self.jac.add_load_hessian(&wrench, &gravity, 0, &mut h);
-        if let Some(p) = self.m.payload {
+        let payload = self.m.payload.map(|p| {
             let end = self.jac.end;
-            let (point, force) = (end.pos + end.rot * p.centre, self.m.weight_gravity() * (p.mass_kg * load));
+            (end.pos + end.rot * p.centre, self.m.weight_gravity() * (p.mass_kg * load))
+        });
+        if let Some((point, force)) = payload {
             self.jac.add_point_force(&point, &force, 0, &mut residual);
-            self.jac.add_point_force_hessian(&point, &force, 0, &mut h);
         }
-        let mut matrix = -h;
+        let mut matrix = with_matrix.then(|| {
+            let mut h = DMatrix::zeros(n, n);
+            self.jac.add_load_hessian(&wrench, &gravity, 0, &mut h);
+            if let Some((point, force)) = payload {
+                self.jac.add_point_force_hessian(&point, &force, 0, &mut h);
+            }
+            -h
+        });
         for g in &self.leg.springs {
             let k = g.stiffness_at(coords);
             let rest = &self.leg.preload[g.first..g.first + g.dim];
-            let deflection: Vec<f64> =
-                coords.virtual_[g.first..g.first + g.dim].iter().zip(rest).map(|(t, r)| t - r).collect();
+            let theta = &coords.virtual_[g.first..g.first + g.dim];
             for i in 0..g.dim {
-                for (j, d) in deflection.iter().enumerate() {
-                    matrix[(g.first + i, g.first + j)] += k[(i, j)];
-                    residual[g.first + i] -= k[(i, j)] * d;
+                for j in 0..g.dim {
+                    residual[g.first + i] -= k[(i, j)] * (theta[j] - rest[j]);
+                    if let Some(m) = matrix.as_mut() {
+                        m[(g.first + i, g.first + j)] += k[(i, j)];
+                    }
                 }
             }
         }
         Statics { residual, matrix }
     }
 
-    /// Newton's method for the share `load` from `coords` (left at the solution): the iterations and the
-    /// last Newton matrix (within `NEWTON_TOLERANCE` of the equilibrium's).
-    fn newton(&mut self, coords: &mut Coordinates, load: f64) -> Result<(usize, DMatrix<f64>), DeflectionFailure> {
-        let lengths = self.leg.chain.length_coordinates().to_vec();
+    /// Newton's method for the share `load` from `coords` (left at the solution), chord steps on the last
+    /// matrix while they shrink the step tenfold or more: the iterations.
+    fn newton(&mut self, coords: &mut Coordinates, load: f64) -> Result<usize, DeflectionFailure> {
         let scale = self.leg.length_scale;
+        let mut factor: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>> = None;
+        let mut last_size = f64::INFINITY;
         for iteration in 1..=MAX_NEWTON {
-            let Statics { residual, matrix } = self.statics(coords, load);
-            let step = matrix
-                .clone()
-                .lu()
+            let Statics { residual, matrix } = self.statics(coords, load, factor.is_none());
+            if let Some(m) = matrix {
+                factor = Some(m.lu());
+            }
+            let step = factor
+                .as_ref()
+                .expect("made above")
                 .solve(&nalgebra::DVector::from_vec(residual))
                 .filter(|s| all_finite(s.as_slice()))
                 .ok_or(DeflectionFailure::SingularStiffness { load_fraction: load })?;
+            let lengths = self.leg.chain.length_coordinates();
             let size = step
                 .iter()
-                .zip(&lengths)
+                .zip(lengths)
                 .map(|(d, is_length)| if *is_length { d.abs() / scale } else { d.abs() })
                 .fold(0.0, f64::max);
             if size > 1.0 {
@@ -196,8 +218,12 @@ impl ArmSolver<'_> {
                 *t += d;
             }
             if size <= NEWTON_TOLERANCE {
-                return Ok((iteration, matrix));
+                return Ok(iteration);
             }
+            if size > CHORD_STALL * last_size {
+                factor = None;
+            }
+            last_size = size;
         }
         Err(DeflectionFailure::NotConverged { load_fraction: load })
     }
@@ -205,14 +231,12 @@ impl ArmSolver<'_> {
     /// The equilibrium under the whole load, by load steps where a direct solve fails, and its answer.
     fn continuation(&mut self, commanded: &Frame, coords: &mut Coordinates) -> Result<ArmAnswer, DeflectionFailure> {
         let (mut done, mut step, mut iterations) = (0.0f64, 1.0f64, 0);
-        let mut last = None;
         while done < 1.0 {
             let target = (done + step).min(1.0);
             let saved = coords.virtual_.clone();
             match self.newton(coords, target) {
-                Ok((its, matrix)) => {
+                Ok(its) => {
                     iterations += its;
-                    last = Some(matrix);
                     done = target;
                     step = (step * 2.0).min(1.0);
                 }
@@ -230,13 +254,12 @@ impl ArmSolver<'_> {
                 }
             }
         }
-        let matrix = last.expect("a finished continuation solved its last step");
-        // The pose and the Jacobian at the equilibrium (the last step moved it by round-off).
-        self.leg.chain.evaluate(coords, self.jac);
-        self.jac.fill_virtual();
+        // At the equilibrium (the last step moved it by round-off): the pose, the Jacobian and the matrix of
+        // the tangent.
+        let matrix = self.statics(coords, 1.0, true).matrix.expect("asked for");
         let pose = self.jac.end;
-        let inverse =
-            matrix.clone().lu().try_inverse().ok_or(DeflectionFailure::SingularStiffness { load_fraction: 1.0 })?;
+        let singular = DeflectionFailure::SingularStiffness { load_fraction: 1.0 };
+        let inverse = matrix.clone().lu().try_inverse().ok_or(singular)?;
         let n = coords.virtual_.len();
         let j = DMatrix::from_fn(6, n, |r, c| self.jac.virtual_[c][r]);
         let c = &j * inverse * j.transpose();
@@ -244,13 +267,8 @@ impl ArmSolver<'_> {
         if !all_finite(compliance.as_slice()) || !all_finite(pose.pos.as_slice()) {
             return Err(DeflectionFailure::Leg(PoseFailure { leg: 0, failure: LegFailure::NotFinite }));
         }
-        Ok(ArmAnswer {
-            pose,
-            displacement: commanded.error_to(&pose),
-            compliance,
-            stable: energy_minimum(&matrix),
-            iterations,
-        })
+        let stable = energy_minimum(&matrix);
+        Ok(ArmAnswer { pose, displacement: commanded.error_to(&pose), compliance, stable, iterations })
     }
 }
 

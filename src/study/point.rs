@@ -8,7 +8,7 @@ use crate::kinematics::frame::{Mat6, Vec3, Vec6};
 use crate::linalg::all_finite;
 use crate::model::grid::PosePoint;
 use crate::output::report::{fmt6, matrix, TWIST, WRENCH};
-use crate::platform::compliance::{analyse, condition, principal, rigid_directions, Outcome, PrincipalCompliance};
+use crate::platform::compliance::{analyse, analyse_compliance, principal, ArmOutcome, Outcome, PrincipalCompliance};
 use crate::platform::leg::LegFailure;
 use crate::platform::loaded::DeflectionFailure;
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
@@ -187,35 +187,29 @@ impl PointResult {
     /// A direction K resists least is never called free: an arm has no passive joint, so nothing is free
     /// (a nearly singular configuration is `ill_conditioned`).
     fn from_compliance(c: Mat6, length_scale: f64, loaded: bool) -> Self {
-        if !all_finite(c.as_slice()) {
-            return PointResult::failed(Status::Overflow);
-        }
-        let rigid_result = |rank: usize, rigid: Vec<Vec6>| PointResult {
-            status: Status::RigidDirections,
-            rank: Some(rank),
-            condition: Some(f64::INFINITY),
-            compliance: Some(c),
-            principal: principal(&c),
-            rigid,
-            ..PointResult::failed(Status::RigidDirections)
-        };
-        if let Some((rank, rigid)) = rigid_directions(&c, length_scale) {
-            return rigid_result(rank, rigid);
-        }
-        let Some(k) = c.try_inverse() else { return rigid_result(5, Vec::new()) };
-        let k = if loaded { k } else { (k + k.transpose()) * 0.5 };
-        let magnitude = Vec6::from_fn(|i, _| k[(i, i)].abs());
-        let r = PointResult::from_stiffness(k, &magnitude, length_scale, loaded);
-        match r.status {
-            Status::Ok => PointResult { compliance: Some(c), principal: principal(&c), ..r },
-            Status::Singular => PointResult {
+        let base = PointResult { compliance: Some(c), principal: principal(&c), ..PointResult::failed(Status::Ok) };
+        match analyse_compliance(&c, length_scale, !loaded) {
+            ArmOutcome::Regular { stiffness, condition, positive_definite } => PointResult {
+                status: if loaded || positive_definite { Status::Ok } else { Status::IllConditioned },
+                rank: Some(6),
+                condition: Some(condition),
+                stiffness: Some(stiffness),
+                ..base
+            },
+            ArmOutcome::IllConditioned { condition } => PointResult {
                 status: Status::IllConditioned,
                 rank: Some(6),
-                condition: Some(condition(&k, &magnitude, length_scale)),
-                free: Vec::new(),
-                ..r
+                condition: Some(condition),
+                ..PointResult::failed(Status::IllConditioned)
             },
-            _ => r,
+            ArmOutcome::Rigid { rank, rigid } => PointResult {
+                status: Status::RigidDirections,
+                rank: Some(rank),
+                condition: Some(f64::INFINITY),
+                rigid,
+                ..base
+            },
+            ArmOutcome::NotFinite => PointResult::failed(Status::Overflow),
         }
     }
 
