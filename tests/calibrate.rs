@@ -1463,3 +1463,23 @@ fn position_files_name_every_measurement_they_do_not_use_and_count_none_twice() 
     assert!(text.contains("note: 1 rows without a sigma_mm (lines 6) take the file's median sigma, 0.05 mm"), "{text}");
     assert!(!text.contains("the noise level was not given"), "{text}");
 }
+
+/// Regression: a model named by a bare file name (its folder the working folder) kept its URDF's relative
+/// path when `--model-out` wrote the corrected model to another folder, which then could not be read. The
+/// written model names the URDF where it is, and loads from anywhere.
+#[test]
+fn a_model_written_elsewhere_finds_its_urdf() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy("manipulators/fanuc-r2000ic.urdf", dir.path().join("fanuc-r2000ic.urdf")).unwrap();
+    std::fs::copy(FANUC, dir.path().join("arm.toml")).unwrap();
+    let h = Hidden::registration_only();
+    std::fs::write(dir.path().join("d.csv"), synthetic(&h, 20, 0.05, &[], true, 2)).unwrap();
+    std::fs::create_dir(dir.path().join("out")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .current_dir(dir.path())
+        .args(["diagnose", "arm.toml", "--data", "d.csv", "--sigma", "0.05", "--model-out", "out/c.toml"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    stiff::model::load_manipulator(&dir.path().join("out/c.toml")).unwrap();
+}

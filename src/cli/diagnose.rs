@@ -285,8 +285,9 @@ fn write_corrected(
     correct: impl FnOnce(&str, &std::path::Path) -> String,
 ) -> Result<()> {
     let source = read_text(model)?;
-    let dir = model.parent().map(|p| p.to_path_buf()).unwrap_or_default();
-    let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+    // A bare file name's folder is "" (the working folder), which canonicalises to nothing: ".".
+    let dir = model.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
+    let dir = std::fs::canonicalize(dir).unwrap_or(dir.to_path_buf());
     sink.writer().write_all(correct(&source, &dir).as_bytes())?;
     sink.finish()?;
     Ok(())
