@@ -251,13 +251,29 @@ pub(super) fn spring_compliances(values: &[f64], se: &[f64]) -> Option<Vec<f64>>
     values
         .iter()
         .zip(se.iter().map(Some).chain(std::iter::repeat(None)))
-        .map(|(v, se)| match (*v >= 0.0, se.filter(|s| s.is_finite())) {
-            (true, _) => Some(*v),
-            (false, Some(s)) if *v >= -2.0 * s => Some(0.0),
-            (false, None) => Some(0.0),
-            _ => None,
+        .map(|(v, se)| match se.filter(|s| s.is_finite()) {
+            // A direction the data did not see has no value to write (the fit's number there is its
+            // smallest change, 31 mm/N or 1e20 as it fell): rigid, as the description was.
+            None => Some(0.0),
+            Some(_) if *v >= 0.0 => Some(*v),
+            Some(s) if *v >= -2.0 * s => Some(0.0),
+            Some(_) => None,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    /// Regression: a frame compliance's unseen directions (standard error null) were written as the fit's
+    /// numbers there (31 mm/N, 1e20), after which the written model had no equilibrium at any row. They are
+    /// written rigid; a seen value below zero within two standard errors is rigid too, and one below by
+    /// more is no spring at all.
+    #[test]
+    fn unseen_and_negative_spring_directions_are_written_rigid_or_refused() {
+        let (values, se) = ([1e-3, 31.0, -1e-5, 1e20], [1e-4, f64::NAN, 1e-5, f64::NAN]);
+        assert_eq!(super::spring_compliances(&values, &se), Some(vec![1e-3, 0.0, 0.0, 0.0]));
+        assert_eq!(super::spring_compliances(&[-1e-3], &[1e-5]), None);
+    }
 }
 
 /// One effect as the description's table: `[[joint_correction]]` for an offset, compliance, geometry or
