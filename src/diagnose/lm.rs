@@ -109,11 +109,21 @@ pub fn solve<L: LeastSquares>(problem: &L, start: L::Point) -> Result<Solution<L
     for _ in 0..MAX_STEPS {
         let scale = column_scales(&jac);
         let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
-        let svd = scaled.svd(true, true);
-        // Both are computed when asked for; without them there is no step to take.
-        let (Some(u), Some(v_t)) = (svd.u.as_ref(), svd.v_t.as_ref()) else { break };
+        // Without U (its accumulation cost as much again as the rest of the SVD on the wide Jacobians of
+        // many set-ups): U^T e along a seen direction is v_k . (J^T e) / s_k, and no step is taken along the
+        // others.
+        let jte = scaled.transpose() * &e;
+        let svd = scaled.svd(false, true);
+        let Some(v_t) = svd.v_t.as_ref() else { break };
         let top = svd.singular_values.max();
-        let ue = u.transpose() * &e;
+        let ue = DVector::from_fn(svd.singular_values.len(), |k, _| {
+            let s = svd.singular_values[k];
+            if s > 0.0 {
+                v_t.row(k).transpose().dot(&jte) / s
+            } else {
+                0.0
+            }
+        });
         let mut improved = false;
         while lambda < DAMPING_CEILING {
             let mut step = DVector::zeros(p);
