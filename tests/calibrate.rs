@@ -1483,3 +1483,21 @@ fn a_model_written_elsewhere_finds_its_urdf() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     stiff::model::load_manipulator(&dir.path().join("out/c.toml")).unwrap();
 }
+
+/// The report says why the selection stopped: on data with nothing but the registration, the best
+/// candidate left with its test, against the threshold it had to pass (alpha over the candidates tested).
+#[test]
+fn the_report_says_why_the_selection_stopped() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = Hidden::registration_only();
+    std::fs::write(dir.path().join("d.csv"), synthetic(&h, 20, 0.05, &[], true, 3)).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["diagnose", FANUC, "--sigma", "0.05", "--data"])
+        .arg(dir.path().join("d.csv"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("verdict: none"), "{text}");
+    let line = text.lines().find(|l| l.starts_with("selection stopped: ")).unwrap_or_else(|| panic!("{text}"));
+    assert!(line.contains("the best candidate left, ") && line.contains("needs p below"), "{line}");
+}

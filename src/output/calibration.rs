@@ -156,6 +156,9 @@ pub struct CalibrationReport {
     pub rows: (usize, usize),
     /// The data's columns no rule read.
     pub unread: Vec<String>,
+    /// Why the selection of effects stopped.
+    #[serde(default)]
+    pub stopped: String,
     /// Measurements of the file not used, each with its line and why (an empty cell).
     #[serde(default)]
     pub not_used: Vec<String>,

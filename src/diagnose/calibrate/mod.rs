@@ -115,7 +115,7 @@ pub fn calibrate(
     let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
     check_fittable(&problem, data, &fit_rows, options)?;
     let (kept, selection, mut gross) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
-    let Selection { mut model, mut fit, steps, mut hidden } = selection;
+    let Selection { mut model, mut fit, steps, mut hidden, stopped } = selection;
     hidden.extend(one_sided);
     if problem.absolute {
         offsets_for_geometries(&problem, &kept, &candidates, options, sigma_known, &mut model, &mut fit);
@@ -161,6 +161,7 @@ pub fn calibrate(
         sigma_known,
         rows: (kept.len(), check_rows.len()),
         unread: data.unread.clone(),
+        stopped,
         not_used: data.not_used.clone(),
         not_used_count: data.not_used.len(),
         notes: data.notes.clone(),

@@ -364,6 +364,9 @@ pub fn text(c: &CalibrationReport, model: &str) -> String {
     for g in &c.left_out {
         let _ = writeln!(s, "gross row left out: {}: {:.4} {} from the model", g.row, g.misfit, g.unit);
     }
+    if !c.stopped.is_empty() {
+        let _ = writeln!(s, "selection stopped: {}", c.stopped);
+    }
     for (k, step) in c.steps.iter().enumerate() {
         let mut tested: Vec<&CandidateTest> = step.iter().filter(|t| t.f.is_some()).collect();
         tested.sort_by(|a, b| a.p.partial_cmp(&b.p).unwrap_or(std::cmp::Ordering::Equal));

@@ -88,6 +88,8 @@ pub(super) struct Selection {
     pub(super) fit: PositionFit,
     pub(super) steps: Vec<Vec<CandidateTest>>,
     pub(super) hidden: Vec<String>,
+    /// Why the forward selection stopped the last time (the limit of effects, or the best candidate's test).
+    pub(super) stopped: String,
 }
 
 /// Forward selection on `rows`: effects offered one at a time, each step accepting the best one whose F
@@ -107,13 +109,30 @@ pub(super) fn choose_effects(
     let mut steps = Vec::new();
     let mut hidden: Vec<String> = fit.hidden.iter().map(|d| problem.describe_hidden(d, &model)).collect();
     let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
+    let mut stopped = String::new();
     // Rounds of forward selection, backward elimination and swaps: an effect chosen early, while the model
     // still missed others, can absorb parts of several and leave each too weak to pass alone; a swap frees
     // them, and the next forward steps take them.
     for _ in 0..3 {
-        while model.len() < options.fitted.len() + options.max_effects {
+        loop {
+            if model.len() >= options.fitted.len() + options.max_effects {
+                stopped = format!(
+                    "at the limit of {} effects: the candidates left were not tested (a model this large rarely \
+                     helps; name the effects with --fit to test further)",
+                    options.max_effects
+                );
+                break;
+            }
             let (step, best, tested) = forward_step(problem, rows, candidates, &model, &fit, sigma_known);
             let threshold = options.alpha / tested.max(1) as f64;
+            stopped = match &best {
+                None => "no candidate left that the data can tell from the model".to_string(),
+                Some((statistic, p, c, f)) => format!(
+                    "the best candidate left, {} (F {statistic:.3}, p {p:.2e}, BIC {:+.1}), needs p below {threshold:.2e} and the BIC lower by more than {STRONG_EVIDENCE}",
+                    c.label(&problem.joints),
+                    bic(f) - bic(&fit)
+                ),
+            };
             // Accepted when its test passes and the evidence for it is strong (the BIC lower by more than 10,
             // as the other diagnosis asks): an effect of six parameters on few rows must pay for them.
             let accept = best
@@ -164,7 +183,7 @@ pub(super) fn choose_effects(
             }
         }
     }
-    Ok(Selection { model, fit, steps, hidden })
+    Ok(Selection { model, fit, steps, hidden, stopped })
 }
 
 /// A candidate tested best: its F statistic, its p-value, the candidate and its fit.
