@@ -262,20 +262,6 @@ pub(super) fn spring_compliances(values: &[f64], se: &[f64]) -> Option<Vec<f64>>
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    /// Regression: a frame compliance's unseen directions (standard error null) were written as the fit's
-    /// numbers there (31 mm/N, 1e20), after which the written model had no equilibrium at any row. They are
-    /// written rigid; a seen value below zero within two standard errors is rigid too, and one below by
-    /// more is no spring at all.
-    #[test]
-    fn unseen_and_negative_spring_directions_are_written_rigid_or_refused() {
-        let (values, se) = ([1e-3, 31.0, -1e-5, 1e20], [1e-4, f64::NAN, 1e-5, f64::NAN]);
-        assert_eq!(super::spring_compliances(&values, &se), Some(vec![1e-3, 0.0, 0.0, 0.0]));
-        assert_eq!(super::spring_compliances(&[-1e-3], &[1e-5]), None);
-    }
-}
-
 /// One effect as the description's table: `[[joint_correction]]` for an offset, compliance, geometry or
 /// frame compliance, `[[payload]]` for a payload (`values` its mass and first moment in the tool frame);
 /// play has none.
@@ -422,4 +408,18 @@ pub(super) fn stage_line(s: &mut String, st: &Stage, set: &str, e: &ErrorStats) 
         e.p95,
         e.max
     );
+}
+
+#[cfg(test)]
+mod tests {
+    /// Regression: a frame compliance's unseen directions (standard error null) were written as the fit's
+    /// numbers there (31 mm/N, 1e20), after which the written model had no equilibrium at any row. They are
+    /// written rigid; a seen value below zero within two standard errors is rigid too, and one below by
+    /// more is no spring at all.
+    #[test]
+    fn unseen_and_negative_spring_directions_are_written_rigid_or_refused() {
+        let (values, se) = ([1e-3, 31.0, -1e-5, 1e20], [1e-4, f64::NAN, 1e-5, f64::NAN]);
+        assert_eq!(super::spring_compliances(&values, &se), Some(vec![1e-3, 0.0, 0.0, 0.0]));
+        assert_eq!(super::spring_compliances(&[-1e-3], &[1e-5]), None);
+    }
 }
