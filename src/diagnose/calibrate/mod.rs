@@ -55,7 +55,7 @@ use select::{choose_effects, error_stats, gross_rows, gross_rows_against, nested
 
 use std::borrow::Cow;
 
-use super::positions::{Observed, PositionData};
+use super::positions::{Observed, PositionData, PositionRow};
 use super::stats::chi2_sf;
 use crate::kinematics::frame::{Frame, Vec3};
 pub use crate::output::calibration::{
@@ -111,9 +111,17 @@ pub fn calibrate(
     });
     let usable = |r: &usize| !problem.unusable.iter().any(|(k, _)| k == r);
     let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
-    let check_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).collect();
+    // A set-up whose frame its fit rows cannot fix is named and its rows kept out of the fit and the verdict:
+    // its check rows would be predicted through an arbitrary frame and called gross.
+    let unplaced = unplaceable_setups(data, &fit_rows);
+    let placed = |r: &usize| {
+        data.rows[*r].observed.target_and_setup().is_none_or(|(_, setup)| !unplaced.iter().any(|(s, _)| *s == setup))
+    };
+    let fit_rows: Vec<usize> = fit_rows.into_iter().filter(placed).collect();
+    let check_rows: Vec<usize> =
+        (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).filter(placed).collect();
     let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
-    check_fittable(&problem, data, &fit_rows, options)?;
+    check_fittable(&problem, data, &fit_rows, &unplaced, options)?;
     let (kept, selection, mut gross) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
     let Selection { mut model, mut fit, steps, mut hidden, stopped } = selection;
     hidden.extend(one_sided);
@@ -135,7 +143,10 @@ pub fn calibrate(
     let scale = (fit.rss / fit.dof() as f64).sqrt();
     let variance = scale * scale;
     let mut accepted = accepted_effects(&problem, &model, &fit, variance);
-    let nuisance = if problem.absolute { nuisance_values(&problem, data, &fit, variance) } else { Vec::new() };
+    let nuisance =
+        if problem.absolute { nuisance_values(&problem, data, &fit, variance, &unplaced) } else { Vec::new() };
+    // The directions of a set-up set aside are all unseen: said once, by its line in `not_used`.
+    hidden.retain(|h| !unplaced.iter().any(|(s, _)| h.contains(&format!("set-up {}'s", data.setups[*s]))));
     let stages = stage_errors(&problem, options, &model, &fit, [&kept, &check_rows, &all_checks]);
     if !check_rows.is_empty() && stages.len() == model.len() - options.fitted.len() + 1 {
         for (k, a) in accepted[options.fitted.len()..].iter_mut().enumerate() {
@@ -162,8 +173,8 @@ pub fn calibrate(
         rows: (kept.len(), check_rows.len()),
         unread: data.unread.clone(),
         stopped,
-        not_used: data.not_used.clone(),
-        not_used_count: data.not_used.len(),
+        not_used_count: data.not_used.len() + unplaced.len(),
+        not_used: data.not_used.iter().cloned().chain(unplaced.iter().map(|(_, why)| why.clone())).collect(),
         notes: data.notes.clone(),
     };
     let leg_corrections = problem
@@ -223,10 +234,44 @@ fn offered(
 
 /// The fitted rows can fit what every fit fits: each set-up and target seen, more coordinates than the
 /// registration's and the fixed effects' parameters.
+/// The set-ups whose frame the fit rows cannot fix, with why: fewer than three configurations measured in
+/// position (two, where an orientation is measured too) leave some of its six parameters unseen.
+fn unplaceable_setups(data: &PositionData, fit_rows: &[usize]) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    for (k, name) in data.setups.iter().enumerate() {
+        let rows: Vec<&PositionRow> = fit_rows
+            .iter()
+            .map(|&r| &data.rows[r])
+            .filter(|r| r.observed.target_and_setup().is_some_and(|(_, s)| s == k))
+            .collect();
+        let mut configurations: Vec<usize> = rows.iter().map(|r| r.configuration).collect();
+        configurations.sort_unstable();
+        configurations.dedup();
+        let oriented = rows.iter().any(|r| matches!(r.observed, Observed::Orientation { .. }));
+        let needed = if oriented { 2 } else { 3 };
+        // A set-up with no fit row at all is refused with its own message (`check_fittable`).
+        if !rows.is_empty() && configurations.len() < needed {
+            let named = if name.is_empty() { "the set-up".to_string() } else { format!("set-up `{name}`") };
+            let all = data.rows.iter().filter(|r| r.observed.target_and_setup().is_some_and(|(_, s)| s == k)).count();
+            out.push((
+                k,
+                format!(
+                    "{named} cannot be placed: its fit rows measure {} configuration{} ({needed} are needed to fix its frame{}); its {all} rows are left out of the fit and the verdict",
+                    configurations.len(),
+                    if configurations.len() == 1 { "" } else { "s" },
+                    if oriented { " with an orientation" } else { ", or 2 with an orientation" }
+                ),
+            ));
+        }
+    }
+    out
+}
+
 fn check_fittable(
     problem: &PositionProblem,
     data: &PositionData,
     fit_rows: &[usize],
+    unplaced: &[(usize, String)],
     options: &CalibrationOptions,
 ) -> Result<(), CalibrationError> {
     if fit_rows.is_empty() {
@@ -246,7 +291,8 @@ fn check_fittable(
         (&data.targets, "target", |o: &Observed| o.target_and_setup().map(|(target, _)| target)),
     ] {
         for (k, name) in names.iter().enumerate() {
-            if !fit_rows.iter().any(|&r| of(&data.rows[r].observed) == Some(k)) {
+            let set_aside = what == "set-up" && unplaced.iter().any(|(s, _)| *s == k);
+            if !set_aside && !fit_rows.iter().any(|&r| of(&data.rows[r].observed) == Some(k)) {
                 let named = if name.is_empty() { format!("the {what}") } else { format!("{what} `{name}`") };
                 return Err(CalibrationError::TooFew(format!(
                     "{named} has no fitted rows (only check rows, or rows without a prediction): its {} cannot be fitted; mark some of its rows `fit`",
@@ -374,10 +420,20 @@ fn accepted_effects(
 }
 
 /// The registration's and targets' fitted values (mm, mrad) with their standard errors.
-fn nuisance_values(problem: &PositionProblem, data: &PositionData, fit: &PositionFit, variance: f64) -> Vec<Nuisance> {
+/// The set-ups in `unplaced` (no rows fitted: their frames unseen) are left out.
+fn nuisance_values(
+    problem: &PositionProblem,
+    data: &PositionData,
+    fit: &PositionFit,
+    variance: f64,
+    unplaced: &[(usize, String)],
+) -> Vec<Nuisance> {
     let se3 = |k: usize, factor: f64| [0, 1, 2].map(|a| (fit.covariance[(k + a, k + a)] * variance).sqrt() * factor);
     let mut nuisance = Vec::new();
     for (s, name) in data.setups.iter().enumerate() {
+        if unplaced.iter().any(|(u, _)| *u == s) {
+            continue;
+        }
         let label = if name.is_empty() { "instrument".to_string() } else { format!("set-up {name}") };
         let rotation = crate::kinematics::frame::rotation_vector(&fit.params.rotations[s]);
         nuisance.push(Nuisance {
