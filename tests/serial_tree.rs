@@ -405,3 +405,22 @@ fn endless_files_and_non_finite_tools_are_refused() {
     let e = load("arm.urdf", "tool = { translation = [1e300, 0, 0] }").unwrap_err();
     assert!(e.contains("arm.toml, line 8") && e.contains("ten kilometres"), "{e}");
 }
+
+/// At a kinematic singularity a six-joint arm with a spring at every joint cannot move its tool along one
+/// direction: its compliance J K^-1 J^T has rank 5 and that direction is rigid, not free (every motion it
+/// can make is resisted by a spring). The FANUC with its wrist straight (every angle zero, J4 and J6 on one
+/// axis): `rigid_directions`, rank 5, one rigid wrench, which the compliance maps to nothing, and no free
+/// direction; a thousandth of a radian away the arm is `ill_conditioned`, never `singular`.
+#[test]
+fn a_singular_configuration_is_rigid_along_one_direction_not_free() {
+    let m = stiff::model::load_manipulator(Path::new(FANUC)).unwrap();
+    let (frame, mut state) = placed(&m, &[0.0; 6]);
+    let r = unloaded_point(&m, &pose_point(&frame), &mut state);
+    assert_eq!((r.status, r.rank, r.rigid.len(), r.free.len()), (Status::RigidDirections, Some(5), 1, 0), "{r:?}");
+    let c = r.compliance.unwrap();
+    // The rigid wrench in N and N mm: its moment weighed by the length scale, as the directions are unit.
+    assert!((c * r.rigid[0]).norm() < 1e-9 * c.norm() * m.length_scale, "{}", c * r.rigid[0]);
+    let (frame, mut state) = placed(&m, &[0.0, 0.0, 0.0, 0.0, 1e-3, 0.0]);
+    let r = unloaded_point(&m, &pose_point(&frame), &mut state);
+    assert_eq!((r.status, r.free.len()), (Status::IllConditioned, 0), "{r:?}");
+}
