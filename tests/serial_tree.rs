@@ -424,3 +424,28 @@ fn a_singular_configuration_is_rigid_along_one_direction_not_free() {
     let r = unloaded_point(&m, &pose_point(&frame), &mut state);
     assert_eq!((r.status, r.free.len()), (Status::IllConditioned, 0), "{r:?}");
 }
+
+/// A mimic joint's master may be off the path: a lifting column logged by its bottom stage's coordinate
+/// (`lift`, on a branch of its own), its two stages on the path both mimicking it. The model's coordinate
+/// is `lift` (mm), the tool rises by twice it (plus the stages' origins), and the lift's spring k drives both
+/// stages: the vertical compliance is (1 + 1)^2 / k, everything else rigid.
+#[test]
+fn a_master_off_the_path_is_a_coordinate_of_the_model() {
+    let urdf = r#"<robot name="column">
+  <link name="base"/><link name="encoder"/><link name="s1"/><link name="s2"/><link name="tool"/>
+  <joint name="lift" type="prismatic"><parent link="base"/><child link="encoder"/><axis xyz="0 0 1"/><limit lower="0" upper="0.5"/></joint>
+  <joint name="stage1" type="prismatic"><parent link="base"/><child link="s1"/><origin xyz="0 0 0.3"/><axis xyz="0 0 1"/><mimic joint="lift"/></joint>
+  <joint name="stage2" type="prismatic"><parent link="s1"/><child link="s2"/><origin xyz="0 0 0.2"/><axis xyz="0 0 1"/><mimic joint="stage1"/></joint>
+  <joint name="T" type="fixed"><parent link="s2"/><child link="tool"/><origin xyz="0.1 0 0"/></joint>
+</robot>"#;
+    let k = 2.0e4;
+    let (_dir, m) = arm(urdf, "base", "tool", &format!("joints = {{ lift = {{ stiffness = {k} }} }}"), "");
+    let m = m.unwrap();
+    assert_eq!(m.joint_space.as_ref().unwrap().names, vec!["lift".to_string()]);
+    let (frame, mut state) = placed(&m, &[120.0]);
+    assert!((frame.pos - Vec3::new(100.0, 0.0, 500.0 + 240.0)).norm() < 1e-9, "{}", frame.pos);
+    let r = unloaded_point(&m, &pose_point(&frame), &mut state);
+    assert_eq!((r.status, r.rank), (Status::RigidDirections, Some(1)));
+    let c = r.compliance.unwrap();
+    assert!((c[(2, 2)] - 4.0 / k).abs() < 1e-12 * 4.0 / k && (c.norm() - c[(2, 2)]).abs() < 1e-15, "{c}");
+}

@@ -235,7 +235,8 @@ fn offered(
 /// The fitted rows can fit what every fit fits: each set-up and target seen, more coordinates than the
 /// registration's and the fixed effects' parameters.
 /// The set-ups whose frame the fit rows cannot fix, with why: fewer than three configurations measured in
-/// position (two, where an orientation is measured too) leave some of its six parameters unseen.
+/// position (two, where an orientation is measured too) leave some of its six parameters unseen. None where
+/// no set-up could be placed (the data are then too few as a whole, said as such).
 fn unplaceable_setups(data: &PositionData, fit_rows: &[usize]) -> Vec<(usize, String)> {
     let mut out = Vec::new();
     for (k, name) in data.setups.iter().enumerate() {
@@ -263,6 +264,14 @@ fn unplaceable_setups(data: &PositionData, fit_rows: &[usize]) -> Vec<(usize, St
                 ),
             ));
         }
+    }
+    // Where no set-up can be placed the whole fit is short of rows: `check_fittable` and the fit say how many
+    // coordinates there are against how many parameters.
+    let with_rows = (0..data.setups.len())
+        .filter(|&k| fit_rows.iter().any(|&r| data.rows[r].observed.target_and_setup().is_some_and(|(_, s)| s == k)))
+        .count();
+    if out.len() == with_rows {
+        out.clear();
     }
     out
 }
