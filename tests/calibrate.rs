@@ -1417,47 +1417,31 @@ fn position_files_name_every_measurement_they_do_not_use_and_count_none_twice() 
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("c.json")).unwrap()).unwrap();
     assert_eq!(v["calibration"]["not_used_count"], 1);
     // Repeated columns: located errors, nothing fitted.
-    let twice = data.replacen("mx_mm,", "mx_mm,mx_mm,", 1);
-    let twice: String = twice
-        .lines()
-        .enumerate()
-        .map(|(k, l)| {
-            if k == 0 {
-                format!("{l}\n")
-            } else {
-                let c: Vec<&str> = l.split(',').collect();
-                format!("{},{}\n", c[..8].join(","), c[7..].join(","))
-            }
-        })
-        .collect();
+    // The file with its header line and each data line (numbered from 1) rewritten.
+    let edited = |header: &dyn Fn(&str) -> String, row: &dyn Fn(usize, &str) -> String| -> String {
+        let mut lines = data.lines();
+        let mut out = header(lines.next().unwrap()) + "\n";
+        for (k, l) in lines.enumerate() {
+            out += &(row(k + 1, l) + "\n");
+        }
+        out
+    };
+    let cells = |l: &str| l.split(',').map(String::from).collect::<Vec<_>>();
+    let twice = edited(&|h| h.replacen("mx_mm,", "mx_mm,mx_mm,", 1), &|_, l| {
+        let c = cells(l);
+        format!("{},{}", c[..8].join(","), c[7..].join(","))
+    });
     let (ok, _, err) = run(&twice, false);
     assert!(!ok && err.contains("line 1, column 9") && err.contains("the column `mx_mm` is given twice"), "{err}");
-    let metres: String = data
-        .lines()
-        .enumerate()
-        .map(|(k, l)| {
-            if k == 0 {
-                format!("{l},mx_m,my_m,mz_m\n")
-            } else {
-                let c: Vec<&str> = l.split(',').collect();
-                let m: Vec<String> =
-                    c[7..10].iter().map(|v| (v.parse::<f64>().unwrap() / 1000.0).to_string()).collect();
-                format!("{l},{}\n", m.join(","))
-            }
-        })
-        .collect();
+    let metres = edited(&|h| format!("{h},mx_m,my_m,mz_m"), &|_, l| {
+        let m: Vec<String> = cells(l)[7..10].iter().map(|v| (v.parse::<f64>().unwrap() / 1000.0).to_string()).collect();
+        format!("{l},{}", m.join(","))
+    });
     let (ok, _, err) = run(&metres, false);
     assert!(!ok && err.contains("`mx_mm` and `mx_m` give the same target's position"), "{err}");
     // A blank sigma cell: the row takes the file's median, the test of what is left stays on.
-    let with_sigma: String = data
-        .lines()
-        .enumerate()
-        .map(|(k, l)| match k {
-            0 => format!("{l},sigma_mm\n"),
-            5 => format!("{l},\n"),
-            _ => format!("{l},0.05\n"),
-        })
-        .collect();
+    let with_sigma =
+        edited(&|h| format!("{h},sigma_mm"), &|k, l| if k == 5 { format!("{l},") } else { format!("{l},0.05") });
     let (ok, text, err) = run(&with_sigma, false);
     assert!(ok, "{err}");
     assert!(text.contains("note: 1 rows without a sigma_mm (lines 6) take the file's median sigma, 0.05 mm"), "{text}");

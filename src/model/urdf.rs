@@ -375,7 +375,8 @@ impl Tree {
                     None => break,
                 }
             }
-            if state[at] == 1 && parent_joint[at].is_some() && walk.contains(&at) {
+            // A walk stops on a link it marked itself only where the parents came back round to it.
+            if state[at] == 1 && parent_joint[at].is_some() {
                 let j = &joints[parent_joint[at].expect("checked")];
                 return Err(r.at(
                     j.node,
