@@ -6,6 +6,8 @@
 pub const INDEX: &str = "index";
 /// The point's name, where the input gives one.
 pub const NAME: &str = "name";
+/// The tip of a tree a row is at (a model with several tips).
+pub const TIP: &str = "tip";
 /// Commanded position of the platform's reference point.
 pub const POSITION: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
 /// Commanded orientation, a rotation vector.

@@ -25,6 +25,7 @@ mod plan;
 mod plot;
 mod robustness;
 mod serial;
+mod serial_tips;
 mod serial_tree;
 mod shard;
 mod status;

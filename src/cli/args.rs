@@ -24,6 +24,10 @@ pub(crate) struct ModelArgs {
     /// Replace a parameter of the description for this run, e.g. --set mode=1 (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_assignment)]
     pub(crate) set: Vec<(String, f64)>,
+    /// A tree with several tips (`tips = [...]` in its `[leg.urdf]`): the tip that is this run's reference
+    /// point. Without it `map` writes a row per tip (a `tip` column) and the other commands use the first.
+    #[arg(long, value_name = "LINK")]
+    pub(crate) tip: Option<String>,
 }
 
 impl ModelArgs {
@@ -49,9 +53,28 @@ impl ModelArgs {
     pub(crate) fn load_model(&self) -> Result<Model> {
         let source = read_text(&self.model)?;
         let overrides = self.set.iter().cloned().collect();
-        let model = parse_with(&self.model, &source, &overrides, 0)?;
+        let mut model = parse_with(&self.model, &source, &overrides, 0)?;
         say_carried_mass(&model.manipulator);
+        if let Some(tip) = &self.tip {
+            let m = &model.manipulator;
+            model.manipulator = match m.tips() {
+                [] => bail!("--tip {tip}: {} is not a serial arm read from URDF: it has no tips", m.name),
+                tips => m.at_tip(tip).ok_or_else(|| {
+                    anyhow::anyhow!("--tip {tip}: {} has no tip named `{tip}` (tips: {})", m.name, tips.join(", "))
+                })?,
+            };
+        }
         Ok(model)
+    }
+
+    /// The tips whose rows a map writes: every tip of a tree (the one `--tip` names, where given); none
+    /// for a manipulator with one reference point.
+    pub(crate) fn map_tips(&self, m: &Manipulator) -> Vec<String> {
+        match (m.tips().len() > 1, &self.tip) {
+            (false, _) => Vec::new(),
+            (true, Some(_)) => m.tips()[..1].to_vec(),
+            (true, None) => m.tips().to_vec(),
+        }
     }
 }
 
@@ -226,6 +249,12 @@ impl PoseArgs {
                     None => bail!("--joints: these joint coordinates give no finite pose"),
                 }
             }
+            (None, Some(_)) if m.tips().len() > 1 => bail!(
+                "--at: {} is a tree with several tips ({}): a pose places one of them, not the tree; give --joints ({})",
+                m.name,
+                m.tips().join(", "),
+                m.joint_space.as_ref().map_or(String::new(), |s| s.names.join(", "))
+            ),
             (None, Some(at)) => Ok(PosePoint {
                 position: at,
                 rotation: self.orientation.unwrap_or_else(Vec3::zeros),
@@ -264,6 +293,14 @@ impl PointsArgs {
 pub(crate) fn arm_points(m: &Manipulator, mut points: PointSet, file: Option<&Path>) -> Result<PointSet> {
     let file = file.map(|p| format!("{}: ", p.display())).unwrap_or_default();
     if points.joint_names.is_empty() {
+        if m.tips().len() > 1 {
+            bail!(
+                "{file}{} is a tree with several tips ({}): a pose places one of them, not the tree; give the points as joint coordinates, one column q_<joint> each ({})",
+                m.name,
+                m.tips().join(", "),
+                m.joint_space.as_ref().map_or(String::new(), |s| s.names.join(", "))
+            );
+        }
         if let Some(space) = m.joint_space.as_ref().filter(|s| s.names.len() > 6) {
             bail!(
                 "{file}{} has {} joint coordinates ({}): a pose does not fix them; give the points as joint coordinates, one column q_<joint> each",
@@ -355,6 +392,7 @@ impl LoadArgs {
             wrench: self.wrench,
             use_point_wrench: self.loaded,
             selection: None,
+            tips: Vec::new(),
         })
     }
 }

@@ -56,6 +56,7 @@ pub(crate) fn run(a: MapArgs, matches: &ArgMatches) -> Result<()> {
     let shard = a.shard.split_points(&mut points, crate::batch::RUN, &a.output, a.plot.as_ref())?;
     let pool = thread_pool(a.run.threads)?;
     let mut options = a.load.map_options(&points, a.stiffness)?;
+    options.tips = a.model.map_tips(&model);
     let columns = map_columns(&points, &options);
     options.selection = select_columns(&a.columns, |w| map_selection(&columns, w))?;
     let table = map_table(&columns, options.selection.as_ref());

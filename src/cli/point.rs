@@ -44,10 +44,12 @@ pub(crate) fn run(a: PointArgs) -> Result<()> {
     let mut state = model.new_state();
     let p = PosePoint { wrench: a.wrench, ..a.pose.resolve(&model, &mut state)? };
     let r = unloaded_point(&model, &p, &mut state);
+    let tip = (model.tips().len() > 1).then(|| model.tips()[0].clone());
     let loaded = a.wrench.map(|w| loaded_point(&model, &p, &w, &mut state, &mut LoadedHistory::default()));
     let text = if a.json {
         let json = PointJson {
             model: model.name.clone(),
+            tip: tip.clone(),
             pose: PoseJson {
                 position_mm: [p.position.x, p.position.y, p.position.z],
                 rotation_rad: [p.rotation.x, p.rotation.y, p.rotation.z],
@@ -59,6 +61,12 @@ pub(crate) fn run(a: PointArgs) -> Result<()> {
         serde_json::to_string_pretty(&json)? + "\n"
     } else {
         let mut text = point_report(&model.name, &p, &r, false, model.length_scale);
+        if let Some(tip) = &tip {
+            // After the model's name: which of the tree's reference points the report is at.
+            let at = text.find('\n').map_or(text.len(), |k| k + 1);
+            let others = model.tips().join(", ");
+            text.insert_str(at, &format!("tip: {tip} (of the tree's tips {others}; --tip names another)\n"));
+        }
         if let Some(l) = &loaded {
             text.push_str("\nUnder the wrench: the loaded equilibrium (paper 000 s. 3-4)\n");
             text.push_str(&point_report(&model.name, &p, l, true, model.length_scale));

@@ -530,6 +530,15 @@ impl Chain {
         chain.with_counts(na, np, nv)
     }
 
+    /// A chain reading coordinates of a larger set (one chain of a tree, whose coordinates the tree's
+    /// chains share): these counts, at least those its joints read.
+    pub fn with_coordinates(elements: Vec<Element>, n_actuated: usize, n_passive: usize, n_virtual: usize) -> Self {
+        let chain = Self::new(elements);
+        let (na, np, nv) =
+            (chain.n_actuated.max(n_actuated), chain.n_passive.max(n_passive), chain.n_virtual.max(n_virtual));
+        chain.with_counts(na, np, nv)
+    }
+
     /// The chain with these coordinate counts (at least those its joints read: coordinates that never
     /// appear may be counted too), and the kinds of its coordinates recorded for them.
     fn with_counts(mut self, n_actuated: usize, n_passive: usize, n_virtual: usize) -> Self {

@@ -212,6 +212,38 @@ impl ChainParts {
         })
     }
 
+    /// The legs of a tree with several tips: one per chain (its name and elements), all reading one set of
+    /// `n_actuated` coordinates and these parts' virtual ones, each carrying the springs (the serial route,
+    /// `platform/serial.rs`, counts them once), their length scale the largest chain's.
+    pub(super) fn into_tree_legs(
+        self,
+        chains: Vec<(String, Vec<Element>)>,
+        n_actuated: usize,
+        gravity: Vec3,
+    ) -> Vec<Leg> {
+        let chains: Vec<(String, Chain)> = chains
+            .into_iter()
+            .map(|(name, elements)| (name, Chain::with_coordinates(elements, n_actuated, 0, self.n_virtual)))
+            .collect();
+        let length_scale = chains.iter().map(|(_, c)| c.length_scale()).fold(1.0, f64::max);
+        chains
+            .into_iter()
+            .map(|(name, chain)| {
+                Leg::Vjm(VjmLeg {
+                    name,
+                    place: Frame::IDENTITY,
+                    preload: self.preload.clone(),
+                    gravity,
+                    chain,
+                    attachment: Frame::IDENTITY,
+                    springs: self.springs.clone(),
+                    length_scale,
+                    home: Vec::new(),
+                })
+            })
+            .collect()
+    }
+
     fn passive_index(&self, name: &Spanned<String>) -> Option<usize> {
         self.passive_names.iter().find(|(n, _)| n == name.get_ref()).map(|(_, i)| *i)
     }
@@ -699,11 +731,29 @@ impl Builder<'_> {
         }
         for leg_spec in file.legs.get_ref() {
             let spec = leg_spec.get_ref();
-            let (body, space) = self.leg_body(leg_spec, gravity, depth, &file.joint_corrections)?;
+            let (mut bodies, space) = self.leg_body(leg_spec, gravity, depth, &file.joint_corrections)?;
             // A serial arm (one leg, read from URDF, not copied) takes poses as its joint angles too.
             if file.legs.get_ref().len() == 1 && spec.copies.is_empty() {
                 joint_space = space;
             }
+            if bodies.len() > 1 {
+                // A tree's chains (one per tip) are one serial arm: its legs share their coordinates.
+                if file.legs.get_ref().len() > 1 || !spec.copies.is_empty() || spec.attachment.is_some() {
+                    return Err(self.loc.at(
+                        leg_spec.span(),
+                        format!("leg `{}` names several tips: a tree is the description's only leg, with no copies or attachment", spec.name),
+                    ));
+                }
+                if !file.payloads.is_empty() {
+                    return Err(self.loc.at(
+                        file.payloads[0].span(),
+                        "a `[[payload]]` is carried by the platform, and a tree with several tips has none: give the mass as an <inertial> of the tip link it hangs from in the URDF",
+                    ));
+                }
+                legs.append(&mut bodies);
+                continue;
+            }
+            let body = bodies.pop().expect("a leg has a body");
             let attachment = match &spec.attachment {
                 Some(TransformSpec { translation, rotation_axis, rotation_deg }) => {
                     self.transform(translation, rotation_axis, rotation_deg, leg_spec.span())?
@@ -783,7 +833,7 @@ impl Builder<'_> {
         gravity: Vec3,
         depth: usize,
         corrections: &[Spanned<JointCorrectionSpec>],
-    ) -> Result<(Leg, Option<JointSpace>), InputError> {
+    ) -> Result<(Vec<Leg>, Option<JointSpace>), InputError> {
         let spec = leg_spec.get_ref();
         let given = [spec.chain.is_some(), spec.msa.is_some(), spec.from.is_some(), spec.urdf.is_some()];
         if given.iter().filter(|g| **g).count() != 1 {
@@ -793,8 +843,8 @@ impl Builder<'_> {
             ));
         }
         if let Some(urdf) = &spec.urdf {
-            let (leg, space) = self.urdf_leg(&spec.name, urdf, gravity, corrections)?;
-            return Ok((leg, Some(space)));
+            let (legs, space) = self.urdf_legs(&spec.name, urdf, gravity, corrections)?;
+            return Ok((legs, Some(space)));
         }
         if !spec.parameters.is_empty() && spec.from.is_none() {
             return Err(self
@@ -809,7 +859,7 @@ impl Builder<'_> {
             for (i, e) in chain_spec.get_ref().iter().enumerate() {
                 self.element(e, i, &mut parts)?;
             }
-            return Ok((parts.into_leg(spec.name.clone(), gravity), None));
+            return Ok((vec![parts.into_leg(spec.name.clone(), gravity)], None));
         }
         if let Some(msa) = &spec.msa {
             let template = self.msa_leg(msa)?;
@@ -827,7 +877,7 @@ impl Builder<'_> {
             })?;
             let end = home.nodes[home.end];
             leg.length_scale = home.nodes.iter().map(|p| (p - end).norm()).fold(1.0, f64::max);
-            return Ok((Leg::Msa(leg), None));
+            return Ok((vec![Leg::Msa(leg)], None));
         }
         let from = spec.from.as_ref().expect("one of the three is given");
         if depth > 8 {
@@ -845,10 +895,10 @@ impl Builder<'_> {
         match (legs.next(), legs.next()) {
             // The other file's arm keeps its joint space.
             (Some(leg), None) => Ok((
-                match leg {
+                vec![match leg {
                     Leg::Vjm(v) => Leg::Vjm(VjmLeg { name: spec.name.clone(), gravity, ..v }),
                     Leg::Msa(m) => Leg::Msa(MsaLeg { name: spec.name.clone(), ..m }),
-                },
+                }],
                 other.manipulator.joint_space,
             )),
             _ => {

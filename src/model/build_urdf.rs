@@ -25,59 +25,120 @@ fn corrections_of<'a>(
     corrections.iter().map(Spanned::get_ref).filter(move |c| c.joint.get_ref() == name)
 }
 
-/// One URDF description being built: its table, the chain read from its file, and the corrections.
+/// One URDF description being built: its table, the chains read from its file (one per tip), the
+/// skeleton they make and the corrections.
 struct UrdfLeg<'s> {
     spec: &'s Spanned<UrdfSpec>,
     path: std::path::PathBuf,
-    read: UrdfChain,
+    /// The tips, as the description names them.
+    tips: Vec<String>,
+    /// Per tip, its chain from the root.
+    chains: Vec<UrdfChain>,
+    /// The joints of every chain, each once: the first chain's in order, then each later chain's new ones.
+    joints: Vec<UrdfJoint>,
+    /// The moving joints off the skeleton that a joint of it mimics, each once.
+    masters: Vec<UrdfJoint>,
     corrections: &'s [Spanned<JointCorrectionSpec>],
 }
 
-impl UrdfLeg<'_> {
+impl<'s> UrdfLeg<'s> {
+    fn new(
+        spec: &'s Spanned<UrdfSpec>,
+        path: std::path::PathBuf,
+        tips: Vec<String>,
+        chains: Vec<UrdfChain>,
+        corrections: &'s [Spanned<JointCorrectionSpec>],
+    ) -> Self {
+        let mut joints: Vec<UrdfJoint> = Vec::new();
+        let mut masters: Vec<UrdfJoint> = Vec::new();
+        for c in &chains {
+            for j in &c.joints {
+                if !joints.iter().any(|k| k.name == j.name) {
+                    joints.push(j.clone());
+                }
+            }
+        }
+        for c in &chains {
+            for m in &c.masters {
+                if !masters.iter().any(|k| k.name == m.name) && !joints.iter().any(|k| k.name == m.name) {
+                    masters.push(m.clone());
+                }
+            }
+        }
+        UrdfLeg { spec, path, tips, chains, joints, masters, corrections }
+    }
+
     fn u(&self) -> &UrdfSpec {
         self.spec.get_ref()
     }
 
-    /// `the chain from ROOT to TIP of FILE`, as the messages name it.
+    /// `the chain from ROOT to TIP of FILE` (or `the chains from ROOT to TIP, TIP`), as the messages name it.
     fn chain_named(&self) -> String {
-        format!(
-            "the chain from `{}` to `{}` of {}",
-            self.u().root.get_ref(),
-            self.u().tip.get_ref(),
-            self.path.display()
-        )
+        let (chains, tips) = match self.tips.len() {
+            1 => ("chain", format!("`{}`", self.tips[0])),
+            _ => ("chains", self.tips.iter().map(|t| format!("`{t}`")).collect::<Vec<_>>().join(", ")),
+        };
+        format!("the {chains} from `{}` to {tips} of {}", self.u().root.get_ref(), self.path.display())
     }
 }
 
 impl Builder<'_> {
-    /// A leg read from URDF (`crate::model::urdf`): per joint on the path, its fixed origin, then the joint
-    /// (actuated, with the spring `joints` gives it; a `<mimic>` joint driven by its master's coordinate
-    /// times the multiplier, after its offset), then the child link's mass; the tool transform last. Returns
-    /// the leg and its joint space (the actuated joints' names and the controller's map).
-    pub(super) fn urdf_leg(
+    /// The tips a `[leg.urdf]` names: `tip`, or the list `tips` (a tree with several reference points).
+    fn urdf_tips(&self, spec: &Spanned<UrdfSpec>) -> Result<Vec<String>, InputError> {
+        let u = spec.get_ref();
+        match (&u.tip, &u.tips) {
+            (Some(t), None) => Ok(vec![t.get_ref().clone()]),
+            (None, Some(list)) if !list.get_ref().is_empty() => {
+                if u.tool.is_some() && list.get_ref().len() > 1 {
+                    return Err(self.loc.at(
+                        spec.span(),
+                        "with several tips, give each its tool transform in `tools` (`tools.<tip> = { translation = [...] }`), not `tool`",
+                    ));
+                }
+                Ok(list.get_ref().iter().map(|t| t.get_ref().clone()).collect())
+            }
+            (None, Some(list)) => Err(self.loc.at(list.span(), "`tips` names no link: give at least one")),
+            _ => Err(self.loc.at(
+                spec.span(),
+                "`[leg.urdf]` needs exactly one of `tip` (the link the chain ends at) and `tips` (several, for a tree)",
+            )),
+        }
+    }
+
+    /// The legs read from URDF (`crate::model::urdf`), one per tip, sharing their coordinates and springs
+    /// (`JointSpace::tips`): per joint of each path, its fixed origin, then the joint (actuated, with the
+    /// spring `joints` gives it; a `<mimic>` joint driven by its master's coordinate times the multiplier,
+    /// after its offset), then the child link's mass (in the first chain that reaches it); each tip's tool
+    /// transform last. Returns the legs (the first tip's first) and their joint space (the actuated joints'
+    /// names and the controller's map).
+    pub(super) fn urdf_legs(
         &self,
         leg_name: &str,
         spec: &Spanned<UrdfSpec>,
         gravity: Vec3,
         corrections: &[Spanned<JointCorrectionSpec>],
-    ) -> Result<(Leg, JointSpace), InputError> {
+    ) -> Result<(Vec<Leg>, JointSpace), InputError> {
         let u = spec.get_ref();
+        let tips = self.urdf_tips(spec)?;
         let path = super::urdf::resolve(self.loc.path, u.file.get_ref());
         let text = read_regular_file(&path)?;
-        let read = super::urdf::read_chain(&path, &text, u.root.get_ref(), u.tip.get_ref())?;
-        let arm = UrdfLeg { spec, path, read, corrections };
+        let tip_names: Vec<&str> = tips.iter().map(String::as_str).collect();
+        let chains = super::urdf::read_tree(&path, &text, u.root.get_ref(), &tip_names)?;
+        let arm = UrdfLeg::new(spec, path, tips, chains, corrections);
         self.check_urdf_names(&arm)?;
-        // The model's coordinates: the path's moving joints that mimic none, then the masters off the path
-        // that its <mimic> joints follow; each with its spring (None: rigid), made into a spring group where
-        // the chain first reads the coordinate.
+        // The model's coordinates: the skeleton's moving joints that mimic none, then the masters off it that
+        // its <mimic> joints follow; each with its spring (None: rigid), made into a spring group where the
+        // skeleton first reads the coordinate.
         let coordinates: Vec<&UrdfJoint> = arm
-            .read
             .joints
             .iter()
             .filter(|j| j.kind != UrdfJointKind::Fixed && j.mimic.is_none())
-            .chain(&arm.read.masters)
+            .chain(&arm.masters)
             .collect();
         let names: Vec<String> = coordinates.iter().map(|j| j.name.clone()).collect();
+        if names.is_empty() {
+            return Err(self.loc.at(spec.span(), format!("{} has no moving joint", arm.chain_named())));
+        }
         let springs = coordinates
             .iter()
             .enumerate()
@@ -86,83 +147,37 @@ impl Builder<'_> {
         let mut spring_first: Vec<Option<usize>> = vec![None; names.len()];
         let mut parts = ChainParts::default();
         self.link_spring(u, u.root.get_ref(), &mut parts)?;
-        for j in &arm.read.joints {
-            parts.elements.push(Element::Fixed(j.origin));
-            let kind = match j.kind {
-                UrdfJointKind::Fixed => None,
-                UrdfJointKind::Revolute => Some(JointKind::Revolute),
-                UrdfJointKind::Prismatic => Some(JointKind::Prismatic),
-            };
-            if let Some(jk) = kind {
-                if let Some(change) = self.geometry_change(arm.corrections, &j.name)? {
-                    parts.elements.push(Element::Fixed(change));
-                }
-                self.frame_compliance(arm.corrections, &j.name, &mut parts)?;
-                let (coordinate, gain) = match self.master_of(&arm, j)? {
-                    Some((master, gain, offset)) => {
-                        if offset != 0.0 {
-                            parts.elements.push(Element::Fixed(joint_motion(jk, &j.axis, offset)));
-                        }
-                        (names.iter().position(|n| *n == master).expect("a master is a coordinate"), gain)
-                    }
-                    None => {
-                        (names.iter().position(|n| *n == j.name).expect("a joint mimicking none is a coordinate"), 1.0)
-                    }
-                };
-                let joint = Joint { kind: jk, axis: j.axis, role: Role::Actuated, index: coordinate, gain };
-                parts.elements.push(Element::Joint(joint));
-                // The coordinate's spring deflects every joint that reads it, by its gain: a mimic joint is a
-                // transmission its master's spring drives (the URDF relation holds under load).
-                if let Some((compliance, of_coordinate)) = &springs[coordinate] {
-                    match spring_first[coordinate] {
-                        Some(first) => parts.elements.push(Element::Joint(Joint {
-                            kind: jk,
-                            axis: j.axis,
-                            role: Role::Virtual,
-                            index: first,
-                            gain,
-                        })),
-                        None => {
-                            spring_first[coordinate] = Some(parts.n_virtual());
-                            let (km, cm) = one_coordinate(*compliance);
-                            parts.spring(names[coordinate].clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
-                            parts.springs.last_mut().expect("just pushed").of_coordinate = of_coordinate.clone();
-                            if let Some(Element::Joint(v)) = parts.elements.last_mut() {
-                                v.gain = gain;
-                            }
-                        }
-                    }
-                }
-                // A mimic joint's own compliance, in series after the transmission.
-                if j.mimic.is_some() {
-                    if let Some((compliance, _)) = self.joint_spring(&arm, j, None)? {
-                        let (km, cm) = one_coordinate(compliance);
-                        parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
-                    }
+        let root_elements: Vec<Element> = parts.elements.drain(..).collect();
+        // Each joint of the skeleton's elements, made once (its springs are one set of coordinates, whichever
+        // chains pass through it); its child link's mass joins only the chain that carries it.
+        let mut segments: Vec<Vec<Element>> = Vec::with_capacity(arm.joints.len());
+        for j in &arm.joints {
+            self.joint_segment(&arm, j, &names, &springs, &mut spring_first, &mut parts)?;
+            segments.push(parts.elements.drain(..).collect());
+        }
+        let mut chains = Vec::with_capacity(arm.tips.len());
+        for (tip, chain) in arm.tips.iter().zip(&arm.chains) {
+            let mut elements = root_elements.clone();
+            for j in &chain.joints {
+                let k = arm.joints.iter().position(|s| s.name == j.name).expect("a chain's joint is on the skeleton");
+                elements.extend(segments[k].iter().cloned());
+                if let Some((kg, centre)) = j.child_mass {
+                    elements.push(Element::Mass { kg, centre });
                 }
             }
-            self.link_spring(u, &j.child, &mut parts)?;
-            if let Some((kg, centre)) = j.child_mass {
-                parts.elements.push(Element::Mass { kg, centre });
+            if let Some(tool) = self.tool_of(&arm, tip)? {
+                elements.push(Element::Fixed(tool));
             }
-        }
-        if let Some(TransformSpec { translation, rotation_axis, rotation_deg }) = &u.tool {
-            let tool = self.transform(translation, rotation_axis, rotation_deg, spec.span())?;
-            parts.elements.push(Element::Fixed(tool));
-        }
-        if names.is_empty() {
-            return Err(self.loc.at(
-                spec.span(),
-                format!("the chain from `{}` to `{}` has no moving joint", u.root.get_ref(), u.tip.get_ref()),
-            ));
+            let name = if arm.tips.len() == 1 { leg_name.to_string() } else { format!("{leg_name}.{tip}") };
+            chains.push((name, elements));
         }
         let controller = self.controller_map(u, &names)?;
         let offsets = self.joint_offsets(corrections, &names)?;
         let limits = coordinates.iter().map(|j| j.limits).collect();
-        let masses = arm.read.masses;
+        let masses = arm.chains[0].masses;
         let carried = CarriedMass { kg: masses.carried, off_path_kg: masses.off_path, on_base_kg: masses.on_base };
-        let space = JointSpace { names, controller, offsets, limits, carried };
-        let mut leg = parts.into_leg(leg_name.to_string(), gravity);
+        let space = JointSpace { names, controller, offsets, limits, carried, tips: arm.tips.clone() };
+        let mut legs = parts.into_tree_legs(chains, space.names.len(), gravity);
         if !u.seed.is_empty() {
             // The seed is given in the controller's angles, like the points: mapped to the model's coordinates.
             let angles = space
@@ -170,24 +185,108 @@ impl Builder<'_> {
                 .iter()
                 .map(|n| u.seed.get(n).map_or(Ok(0.0), |v| self.num(v)))
                 .collect::<Result<Vec<f64>, InputError>>()?;
-            if let Leg::Vjm(v) = &mut leg {
-                v.home = space.model_coordinates(&angles);
+            let home = space.model_coordinates(&angles);
+            for leg in &mut legs {
+                if let Leg::Vjm(v) = leg {
+                    v.home = home.clone();
+                }
             }
         }
-        Ok((leg, space))
+        Ok((legs, space))
+    }
+
+    /// The tool transform of `tip` (`tool`, or `tools.<tip>`), None where none is given.
+    fn tool_of(&self, arm: &UrdfLeg, tip: &str) -> Result<Option<Frame>, InputError> {
+        let u = arm.u();
+        let spec = match &u.tool {
+            Some(t) => Some(t),
+            None => u.tools.get(tip).map(Spanned::get_ref),
+        };
+        spec.map(|TransformSpec { translation, rotation_axis, rotation_deg }| {
+            self.transform(translation, rotation_axis, rotation_deg, arm.spec.span())
+        })
+        .transpose()
+    }
+
+    /// The elements of joint `j` of the skeleton, pushed to `parts`: its fixed origin; for a moving joint the
+    /// corrections' geometry and frame compliance, the joint on its coordinate (a <mimic> joint on its
+    /// master's, after the offset) and the coordinate's spring (made where the coordinate is first read, a
+    /// virtual joint on it after), a <mimic> joint's own spring in series; its child link's spring.
+    fn joint_segment(
+        &self,
+        arm: &UrdfLeg,
+        j: &UrdfJoint,
+        names: &[String],
+        springs: &[Option<(f64, Option<CoordinateStiffness>)>],
+        spring_first: &mut [Option<usize>],
+        parts: &mut ChainParts,
+    ) -> Result<(), InputError> {
+        parts.elements.push(Element::Fixed(j.origin));
+        let kind = match j.kind {
+            UrdfJointKind::Fixed => None,
+            UrdfJointKind::Revolute => Some(JointKind::Revolute),
+            UrdfJointKind::Prismatic => Some(JointKind::Prismatic),
+        };
+        if let Some(jk) = kind {
+            if let Some(change) = self.geometry_change(arm.corrections, &j.name)? {
+                parts.elements.push(Element::Fixed(change));
+            }
+            self.frame_compliance(arm.corrections, &j.name, parts)?;
+            let (coordinate, gain) = match self.master_of(arm, j)? {
+                Some((master, gain, offset)) => {
+                    if offset != 0.0 {
+                        parts.elements.push(Element::Fixed(joint_motion(jk, &j.axis, offset)));
+                    }
+                    (names.iter().position(|n| *n == master).expect("a master is a coordinate"), gain)
+                }
+                None => (names.iter().position(|n| *n == j.name).expect("a joint mimicking none is a coordinate"), 1.0),
+            };
+            let joint = Joint { kind: jk, axis: j.axis, role: Role::Actuated, index: coordinate, gain };
+            parts.elements.push(Element::Joint(joint));
+            // The coordinate's spring deflects every joint that reads it, by its gain: a mimic joint is a
+            // transmission its master's spring drives (the URDF relation holds under load).
+            if let Some((compliance, of_coordinate)) = &springs[coordinate] {
+                match spring_first[coordinate] {
+                    Some(first) => parts.elements.push(Element::Joint(Joint {
+                        kind: jk,
+                        axis: j.axis,
+                        role: Role::Virtual,
+                        index: first,
+                        gain,
+                    })),
+                    None => {
+                        spring_first[coordinate] = Some(parts.n_virtual());
+                        let (km, cm) = one_coordinate(*compliance);
+                        parts.spring(names[coordinate].clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
+                        parts.springs.last_mut().expect("just pushed").of_coordinate = of_coordinate.clone();
+                        if let Some(Element::Joint(v)) = parts.elements.last_mut() {
+                            v.gain = gain;
+                        }
+                    }
+                }
+            }
+            // A mimic joint's own compliance, in series after the transmission.
+            if j.mimic.is_some() {
+                if let Some((compliance, _)) = self.joint_spring(arm, j, None)? {
+                    let (km, cm) = one_coordinate(compliance);
+                    parts.spring(j.name.clone(), &[(jk, j.axis)], km, cm, &[0.0], None);
+                }
+            }
+        }
+        self.link_spring(arm.u(), &j.child, parts)
     }
 
     /// Every joint the description names (`joints`, `controller`, `seed`, `[[joint_correction]]`) is a
     /// moving joint of the path with a coordinate of its own, and every link `links` names is on the path.
     fn check_urdf_names(&self, arm: &UrdfLeg) -> Result<(), InputError> {
         let u = arm.u();
-        let on_path: Vec<&str> = arm.read.joints.iter().map(|j| j.name.as_str()).collect();
+        let on_path: Vec<&str> = arm.joints.iter().map(|j| j.name.as_str()).collect();
         // What a table may name: a coordinate (a moving joint of the path that mimics none, or a master off
         // the path that one follows), or any moving joint of the path (a <mimic> joint has a place there:
         // its own spring in series, its frame and geometry).
         let named_joint = |name: &str, span: std::ops::Range<usize>, table: &str, on_chain: bool| {
-            let path_joint = arm.read.joints.iter().find(|j| j.name == name);
-            let master = arm.read.masters.iter().any(|j| j.name == name);
+            let path_joint = arm.joints.iter().find(|j| j.name == name);
+            let master = arm.masters.iter().any(|j| j.name == name);
             match path_joint {
                 Some(j) if j.kind == UrdfJointKind::Fixed => {
                     Err(self.loc.at(span, format!("joint `{name}` in `{table}` is fixed: it does not move")))
@@ -211,7 +310,7 @@ impl Builder<'_> {
                 )),
             }
         };
-        let is_master = |name: &str| arm.read.masters.iter().any(|m| m.name == name);
+        let is_master = |name: &str| arm.masters.iter().any(|m| m.name == name);
         // A spring may sit on a coordinate or, for a <mimic> joint, in series after its transmission.
         for (name, j) in &u.joints {
             named_joint(name, j.span(), "joints", !is_master(name))?;
@@ -235,9 +334,15 @@ impl Builder<'_> {
                 named_joint(name, span, "joint_correction", !is_master(name))?;
             }
         }
-        let links: Vec<&str> = std::iter::once(u.root.get_ref().as_str())
-            .chain(arm.read.joints.iter().map(|j| j.child.as_str()))
-            .collect();
+        for (tip, t) in &u.tools {
+            if !arm.tips.contains(tip) {
+                return Err(self
+                    .loc
+                    .at(t.span(), format!("`tools.{tip}`: `{tip}` is not one of the tips ({})", arm.tips.join(", "))));
+            }
+        }
+        let links: Vec<&str> =
+            std::iter::once(u.root.get_ref().as_str()).chain(arm.joints.iter().map(|j| j.child.as_str())).collect();
         for (name, l) in &u.links {
             if !links.contains(&name.as_str()) {
                 return Err(self.loc.at(
@@ -383,7 +488,7 @@ impl Builder<'_> {
                     format!("{}: the <mimic> joints form a loop: {}", arm.path.display(), seen.join(" -> ")),
                 ));
             }
-            let m = arm.read.joints.iter().chain(&arm.read.masters).find(|k| k.name == master).ok_or_else(|| {
+            let m = arm.joints.iter().chain(&arm.masters).find(|k| k.name == master).ok_or_else(|| {
                 self.loc.at(
                     arm.spec.span(),
                     format!("{}: joint `{}` mimics `{master}`, which is not on the chain", arm.path.display(), j.name),

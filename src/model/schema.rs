@@ -273,11 +273,19 @@ pub struct UrdfSpec {
     pub file: Spanned<String>,
     /// The link the chain starts from (fixed to the base).
     pub root: Spanned<String>,
-    /// The link it ends at.
-    pub tip: Spanned<String>,
+    /// The link it ends at (or `tips`).
+    #[serde(default)]
+    pub tip: Option<Spanned<String>>,
+    /// The links a tree ends at, each a reference point with its own rows (a dual-arm cell, a humanoid's
+    /// hands); joints shared by their paths are one coordinate and one spring.
+    #[serde(default)]
+    pub tips: Option<Spanned<Vec<Spanned<String>>>>,
     /// From the tip link's frame to the reference point (the tool point), mm and degrees.
     #[serde(default)]
     pub tool: Option<TransformSpec>,
+    /// Per tip (with `tips`): its tool transform.
+    #[serde(default)]
+    pub tools: BTreeMap<String, Spanned<TransformSpec>>,
     /// Per joint name: its stiffness or compliance.
     #[serde(default)]
     pub joints: BTreeMap<String, Spanned<JointStiffnessSpec>>,

@@ -380,6 +380,15 @@ impl Tree {
 
 /// Reads the chain from `root` to `tip` of the URDF file `path` (its text `text`).
 pub fn read_chain(path: &Path, text: &str, root: &str, tip: &str) -> Result<UrdfChain, InputError> {
+    Ok(read_tree(path, text, root, &[tip])?.remove(0))
+}
+
+/// Reads the chains from `root` to each of `tips` of the URDF file `path` (its text `text`), in the order
+/// of `tips`. Together they are the tree's skeleton: a link on several paths (a torso) is one body, whose
+/// mass is given to the first chain that reaches it (`UrdfJoint::child_mass` is None on the later ones), so
+/// that summing the chains' loads counts every body once; every body off the skeleton weighs on the link of
+/// it that it hangs from.
+pub fn read_tree(path: &Path, text: &str, root: &str, tips: &[&str]) -> Result<Vec<UrdfChain>, InputError> {
     let doc = roxmltree::Document::parse(text)
         .map_err(|e| InputError::Syntax { path: path.to_path_buf(), message: format!("not a URDF (XML) file: {e}") })?;
     let r = Reader { path, doc: &doc };
@@ -428,58 +437,82 @@ pub fn read_chain(path: &Path, text: &str, root: &str, tip: &str) -> Result<Urdf
             }
         })
     };
-    let (root_link, tip_link) = (known(root)?, known(tip)?);
-    // The path from the tip up to the root: every link has at most one parent joint.
-    let mut path_joints = Vec::new();
-    let mut at = tip_link;
-    while at != root_link {
-        match tree.parent_joint[at] {
-            Some(j) => {
-                path_joints.push(j);
-                at = joints[j].parent;
-            }
-            None => {
-                return Err(InputError::Whole {
-                    path: path.to_path_buf(),
-                    message: format!("links `{root}` and `{tip}` are not connected: `{}` has no parent joint and is not `{root}` (is `{tip}` below `{root}`?)", link_names[at]),
-                })
+    let root_link = known(root)?;
+    // Each tip's path up to the root: every link has at most one parent joint.
+    let mut paths: Vec<Vec<usize>> = Vec::with_capacity(tips.len());
+    for (k, tip) in tips.iter().enumerate() {
+        if tips[..k].contains(tip) {
+            return Err(InputError::Whole { path: path.to_path_buf(), message: format!("tip `{tip}` is named twice") });
+        }
+        let mut path_joints = Vec::new();
+        let mut at = known(tip)?;
+        while at != root_link {
+            match tree.parent_joint[at] {
+                Some(j) => {
+                    path_joints.push(j);
+                    at = joints[j].parent;
+                }
+                None => {
+                    return Err(InputError::Whole {
+                        path: path.to_path_buf(),
+                        message: format!("links `{root}` and `{tip}` are not connected: `{}` has no parent joint and is not `{root}` (is `{tip}` below `{root}`?)", link_names[at]),
+                    })
+                }
             }
         }
+        path_joints.reverse();
+        paths.push(path_joints);
     }
-    path_joints.reverse();
+    // The skeleton: the joints of every path; and which chain carries each of its links' masses.
     let mut on_path = vec![false; joints.len()];
-    path_joints.iter().for_each(|&j| on_path[j] = true);
+    let mut mass_owner: Vec<Option<usize>> = vec![None; joints.len()];
+    for (k, p) in paths.iter().enumerate() {
+        for &j in p {
+            on_path[j] = true;
+            mass_owner[j].get_or_insert(k);
+        }
+    }
     let held = held_values(&r, &joints, &joint_index)?;
     let lumped = subtree_bodies(&joints, &tree, &own, &held);
-    // What a link of the chain carries: its own body and every subtree hanging from it off the path.
+    // What a link of the skeleton carries: its own body and every subtree hanging from it off the skeleton.
     let carried = |link: usize| -> Body {
         tree.child_joints[link]
             .iter()
             .filter(|&&j| !on_path[j])
             .fold(own[link], |sum, &j| sum.plus(lumped[joints[j].child].moved(&joints[j].at(held[j]))))
     };
-    let mut out = Vec::with_capacity(path_joints.len());
     let mut masses = MassShare::default();
-    for &k in &path_joints {
-        let j = &joints[k];
-        let kind = j.kind.clone().map_err(|other| {
-            r.at(
-                j.node,
-                format!(
-                    "joint `{}` is `{other}`: only revolute, continuous, prismatic and fixed joints make a chain",
-                    j.name
-                ),
-            )
-        })?;
-        let body = carried(j.child);
-        masses.carried += body.kg;
-        masses.off_path += body.kg - own[j.child].kg;
-        out.push(j.as_chain_joint(kind, body.as_mass(), link_names[j.child].to_string()));
+    let mut chains = Vec::with_capacity(paths.len());
+    for (k, path_joints) in paths.iter().enumerate() {
+        let mut out = Vec::with_capacity(path_joints.len());
+        for &j in path_joints {
+            let joint = &joints[j];
+            let kind = joint.kind.clone().map_err(|other| {
+                r.at(
+                    joint.node,
+                    format!(
+                        "joint `{}` is `{other}`: only revolute, continuous, prismatic and fixed joints make a chain",
+                        joint.name
+                    ),
+                )
+            })?;
+            let mass = if mass_owner[j] == Some(k) {
+                let body = carried(joint.child);
+                masses.carried += body.kg;
+                masses.off_path += body.kg - own[joint.child].kg;
+                body.as_mass()
+            } else {
+                None
+            };
+            out.push(joint.as_chain_joint(kind, mass, link_names[joint.child].to_string()));
+        }
+        let masters = off_path_masters(&r, &joints, &joint_index, path_joints, &on_path)?;
+        chains.push(UrdfChain { joints: out, masters, root_mass: carried(root_link).as_mass(), masses });
     }
     let total: f64 = own.iter().map(|b| b.kg).sum();
     masses.on_base = (total - masses.carried).max(0.0);
-    let masters = off_path_masters(&r, &joints, &joint_index, &path_joints, &on_path)?;
-    Ok(UrdfChain { joints: out, masters, root_mass: carried(root_link).as_mass(), masses })
+    chains.iter_mut().for_each(|c| c.masses = masses);
+    Ok(chains)
 }
 
 /// An element's `name`, which must not be empty.

@@ -39,6 +39,9 @@ pub struct JointSpace {
     pub limits: Vec<Option<(f64, f64)>>,
     /// The mass the arm carries, as the description shares it.
     pub carried: CarriedMass,
+    /// The reference points' links, one per leg in the legs' order (a tree with several tips has a chain
+    /// per tip, all reading these coordinates: `legs[0]`'s end is the reference point, `Manipulator::at_tip`).
+    pub tips: Vec<String>,
 }
 
 /// How a serial arm's mass is shared (kg): what its moving links carry, the part of it on bodies off the
@@ -51,6 +54,26 @@ pub struct CarriedMass {
     pub off_path_kg: f64,
     /// On the base, not carried by any joint, kg.
     pub on_base_kg: f64,
+}
+
+impl Manipulator {
+    /// The tips of a serial arm read from URDF, the reference point's first (one for a chain; empty for
+    /// any other manipulator).
+    pub fn tips(&self) -> &[String] {
+        self.joint_space.as_ref().map_or(&[], |s| s.tips.as_slice())
+    }
+
+    /// The same tree with its reference point at tip `tip` (a name of `tips`): its legs turned so that the
+    /// tip's chain comes first, the others after in their order. None where no tip has that name.
+    pub fn at_tip(&self, tip: &str) -> Option<Manipulator> {
+        let k = self.tips().iter().position(|t| t == tip)?;
+        let mut m = self.clone();
+        m.legs.rotate_left(k);
+        if let Some(space) = m.joint_space.as_mut() {
+            space.tips.rotate_left(k);
+        }
+        Some(m)
+    }
 }
 
 impl JointSpace {
@@ -392,15 +415,20 @@ impl Manipulator {
     /// or the angles give no finite frame.
     pub fn pose_at_joints(&self, controller: &[f64], state: &mut ManipulatorState) -> Option<Frame> {
         let space = self.joint_space.as_ref()?;
-        if controller.len() != space.names.len() || self.legs.len() != 1 {
+        if controller.len() != space.names.len() || self.serial_arm().is_none() {
             return None;
         }
         with_scratch(controller.len(), |q| {
             space.model_coordinates_into(controller, q);
-            match (&self.legs[0], state.legs.first_mut()) {
-                (Leg::Vjm(leg), Some(s)) => leg.pose_at_joints(q, s),
-                _ => None,
+            // Every chain of a tree seeded at the coordinates; the reference point's gives the frame.
+            let mut frame = None;
+            for (k, (leg, s)) in self.arm_chains().zip(state.legs.iter_mut()).enumerate() {
+                let f = leg.pose_at_joints(q, s)?;
+                if k == 0 {
+                    frame = Some(f);
+                }
             }
+            frame
         })
     }
 
@@ -409,12 +437,25 @@ impl Manipulator {
     /// each joint moves it, and what each joint carries. None as `pose_at_joints`.
     pub fn arm_statics(&self, controller: &[f64], wrench: &Vec6, state: &mut ManipulatorState) -> Option<ArmStatics> {
         let space = self.joint_space.as_ref()?;
-        if controller.len() != space.names.len() || self.legs.len() != 1 {
+        if controller.len() != space.names.len() || self.serial_arm().is_none() {
             return None;
         }
         let q = space.model_coordinates(controller);
-        let (Leg::Vjm(leg), Some(s)) = (&self.legs[0], state.legs.first_mut()) else { return None };
-        let ArmStatics { frame: end, columns, mut loads, joint_frames, mut transmitted } = leg.statics(&q, s)?;
+        let mut chains = self.arm_chains().zip(state.legs.iter_mut());
+        let (leg, s) = chains.next()?;
+        let ArmStatics { frame: end, columns, mut loads, mut joint_frames, mut transmitted } = leg.statics(&q, s)?;
+        // The other chains of a tree (their columns at their own tips are not the reference point's): their
+        // weight on the joints they share, each joint's frame where the reference chain does not reach it.
+        for (other, s) in chains {
+            let o = other.statics(&q, s)?;
+            loads.iter_mut().zip(&o.loads).for_each(|(a, b)| *a += b);
+            transmitted.iter_mut().zip(&o.transmitted).for_each(|(a, b)| *a += b);
+            for ((frame, seen), theirs) in joint_frames.iter_mut().zip(&columns).zip(&o.joint_frames) {
+                if *seen == Vec6::zeros() {
+                    *frame = *theirs;
+                }
+            }
+        }
         let platform = end.compose(&leg.attachment.inverse());
         // The columns moved from the end point to the reference point: v_ref = v_end + w x (ref - end).
         let arm = end.pos - platform.pos;
@@ -478,6 +519,18 @@ impl Manipulator {
         needs: Needs,
         along: Option<&Frame>,
     ) -> Result<(), PoseFailure> {
+        if self.legs.len() > 1 && self.serial_arm().is_some() {
+            // A tree's chains read one set of coordinates: the reference point's chain is placed, and the
+            // others take its coordinates.
+            self.legs[0]
+                .place_along(platform, along, &mut state.legs[0], needs)
+                .map_err(|failure| PoseFailure { leg: 0, failure })?;
+            let (first, rest) = state.legs.split_at_mut(1);
+            for s in rest {
+                s.coords.clone_from(&first[0].coords);
+            }
+            return Ok(());
+        }
         for (i, (leg, s)) in self.legs.iter().zip(state.legs.iter_mut()).enumerate() {
             leg.place_along(platform, along, s, needs).map_err(|failure| PoseFailure { leg: i, failure })?;
         }

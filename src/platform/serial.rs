@@ -8,11 +8,11 @@
 
 use nalgebra::DMatrix;
 
-use super::leg::{Leg, LegFailure};
+use super::leg::{Leg, LegFailure, LegState};
 use super::loaded::DeflectionFailure;
 use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use super::vjm_leg::VjmLeg;
-use crate::kinematics::chain::{ChainJacobians, Coordinates};
+use crate::kinematics::chain::Coordinates;
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
 use crate::linalg::all_finite;
 use crate::vjm::stiffness::spring_compliance_at_end;
@@ -44,12 +44,27 @@ const SMALLEST_LOAD_STEP: f64 = 1.0 / 4096.0;
 
 impl Manipulator {
     /// The chain of a serial arm answered in its own coordinates (`serial.rs`): one VJM leg with a joint
-    /// space, no passive joint and its end at the reference point; None for any other manipulator.
+    /// space, no passive joint and its end at the reference point (a tree with several tips has one such
+    /// leg per tip, the reference point's first, all reading one set of coordinates); None for any other
+    /// manipulator.
     pub(super) fn serial_arm(&self) -> Option<&VjmLeg> {
-        match (&self.joint_space, self.legs.as_slice()) {
-            (Some(_), [Leg::Vjm(leg)]) if leg.chain.n_passive == 0 && leg.attachment == Frame::IDENTITY => Some(leg),
-            _ => None,
+        self.joint_space.as_ref()?;
+        let arm_chain = |l: &Leg| matches!(l, Leg::Vjm(v) if v.chain.n_passive == 0 && v.attachment == Frame::IDENTITY);
+        if self.legs.len() != self.tips().len().max(1) || !self.legs.iter().all(arm_chain) {
+            return None;
         }
+        match &self.legs[0] {
+            Leg::Vjm(leg) => Some(leg),
+            Leg::Msa(_) => None,
+        }
+    }
+
+    /// A serial arm's chains, the reference point's first (one per tip).
+    pub(super) fn arm_chains(&self) -> impl Iterator<Item = &VjmLeg> {
+        self.legs.iter().filter_map(|l| match l {
+            Leg::Vjm(v) => Some(v),
+            Leg::Msa(_) => None,
+        })
     }
 
     /// True where this is a serial arm answered in its own coordinates (C = J_e K_e^-1 J_e^T).
@@ -98,7 +113,7 @@ impl Manipulator {
         }
         let mut coords = s.coords.clone();
         coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
-        let mut solver = ArmSolver { m: self, leg, jac: &mut s.jac, wrench: *wrench };
+        let mut solver = ArmSolver { m: self, leg, states: &mut state.legs, wrench: *wrench };
         Some(solver.continuation(commanded, &mut coords))
     }
 }
@@ -128,8 +143,10 @@ fn shifted(c: &Mat6, arm: &Vec3) -> Mat6 {
 /// One loaded solve of a serial arm.
 struct ArmSolver<'a> {
     m: &'a Manipulator,
+    /// The reference point's chain, whose springs are the arm's.
     leg: &'a VjmLeg,
-    jac: &'a mut ChainJacobians,
+    /// One per chain: their evaluations (`jac`) are the solve's buffers.
+    states: &'a mut [LegState],
     wrench: Vec6,
 }
 
@@ -150,27 +167,39 @@ impl ArmSolver<'_> {
     /// load Hessian costs more than the rest).
     fn statics(&mut self, coords: &Coordinates, load: f64, with_matrix: bool) -> Statics {
         let n = coords.virtual_.len();
-        self.leg.chain.evaluate(coords, self.jac);
-        self.jac.fill_virtual();
         let gravity = self.leg.gravity * load;
-        let wrench = self.wrench * load;
         let mut residual = vec![0.0; n];
-        self.jac.add_generalised_forces(&wrench, &gravity, 0, &mut residual);
+        let mut matrix = with_matrix.then(|| DMatrix::zeros(n, n));
+        // Every chain's weight, the wrench at the reference point's: the chains of a tree share their
+        // coordinates, and each body is in one chain, so their generalised forces and Hessians add.
+        for (k, chain) in self.m.arm_chains().enumerate() {
+            let jac = &mut self.states[k].jac;
+            let wrench = if k == 0 { self.wrench * load } else { Vec6::zeros() };
+            if k == 0 {
+                chain.chain.evaluate(coords, jac);
+                jac.fill_virtual();
+            } else {
+                chain.chain.place_joints(coords, jac);
+            }
+            jac.add_generalised_forces(&wrench, &gravity, 0, &mut residual);
+            if let Some(h) = matrix.as_mut() {
+                jac.add_load_hessian(&wrench, &gravity, 0, h);
+            }
+        }
+        let jac = &mut self.states[0].jac;
         let payload = self.m.payload.map(|p| {
-            let end = self.jac.end;
+            let end = jac.end;
             (end.pos + end.rot * p.centre, self.m.weight_gravity() * (p.mass_kg * load))
         });
         if let Some((point, force)) = payload {
-            self.jac.add_point_force(&point, &force, 0, &mut residual);
-        }
-        let mut matrix = with_matrix.then(|| {
-            let mut h = DMatrix::zeros(n, n);
-            self.jac.add_load_hessian(&wrench, &gravity, 0, &mut h);
-            if let Some((point, force)) = payload {
-                self.jac.add_point_force_hessian(&point, &force, 0, &mut h);
+            jac.add_point_force(&point, &force, 0, &mut residual);
+            if let Some(h) = matrix.as_mut() {
+                jac.add_point_force_hessian(&point, &force, 0, h);
             }
-            -h
-        });
+        }
+        if let Some(h) = matrix.as_mut() {
+            h.neg_mut();
+        }
         for g in &self.leg.springs {
             let k = g.stiffness_at(coords);
             let rest = &self.leg.preload[g.first..g.first + g.dim];
@@ -257,11 +286,12 @@ impl ArmSolver<'_> {
         // At the equilibrium (the last step moved it by round-off): the pose, the Jacobian and the matrix of
         // the tangent.
         let matrix = self.statics(coords, 1.0, true).matrix.expect("asked for");
-        let pose = self.jac.end;
+        let jac = &self.states[0].jac;
+        let pose = jac.end;
         let singular = DeflectionFailure::SingularStiffness { load_fraction: 1.0 };
         let inverse = matrix.clone().lu().try_inverse().ok_or(singular)?;
         let n = coords.virtual_.len();
-        let j = DMatrix::from_fn(6, n, |r, c| self.jac.virtual_[c][r]);
+        let j = DMatrix::from_fn(6, n, |r, c| jac.virtual_[c][r]);
         let c = &j * inverse * j.transpose();
         let compliance = Mat6::from_fn(|r, k| c[(r, k)]);
         if !all_finite(compliance.as_slice()) || !all_finite(pose.pos.as_slice()) {

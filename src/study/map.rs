@@ -29,6 +29,9 @@ pub struct MapOptions {
     pub use_point_wrench: bool,
     /// The columns written (`--columns`), all where None.
     pub selection: Option<Selection>,
+    /// A tree with several tips: the tips whose rows the map writes, each point once per tip in this order
+    /// (a `tip` column); empty for a manipulator with one reference point.
+    pub tips: Vec<String>,
 }
 
 /// The groups `--columns` knows, in table order.
@@ -41,7 +44,9 @@ fn column_group(name: &str) -> Option<ColumnTest> {
     };
     Some(match name {
         "pose" => Box::new(|c: &str| {
-            [names::INDEX, names::NAME].contains(&c) || names::POSITION.contains(&c) || names::ORIENTATION.contains(&c)
+            [names::INDEX, names::NAME, names::TIP].contains(&c)
+                || names::POSITION.contains(&c)
+                || names::ORIENTATION.contains(&c)
         }),
         "status" => Box::new(|c: &str| ["status", "rank", "free_directions", "condition"].contains(&c)),
         "principal" => Box::new(|c: &str| c.starts_with("c_tran_") || c.starts_with("c_rot_")),
@@ -55,7 +60,7 @@ fn column_group(name: &str) -> Option<ColumnTest> {
 /// The selection `--columns` asks of a map with these columns: names or groups (`COLUMN_GROUPS`).
 pub fn map_selection(c: &MapColumns, wanted: &[&str]) -> Result<Selection, String> {
     let point = PosePoint::default();
-    let names = column_names(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c);
+    let names = column_names(&MapRow { index: 0, tip: None, point: &point, result: &PointResult::blank() }, c);
     Selection::new(&names, wanted, column_group, &COLUMN_GROUPS)
 }
 
@@ -134,6 +139,8 @@ impl Tally for MapSummary {
 /// Which optional columns a map has; fixed by the input before the first row.
 #[derive(Clone, Copy, Debug)]
 pub struct MapColumns {
+    /// Each point is a row per tip of a tree, named in a `tip` column.
+    pub tips: bool,
     /// The points give orientations.
     pub orientation: bool,
     /// Also the stiffness matrix.
@@ -148,8 +155,10 @@ pub struct MapColumns {
 
 /// One row of a map: a point and what the study found there.
 pub struct MapRow<'a> {
-    /// Row number in input order.
+    /// Row number in input order (the point's: a tree's tips share it).
     pub index: u64,
+    /// The tip of a tree whose row this is.
+    pub tip: Option<&'a str>,
     /// The point as requested.
     pub point: &'a PosePoint,
     /// What was found there.
@@ -161,7 +170,8 @@ impl Row for MapRow<'_> {
 
     fn record(&self, c: &MapColumns, r: &mut impl Record) {
         let (p, res) = (self.point, self.result);
-        super::point::record_pose(r, self.index, p, c.orientation);
+        let tip = c.tips.then(|| self.tip.unwrap_or(""));
+        super::point::record_pose_at(r, self.index, tip, p, c.orientation);
         r.text(names::STATUS, res.status.as_str());
         r.count("rank", res.rank.map(|k| k as u64));
         r.free_directions("free_directions", &res.free);
@@ -198,13 +208,14 @@ pub fn map_header(c: &MapColumns, selection: Option<&Selection>) -> String {
 /// The columns a map with these options writes, in order.
 pub fn map_table(c: &MapColumns, selection: Option<&Selection>) -> Vec<Column> {
     let point = PosePoint::default();
-    selected_columns(&MapRow { index: 0, point: &point, result: &PointResult::blank() }, c, selection)
+    selected_columns(&MapRow { index: 0, tip: None, point: &point, result: &PointResult::blank() }, c, selection)
 }
 
 /// The columns a map of these points with these options writes (known before the first row).
 pub fn map_columns(points: &PointSet, options: &MapOptions) -> MapColumns {
     let loaded = options.wrench.is_some() || options.use_point_wrench;
     MapColumns {
+        tips: !options.tips.is_empty(),
         orientation: points.has_orientation,
         stiffness: options.stiffness,
         deflection: points.has_wrench || loaded,
@@ -250,6 +261,8 @@ struct MapStudy<'a> {
     m: &'a Manipulator,
     options: MapOptions,
     columns: MapColumns,
+    /// A tree's tips whose rows are written, each with the tree turned to have its reference point there.
+    tip_models: Vec<(String, Manipulator)>,
 }
 
 impl Study for MapStudy<'_> {
@@ -267,10 +280,20 @@ impl Study for MapStudy<'_> {
     }
 
     fn solve(&self, index: u64, p: &PosePoint, state: &mut Self::State, tally: &mut MapSummary, out: &mut String) {
-        let (p, r) = map_given_point(self.m, p, &self.options, state);
-        tally.add(r.status);
-        let row = MapRow { index, point: &p, result: &r };
-        write_selected_row(&row, &self.columns, self.options.selection.as_ref(), out);
+        if self.tip_models.is_empty() {
+            let (p, r) = map_given_point(self.m, p, &self.options, state);
+            tally.add(r.status);
+            let row = MapRow { index, tip: None, point: &p, result: &r };
+            write_selected_row(&row, &self.columns, self.options.selection.as_ref(), out);
+            return;
+        }
+        // The tree's chains share their coordinates (and so one state): each tip's row from the same point.
+        for (tip, m) in &self.tip_models {
+            let (p, r) = map_given_point(m, p, &self.options, state);
+            tally.add(r.status);
+            let row = MapRow { index, tip: Some(tip), point: &p, result: &r };
+            write_selected_row(&row, &self.columns, self.options.selection.as_ref(), out);
+        }
     }
 }
 
@@ -284,5 +307,13 @@ pub fn run_map(
     progress: &ProgressBar,
 ) -> Result<MapSummary> {
     let columns = map_columns(points, &options);
-    stream(pool, &MapStudy { m, options, columns }, points, out, progress)
+    let tip_models = options
+        .tips
+        .iter()
+        .map(|t| m.at_tip(t).map(|turned| (t.clone(), turned)))
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| {
+            anyhow::anyhow!("a tip of the map is not a tip of {} (tips: {})", m.name, m.tips().join(", "))
+        })?;
+    stream(pool, &MapStudy { m, options, columns, tip_models }, points, out, progress)
 }

@@ -535,6 +535,9 @@ pub fn point_report(model: &str, p: &PosePoint, r: &PointResult, loaded: bool, l
 pub struct PointJson {
     /// The model's name.
     pub model: String,
+    /// A tree's tip the pose is at (a model with several tips).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tip: Option<String>,
     /// The commanded pose.
     pub pose: PoseJson,
     /// At the commanded pose, unloaded.
@@ -611,9 +614,23 @@ impl ResultJson {
 /// A row's first cells, as every table over poses writes them: its index, the point's name, its position
 /// and, with `orientation`, its orientation (so a table's output reads back as a points file).
 pub fn record_pose(r: &mut impl crate::output::table::Record, index: u64, p: &PosePoint, orientation: bool) {
+    record_pose_at(r, index, None, p, orientation);
+}
+
+/// As `record_pose`, a tree's row naming its tip (`Some`) after the point's name: the pose is the tip's.
+pub fn record_pose_at(
+    r: &mut impl crate::output::table::Record,
+    index: u64,
+    tip: Option<&str>,
+    p: &PosePoint,
+    orientation: bool,
+) {
     use crate::output::table::names;
     r.count(names::INDEX, Some(index));
     r.text(names::NAME, p.name.as_deref().unwrap_or(""));
+    if let Some(tip) = tip {
+        r.text(names::TIP, tip);
+    }
     for k in 0..3 {
         r.number(names::POSITION[k], p.position[k]);
     }

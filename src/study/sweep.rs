@@ -519,7 +519,7 @@ impl SweepStudy<'_> {
         let mut sink = Sink::table(Some(&map_file(dir, index)), &map_table(columns, None))?;
         let mut text = crate::output::table::header_line(&map_table(columns, None));
         for (i, (p, r)) in points.iter().zip(results).enumerate() {
-            write_selected_row(&MapRow { index: i as u64, point: p, result: r }, columns, None, &mut text);
+            write_selected_row(&MapRow { index: i as u64, tip: None, point: p, result: r }, columns, None, &mut text);
             if text.len() > 1 << 20 {
                 sink.writer().write_all(text.as_bytes())?;
                 text.clear();

@@ -48,7 +48,7 @@ impl PositionProblem<'_> {
         let mut state = self.m.new_state();
         let mut misses = Vec::with_capacity(self.data.rows.len());
         for (r, row) in self.data.rows.iter().enumerate() {
-            if r > 0 && self.data.rows[r - 1].line == row.line {
+            if super::problem::same_line(self.data, &self.tilt_of, r) {
                 misses.push(misses[r - 1]);
                 continue;
             }

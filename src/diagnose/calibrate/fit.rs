@@ -67,7 +67,7 @@ impl PositionProblem<'_> {
                 .iter()
                 .filter(|&&r| matches!(self.data.rows[r].observed, Observed::Position { setup, .. } if setup == s))
                 .filter_map(|&r| {
-                    let f = self.data.rows[r].nominal_frame(self.m, &mut state)?;
+                    let f = self.data.rows[r].nominal_frame(self.arm(r), &mut state)?;
                     Some((f.pos, self.measured(r)))
                 })
                 .collect();
@@ -89,7 +89,7 @@ impl PositionProblem<'_> {
             for &r in rows {
                 if let Observed::Orientation { target, setup, at } = self.data.rows[r].observed {
                     if target == t {
-                        if let Some(f) = self.data.rows[r].nominal_frame(self.m, &mut state) {
+                        if let Some(f) = self.data.rows[r].nominal_frame(self.arm(r), &mut state) {
                             sum += f.rot.transpose() * params.rotations[setup].transpose() * at;
                         }
                     }

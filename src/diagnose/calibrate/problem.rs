@@ -57,9 +57,9 @@ pub(super) struct PlatformStatics {
 /// wrench).
 pub(super) struct PositionProblem<'a> {
     pub(super) m: &'a Manipulator,
-    /// The manipulator under each gravity direction the rows give (a base that is not level), and which of
-    /// them each row is measured under (None: `m`).
-    pub(super) tilted: Vec<(Vec3, Manipulator)>,
+    /// The manipulator under each gravity direction the rows give (a base that is not level) and at each
+    /// tip of a tree they measure, and which of them each row is measured by (None: `m`).
+    pub(super) tilted: Vec<(RowArm, Manipulator)>,
     pub(super) tilt_of: Vec<Option<usize>>,
     /// A serial arm's joint space; None for a parallel robot, whose rows give commanded poses and whose
     /// "joints" are its legs' actuators.
@@ -103,13 +103,15 @@ impl<'a> PositionProblem<'a> {
         if space.is_none() && data.rows.iter().any(|r| r.pose.is_none()) {
             return Err(CalibrationError::NotAnArm(m.name.clone()));
         }
-        let (tilted, tilt_of) = gravity_directions(m, data);
+        let tips = row_tips(m, data)?;
+        let (tilted, tilt_of) = row_arms(m, data, &tips);
         let arm_of = |k: usize| tilt_of[k].map_or(m, |t| &tilted[t].1);
         // One state for every row, in the rows' order: each placement starts from the last.
         let mut state = m.new_state();
-        let Deflections { deflection, compliance, mut unusable } = deflections(m, data, &arm_of, &mut state);
+        let Deflections { deflection, compliance, mut unusable } =
+            deflections(m, data, (&arm_of, &tilt_of), &mut state);
         let RowStatics { statics, leg_moves, mut prismatic } =
-            row_statics(m, data, &arm_of, &mut unusable, &mut state)?;
+            row_statics(m, data, (&arm_of, &tilt_of), &mut unusable, &mut state)?;
         let joints = joint_names(m);
         prismatic.resize(joints.len(), false);
         Ok(PositionProblem {
@@ -289,27 +291,72 @@ impl PositionProblem<'_> {
     }
 }
 
-/// The manipulator under each gravity direction the rows give (a base that is not level), and which of them
-/// each row is measured under (None: `m` itself).
-pub(super) fn gravity_directions(
+/// What a row is measured by, where it is not `m` itself: gravity along another direction (a base that is
+/// not level) and the tip of a tree its target is on (0: the first).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct RowArm {
+    gravity: Option<Vec3>,
+    tip: usize,
+}
+
+/// Per row, the tip of a tree its target is on (the index among `m`'s tips; 0 for a manipulator with one
+/// reference point, and for a displacement, which is the reference point's): a target names its tip by
+/// its name, the tip's link name or that name, `/` and a label (`hand_l/marker2`; a group suffix's leading
+/// `_` is not read: `mx_hand_l_mm`). A target of a tree that names no tip is an error, naming the tips.
+pub(super) fn row_tips(m: &Manipulator, data: &PositionData) -> Result<Vec<usize>, CalibrationError> {
+    let tips = m.tips();
+    if tips.len() < 2 {
+        return Ok(vec![0; data.rows.len()]);
+    }
+    let tip_of = |name: &str| {
+        let name = name.trim_start_matches('_');
+        tips.iter().position(|t| name == t || name.strip_prefix(t.as_str()).is_some_and(|rest| rest.starts_with('/')))
+    };
+    let of_target = data
+        .targets
+        .iter()
+        .map(|t| {
+            tip_of(t).ok_or_else(|| {
+                CalibrationError::NotOffered(format!(
+                    "target `{t}`: {} is a tree with several tips ({}), and a target names the tip it is on: name it `<tip>` or `<tip>/<label>` (a `target` cell, or the suffix of mx<suffix>_mm)",
+                    m.name,
+                    tips.join(", ")
+                ))
+            })
+        })
+        .collect::<Result<Vec<usize>, _>>()?;
+    Ok(data.rows.iter().map(|r| r.observed.target_and_setup().map_or(0, |(t, _)| of_target[t])).collect())
+}
+
+/// The manipulator each row is measured by where it is not `m` itself (gravity along another direction,
+/// another tip of a tree: `RowArm`), each once, and which of them each row is measured by (None: `m`).
+pub(super) fn row_arms(
     m: &Manipulator,
     data: &PositionData,
-) -> (Vec<(Vec3, Manipulator)>, Vec<Option<usize>>) {
-    let mut tilted: Vec<(Vec3, Manipulator)> = Vec::new();
-    let tilt_of = data
+    tips: &[usize],
+) -> (Vec<(RowArm, Manipulator)>, Vec<Option<usize>>) {
+    let mut arms: Vec<(RowArm, Manipulator)> = Vec::new();
+    let arm_of = data
         .rows
         .iter()
-        .map(|r| {
-            r.gravity.map(|g| match tilted.iter().position(|(d, _)| *d == g) {
+        .zip(tips)
+        .map(|(r, &tip)| {
+            let key = RowArm { gravity: r.gravity, tip };
+            (key != RowArm { gravity: None, tip: 0 }).then(|| match arms.iter().position(|(k, _)| *k == key) {
                 Some(k) => k,
                 None => {
-                    tilted.push((g, m.with_gravity_direction(&g)));
-                    tilted.len() - 1
+                    let tilted = r.gravity.map_or_else(|| m.clone(), |g| m.with_gravity_direction(&g));
+                    let arm = match tip {
+                        0 => tilted,
+                        _ => tilted.at_tip(&m.tips()[tip]).expect("a tip of the model"),
+                    };
+                    arms.push((key, arm));
+                    arms.len() - 1
                 }
             })
         })
         .collect();
-    (tilted, tilt_of)
+    (arms, arm_of)
 }
 
 /// A row's failure, located.
@@ -318,9 +365,10 @@ pub(super) fn failed(r: &PositionRow, why: String) -> CalibrationError {
 }
 
 /// The rows of one line of the file (several targets, a position and its orientation) share its
-/// configuration, wrench and gravity: their equilibrium and statics are those of the line's first.
-pub(super) fn same_line(data: &PositionData, k: usize) -> bool {
-    k > 0 && data.rows[k - 1].line == data.rows[k].line
+/// configuration, wrench and gravity: their equilibrium and statics are those of the line's first, where
+/// they are measured by the same arm (`arm_of`: a tree's targets on different tips are not).
+pub(super) fn same_line(data: &PositionData, arm_of: &[Option<usize>], k: usize) -> bool {
+    k > 0 && data.rows[k - 1].line == data.rows[k].line && arm_of[k - 1] == arm_of[k]
 }
 
 /// What `deflections` gives.
@@ -337,7 +385,7 @@ pub(super) struct Deflections {
 pub(super) fn deflections<'m>(
     m: &Manipulator,
     data: &PositionData,
-    arm_of: &dyn Fn(usize) -> &'m Manipulator,
+    (arm_of, arm_index): (&dyn Fn(usize) -> &'m Manipulator, &[Option<usize>]),
     state: &mut ManipulatorState,
 ) -> Deflections {
     let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
@@ -361,7 +409,7 @@ pub(super) fn deflections<'m>(
         unusable: Vec::new(),
     };
     for (k, r) in data.rows.iter().enumerate() {
-        if same_line(data, k) {
+        if same_line(data, arm_index, k) {
             if let Some((_, why)) = out.unusable.last().filter(|(u, _)| *u == k - 1) {
                 out.unusable.push((k, why.clone()));
             }
@@ -412,7 +460,7 @@ pub(super) struct RowStatics {
 pub(super) fn row_statics<'m>(
     m: &Manipulator,
     data: &PositionData,
-    arm_of: &dyn Fn(usize) -> &'m Manipulator,
+    (arm_of, arm_index): (&dyn Fn(usize) -> &'m Manipulator, &[Option<usize>]),
     unusable: &mut Vec<(usize, String)>,
     state: &mut ManipulatorState,
 ) -> Result<RowStatics, CalibrationError> {
@@ -423,7 +471,7 @@ pub(super) fn row_statics<'m>(
         prismatic: Vec::new(),
     };
     for (k, r) in data.rows.iter().enumerate() {
-        if same_line(data, k) {
+        if same_line(data, arm_index, k) {
             out.statics.push(out.statics[k - 1].clone());
             if space.is_none() {
                 out.leg_moves.push(out.leg_moves[k - 1].clone());
