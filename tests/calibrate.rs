@@ -1521,3 +1521,46 @@ fn a_set_up_the_fit_cannot_place_is_named_and_kept_out_of_the_verdict() {
     assert!(text.contains("21 rows fitted, 0 held out") && text.contains("verdict: none"), "{text}");
     assert!(!text.contains("gross row left out"), "{text}");
 }
+
+/// A repeated measurement is predicted once (the fit's shortcut for files of many repeats): least squares over
+/// k repeats of a configuration equals least squares over their mean with sigma / sqrt(k) (the normal
+/// equations are the same), so the fit of 12 configurations measured 5 times each (noise 0.05 mm) gives the
+/// values of the fit of the 12 means, weighted so, to 1e-7 of a standard error. (The standard errors differ
+/// where they are scaled by the residual: the repeats' scatter about their means is in the one, not the other.)
+#[test]
+fn repeated_measurements_fit_as_their_means_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let mut h = Hidden::registration_only();
+    h.compliance[1] = 1.7;
+    let mut r = rng(41);
+    let (mut repeated, mut means) = (String::new(), String::new());
+    let header = "pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,sigma_mm\n";
+    repeated += header;
+    means += header;
+    for c in 0..12 {
+        let t = random_angles(&mut r);
+        let truth = measured_target(&h, &t, true);
+        let q: Vec<String> = t.iter().map(|v| format!("{v:?}")).collect();
+        let mut sum = Vec3::zeros();
+        for _ in 0..5 {
+            let mut seen = truth;
+            for a in 0..3 {
+                seen[a] += 0.05 * normal(&mut r);
+            }
+            sum += seen;
+            repeated += &format!("c{c},{},{:?},{:?},{:?},0.05\n", q.join(","), seen.x, seen.y, seen.z);
+        }
+        let mean = sum / 5.0;
+        means += &format!("c{c},{},{:?},{:?},{:?},{:?}\n", q.join(","), mean.x, mean.y, mean.z, 0.05 / 5f64.sqrt());
+    }
+    let fitted = [effect(ArmKind::JointCompliance, "J2"), effect(ArmKind::JointOffset, "J3")];
+    let options = Options { fitted: fitted.to_vec(), max_effects: 0, ..options(None) };
+    let (_, a) = calibrate_text(&m, &repeated, dir.path(), &[], &options);
+    let (_, b) = calibrate_text(&m, &means, dir.path(), &[], &options);
+    assert_eq!(a.report.accepted.len(), 2);
+    for (x, y) in a.report.accepted.iter().zip(&b.report.accepted) {
+        assert_eq!(x.label, y.label);
+        assert!((x.values[0] - y.values[0]).abs() <= 1e-7 * y.se[0], "{}: {} vs {}", x.label, x.values[0], y.values[0]);
+    }
+}

@@ -104,20 +104,21 @@ pub fn solve<L: LeastSquares>(problem: &L, start: L::Point) -> Result<Solution<L
             hidden: Vec::new(),
         });
     }
-    let n = e.len();
     let mut lambda = FIRST_DAMPING;
+    // The decomposition of the Jacobian the last step was chosen with: where the loop ends without moving
+    // on (no improvement, or converged), the solution's rank and covariance are read from it.
+    let mut last: Option<ScaledSvd> = None;
     for _ in 0..MAX_STEPS {
-        let scale = column_scales(&jac);
-        let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
-        // Without U (its accumulation cost as much again as the rest of the SVD on the wide Jacobians of
-        // many set-ups): U^T e along a seen direction is v_k . (J^T e) / s_k, and no step is taken along the
+        let ScaledSvd { scale, singular_values, v_t } = last.insert(scaled_svd(&jac));
+        if v_t.nrows() == 0 {
+            break;
+        }
+        // U^T e along a seen direction is v_k . (J^T e) / s_k (no U is formed), and no step is taken along the
         // others.
-        let jte = scaled.transpose() * &e;
-        let svd = scaled.svd(false, true);
-        let Some(v_t) = svd.v_t.as_ref() else { break };
-        let top = svd.singular_values.max();
-        let ue = DVector::from_fn(svd.singular_values.len(), |k, _| {
-            let s = svd.singular_values[k];
+        let jte = DVector::from_fn(p, |j, _| jac.column(j).dot(&e) / scale[j]);
+        let top = singular_values.max();
+        let ue = DVector::from_fn(singular_values.len(), |k, _| {
+            let s = singular_values[k];
             if s > 0.0 {
                 v_t.row(k).transpose().dot(&jte) / s
             } else {
@@ -127,13 +128,13 @@ pub fn solve<L: LeastSquares>(problem: &L, start: L::Point) -> Result<Solution<L
         let mut improved = false;
         while lambda < DAMPING_CEILING {
             let mut step = DVector::zeros(p);
-            for (k, &s) in svd.singular_values.iter().enumerate() {
+            for (k, &s) in singular_values.iter().enumerate() {
                 if s > RANK_TOLERANCE * top {
                     let damped = s / (s * s + lambda * top * top);
                     step += v_t.row(k).transpose() * (ue[k] * damped);
                 }
             }
-            let step = step.component_div(&scale);
+            let step = step.component_div(scale);
             let trial = problem.step(&point, &step);
             if let Ok(e_trial) = problem.evaluate(&trial, None) {
                 let rss_trial = e_trial.norm_squared();
@@ -154,24 +155,49 @@ pub fn solve<L: LeastSquares>(problem: &L, start: L::Point) -> Result<Solution<L
         }
         e = problem.evaluate(&point, Some(&mut jac))?;
         rss = e.norm_squared();
+        last = None;
     }
-    let (rank, covariance, hidden) = seen_directions(&jac);
+    let decomposed = last.unwrap_or_else(|| scaled_svd(&jac));
+    let (rank, covariance, hidden) = seen_directions(&decomposed);
     Ok(Solution { point, rss, residuals: e, rank, covariance, hidden })
 }
 
-/// The rank of `jac` (column-scaled), the covariance (J^T J)^+ over the directions it sees, and the ones it
-/// does not see (`Solution`).
-fn seen_directions(jac: &DMatrix<f64>) -> (usize, DMatrix<f64>, Vec<Direction>) {
+/// The column-scaled Jacobian's singular values and right singular vectors, with the scales.
+struct ScaledSvd {
+    scale: DVector<f64>,
+    singular_values: DVector<f64>,
+    v_t: DMatrix<f64>,
+}
+
+/// The SVD of `jac` with its columns scaled (`column_scales`), without U. A Jacobian with more rows than
+/// columns (many rows, a few set-ups' parameters) is reduced to its p x p triangle R by Householder QR first:
+/// J = Q R has R's singular values and right vectors, and the SVD's bidiagonalisation then works on p rows,
+/// not n (half the work where n is several times p).
+fn scaled_svd(jac: &DMatrix<f64>) -> ScaledSvd {
     let (n, p) = jac.shape();
     let scale = column_scales(jac);
     let scaled = DMatrix::from_fn(n, p, |i, j| jac[(i, j)] / scale[j]);
-    let svd = scaled.svd(false, true);
+    let svd = match n > 2 * p {
+        true => scaled.qr().r().svd(false, true),
+        false => scaled.svd(false, true),
+    };
+    let v_t = svd.v_t.unwrap_or_else(|| DMatrix::zeros(0, p));
+    ScaledSvd { scale, singular_values: svd.singular_values, v_t }
+}
+
+/// The rank of the column-scaled Jacobian `d` decomposes, the covariance (J^T J)^+ over the directions it
+/// sees, and the ones it does not see (`Solution`).
+fn seen_directions(d: &ScaledSvd) -> (usize, DMatrix<f64>, Vec<Direction>) {
+    let p = d.scale.len();
+    let (scale, v_t) = (&d.scale, &d.v_t);
     let mut covariance = DMatrix::zeros(p, p);
     let mut hidden = Vec::new();
     let mut rank = 0;
-    let Some(v_t) = svd.v_t.as_ref() else { return (0, covariance, hidden) };
-    let top = svd.singular_values.max();
-    for (k, &s) in svd.singular_values.iter().enumerate() {
+    if v_t.nrows() == 0 {
+        return (0, covariance, hidden);
+    }
+    let top = d.singular_values.max();
+    for (k, &s) in d.singular_values.iter().enumerate() {
         let v = v_t.row(k).transpose();
         if s > RANK_TOLERANCE * top {
             rank += 1;

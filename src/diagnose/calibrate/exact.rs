@@ -19,7 +19,7 @@ impl PositionProblem<'_> {
     /// each candidate after the model it has (whose misses `select` keeps), so a candidate is judged against
     /// the model's exact prediction, its own first order added.
     pub(super) fn kept_miss(&self, effects: &[ArmEffect], r: usize) -> Vec6 {
-        let misses = self.misses.borrow();
+        let misses = self.misses.read().unwrap_or_else(std::sync::PoisonError::into_inner);
         let exact = misses.iter().find(|(e, _)| e == effects);
         let leading = || misses.iter().filter(|(e, _)| effects.starts_with(e)).max_by_key(|(e, _)| e.len());
         exact.or_else(leading).map_or_else(Vec6::zeros, |(_, m)| m[r])
@@ -125,7 +125,7 @@ impl PositionProblem<'_> {
                     seen.of(&change).norm() * self.weight[r]
                 })
                 .fold(0.0, f64::max);
-            let mut all = self.misses.borrow_mut();
+            let mut all = self.misses.write().unwrap_or_else(std::sync::PoisonError::into_inner);
             all.retain(|(e, _)| e != effects);
             all.push((effects.to_vec(), misses));
             drop(all);

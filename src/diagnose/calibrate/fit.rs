@@ -195,9 +195,30 @@ impl LeastSquares for OnRows<'_, '_> {
             j
         });
         let mut e = DVector::zeros(n);
+        // A repeated measurement's prediction is its first's (`PositionProblem::repeat_of`), made once; a
+        // drift moves with the row's line, so with one every row is predicted.
+        let shared = !self.effects.iter().any(|e| e.kind == super::effect::ArmKind::Drift);
+        let mut made: std::collections::HashMap<usize, (Vec3, Option<DMatrix<f64>>)> = std::collections::HashMap::new();
         for (i, &r) in self.rows.iter().enumerate() {
-            let with = jacobian.is_some().then_some(&mut *jac_row);
-            let prediction = self.problem.predict(r, self.effects, params, state, with).ok_or(())?;
+            let repeat = self.problem.repeat_of[r].filter(|_| shared);
+            let kept = repeat.and_then(|k| made.get(&k));
+            let prediction = match kept {
+                Some((prediction, rows)) => {
+                    if let (Some(rows), Some(_)) = (rows, jacobian.as_ref()) {
+                        jac_row.copy_from(rows);
+                    }
+                    *prediction
+                }
+                None => {
+                    let k = repeat.unwrap_or(r);
+                    let with = jacobian.is_some().then_some(&mut *jac_row);
+                    let prediction = self.problem.predict(k, self.effects, params, state, with).ok_or(())?;
+                    if shared && (repeat.is_some() || self.problem.repeated[r]) {
+                        made.insert(k, (prediction, jacobian.is_some().then(|| jac_row.clone())));
+                    }
+                    prediction
+                }
+            };
             let residual = (self.problem.measured(r) - prediction) * self.problem.weight[r];
             e.fixed_rows_mut::<3>(3 * i).copy_from(&residual);
             if let Some(jac) = jacobian.as_deref_mut() {

@@ -83,8 +83,12 @@ pub(super) struct PositionProblem<'a> {
     pub(super) prismatic: Vec<bool>,
     /// Per target, the index of its turn among the fitted ones (None: its orientation is not measured).
     pub(super) turn_of: Vec<Option<usize>>,
+    /// Per row of a serial arm, an earlier position row whose prediction it shares (`repeats`).
+    pub(super) repeat_of: Vec<Option<usize>>,
+    /// Per row, some later row shares its prediction.
+    pub(super) repeated: Vec<bool>,
     /// A parallel robot's misses of its first order, per set of effects (`exact_misses`).
-    pub(super) misses: std::cell::RefCell<Vec<(Vec<ArmEffect>, Vec<Vec6>)>>,
+    pub(super) misses: std::sync::RwLock<Vec<(Vec<ArmEffect>, Vec<Vec6>)>>,
 }
 
 impl<'a> PositionProblem<'a> {
@@ -114,6 +118,11 @@ impl<'a> PositionProblem<'a> {
             row_statics(m, data, (&arm_of, &tilt_of), &mut unusable, &mut state)?;
         let joints = joint_names(m);
         prismatic.resize(joints.len(), false);
+        let weight = weights(data, sigma, sigma_rad);
+        let repeat_of = match space {
+            Some(_) => repeats(data, &tilt_of, &weight, &deflection),
+            None => vec![None; data.rows.len()],
+        };
         Ok(PositionProblem {
             m,
             tilted,
@@ -126,11 +135,17 @@ impl<'a> PositionProblem<'a> {
             statics,
             compliance,
             unusable,
-            weight: weights(data, sigma, sigma_rad),
+            weight,
+            repeated: {
+                let mut repeated = vec![false; repeat_of.len()];
+                repeat_of.iter().flatten().for_each(|&k| repeated[k] = true);
+                repeated
+            },
+            repeat_of,
             absolute: data.absolute(),
             prismatic,
             turn_of: turns_of(data),
-            misses: std::cell::RefCell::new(Vec::new()),
+            misses: std::sync::RwLock::new(Vec::new()),
         })
     }
 }
@@ -289,6 +304,40 @@ impl PositionProblem<'_> {
             Observed::Displacement(d) => d,
         }
     }
+}
+
+/// Per row, an earlier position row measured again (the same configuration, wrench, gravity, arm, target,
+/// set-up, weight and model deflection): a serial arm predicts both alike (but for a drift, which moves with
+/// the row's line), so a fit predicts a repeated measurement once.
+pub(super) fn repeats(
+    data: &PositionData,
+    arm_of: &[Option<usize>],
+    weight: &[f64],
+    deflection: &[Vec6],
+) -> Vec<Option<usize>> {
+    let mut first: std::collections::HashMap<Vec<u64>, usize> = std::collections::HashMap::new();
+    data.rows
+        .iter()
+        .enumerate()
+        .map(|(r, row)| {
+            let Observed::Position { target, setup, .. } = row.observed else { return None };
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+            let mut key =
+                vec![row.configuration as u64, target as u64, setup as u64, arm_of[r].map_or(0, |a| a as u64 + 1)];
+            key.extend(bits(&row.joints));
+            key.extend(bits(row.wrench.as_slice()));
+            key.extend(bits(row.gravity.map_or([f64::NAN; 3], |g| [g.x, g.y, g.z]).as_slice()));
+            key.extend(bits(&[weight[r]]));
+            key.extend(bits(deflection[r].as_slice()));
+            match first.entry(key) {
+                std::collections::hash_map::Entry::Occupied(k) => Some(*k.get()),
+                std::collections::hash_map::Entry::Vacant(v) => {
+                    v.insert(r);
+                    None
+                }
+            }
+        })
+        .collect()
 }
 
 /// What a row is measured by, where it is not `m` itself: gravity along another direction (a base that is

@@ -9,6 +9,7 @@ use super::problem::PositionProblem;
 use crate::diagnose::stats::{bic_unknown_noise, chi2_sf, f_sf, robust_scale, GROSS_FACTOR_POSITIONS, STRONG_EVIDENCE};
 use crate::kinematics::frame::Vec3;
 use crate::output::calibration::{CandidateTest, ErrorStats};
+use rayon::prelude::*;
 
 /// The error statistics of `rows` (unweighted residuals, mm).
 pub(super) fn error_stats(residuals: &[Option<Vec3>], rows: &[usize]) -> ErrorStats {
@@ -204,13 +205,23 @@ fn forward_step(
     let mut best: Option<Best> = None;
     let untested: Vec<ArmEffect> = candidates.iter().filter(|c| !model.contains(c)).copied().collect();
     let mut tested = 0;
-    for c in &untested {
+    // The candidates' fits are independent: made in parallel, read in the candidates' order (the same
+    // outcome for any number of threads).
+    let fits: Vec<Option<PositionFit>> = untested
+        .par_iter()
+        .map(|c| {
+            let mut trial = model.to_vec();
+            trial.push(*c);
+            let mut start = fit.params.clone();
+            start.effects.push(vec![0.0; c.size()]);
+            problem.fit(rows, &trial, &start)
+        })
+        .collect();
+    for (c, f) in untested.iter().zip(fits) {
         let mut trial = model.to_vec();
         trial.push(*c);
-        let mut start = fit.params.clone();
-        start.effects.push(vec![0.0; c.size()]);
         let label = c.label(&problem.joints);
-        let Some(f) = problem.fit(rows, &trial, &start) else {
+        let Some(f) = f else {
             step.push(CandidateTest { label, f: None, p: None, note: Some("a row has no pose with it".into()) });
             continue;
         };
@@ -269,12 +280,18 @@ fn eliminate_backward(
         let selected = options.fitted.len()..model.len();
         let threshold = options.alpha / selected.len().max(1) as f64;
         let mut weakest: Option<(f64, usize, PositionFit)> = None;
-        for k in selected {
-            let mut without = model.clone();
-            without.remove(k);
-            let mut start = fit.params.clone();
-            start.effects.remove(k);
-            let Some(f) = problem.fit(rows, &without, &start) else { continue };
+        let fits: Vec<(usize, Option<PositionFit>)> = selected
+            .into_par_iter()
+            .map(|k| {
+                let mut without = model.clone();
+                without.remove(k);
+                let mut start = fit.params.clone();
+                start.effects.remove(k);
+                (k, problem.fit(rows, &without, &start))
+            })
+            .collect();
+        for (k, f) in fits {
+            let Some(f) = f else { continue };
             let (_, p) = nested_test(f.rss, f.rank, fit, sigma_known);
             if p >= threshold && weakest.as_ref().is_none_or(|w| p > w.0) {
                 weakest = Some((p, k, f));
@@ -302,17 +319,26 @@ fn best_swap(
 ) -> Option<(f64, usize, ArmEffect, PositionFit)> {
     let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
     let mut best: Option<(f64, usize, ArmEffect, PositionFit)> = None;
-    for k in options.fitted.len()..model.len() {
-        for c in candidates.iter().filter(|c| !model.contains(c) && c.size() <= model[k].size()) {
+    let swaps: Vec<(usize, ArmEffect)> = (options.fitted.len()..model.len())
+        .flat_map(|k| {
+            candidates.iter().filter(move |c| !model.contains(c) && c.size() <= model[k].size()).map(move |c| (k, *c))
+        })
+        .collect();
+    let fits: Vec<Option<PositionFit>> = swaps
+        .par_iter()
+        .map(|&(k, c)| {
             let mut swapped = model.to_vec();
-            swapped[k] = *c;
+            swapped[k] = c;
             let mut start = fit.params.clone();
             start.effects[k] = vec![0.0; c.size()];
-            let Some(f) = problem.fit(rows, &swapped, &start) else { continue };
-            let gain = bic(fit) - bic(&f);
-            if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
-                best = Some((gain, k, *c, f));
-            }
+            problem.fit(rows, &swapped, &start)
+        })
+        .collect();
+    for ((k, c), f) in swaps.into_iter().zip(fits) {
+        let Some(f) = f else { continue };
+        let gain = bic(fit) - bic(&f);
+        if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
+            best = Some((gain, k, c, f));
         }
     }
     best
