@@ -113,7 +113,7 @@ pub fn calibrate(
     let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
     // A set-up whose frame its fit rows cannot fix is named and its rows kept out of the fit and the verdict:
     // its check rows would be predicted through an arbitrary frame and called gross.
-    let unplaced = unplaceable_setups(data, &fit_rows);
+    let unplaced = unplaceable_setups(&problem, data, &fit_rows);
     let placed = |r: &usize| {
         data.rows[*r].observed.target_and_setup().is_none_or(|(_, setup)| !unplaced.iter().any(|(s, _)| *s == setup))
     };
@@ -235,11 +235,57 @@ fn offered(
 /// The fitted rows can fit what every fit fits: each set-up and target seen, more coordinates than the
 /// registration's and the fixed effects' parameters.
 /// The set-ups whose frame the fit rows cannot fix, with why: fewer than three configurations measured in
-/// position (two, where an orientation is measured too) leave some of its six parameters unseen. None where
-/// no set-up could be placed (the data are then too few as a whole, said as such).
-fn unplaceable_setups(data: &PositionData, fit_rows: &[usize]) -> Vec<(usize, String)> {
+/// position (two, where an orientation is measured too) leave some of its six parameters unseen; so do rows
+/// all at one tool orientation along one line (the turn about the line moves none of them). None where no
+/// set-up could be placed (the data are then too few as a whole, said as such).
+fn unplaceable_setups(problem: &PositionProblem, data: &PositionData, fit_rows: &[usize]) -> Vec<(usize, String)> {
     let mut out = Vec::new();
+    let frame = |r: &usize| problem.statics[*r].0.frame;
+    // Two tool orientations within this (rad) are one: a translational robot's, or an arm's at one pose.
+    const SAME_TURN: f64 = 1e-9;
+    let turn_between = |a: &usize, b: &usize| {
+        crate::kinematics::frame::rotation_vector(&(frame(a).rot.transpose() * frame(b).rot)).norm()
+    };
     for (k, name) in data.setups.iter().enumerate() {
+        let named = if name.is_empty() { "the set-up".to_string() } else { format!("set-up `{name}`") };
+        let own: Vec<usize> = fit_rows
+            .iter()
+            .copied()
+            .filter(|&r| matches!(data.rows[r].observed, Observed::Position { setup, .. } if setup == k))
+            .collect();
+        let all = data.rows.iter().filter(|r| r.observed.target_and_setup().is_some_and(|(_, s)| s == k)).count();
+        let oriented = fit_rows
+            .iter()
+            .any(|&r| matches!(data.rows[r].observed, Observed::Orientation { setup, .. } if setup == k));
+        let configurations =
+            own.iter().map(|&r| data.rows[r].configuration).collect::<std::collections::BTreeSet<_>>().len();
+        // Too few configurations is said by the count (below).
+        let one_turn = !own.is_empty() && own.iter().all(|r| turn_between(&own[0], r) <= SAME_TURN);
+        if oriented || !one_turn || configurations < 3 {
+            continue;
+        }
+        // At one orientation the rows' points are the reference points moved by one lever: collinear
+        // reference points, collinear measured points.
+        let points: Vec<Vec3> = own.iter().map(|r| frame(r).pos).collect();
+        let centre = points.iter().fold(Vec3::zeros(), |a, p| a + p) / points.len() as f64;
+        let scatter = points
+            .iter()
+            .fold(crate::kinematics::frame::Mat3::zeros(), |a, p| a + (p - centre) * (p - centre).transpose());
+        // The scatter's eigenvalues are squared lengths: the middle one within 1e-12 of the largest is a
+        // point 1 um off a line of 1 m (the eigenvalues' own round-off is 1e-16 of the largest).
+        let Some(spread) = crate::platform::compliance::symmetric_eigenvalues3(&scatter) else { continue };
+        if spread[1] <= 1e-12 * spread[2] {
+            out.push((
+                k,
+                format!("{named} cannot be placed: its fit rows lie on one line at one tool orientation (a turn about the line moves none of them); its {all} rows are left out of the fit and the verdict"),
+            ));
+            continue;
+        }
+    }
+    for (k, name) in data.setups.iter().enumerate() {
+        if out.iter().any(|(s, _)| *s == k) {
+            continue;
+        }
         let rows: Vec<&PositionRow> = fit_rows
             .iter()
             .map(|&r| &data.rows[r])
