@@ -458,12 +458,13 @@ impl Candidate {
         let se = match self.kind {
             _ if self.logarithmic() => values.iter().zip(se).map(|(v, s)| v * s).collect(),
             Kind::GravityOffset => {
-                // c = s / m with s = m c across gravity: dc = ds / m - s dm / m^2 (their covariance neglected);
-                // the moment's standard error in each base axis from the two fitted directions.
+                // c = s / m with s = m c: dc = ds / m - s dm / m^2 (their covariance neglected); the moment's
+                // standard error in each base axis from the fitted directions (across gravity, and along it
+                // where the data see it).
                 let (m, b) = (p[0], self.basis.as_ref().expect("gravity-offset has its basis"));
                 let mut out = vec![se[0]];
                 for r in 1..4 {
-                    let ds = ((b[(r, 1)] * se[1]).powi(2) + (b[(r, 2)] * se[2]).powi(2)).sqrt();
+                    let ds = (1..b.ncols()).map(|c| (b[(r, c)] * se[c]).powi(2)).sum::<f64>().sqrt();
                     out.push(((ds / m).powi(2) + (effect.values[r] * se[0] / (m * m)).powi(2)).sqrt());
                 }
                 out

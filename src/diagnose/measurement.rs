@@ -77,11 +77,13 @@ impl PoseModel {
         for e in effects {
             let v = &e.values;
             match (&e.kind, &e.target) {
-                // A mass's weight at the reference point: force m g, moment (m c) x g (gravity-offset is
-                // stored as (m, m c); plain gravity has c = 0).
+                // A mass's weight at the reference point: force m g, moment (R m c) x g (gravity-offset is
+                // stored as (m, m c); plain gravity has c = 0), its arm turned with the platform by the
+                // model's own deflection there: a centre along gravity weighs only as the platform turns.
                 (Kind::Gravity | Kind::GravityOffset, _) => {
                     let f = g * v[0];
-                    let m = if v.len() == 4 { Vec3::new(v[1], v[2], v[3]).cross(g) } else { Vec3::zeros() };
+                    let turn = crate::kinematics::frame::rotation_from_vector(&Vec3::new(base[3], base[4], base[5]));
+                    let m = if v.len() == 4 { (turn * Vec3::new(v[1], v[2], v[3])).cross(g) } else { Vec3::zeros() };
                     d += c * Vec6::new(f.x, f.y, f.z, m.x, m.y, m.z);
                 }
                 (Kind::LegGeometry, Target::Leg(k)) => d += self.end_error(*k, &Vec6::from_column_slice(v)),

@@ -230,20 +230,41 @@ pub fn candidates(problem: &Problem, loaded: bool) -> Vec<Candidate> {
     out
 }
 
-/// Gravity-offset's parameters: the mass, and its first moment m c in the two directions across gravity (a
-/// centre moved along gravity changes no moment, so no measurement at these orientations sees it). Maps
-/// them to the stored values (m, m c).
+/// Gravity-offset's parameters: the mass and its first moment m c across gravity, and along it where the data
+/// see that: a centre moved along gravity changes the payload's moment only as the platform turns under the
+/// load (r = R c), so on a rigid or purely translating platform no measurement sees it, and it is left out
+/// (reported as 0); where the platform's turn under the rows' wrenches makes it visible, leaving it out
+/// would put its share on the moment across gravity (a centre 121 mm below the platform moved the fitted
+/// one by 6 standard errors), so it is fitted. Maps the parameters to the stored values (m, m c).
 fn centre_basis(problem: &Problem) -> DMatrix<f64> {
     let g = gravity_of(problem.model).normalize();
     let helper = if g.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
     let e1 = g.cross(&helper).normalize();
     let e2 = g.cross(&e1);
-    DMatrix::from_fn(4, 3, |r, c| match (r, c) {
-        (0, 0) => 1.0,
-        (0, _) | (_, 0) => 0.0,
-        (r, 1) => e1[r - 1],
-        (r, _) => e2[r - 1],
-    })
+    let basis = |columns: usize| {
+        DMatrix::from_fn(4, columns, |r, c| match (r, c) {
+            (0, 0) => 1.0,
+            (0, _) | (_, 0) => 0.0,
+            (r, 1) => e1[r - 1],
+            (r, 2) => e2[r - 1],
+            (r, _) => g[r - 1],
+        })
+    };
+    let full = Candidate { kind: Kind::GravityOffset, target: Target::None, basis: Some(basis(4)) };
+    let rows: Vec<usize> = (0..problem.data.rows.len()).collect();
+    let seen_along = signature(problem, &full, &rows).is_some_and(|sig| {
+        let norms: Vec<f64> = sig.column_iter().map(|c| c.norm()).collect();
+        let largest = norms.iter().copied().fold(0.0, f64::max);
+        // The moment along gravity moves a prediction (beyond round-off of the others), and not only as the
+        // moments across it do.
+        let visible = norms[3] > NO_SIGNATURE * (sig.nrows() as f64).sqrt() && norms[3] > SIGNATURE_FLOOR * largest;
+        visible && norms.iter().all(|n| *n > 0.0) && {
+            let scaled = DMatrix::from_fn(sig.nrows(), 4, |i, j| sig[(i, j)] / norms[j]);
+            let s = scaled.singular_values();
+            s.min() * RANK_DEFICIENT > s.max()
+        }
+    });
+    basis(if seen_along { 4 } else { 3 })
 }
 
 /// Splits off candidates whose signature on this data equals an earlier candidate's (same number of
