@@ -1564,3 +1564,60 @@ fn repeated_measurements_fit_as_their_means_do() {
         assert!((x.values[0] - y.values[0]).abs() <= 1e-7 * y.se[0], "{}: {} vs {}", x.label, x.values[0], y.values[0]);
     }
 }
+
+/// Regression: a set-up with three configurations, one of them a gross row: once the screening leaves it
+/// fewer than three points its frame has more parameters than they fix, and its held-out row was predicted through an arbitrary
+/// frame and called a gross row metres off (2,528 mm in a file of 22 set-ups). The set-up is named as one
+/// its gross rows leave unplaceable, its rows kept out of the figures and the verdict. `--residuals` writes
+/// every row with its residual (instrument frame and base axes) and why it is left out, and the report gives
+/// the 95th percentiles horizontally and vertically.
+#[test]
+fn a_set_up_its_gross_rows_leave_unplaceable_is_named_and_residuals_are_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = Hidden::registration_only();
+    let data = synthetic(&h, 25, 0.05, &[22], true, 9).replace(",check\n", ",fit\n");
+    let rows: String = data
+        .lines()
+        .enumerate()
+        .map(|(k, l)| match k {
+            0 => format!("{l},setup\n"),
+            // The last four rows: a second set-up, three fitted (the first of them gross), one held out.
+            22..=24 => format!("{l},b\n"),
+            25 => format!("{},b\n", l.replace(",fit", ",check")),
+            _ => format!("{l},a\n"),
+        })
+        .collect();
+    std::fs::write(dir.path().join("d.csv"), rows).unwrap();
+    let residuals = dir.path().join("residuals.csv");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
+        .args(["diagnose", FANUC, "--sigma", "0.05", "--data"])
+        .arg(dir.path().join("d.csv"))
+        .arg("--residuals")
+        .arg(&residuals)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("set-up `b` cannot be placed: its fit rows, without its gross ones, measure "), "{text}");
+    assert!(!text.contains("gross row left out"), "{text}");
+    assert!(text.contains("verdict: none") && text.contains("p95_xy    p95_z"), "{text}");
+    let mut reader = csv::Reader::from_path(&residuals).unwrap();
+    let header = reader.headers().unwrap().clone();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap_or_else(|| panic!("{name}: {header:?}"));
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 25);
+    for row in &rows {
+        let b = &row[column("setup")] == "b";
+        assert_eq!(&row[column("left_out")] == "its set-up cannot be placed", b, "{row:?}");
+        // The length is the residual's, and the base-axes residual has the same length (a rotation).
+        let e: Vec<f64> = ["ex_mm", "ey_mm", "ez_mm", "e_mm", "base_ex_mm", "base_ey_mm", "base_ez_mm"]
+            .iter()
+            .map(|c| row[column(c)].parse().unwrap())
+            .collect();
+        assert!((e[0].hypot(e[1]).hypot(e[2]) - e[3]).abs() < 1e-12 * e[3].max(1.0));
+        assert!((e[4].hypot(e[5]).hypot(e[6]) - e[3]).abs() < 1e-9 * e[3].max(1.0));
+        if !b {
+            assert!(e[3] < 0.5, "{row:?}");
+        }
+    }
+}

@@ -74,6 +74,12 @@ pub(crate) struct DiagnoseArgs {
     /// Write the model description with the accepted effects added.
     #[arg(long)]
     pub(crate) model_out: Option<PathBuf>,
+    /// Measured positions: write every row's residual under the model selected (name, line, setup, target,
+    /// set, observed, ex_mm..e_mm in the instrument's frame, base_ex_mm..base_exy_mm in the robot base's axes,
+    /// erx_mrad..er_mrad for an orientation, left_out: why a row is not in the report's figures). CSV, or by
+    /// the extension .csv.gz, .csv.zst, .parquet.
+    #[arg(long)]
+    pub(crate) residuals: Option<PathBuf>,
     /// Also draw the diagnosis (SVG, or PNG for a .png name): residual arrows before and after, per-axis RMS, candidates' delta BIC.
     #[arg(long)]
     pub(crate) plot: Option<PathBuf>,
@@ -111,9 +117,14 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         // (a serial arm's data without q_<joint> columns get the reader's message naming them).
         return run_calibration(&a, &model.manipulator, &input);
     }
-    if a.check_fraction.is_some() || !a.fit.is_empty() || !a.candidates.is_empty() || a.sigma_mrad.is_some() {
+    if a.check_fraction.is_some()
+        || !a.fit.is_empty()
+        || !a.candidates.is_empty()
+        || a.sigma_mrad.is_some()
+        || a.residuals.is_some()
+    {
         bail!(
-            "--check-fraction, --fit, --candidates and --sigma-mrad are for measured positions (mx_mm,my_mm,mz_mm: a serial arm's at q_<joint> columns, a parallel robot's at commanded poses); {} gives displacements",
+            "--check-fraction, --fit, --candidates, --sigma-mrad and --residuals are for measured positions (mx_mm,my_mm,mz_mm: a serial arm's at q_<joint> columns, a parallel robot's at commanded poses); {} gives displacements",
             a.data.display()
         );
     }
@@ -245,6 +256,8 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let model_sink = a.model_out.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let plot_sink = a.plot.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
+    let residual_columns = crate::output::table::selected_columns(&residual_example(), &(), None);
+    let residual_sink = a.residuals.as_deref().map(|p| Sink::table(Some(p), &residual_columns)).transpose()?;
     let c = calibrate::calibrate(m, &data, &candidates, &options)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
@@ -266,6 +279,14 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     if let Some(sink) = model_sink {
         write_corrected(sink, &a.model.model, |source, dir| calibrate::corrected_model(source, dir, &c))?;
     }
+    if let Some(mut sink) = residual_sink {
+        let mut text = crate::output::table::header_line(&residual_columns);
+        for row in &c.rows {
+            crate::output::table::write_row(row, &(), &mut text);
+        }
+        sink.writer().write_all(text.as_bytes())?;
+        sink.finish()?;
+    }
     let fails = match (a.fail_on, c.report.verdict) {
         (None, _) | (_, CalibrationVerdict::None) => false,
         (Some(FailOn::Effect), _) => true,
@@ -275,6 +296,22 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         bail!("verdict `{:?}` (--fail-on)", c.report.verdict);
     }
     Ok(())
+}
+
+/// A row of the residual table, for its columns.
+fn residual_example() -> crate::diagnose::calibrate::RowResidual {
+    crate::diagnose::calibrate::RowResidual {
+        name: String::new(),
+        line: 0,
+        setup: String::new(),
+        target: String::new(),
+        set: "fit",
+        observed: "position",
+        error_mm: None,
+        base_mm: None,
+        turn_mrad: None,
+        left_out: String::new(),
+    }
 }
 
 /// Writes the description `model` corrected by `correct` (its text and its folder, from which the corrected

@@ -71,6 +71,18 @@ pub struct ErrorStats {
     /// Largest magnitude of x, y, z.
     #[serde(deserialize_with = "null_is_nan::three")]
     pub max_axis: [f64; 3],
+    /// 95th percentile of the error in the robot base's horizontal (x-y) plane, mm (positions only: a set-up's
+    /// error turned back from the instrument's frame).
+    #[serde(default = "not_given", deserialize_with = "null_is_nan::float")]
+    pub p95_horizontal: f64,
+    /// 95th percentile of the error's magnitude along the base's vertical (z), mm.
+    #[serde(default = "not_given", deserialize_with = "null_is_nan::float")]
+    pub p95_vertical: f64,
+}
+
+/// A figure an older file does not hold.
+fn not_given() -> f64 {
+    f64::NAN
 }
 
 /// The errors after one stage of the model (the registration alone, then each accepted effect).

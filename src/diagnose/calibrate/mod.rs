@@ -36,6 +36,7 @@ mod options;
 mod predict;
 mod problem;
 mod report;
+mod residuals;
 mod select;
 mod signatures;
 mod synth;
@@ -44,6 +45,7 @@ pub use effect::{ArmEffect, ArmKind};
 pub use options::{Calibration, CalibrationError, CalibrationOptions};
 pub use problem::joint_names;
 pub use report::{corrected_model, correction_table, text};
+pub use residuals::RowResidual;
 pub use signatures::{signatures, Signatures};
 pub use synth::{
     configurations, synthesize_leg_positions, synthesize_positions, Configuration, PositionSynth, SynthRow,
@@ -113,16 +115,29 @@ pub fn calibrate(
     let fit_rows: Vec<usize> = (0..data.rows.len()).filter(|&r| !data.rows[r].check).filter(usable).collect();
     // A set-up whose frame its fit rows cannot fix is named and its rows kept out of the fit and the verdict:
     // its check rows would be predicted through an arbitrary frame and called gross.
-    let unplaced = unplaceable_setups(&problem, data, &fit_rows);
+    let mut unplaced = unplaceable_setups(&problem, data, &fit_rows);
     let placed = |r: &usize| {
         data.rows[*r].observed.target_and_setup().is_none_or(|(_, setup)| !unplaced.iter().any(|(s, _)| *s == setup))
     };
     let fit_rows: Vec<usize> = fit_rows.into_iter().filter(placed).collect();
-    let check_rows: Vec<usize> =
-        (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).filter(placed).collect();
     let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
     check_fittable(&problem, data, &fit_rows, &unplaced, options)?;
-    let (kept, selection, mut gross) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
+    let (mut kept, selection, mut gross) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
+    // A set-up that its gross rows left without enough rows to fix its frame: set aside as well (its
+    // unseen directions move none of the rows fitted, so the fit stands; its held-out rows would be
+    // predicted through an arbitrary frame).
+    for (s, why) in unplaceable_setups(&problem, data, &kept) {
+        if !unplaced.iter().any(|(k, _)| *k == s) {
+            unplaced.push((s, why.replacen("its fit rows", "its fit rows, without its gross ones,", 1)));
+        }
+    }
+    let placed = |r: &usize| {
+        data.rows[*r].observed.target_and_setup().is_none_or(|(_, setup)| !unplaced.iter().any(|(s, _)| *s == setup))
+    };
+    kept.retain(placed);
+    gross.retain(placed);
+    let check_rows: Vec<usize> =
+        (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).filter(placed).collect();
     let Selection { mut model, mut fit, steps, mut hidden, stopped } = selection;
     hidden.extend(one_sided);
     if problem.absolute {
@@ -181,7 +196,9 @@ pub fn calibrate(
         .space
         .is_none()
         .then(|| model.iter().zip(&fit.params.effects).map(|(e, values)| problem.model_form(e, values)).collect());
-    Ok(Calibration { report, effects: model, leg_corrections })
+    let base = problem.in_base_axes(&residuals, &fit.params);
+    let rows = residuals::row_residuals(data, &residuals, &base, &problem.unusable, &gross, &unplaced);
+    Ok(Calibration { report, effects: model, leg_corrections, rows })
 }
 
 /// The data as the fit reads them: a parallel robot's rows at the pose its actuators' readings give, each
@@ -561,15 +578,17 @@ fn stage_errors(
         };
         let Some(f) = f else { continue };
         let r = problem.residuals(&staged, &f.params);
+        let base = problem.in_base_axes(&r, &f.params);
         let in_mrad: Vec<Option<Vec3>> = r.iter().map(|v| v.map(|v| v * 1e3)).collect();
         stages.push(Stage {
             model: label,
             parameters: f.rank,
-            fit: error_stats(&r, &only(kept, false)),
-            check: error_stats(&r, &only(check_rows, false)),
-            check_all: error_stats(&r, &only(all_checks, false)),
-            orientation: oriented
-                .then(|| [error_stats(&in_mrad, &only(kept, true)), error_stats(&in_mrad, &only(check_rows, true))]),
+            fit: error_stats(&r, Some(&base), &only(kept, false)),
+            check: error_stats(&r, Some(&base), &only(check_rows, false)),
+            check_all: error_stats(&r, Some(&base), &only(all_checks, false)),
+            orientation: oriented.then(|| {
+                [error_stats(&in_mrad, None, &only(kept, true)), error_stats(&in_mrad, None, &only(check_rows, true))]
+            }),
         });
     }
     stages

@@ -30,6 +30,8 @@ pub struct Calibration {
     /// A parallel robot's accepted effects as the model-form effects a description holds (`model_form`; None
     /// for one it holds not), in the order of `effects`; None for a serial arm.
     pub leg_corrections: Option<Vec<Option<Effect>>>,
+    /// Every row of the data with its residual under the model selected (`--residuals`).
+    pub rows: Vec<super::residuals::RowResidual>,
 }
 
 /// The failures of a calibration.

@@ -311,6 +311,20 @@ impl PositionProblem<'_> {
     }
 
     /// The unweighted residual (measured minus predicted) of every row, None where a row has no pose.
+    /// Each position row's residual (`residuals`) in the robot base's axes: a set-up's turned back from its
+    /// instrument's frame (R^T e); a displacement's is already there; an orientation's is None.
+    pub(super) fn in_base_axes(&self, residuals: &[Option<Vec3>], params: &Params) -> Vec<Option<Vec3>> {
+        residuals
+            .iter()
+            .zip(&self.data.rows)
+            .map(|(e, row)| match row.observed {
+                Observed::Position { setup, .. } => e.map(|e| params.rotations[setup].transpose() * e),
+                Observed::Displacement(_) => *e,
+                Observed::Orientation { .. } => None,
+            })
+            .collect()
+    }
+
     pub(super) fn residuals(&self, effects: &[ArmEffect], params: &Params) -> Vec<Option<Vec3>> {
         let mut state = self.m.new_state();
         (0..self.data.rows.len())

@@ -363,9 +363,14 @@ pub fn text(c: &CalibrationReport, model: &str) -> String {
             .collect();
         let _ = writeln!(s, "step {}: {} candidates tested; best {}", k + 1, tested.len(), best.join(", "));
     }
-    let _ = writeln!(s, "position error, mm (check: held out; all: held out with its gross rows):");
-    let _ =
-        writeln!(s, "                                   rows      rms_x    rms_y    rms_z    rms      p95      max");
+    let _ = writeln!(
+        s,
+        "position error, mm (check: held out; all: held out with its gross rows; p95_xy, p95_z: the 95th percentiles in the base's horizontal plane and along its vertical):"
+    );
+    let _ = writeln!(
+        s,
+        "                                   rows      rms_x    rms_y    rms_z    rms      p95      max   p95_xy    p95_z"
+    );
     for st in &c.stages {
         let with_gross = if st.check_all.rows > st.check.rows { st.check_all.rows } else { 0 };
         for (set, e) in [("fit", &st.fit), ("check", &st.check), ("all", &st.check_all)] {
@@ -373,6 +378,10 @@ pub fn text(c: &CalibrationReport, model: &str) -> String {
                 continue;
             }
             stage_line(&mut s, st, set, e);
+            if s.ends_with('\n') && e.p95_horizontal.is_finite() {
+                s.pop();
+                let _ = writeln!(s, " {:8.4} {:8.4}", e.p95_horizontal, e.p95_vertical);
+            }
         }
     }
     if c.stages.iter().any(|st| st.orientation.is_some()) {

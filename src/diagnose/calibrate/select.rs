@@ -12,7 +12,7 @@ use crate::output::calibration::{CandidateTest, ErrorStats};
 use rayon::prelude::*;
 
 /// The error statistics of `rows` (unweighted residuals, mm).
-pub(super) fn error_stats(residuals: &[Option<Vec3>], rows: &[usize]) -> ErrorStats {
+pub(super) fn error_stats(residuals: &[Option<Vec3>], base: Option<&[Option<Vec3>]>, rows: &[usize]) -> ErrorStats {
     let r: Vec<Vec3> = rows.iter().filter_map(|&k| residuals[k]).collect();
     if r.is_empty() {
         return ErrorStats::default();
@@ -22,8 +22,23 @@ pub(super) fn error_stats(residuals: &[Option<Vec3>], rows: &[usize]) -> ErrorSt
     lengths.sort_by(f64::total_cmp);
     let rms_axis = [0, 1, 2].map(|a| (r.iter().map(|v| v[a] * v[a]).sum::<f64>() / n).sqrt());
     // The 95th percentile by the nearest rank.
-    let p95 = lengths[((0.95 * n).ceil() as usize).clamp(1, lengths.len()) - 1];
+    let percentile = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(((0.95 * v.len() as f64).ceil() as usize).clamp(1, v.len().max(1)) - 1).copied().unwrap_or(f64::NAN)
+    };
+    let p95 = percentile(lengths.clone());
+    // In the base's axes: horizontally (x-y) and vertically (z), as field users report a robot's accuracy.
+    let in_base: Vec<Vec3> = base.map_or(Vec::new(), |b| rows.iter().filter_map(|&k| b[k]).collect());
+    let (p95_horizontal, p95_vertical) = match in_base.is_empty() {
+        true => (f64::NAN, f64::NAN),
+        false => (
+            percentile(in_base.iter().map(|v| v.x.hypot(v.y)).collect()),
+            percentile(in_base.iter().map(|v| v.z.abs()).collect()),
+        ),
+    };
     ErrorStats {
+        p95_horizontal,
+        p95_vertical,
         rows: r.len(),
         rms_axis,
         rms: (lengths.iter().map(|l| l * l).sum::<f64>() / n).sqrt(),
