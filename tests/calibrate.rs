@@ -1507,13 +1507,8 @@ fn a_set_up_the_fit_cannot_place_is_named_and_kept_out_of_the_verdict() {
         })
         .collect();
     std::fs::write(dir.path().join("d.csv"), rows).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
-        .args(["diagnose", FANUC, "--sigma", "0.05", "--data"])
-        .arg(dir.path().join("d.csv"))
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let data = dir.path().join("d.csv");
+    let text = crate::common::run_stiff(&["diagnose", FANUC, "--sigma", "0.05", "--data", data.to_str().unwrap()]);
     assert!(
         text.contains("set-up `b` cannot be placed: its fit rows measure 2 configurations (3 are needed"),
         "{text}"
@@ -1589,15 +1584,17 @@ fn a_set_up_its_gross_rows_leave_unplaceable_is_named_and_residuals_are_written(
         .collect();
     std::fs::write(dir.path().join("d.csv"), rows).unwrap();
     let residuals = dir.path().join("residuals.csv");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
-        .args(["diagnose", FANUC, "--sigma", "0.05", "--data"])
-        .arg(dir.path().join("d.csv"))
-        .arg("--residuals")
-        .arg(&residuals)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let data = dir.path().join("d.csv");
+    let text = crate::common::run_stiff(&[
+        "diagnose",
+        FANUC,
+        "--sigma",
+        "0.05",
+        "--data",
+        data.to_str().unwrap(),
+        "--residuals",
+        residuals.to_str().unwrap(),
+    ]);
     assert!(text.contains("set-up `b` cannot be placed: its fit rows, without its gross ones, measure "), "{text}");
     assert!(!text.contains("gross row left out"), "{text}");
     assert!(text.contains("verdict: none") && text.contains("p95_xy    p95_z"), "{text}");

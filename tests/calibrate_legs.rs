@@ -509,13 +509,8 @@ fn a_set_up_whose_rows_lie_on_one_line_is_named_and_kept_out() {
     }
     row("b_off".into(), Vec3::new(20.0, 40.0, 30.0), (&rb, &tb), "check", "b");
     std::fs::write(dir.path().join("d.csv"), csv).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff"))
-        .args(["diagnose", MODEL, "--data"])
-        .arg(dir.path().join("d.csv"))
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let data = dir.path().join("d.csv");
+    let text = crate::common::run_stiff(&["diagnose", MODEL, "--data", data.to_str().unwrap()]);
     assert!(
         text.contains("set-up `b` cannot be placed: its fit rows lie on one line at one tool orientation"),
         "{text}"

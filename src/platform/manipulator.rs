@@ -420,15 +420,12 @@ impl Manipulator {
         }
         with_scratch(controller.len(), |q| {
             space.model_coordinates_into(controller, q);
-            // Every chain of a tree seeded at the coordinates; the reference point's gives the frame.
-            let mut frame = None;
-            for (k, (leg, s)) in self.arm_chains().zip(state.legs.iter_mut()).enumerate() {
-                let f = leg.pose_at_joints(q, s)?;
-                if k == 0 {
-                    frame = Some(f);
-                }
-            }
-            frame
+            // Every chain of a tree seeded at the coordinates; the reference point's (the first) gives the
+            // frame. No allocation: a map in joint space calls this at every point.
+            self.arm_chains()
+                .zip(state.legs.iter_mut())
+                .try_fold(None, |first: Option<Frame>, (leg, s)| Some(first.or(Some(leg.pose_at_joints(q, s)?))))
+                .flatten()
         })
     }
 

@@ -116,10 +116,7 @@ pub fn calibrate(
     // A set-up whose frame its fit rows cannot fix is named and its rows kept out of the fit and the verdict:
     // its check rows would be predicted through an arbitrary frame and called gross.
     let mut unplaced = unplaceable_setups(&problem, data, &fit_rows);
-    let placed = |r: &usize| {
-        data.rows[*r].observed.target_and_setup().is_none_or(|(_, setup)| !unplaced.iter().any(|(s, _)| *s == setup))
-    };
-    let fit_rows: Vec<usize> = fit_rows.into_iter().filter(placed).collect();
+    let fit_rows: Vec<usize> = fit_rows.into_iter().filter(|r| placed(data, &unplaced, *r)).collect();
     let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
     check_fittable(&problem, data, &fit_rows, &unplaced, options)?;
     let (mut kept, selection, mut gross) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
@@ -131,13 +128,13 @@ pub fn calibrate(
             unplaced.push((s, why.replacen("its fit rows", "its fit rows, without its gross ones,", 1)));
         }
     }
-    let placed = |r: &usize| {
-        data.rows[*r].observed.target_and_setup().is_none_or(|(_, setup)| !unplaced.iter().any(|(s, _)| *s == setup))
-    };
-    kept.retain(placed);
-    gross.retain(placed);
-    let check_rows: Vec<usize> =
-        (0..data.rows.len()).filter(|&r| data.rows[r].check).filter(usable).filter(placed).collect();
+    kept.retain(|r| placed(data, &unplaced, *r));
+    gross.retain(|r| placed(data, &unplaced, *r));
+    let check_rows: Vec<usize> = (0..data.rows.len())
+        .filter(|&r| data.rows[r].check)
+        .filter(usable)
+        .filter(|r| placed(data, &unplaced, *r))
+        .collect();
     let Selection { mut model, mut fit, steps, mut hidden, stopped } = selection;
     hidden.extend(one_sided);
     if problem.absolute {
@@ -249,6 +246,11 @@ fn offered(
     Ok(())
 }
 
+/// Row `r` is not of a set-up set aside as one that cannot be placed (`unplaced`).
+fn placed(data: &PositionData, unplaced: &[(usize, String)], r: usize) -> bool {
+    data.rows[r].observed.target_and_setup().is_none_or(|(_, setup)| !unplaced.iter().any(|(s, _)| *s == setup))
+}
+
 /// The fitted rows can fit what every fit fits: each set-up and target seen, more coordinates than the
 /// registration's and the fixed effects' parameters.
 /// The set-ups whose frame the fit rows cannot fix, with why: fewer than three configurations measured in
@@ -296,7 +298,6 @@ fn unplaceable_setups(problem: &PositionProblem, data: &PositionData, fit_rows: 
                 k,
                 format!("{named} cannot be placed: its fit rows lie on one line at one tool orientation (a turn about the line moves none of them); its {all} rows are left out of the fit and the verdict"),
             ));
-            continue;
         }
     }
     for (k, name) in data.setups.iter().enumerate() {
