@@ -39,7 +39,7 @@ pub(crate) struct DiagnoseArgs {
     #[arg(long, value_name = "F")]
     pub(crate) check_fraction: Option<f64>,
     /// Seed of --check-fraction's draw.
-    #[arg(long, default_value_t = 1, requires = "check_fraction")]
+    #[arg(long, default_value_t = 1)]
     pub(crate) seed: u64,
     /// Positions: an effect always fitted, not selected (repeat; e.g. --fit joint-compliance:J2):
     /// joint-offset:J, joint-compliance:J, backlash:J, joint-geometry:J, frame-compliance:J, payload,
@@ -50,6 +50,12 @@ pub(crate) struct DiagnoseArgs {
     /// (positions only), compliance and backlash, a serial arm's joints' geometry and the payload.
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub(crate) candidates: Vec<String>,
+    /// Positions: validate a calibrated model (one `--model-out` wrote) on new data: only the set-up is
+    /// fitted (each set-up's frame and each target's place on the tool), no effect is offered, and the
+    /// held-out rows' errors are the model's on this data (half the configurations are held out, drawn
+    /// with --seed, where the file marks none `check` and --check-fraction is not given).
+    #[arg(long, conflicts_with_all = ["fit", "candidates"])]
+    pub(crate) validate: bool,
     /// Measurement standard deviation, mm (when the data has no sigma_mm column).
     #[arg(long)]
     pub(crate) sigma: Option<f64>,
@@ -98,6 +104,9 @@ pub(crate) enum FailOn {
     Unexplained,
 }
 
+/// The share of configurations `--validate` holds out where the file marks none.
+const VALIDATION_HELD_OUT: f64 = 0.5;
+
 pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
     use crate::diagnose::{data::Dataset, error::DiagnoseError, report, screen, select};
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
@@ -122,9 +131,10 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         || !a.candidates.is_empty()
         || a.sigma_mrad.is_some()
         || a.residuals.is_some()
+        || a.validate
     {
         bail!(
-            "--check-fraction, --fit, --candidates, --sigma-mrad and --residuals are for measured positions (mx_mm,my_mm,mz_mm: a serial arm's at q_<joint> columns, a parallel robot's at commanded poses); {} gives displacements",
+            "--check-fraction, --fit, --candidates, --validate, --sigma-mrad and --residuals are for measured positions (mx_mm,my_mm,mz_mm: a serial arm's at q_<joint> columns, a parallel robot's at commanded poses); {} gives displacements",
             a.data.display()
         );
     }
@@ -233,6 +243,9 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
             bail!("--check-fraction must lie in [0, 1), got {f}");
         }
         data.hold_out(f, a.seed);
+    } else if a.validate && !data.rows.iter().any(|r| r.check) {
+        // A validation's figures are of rows the set-up was not fitted to.
+        data.hold_out(VALIDATION_HELD_OUT, a.seed);
     }
     if let Some(s) = a.sigma {
         crate::diagnose::data::checked_sigma(s).map_err(|e| anyhow::anyhow!("--sigma: {e}"))?;
@@ -250,7 +263,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         sigma: a.sigma,
         sigma_rad: a.sigma_mrad.map(|s| s * 1e-3),
         fitted: parse(&a.fit, "--fit")?,
-        max_effects: 6,
+        max_effects: if a.validate { 0 } else { 6 },
     };
     let candidates = parse(&a.candidates, "--candidates")?;
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;

@@ -101,8 +101,12 @@ pub fn calibrate(
     let prepared = prepared(m, data, options.sigma_rad)?;
     let data = &*prepared;
     let problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
-    let candidates: Vec<ArmEffect> =
-        if candidates.is_empty() { problem.default_candidates() } else { candidates.to_vec() };
+    // No effect at all is offered where none may be selected (a validation: the model as it is).
+    let candidates: Vec<ArmEffect> = match (candidates.is_empty(), options.max_effects) {
+        (_, 0) => Vec::new(),
+        (true, _) => problem.default_candidates(),
+        (false, _) => candidates.to_vec(),
+    };
     offered(&problem, &candidates, options)?;
     let sigma_known = data.rows.iter().all(|r| {
         r.sigma.is_some()

@@ -131,6 +131,10 @@ pub(super) fn choose_effects(
     // them, and the next forward steps take them.
     for _ in 0..3 {
         loop {
+            if options.max_effects == 0 {
+                stopped = "no effect offered: the model as it is, only the set-up fitted (a validation)".into();
+                break;
+            }
             if model.len() >= options.fitted.len() + options.max_effects {
                 stopped = format!(
                     "at the limit of {} effects: the candidates left were not tested (a model this large rarely \
