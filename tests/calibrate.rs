@@ -156,7 +156,7 @@ fn calibrate_text(
 }
 
 fn options(sigma: Option<f64>) -> Options {
-    Options { alpha: 0.01, sigma, sigma_rad: None, fitted: Vec::new(), max_effects: 6 }
+    Options { alpha: 0.01, sigma, sigma_rad: None, fitted: Vec::new(), max_effects: 6, rebuild: None }
 }
 
 fn effect(kind: ArmKind, joint: &str) -> ArmEffect {

@@ -380,8 +380,14 @@ fn a_calibration_of_a_tree_measures_a_target_on_each_hand() {
     std::fs::write(&path, &csv).unwrap();
     let names = &m.joint_space.as_ref().unwrap().names;
     let data = PositionData::read(&path, names).unwrap();
-    let options =
-        CalibrationOptions { alpha: 0.01, sigma: Some(0.01), sigma_rad: None, fitted: Vec::new(), max_effects: 6 };
+    let options = CalibrationOptions {
+        alpha: 0.01,
+        sigma: Some(0.01),
+        sigma_rad: None,
+        fitted: Vec::new(),
+        max_effects: 6,
+        rebuild: None,
+    };
     let c = calibrate::calibrate(&m, &data, &[], &options).unwrap();
     let report = calibrate::text(&c.report, "tree");
     assert_eq!(c.report.verdict, CalibrationVerdict::Effect, "{report}");

@@ -67,6 +67,14 @@ impl ModelArgs {
         Ok(model)
     }
 
+    /// The description read again with some text appended, as `load_model` reads it (`--set`, `--tip`): a
+    /// calibration rebuilds its arm with the corrections it writes (`CalibrationOptions::rebuild`).
+    pub(crate) fn rebuild(&self) -> Result<crate::diagnose::calibrate::Rebuild> {
+        let source = read_text(&self.model)?;
+        let overrides = self.set.iter().cloned().collect();
+        Ok(crate::diagnose::calibrate::Rebuild::of_description(&self.model, source, overrides, self.tip.clone()))
+    }
+
     /// The tips whose rows a map writes: every tip of a tree (the one `--tip` names, where given); none
     /// for a manipulator with one reference point.
     pub(crate) fn map_tips(&self, m: &Manipulator) -> Vec<String> {

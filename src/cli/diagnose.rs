@@ -264,6 +264,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         sigma_rad: a.sigma_mrad.map(|s| s * 1e-3),
         fitted: parse(&a.fit, "--fit")?,
         max_effects: if a.validate { 0 } else { 6 },
+        rebuild: m.joint_space.is_some().then(|| a.model.rebuild()).transpose()?,
     };
     let candidates = parse(&a.candidates, "--candidates")?;
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;

@@ -1,17 +1,23 @@
-//! A parallel robot's first order completed by its exact loaded equilibrium: the miss of the first-order
-//! prediction against the robot with the effects a description holds built in, kept per set of effects and
-//! refitted (`PositionProblem::fit_exact`). A serial arm's fit is exact already.
+//! The first order completed by the exact loaded equilibrium: the miss of the first-order prediction against
+//! the robot with the effects a description holds built in, kept per set of effects and refitted
+//! (`PositionProblem::fit_exact`) until the fit is that of the model with them built in. A parallel robot's
+//! effects are built in as its description's effects; a serial arm is read again from its description with
+//! the corrections `--model-out` writes (`CalibrationOptions::rebuild`), so the written model reproduces the
+//! fit.
 
 use super::effect::{ArmEffect, ArmKind, Seen};
 use super::fit::{Params, PositionFit};
 use super::problem::PositionProblem;
 use crate::diagnose::positions::Observed;
-use crate::kinematics::frame::{Vec3, Vec6};
+use crate::kinematics::frame::{rotation_vector, Frame, Vec3, Vec6};
 use crate::model::effect::{Effect, Kind, Target};
-use crate::platform::manipulator::Manipulator;
+use crate::platform::manipulator::{Manipulator, ManipulatorState};
 
-/// Most refits of a parallel robot's first order completed by its exact misses (`PositionProblem::fit_exact`).
+/// Most refits of the first order completed by its exact misses (`PositionProblem::fit_exact`).
 const EXACT_PASSES: usize = 8;
+
+/// The refits stop where the kept misses move no row by more than this share of its standard deviation.
+const EXACT_TOLERANCE: f64 = 1e-3;
 
 impl PositionProblem<'_> {
     /// The miss kept for these effects at row `r` (`exact_misses`), zero where none is kept.
@@ -31,12 +37,12 @@ impl PositionProblem<'_> {
     /// prediction with `effects` at `params` to the loaded equilibrium of the robot with the effects a
     /// description holds built in (actuator offsets, added actuator compliances as factors on their springs,
     /// a payload of positive mass), as `stiff synth` and every study compute it; the effects no description
-    /// holds (a leg's end-point error, play) stay first order. None where none is built in, for a serial arm
-    /// (whose offsets are exact and whose compliances act at first order about its loaded equilibrium), or
-    /// where a row has no equilibrium.
-    pub(super) fn exact_misses(&self, effects: &[ArmEffect], params: &Params) -> Option<Vec<Vec6>> {
+    /// holds (a leg's end-point error, play) stay first order. None where none is built in or a row has no
+    /// equilibrium. A serial arm's: `arm_misses`.
+    pub(super) fn exact_misses(&self, effects: &[ArmEffect], fit: &PositionFit) -> Option<Vec<Vec6>> {
+        let params = &fit.params;
         if self.space.is_some() {
-            return None;
+            return self.arm_misses(effects, fit);
         }
         let built: Vec<(&ArmEffect, &Vec<f64>, Effect)> =
             effects.iter().zip(&params.effects).filter_map(|(e, v)| Some((e, v, self.model_form(e, v)?))).collect();
@@ -102,14 +108,15 @@ impl PositionProblem<'_> {
         }
     }
 
-    /// The fit of `effects` on `rows` from `start`, a parallel robot's first order completed by its misses
-    /// (`exact_misses`): kept for these effects and refitted until the prediction moves by less than a tenth
-    /// of a standard deviation. Each pass shrinks the miss by about the effects' relative size (an offset
-    /// of 1 mm on legs of 300 mm: 300 times), so a few passes reach round-off; at most `EXACT_PASSES`.
+    /// The fit of `effects` on `rows` from `start`, its first order completed by its misses (`exact_misses`):
+    /// kept for these effects and refitted until the prediction moves by less than `EXACT_TOLERANCE` of a
+    /// standard deviation. Each pass shrinks the miss by about the effects' relative size (an offset of 1 mm
+    /// on legs of 300 mm: 300 times), so a few passes reach round-off; at most `EXACT_PASSES`. The misses
+    /// kept last are those at the fit returned: its predictions are the exact model's.
     pub(super) fn fit_exact(&self, rows: &[usize], effects: &[ArmEffect], start: &Params) -> Option<PositionFit> {
         let mut fit = self.fit(rows, effects, start)?;
-        for _ in 0..EXACT_PASSES {
-            let Some(misses) = self.exact_misses(effects, &fit.params) else { break };
+        for pass in 0..=EXACT_PASSES {
+            let Some(misses) = self.exact_misses(effects, &fit) else { break };
             let kept: Vec<Vec6> = (0..misses.len()).map(|r| self.kept_miss(effects, r)).collect();
             let moved = rows
                 .iter()
@@ -129,11 +136,115 @@ impl PositionProblem<'_> {
             all.retain(|(e, _)| e != effects);
             all.push((effects.to_vec(), misses));
             drop(all);
-            if moved.is_nan() || moved <= 0.1 {
+            if moved.is_nan() || moved <= EXACT_TOLERANCE || pass == EXACT_PASSES {
                 break;
             }
             fit = self.fit(rows, effects, &fit.params)?;
         }
         Some(fit)
     }
+
+    /// A serial arm's misses: per row, what the first order (`body`, with the effects a description holds)
+    /// misses of the loaded equilibrium of the arm read again with those effects written in
+    /// (`arm_corrections`, `CalibrationOptions::rebuild`): the body's point for a position (its lever
+    /// turned by the whole loaded rotation, not its first order) as a translation, the tool's turn for an
+    /// orientation as a rotation. The effects no description holds (play, a drift, a tool's spring) stay
+    /// first order. Without effects to write, the model's own (the lever's second order). None where the
+    /// corrected description cannot be built (a compliance below zero) or a row has no equilibrium.
+    fn arm_misses(&self, effects: &[ArmEffect], fit: &PositionFit) -> Option<Vec<Vec6>> {
+        let written: Vec<usize> = (0..effects.len()).filter(|&k| written_in_description(effects[k].kind)).collect();
+        let corrected = match written.is_empty() {
+            true => None,
+            false => {
+                // A parameter in a direction the data do not see is written rigid where it is a spring's.
+                let mut k = self.nuisance_count();
+                let mut seen = Vec::new();
+                for e in effects {
+                    let unseen = |j: usize| fit.hidden.iter().any(|d| d.iter().any(|(i, _)| *i == j));
+                    seen.push((k..k + e.size()).map(|j| !unseen(j)).collect::<Vec<bool>>());
+                    k += e.size();
+                }
+                let e: Vec<ArmEffect> = written.iter().map(|&k| effects[k]).collect();
+                let v: Vec<Vec<f64>> = written.iter().map(|&k| fit.params.effects[k].clone()).collect();
+                let s: Vec<Vec<bool>> = written.iter().map(|&k| seen[k].clone()).collect();
+                let j: Vec<String> = e.iter().map(|e| self.joints[e.joint].clone()).collect();
+                let text = super::report::arm_corrections(&e, &v, &s, &j);
+                Some((self.rebuild.as_ref()?.0)(&text).ok()?)
+            }
+        };
+        let variants: Vec<Manipulator> = match &corrected {
+            Some(m) => self.tilted.iter().map(|(key, _)| key.of(m)).collect(),
+            None => Vec::new(),
+        };
+        let arm = |r: usize| match (&corrected, self.tilt_of[r]) {
+            (None, _) => self.arm(r),
+            (Some(m), None) => m,
+            (Some(_), Some(t)) => &variants[t],
+        };
+        let kept_effects: Vec<ArmEffect> = written.iter().map(|&k| effects[k]).collect();
+        let kept_params =
+            Params { effects: written.iter().map(|&k| fit.params.effects[k].clone()).collect(), ..fit.params.clone() };
+        // The corrected arm's state is its own (a frame compliance adds coordinates).
+        let mut state = self.m.new_state();
+        let mut exact_state = corrected.as_ref().unwrap_or(self.m).new_state();
+        let compliant = |m: &Manipulator| m.legs.iter().any(|l| l.spring_groups().next().is_some());
+        let mut loaded: Option<(Frame, Option<Frame>)> = None;
+        let mut misses = Vec::with_capacity(self.data.rows.len());
+        for (r, row) in self.data.rows.iter().enumerate() {
+            if self.unusable.iter().any(|(u, _)| *u == r) {
+                misses.push(Vec6::zeros());
+                loaded = None;
+                continue;
+            }
+            // The rows of one line share its equilibrium.
+            if !(super::problem::same_line(self.data, &self.tilt_of, r) && loaded.is_some()) {
+                let (m, state) = (arm(r), &mut exact_state);
+                let frame = row.nominal_frame(m, state)?;
+                // A rigid arm stays where its joints put it.
+                let settled = |w: &Vec6, state: &mut ManipulatorState| match compliant(m) {
+                    false => Some(frame),
+                    true => Some(m.deflect(&frame, w, None, state).ok()?.pose),
+                };
+                m.place(&frame, state).ok()?;
+                let under = settled(&row.wrench, state)?;
+                let zero = match row.observed {
+                    Observed::Displacement(_) => Some(settled(&Vec6::zeros(), state)?),
+                    _ => None,
+                };
+                loaded = Some((under, zero));
+            }
+            let (under, zero) = loaded.expect("computed above");
+            let body = self.body(r, &kept_effects, &kept_params, &mut state, false)?;
+            let miss = match (row.observed, zero) {
+                (Observed::Position { target, .. }, _) => {
+                    let exact = under.pos + under.rot * fit.params.targets[target];
+                    let d = exact - body.y;
+                    Vec6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+                }
+                (Observed::Orientation { .. }, _) => {
+                    let exact = rotation_vector(&(under.rot * body.statics.0.frame.rot.transpose()));
+                    let d = exact - body.y;
+                    Vec6::new(0.0, 0.0, 0.0, d.x, d.y, d.z)
+                }
+                (Observed::Displacement(_), zero) => {
+                    let d = under.pos - zero.map_or(under.pos, |z| z.pos) - body.y;
+                    Vec6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+                }
+            };
+            misses.push(miss);
+        }
+        Some(misses)
+    }
+}
+
+/// Whether a description holds a serial arm's effect of this kind (`arm_corrections` writes it).
+fn written_in_description(kind: ArmKind) -> bool {
+    matches!(
+        kind,
+        ArmKind::JointOffset
+            | ArmKind::JointCompliance
+            | ArmKind::JointGeometry
+            | ArmKind::Payload
+            | ArmKind::FrameCompliance
+    )
 }

@@ -6,12 +6,15 @@ use std::cell::RefCell;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::effect::ArmEffect;
+use super::effect::{ArmEffect, ArmKind};
 use super::problem::PositionProblem;
 use crate::diagnose::lm::{self, LeastSquares};
 use crate::diagnose::positions::Observed;
 use crate::kinematics::frame::{rotation_from_vector, Mat3, Vec3};
 use crate::platform::manipulator::ManipulatorState;
+
+/// Most parameters held at zero in one fit (`PositionProblem::fit`): each round holds at least one more.
+const MOST_HELD: usize = 24;
 
 /// The parameters of one fit.
 #[derive(Clone, Debug)]
@@ -38,6 +41,8 @@ pub(super) struct PositionFit {
     /// Directions of the parameters the data cannot see: (parameter index, weight) of each, in the
     /// column-scaled parameters.
     pub(super) hidden: Vec<Vec<(usize, f64)>>,
+    /// Parameters held at zero: a spring's compliance or a play fitted below zero (`held_below_zero`).
+    pub(super) held: Vec<usize>,
 }
 
 impl PositionFit {
@@ -100,14 +105,70 @@ impl PositionProblem<'_> {
         params
     }
 
-    /// Levenberg-Marquardt over the parameters on `rows`, from `start` (`lm::solve`).
+    /// Levenberg-Marquardt over the parameters on `rows`, from `start` (`lm::solve`), a compliance or a
+    /// play bounded below by zero: one fitted below zero in a direction the data see is held at zero (rigid,
+    /// no play) and the fit made again, until none is (`held_below_zero`).
     pub(super) fn fit(&self, rows: &[usize], effects: &[ArmEffect], start: &Params) -> Option<PositionFit> {
+        let mut held: Vec<usize> = Vec::new();
+        let mut start = start.clone();
+        loop {
+            let fit = self.fit_holding(rows, effects, &start, &held)?;
+            let below = self.held_below_zero(effects, &fit);
+            if below.is_empty() || held.len() >= MOST_HELD {
+                return Some(fit);
+            }
+            start = fit.params;
+            for k in below {
+                *self.effect_value(&mut start, effects, k) = 0.0;
+                held.push(k);
+            }
+        }
+    }
+
+    /// The parameters of `fit` (indices) that are a spring's compliance (at a frame, at the tool) or a play,
+    /// seen by the data, not held, and below zero.
+    fn held_below_zero(&self, effects: &[ArmEffect], fit: &PositionFit) -> Vec<usize> {
+        let mut k = self.nuisance_count();
+        let mut below = Vec::new();
+        for (e, values) in effects.iter().zip(&fit.params.effects) {
+            if matches!(e.kind, ArmKind::FrameCompliance | ArmKind::ToolCompliance | ArmKind::Backlash) {
+                let unseen = |j: usize| fit.hidden.iter().any(|d| d.iter().any(|(i, _)| *i == j));
+                below.extend((0..e.size()).map(|i| k + i).filter(|&j| values[j - k] < 0.0 && !unseen(j)));
+            }
+            k += e.size();
+        }
+        below.retain(|j| !fit.held.contains(j));
+        below
+    }
+
+    /// Effect parameter `k` (an index among all the fit's parameters) of `params`.
+    fn effect_value<'p>(&self, params: &'p mut Params, effects: &[ArmEffect], k: usize) -> &'p mut f64 {
+        let mut at = self.nuisance_count();
+        for (e, values) in effects.iter().zip(params.effects.iter_mut()) {
+            if k < at + e.size() {
+                return &mut values[k - at];
+            }
+            at += e.size();
+        }
+        unreachable!("parameter {k} is not an effect's")
+    }
+
+    /// Levenberg-Marquardt with the parameters `held` fixed where `start` has them (their columns and steps
+    /// zero; they are left out of the directions reported unseen).
+    fn fit_holding(
+        &self,
+        rows: &[usize],
+        effects: &[ArmEffect],
+        start: &Params,
+        held: &[usize],
+    ) -> Option<PositionFit> {
         let p = self.nuisance_count() + effects.iter().map(ArmEffect::size).sum::<usize>();
         let on_rows = OnRows {
             problem: self,
             rows,
             effects,
             parameters: p,
+            held,
             state: RefCell::new(self.m.new_state()),
             jac_row: RefCell::new(DMatrix::zeros(3, p)),
         };
@@ -118,7 +179,8 @@ impl PositionProblem<'_> {
             observations: 3 * rows.len(),
             rank: s.rank,
             covariance: s.covariance,
-            hidden: s.hidden,
+            hidden: s.hidden.into_iter().filter(|d| !d.iter().all(|(k, _)| held.contains(k))).collect(),
+            held: held.to_vec(),
         })
     }
 
@@ -173,6 +235,8 @@ struct OnRows<'p, 'a> {
     rows: &'p [usize],
     effects: &'p [ArmEffect],
     parameters: usize,
+    /// Parameters held where they start (`PositionProblem::fit`).
+    held: &'p [usize],
     /// The evaluations' state (their placements start from the last) and one row's Jacobian.
     state: RefCell<ManipulatorState>,
     jac_row: RefCell<DMatrix<f64>>,
@@ -225,10 +289,22 @@ impl LeastSquares for OnRows<'_, '_> {
                 jac.view_mut((3 * i, 0), (3, p)).copy_from(&*jac_row);
             }
         }
+        if let Some(jac) = jacobian {
+            for &k in self.held {
+                jac.column_mut(k).fill(0.0);
+            }
+        }
         Ok(e)
     }
 
     fn step(&self, params: &Params, step: &DVector<f64>) -> Params {
-        self.problem.apply(params, step)
+        if self.held.is_empty() {
+            return self.problem.apply(params, step);
+        }
+        let mut step = step.clone();
+        for &k in self.held {
+            step[k] = 0.0;
+        }
+        self.problem.apply(params, &step)
     }
 }

@@ -42,9 +42,9 @@ mod signatures;
 mod synth;
 
 pub use effect::{ArmEffect, ArmKind};
-pub use options::{Calibration, CalibrationError, CalibrationOptions};
+pub use options::{Calibration, CalibrationError, CalibrationOptions, Rebuild};
 pub use problem::joint_names;
-pub use report::{corrected_model, correction_table, text};
+pub use report::{arm_corrections, corrected_model, correction_table, text};
 pub use residuals::RowResidual;
 pub use signatures::{signatures, Signatures};
 pub use synth::{
@@ -100,7 +100,8 @@ pub fn calibrate(
 ) -> Result<Calibration, CalibrationError> {
     let prepared = prepared(m, data, options.sigma_rad)?;
     let data = &*prepared;
-    let problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
+    let mut problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
+    problem.rebuild = options.rebuild.clone();
     // No effect at all is offered where none may be selected (a validation: the model as it is).
     let candidates: Vec<ArmEffect> = match (candidates.is_empty(), options.max_effects) {
         (_, 0) => Vec::new(),
@@ -144,11 +145,14 @@ pub fn calibrate(
     if problem.absolute {
         offsets_for_geometries(&problem, &kept, &candidates, options, sigma_known, &mut model, &mut fit);
     }
-    // A parallel robot's first order completed (a serial arm's fit is final).
-    let fit = match problem.space {
-        None => problem.fit_exact(&kept, &model, &fit.params).unwrap_or(fit),
-        Some(_) => fit,
-    };
+    // The first order completed by the exact equilibrium of the model with the effects built in.
+    let fit = problem.fit_exact(&kept, &model, &fit.params).unwrap_or(fit);
+    hidden.extend(fit.held.iter().map(|&k| {
+        format!(
+            "{}: fitted below zero, held at zero (a compliance or a play is not negative; rigid there)",
+            problem.parameter_name(k, &model)
+        )
+    }));
     let residuals = problem.residuals(&model, &fit.params);
     // Held-out rows are judged by the same rule against the fitted rows' scale: a gross one is named and left
     // out of the held-out errors too.
@@ -471,7 +475,7 @@ fn accepted_effects(
     variance: f64,
 ) -> Vec<AcceptedEffect> {
     // A parameter in a direction the data cannot see has no standard error.
-    let seen = |k: usize| !fit.hidden.iter().any(|d| d.iter().any(|(j, _)| *j == k));
+    let seen = |k: usize| !fit.hidden.iter().any(|d| d.iter().any(|(j, _)| *j == k)) && !fit.held.contains(&k);
     let mut k = problem.nuisance_count();
     let mut accepted = Vec::new();
     for (i, e) in model.iter().enumerate() {

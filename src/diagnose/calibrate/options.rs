@@ -3,6 +3,7 @@
 use super::effect::ArmEffect;
 use crate::model::effect::Effect;
 use crate::output::calibration::CalibrationReport;
+use crate::platform::manipulator::Manipulator;
 
 /// CalibrationOptions of a calibration.
 #[derive(Clone, Debug)]
@@ -17,6 +18,43 @@ pub struct CalibrationOptions {
     pub fitted: Vec<ArmEffect>,
     /// Most effects selected.
     pub max_effects: usize,
+    /// The description read again with the corrections appended (the text `corrected_tables` writes, the
+    /// same `--model-out` writes): a serial arm's fit is then the least-squares fit of that model's loaded
+    /// equilibrium (`PositionProblem::exact_misses`). None: its effects stay first order about the loaded
+    /// equilibrium of the model as it is.
+    pub rebuild: Option<Rebuild>,
+}
+
+/// Builds the manipulator of the description with some text appended (`CalibrationOptions::rebuild`), or says
+/// why it cannot (a compliance that the corrections would make negative).
+#[derive(Clone)]
+pub struct Rebuild(pub std::sync::Arc<dyn Fn(&str) -> Result<Manipulator, String> + Send + Sync>);
+
+impl Rebuild {
+    /// The description at `path` whose text is `source`, read as every command reads it (`overrides`: the
+    /// `--set` values; `tip`: the tree's tip that is the reference point), with the text given appended.
+    pub fn of_description(
+        path: &std::path::Path,
+        source: String,
+        overrides: std::collections::BTreeMap<String, f64>,
+        tip: Option<String>,
+    ) -> Rebuild {
+        let path = path.to_path_buf();
+        Rebuild(std::sync::Arc::new(move |extra: &str| {
+            let text = format!("{source}\n{extra}");
+            let m = crate::model::parse_with(&path, &text, &overrides, 0).map_err(|e| e.to_string())?.manipulator;
+            match &tip {
+                Some(tip) => m.at_tip(tip).ok_or_else(|| format!("no tip `{tip}`")),
+                None => Ok(m),
+            }
+        }))
+    }
+}
+
+impl std::fmt::Debug for Rebuild {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Rebuild(..)")
+    }
 }
 
 /// A calibration's outcome: its report (what `--json` writes and the text reports) beside the effects

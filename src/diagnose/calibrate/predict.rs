@@ -3,6 +3,8 @@
 //! offsets move its configuration exactly, the other effects act at first order about its loaded
 //! equilibrium.
 
+use std::borrow::Cow;
+
 use nalgebra::DMatrix;
 
 use super::effect::{effect_gain, ArmEffect, ArmKind, Seen};
@@ -12,7 +14,78 @@ use crate::diagnose::positions::Observed;
 use crate::kinematics::frame::{rotation_from_vector, skew, Mat3, Vec3, Vec6};
 use crate::platform::manipulator::{ArmStatics, ManipulatorState};
 
+/// A row's prediction before the registration: the controller angles with the offsets, the arm's statics
+/// there (and at zero wrench for a displacement), what the row sees, the tool's axes and the body's point
+/// (target, or the tool point of a displacement), or the tool's turn for an orientation (base axes).
+pub(super) struct Body<'p> {
+    pub(super) joints: Vec<f64>,
+    pub(super) statics: Cow<'p, (ArmStatics, Option<ArmStatics>)>,
+    pub(super) seen: Seen,
+    pub(super) loaded_rot: Mat3,
+    pub(super) y: Vec3,
+}
+
 impl PositionProblem<'_> {
+    /// Row `r`'s prediction before the registration (`Body`), with the miss kept for `effects` or without it
+    /// (`kept`: `exact_misses` compares the first order with the exact equilibrium).
+    pub(super) fn body(
+        &self,
+        r: usize,
+        effects: &[ArmEffect],
+        params: &Params,
+        state: &mut ManipulatorState,
+        kept: bool,
+    ) -> Option<Body<'_>> {
+        let row = &self.data.rows[r];
+        // A serial arm's offsets move its configuration (exactly); a parallel robot's act through their
+        // first-order moves (`unit_moves`).
+        let mut joints = row.joints.clone();
+        for (e, v) in effects.iter().zip(&params.effects) {
+            if e.kind == ArmKind::JointOffset && self.space.is_some() {
+                joints[e.joint] += v[0];
+            }
+        }
+        // The arm's statics at the configuration: the row's own (computed once) unless offsets move it.
+        let statics = if joints == row.joints {
+            Cow::Borrowed(&self.statics[r])
+        } else {
+            Cow::Owned(self.statics_at(r, row, &joints, state)?)
+        };
+        let (s, zero) = &*statics;
+        // The model's own deflection and the miss kept for these effects, a twist at the reference point
+        // (a serial arm's miss is what the body's point or the tool's turn misses: `exact_misses`). A
+        // parallel robot's turn carries the target's lever exactly (an Orthoglide under a milling moment
+        // turns by 0.05 rad, whose second order on a lever of 10 mm is 12 um); a serial arm's lever turns at
+        // first order here, its second order is in its kept miss.
+        let miss = if kept { self.kept_miss(effects, r) } else { Vec6::zeros() };
+        let deflected = self.deflection[r] + miss;
+        let loaded_rot = self.tool_turned(r, s);
+        let (seen, tool) = match row.observed {
+            Observed::Position { target, .. } => {
+                let lever = loaded_rot * params.targets[target];
+                (Seen::Point(lever), s.frame.pos + lever)
+            }
+            Observed::Orientation { .. } => (Seen::Turn, Vec3::zeros()),
+            Observed::Displacement(_) => (Seen::Point(Vec3::zeros()), Vec3::zeros()),
+        };
+        // A payload being fitted weighs on every joint: its wrench at the reference point, (m g, (R s) x g).
+        let payload = self.fitted_payload_weight(r, effects, params, s, zero);
+        // The body's point (target, or the tool point of a displacement) under the loads, before registration;
+        // for an orientation, the tool's turn under them (base axes).
+        let mut y = match (seen, self.space) {
+            // The lever already turned with the deflection (a parallel robot).
+            (Seen::Point(_), None) => tool + deflected.fixed_rows::<3>(0),
+            // A serial arm's lever turned at first order, v + w x lever; an orientation turns by w.
+            _ => tool + seen.of(&deflected),
+        };
+        for (e, v) in effects.iter().zip(&params.effects) {
+            for (unit, value) in self.unit_moves(r, e, s, zero, &seen, &payload).iter().zip(v) {
+                y += unit * *value;
+            }
+        }
+        Some(Body { joints, statics, seen, loaded_rot, y })
+    }
+
     /// The prediction of row `r` and its derivative in every parameter (3 x p, weighted by the row's weight
     /// along with the residual).
     pub(super) fn predict(
@@ -24,53 +97,9 @@ impl PositionProblem<'_> {
         jacobian: Option<&mut DMatrix<f64>>,
     ) -> Option<Vec3> {
         let row = &self.data.rows[r];
-        // A serial arm's offsets move its configuration (exactly); a parallel robot's act through their
-        // first-order moves (`unit_moves`).
-        let mut joints = row.joints.clone();
-        for (e, v) in effects.iter().zip(&params.effects) {
-            if e.kind == ArmKind::JointOffset && self.space.is_some() {
-                joints[e.joint] += v[0];
-            }
-        }
-        // The arm's statics at the configuration: the row's own (computed once) unless offsets move it.
-        let fresh;
-        let (s, zero) = if joints == row.joints {
-            &self.statics[r]
-        } else {
-            fresh = self.statics_at(r, row, &joints, state)?;
-            &fresh
-        };
-        // The model's own deflection (and a parallel robot's kept miss), a twist at the reference point. A
-        // parallel robot's turn carries the target's lever exactly (an Orthoglide under a milling moment turns
-        // by 0.05 rad, whose second order on a lever of 10 mm is 12 um); a serial arm's sag turns its tool by
-        // about 1e-3 rad, whose second order is below 1e-4 mm, and keeps the first order it was validated with
-        // (its selection on data with unscreened gross rows is sensitive to such round-off-size changes).
-        let deflected = self.deflection[r] + self.kept_miss(effects, r);
-        let loaded_rot = self.tool_turned(r, s);
-        let (seen, tool) = match row.observed {
-            Observed::Position { target, .. } => {
-                let lever = loaded_rot * params.targets[target];
-                (Seen::Point(lever), s.frame.pos + lever)
-            }
-            Observed::Orientation { .. } => (Seen::Turn, Vec3::zeros()),
-            Observed::Displacement(_) => (Seen::Point(Vec3::zeros()), Vec3::zeros()),
-        };
-        // A payload being fitted weighs on every joint: its wrench at the reference point, (m g, (R s) x g).
+        let Body { joints, statics, seen, loaded_rot, y } = self.body(r, effects, params, state, true)?;
+        let (s, zero) = &*statics;
         let payload = |s: &ArmStatics| self.fitted_payload_weight(r, effects, params, s, zero);
-        // The body's point (target, or the tool point of a displacement) under the loads, before registration;
-        // for an orientation, the tool's turn under them (base axes). A parallel robot's first order is
-        // completed by the miss kept for these effects (`exact_misses`).
-        let mut y = match (seen, self.space) {
-            // The lever already turned with the deflection (a parallel robot).
-            (Seen::Point(_), None) => tool + deflected.fixed_rows::<3>(0),
-            // A serial arm's lever turned at first order, v + w x lever; an orientation turns by w.
-            _ => tool + seen.of(&deflected),
-        };
-        for (e, v) in effects.iter().zip(&params.effects) {
-            for (unit, value) in self.unit_moves(r, e, s, zero, &seen, &payload(s)).iter().zip(v) {
-                y += unit * *value;
-            }
-        }
         let (rotation, translation) = match row.observed {
             Observed::Position { setup, .. } | Observed::Orientation { setup, .. } => {
                 (params.rotations[setup], params.translations[setup])

@@ -89,6 +89,9 @@ pub(super) struct PositionProblem<'a> {
     pub(super) repeated: Vec<bool>,
     /// A parallel robot's misses of its first order, per set of effects (`exact_misses`).
     pub(super) misses: std::sync::RwLock<Vec<(Vec<ArmEffect>, Vec<Vec6>)>>,
+    /// A serial arm's description rebuilt with corrections (`CalibrationOptions::rebuild`), for its exact
+    /// misses; None: the effects stay first order.
+    pub(super) rebuild: Option<super::options::Rebuild>,
 }
 
 impl<'a> PositionProblem<'a> {
@@ -146,6 +149,7 @@ impl<'a> PositionProblem<'a> {
             prismatic,
             turn_of: turns_of(data),
             misses: std::sync::RwLock::new(Vec::new()),
+            rebuild: None,
         })
     }
 }
@@ -348,6 +352,17 @@ pub(super) struct RowArm {
     tip: usize,
 }
 
+impl RowArm {
+    /// `m` measured so: under this gravity direction, at this tip.
+    pub(super) fn of(&self, m: &Manipulator) -> Manipulator {
+        let tilted = self.gravity.map_or_else(|| m.clone(), |g| m.with_gravity_direction(&g));
+        match self.tip {
+            0 => tilted,
+            tip => tilted.at_tip(&m.tips()[tip]).expect("a tip of the model"),
+        }
+    }
+}
+
 /// Per row, the tip of a tree its target is on (the index among `m`'s tips; 0 for a manipulator with one
 /// reference point, and for a displacement, which is the reference point's): a target names its tip by
 /// its name, the tip's link name or that name, `/` and a label (`hand_l/marker2`; a group suffix's leading
@@ -394,12 +409,7 @@ pub(super) fn row_arms(
             (key != RowArm { gravity: None, tip: 0 }).then(|| match arms.iter().position(|(k, _)| *k == key) {
                 Some(k) => k,
                 None => {
-                    let tilted = r.gravity.map_or_else(|| m.clone(), |g| m.with_gravity_direction(&g));
-                    let arm = match tip {
-                        0 => tilted,
-                        _ => tilted.at_tip(&m.tips()[tip]).expect("a tip of the model"),
-                    };
-                    arms.push((key, arm));
+                    arms.push((key, key.of(m)));
                     arms.len() - 1
                 }
             })

@@ -157,8 +157,9 @@ impl PositionProblem<'_> {
 }
 
 /// The description (`source`, read from `model_dir`) with the calibration's corrections added, so that every
-/// study of the corrected file sees them: offsets, compliances and geometry as `[[joint_correction]]` tables,
-/// a payload as `[[payload]]`; play, which no model holds, as a comment.
+/// study of the corrected file sees them: a serial arm's as `arm_corrections` writes them (the text the fit
+/// rebuilt the arm from, so the file reproduces the fit), a parallel robot's as leg tables; what no
+/// description holds (play, a drift, a tool's spring) as a comment saying so.
 pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibration) -> String {
     use std::fmt::Write;
     let mut out = crate::diagnose::report::with_absolute_references(source, model_dir);
@@ -173,58 +174,49 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibratio
             report.accepted.iter().map(|a| a.label.clone()).collect::<Vec<_>>().join(", ")
         }
     );
-    for (k, (a, e)) in report.accepted.iter().zip(&c.effects).enumerate() {
-        if let Some(legs) = &c.leg_corrections {
-            match &legs[k] {
+    if let Some(legs) = &c.leg_corrections {
+        for ((a, e), leg) in report.accepted.iter().zip(&c.effects).zip(legs) {
+            match leg {
                 Some(effect) => crate::diagnose::report::write_correction(&mut out, effect),
                 None => out.push_str(&leg_not_written(a, e.kind)),
             }
-            continue;
         }
-        match e.kind {
-            ArmKind::Backlash => {
-                let _ = writeln!(
-                    out,
-                    "\n# {}: {} (not written: a description of a URDF arm holds no play yet)",
-                    a.label, a.shown
-                );
-            }
-            ArmKind::Drift => {
-                let _ = writeln!(
-                    out,
-                    "\n# {}: {} (not written: a drift belongs to the measurements, not the robot)",
-                    a.label, a.shown
-                );
-            }
-            ArmKind::ToolCompliance => {
-                let _ = writeln!(
-                    out,
-                    "\n# {}: {} (not written: a description of a URDF arm holds no spring at its tool yet)",
-                    a.label, a.shown
-                );
-            }
-            ArmKind::FrameCompliance => match spring_compliances(&a.values, &a.se) {
-                Some(values) => {
-                    if a.values.iter().any(|v| *v < 0.0) {
-                        let _ = writeln!(
-                            out,
-                            "\n# {}: {} (below zero within two standard errors: rigid)",
-                            a.label, a.shown
-                        );
-                    }
-                    out.push_str(&correction_table(e.kind, &a.joint, &values));
-                }
-                None => {
-                    let _ = writeln!(
-                        out,
-                        "\n# {}: {} (not written: a compliance below zero by more than two standard errors is no \
-                         spring; fit it with --fit naming fewer effects, or measure more configurations)",
-                        a.label, a.shown
-                    );
-                }
-            },
-            kind => out.push_str(&correction_table(kind, &a.joint, &a.values)),
-        }
+        return out;
+    }
+    for (a, e) in report.accepted.iter().zip(&c.effects) {
+        let why = match e.kind {
+            ArmKind::Backlash => "a description of a URDF arm holds no play yet",
+            ArmKind::Drift => "a drift belongs to the measurements, not the robot",
+            ArmKind::ToolCompliance => "a description of a URDF arm holds no spring at its tool yet",
+            _ => continue,
+        };
+        let _ = writeln!(out, "\n# {}: {} (not written: {why})", a.label, a.shown);
+    }
+    let values: Vec<Vec<f64>> = report.accepted.iter().map(|a| a.values.clone()).collect();
+    let seen: Vec<Vec<bool>> = report.accepted.iter().map(|a| a.se.iter().map(|s| s.is_finite()).collect()).collect();
+    let joints: Vec<String> = report.accepted.iter().map(|a| a.joint.clone()).collect();
+    out.push_str(&arm_corrections(&c.effects, &values, &seen, &joints));
+    out
+}
+
+/// A serial arm's effects (`effects` at `values`, each on joint `joints[k]`) as the tables a description
+/// holds: offsets, compliances, geometries and frame compliances as `[[joint_correction]]`, a payload as
+/// `[[payload]]`; nothing for the effects no description holds (play, a drift, a tool's spring). A frame
+/// compliance's direction the data did not see (`seen` false: the fit's number there is its smallest change,
+/// 31 mm/N or 1e20 as it fell) or whose value is below zero is written rigid, as the description had it.
+/// The fit rebuilds the arm from this text (`CalibrationOptions::rebuild`), and `--model-out` appends it.
+pub fn arm_corrections(effects: &[ArmEffect], values: &[Vec<f64>], seen: &[Vec<bool>], joints: &[String]) -> String {
+    let mut out = String::new();
+    for (k, e) in effects.iter().enumerate() {
+        let values = match e.kind {
+            ArmKind::FrameCompliance => values[k]
+                .iter()
+                .zip(seen[k].iter().chain(std::iter::repeat(&true)))
+                .map(|(v, seen)| if *seen && *v > 0.0 { *v } else { 0.0 })
+                .collect(),
+            _ => values[k].clone(),
+        };
+        out.push_str(&correction_table(e.kind, &joints[k], &values));
     }
     out
 }
@@ -243,23 +235,6 @@ pub(super) fn leg_not_written(a: &AcceptedEffect, kind: ArmKind) -> String {
         _ => "a description holds no spring there",
     };
     format!("\n# {}: {} (not written: {why})\n", a.label, a.shown)
-}
-
-/// Fitted compliances as a spring's: a value below zero within two standard errors (or not seen) is zero,
-/// rigid in that direction; None where one is below zero by more.
-pub(super) fn spring_compliances(values: &[f64], se: &[f64]) -> Option<Vec<f64>> {
-    values
-        .iter()
-        .zip(se.iter().map(Some).chain(std::iter::repeat(None)))
-        .map(|(v, se)| match se.filter(|s| s.is_finite()) {
-            // A direction the data did not see has no value to write (the fit's number there is its
-            // smallest change, 31 mm/N or 1e20 as it fell): rigid, as the description was.
-            None => Some(0.0),
-            Some(_) if *v >= 0.0 => Some(*v),
-            Some(s) if *v >= -2.0 * s => Some(0.0),
-            Some(_) => None,
-        })
-        .collect()
 }
 
 /// One effect as the description's table: `[[joint_correction]]` for an offset, compliance, geometry or
@@ -361,7 +336,11 @@ pub fn text(c: &CalibrationReport, model: &str) -> String {
             .take(3)
             .map(|t| format!("{} F {:.3} p {:.2e}", t.label, t.f.unwrap_or(f64::NAN), t.p.unwrap_or(f64::NAN)))
             .collect();
-        let _ = writeln!(s, "step {}: {} candidates tested; best {}", k + 1, tested.len(), best.join(", "));
+        match best.is_empty() {
+            true => writeln!(s, "step {}: no candidate tested", k + 1),
+            false => writeln!(s, "step {}: {} candidates tested; best {}", k + 1, tested.len(), best.join(", ")),
+        }
+        .expect("writing to a string");
     }
     let _ = writeln!(
         s,
@@ -421,14 +400,19 @@ pub(super) fn stage_line(s: &mut String, st: &Stage, set: &str, e: &ErrorStats) 
 
 #[cfg(test)]
 mod tests {
+    use super::{ArmEffect, ArmKind};
+
     /// Regression: a frame compliance's unseen directions (standard error null) were written as the fit's
     /// numbers there (31 mm/N, 1e20), after which the written model had no equilibrium at any row. They are
-    /// written rigid; a seen value below zero within two standard errors is rigid too, and one below by
-    /// more is no spring at all.
+    /// written rigid, as is a value below zero (no spring has one; the selection refuses a candidate whose
+    /// seen value is below zero by more than two standard errors).
     #[test]
-    fn unseen_and_negative_spring_directions_are_written_rigid_or_refused() {
-        let (values, se) = ([1e-3, 31.0, -1e-5, 1e20], [1e-4, f64::NAN, 1e-5, f64::NAN]);
-        assert_eq!(super::spring_compliances(&values, &se), Some(vec![1e-3, 0.0, 0.0, 0.0]));
-        assert_eq!(super::spring_compliances(&[-1e-3], &[1e-5]), None);
+    fn unseen_and_negative_spring_directions_are_written_rigid() {
+        let e = ArmEffect { kind: ArmKind::FrameCompliance, joint: 0 };
+        let values = vec![1e-3, 31.0, -1e-5, 1e20, 2e-9, 3e-9];
+        let seen = vec![true, false, true, false, true, true];
+        let text = super::arm_corrections(&[e], &[values], &[seen], &["J2".into()]);
+        assert!(text.contains("frame_compliance = [0.001, 0.0, 0.0, 0.0, 2e-9, 3e-9]"), "{text}");
+        assert!(text.contains("joint = \"J2\""), "{text}");
     }
 }

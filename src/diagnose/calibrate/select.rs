@@ -121,7 +121,7 @@ pub(super) fn choose_effects(
     let start = problem.start(rows, &model);
     let too_few =
         || CalibrationError::TooFew("the fit found no pose for a row, or too few rows for the parameters".into());
-    let mut fit = problem.fit(rows, &model, &start).ok_or_else(too_few)?;
+    let mut fit = problem.fit_exact(rows, &model, &start).ok_or_else(too_few)?;
     let mut steps = Vec::new();
     let mut hidden: Vec<String> = fit.hidden.iter().map(|d| problem.describe_hidden(d, &model)).collect();
     let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
@@ -162,12 +162,9 @@ pub(super) fn choose_effects(
             match accept {
                 Some((_, c, f)) => {
                     model.push(c);
-                    // A parallel robot's model completed by its exact misses, against which the next
-                    // candidates are judged (`kept_miss`); a serial arm's fit is already exact.
-                    fit = match problem.space {
-                        None => problem.fit_exact(rows, &model, &f.params).unwrap_or(f),
-                        Some(_) => f,
-                    };
+                    // The model completed by its exact misses, against which the next candidates are
+                    // judged (`kept_miss`).
+                    fit = problem.fit_exact(rows, &model, &f.params).unwrap_or(f);
                 }
                 None => break,
             }
@@ -244,12 +241,15 @@ fn forward_step(
             step.push(CandidateTest { label, f: None, p: None, note: Some("a row has no pose with it".into()) });
             continue;
         };
-        if f.rank <= fit.rank {
+        // A parameter held at zero counts as one the data see (it is held by its bound, not by the data).
+        if f.rank + f.held.len() <= fit.rank + fit.held.len() {
             // The candidate's parameters follow the nuisance ones and the model's.
             let own = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
             let own = own..own + c.size();
             let alone = f.hidden.iter().any(|d| d.len() == 1 && own.contains(&d[0].0));
-            let note = if alone {
+            let note = if own.clone().all(|k| f.held.contains(&k)) {
+                "fitted below zero and held at zero (a compliance or a play is not negative): it adds nothing".into()
+            } else if alone {
                 // Its column is zero: a compliance or play whose joint carries no load (or the same sign of
                 // load in every row, for play), or an offset that moves nothing measured.
                 "moves no measured point in these rows (its joint's load is zero, or of one sign for play)".into()
