@@ -28,7 +28,10 @@ pub struct CalibrationOptions {
 /// Builds the manipulator of the description with some text appended (`CalibrationOptions::rebuild`), or says
 /// why it cannot (a compliance that the corrections would make negative).
 #[derive(Clone)]
-pub struct Rebuild(pub std::sync::Arc<dyn Fn(&str) -> Result<Manipulator, String> + Send + Sync>);
+pub struct Rebuild(pub std::sync::Arc<BuildWith>);
+
+/// What `Rebuild` holds: the description's manipulator with the text given appended.
+pub type BuildWith = dyn Fn(&str) -> Result<Manipulator, String> + Send + Sync;
 
 impl Rebuild {
     /// The description at `path` whose text is `source`, read as every command reads it (`overrides`: the
