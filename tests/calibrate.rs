@@ -55,46 +55,60 @@ impl Hidden {
 }
 
 /// The measured target of a configuration (controller angles `t` as commanded): the DH table at the
-/// true angles, the target carried by the flange frame, the sag J C tau at first order under the links' and
-/// the payload's weight (the payload's torques (z_k x (p - o_k)) . F + z_k . M with F = m g at the tool point
-/// p and M = (R c) x F; the target's Jacobian columns z_k x (x - o_k); the source's stiffnesses times the
-/// hidden factors), `gravity` or not, seen in the instrument's frame.
+/// true angles, the target carried by the flange frame, under the links' and the payload's weight the
+/// loaded equilibrium of the joints' springs (`loaded_angles`), `gravity` or not, seen in the instrument's
+/// frame.
 fn measured_target(h: &Hidden, t: &[f64; 6], gravity: bool) -> Vec3 {
     measured_pose(h, t, gravity, &Vec3::zeros()).0
 }
 
-/// As `measured_target`, with the target's axes in the instrument's frame: R_instrument exp(s) R_flange
-/// R_axes, `axes` the rotation vector of R_axes in the DH flange frame and s the sag's turn,
-/// sum z_k tau_k c_k / K_k (the rotational part of each joint's twist).
-fn measured_pose(h: &Hidden, t: &[f64; 6], gravity: bool, axes: &Vec3) -> (Vec3, Mat3) {
-    let truth: [f64; 6] = std::array::from_fn(|k| t[k] + h.offsets[k]);
-    let q = model_angles(&truth);
-    let (_, frames) = dh_kinematics(&q);
-    let flange = frames[5];
-    let rotation = flange.fixed_view::<3, 3>(0, 0).into_owned();
-    let tool = dh_kinematics(&q).0;
-    let x = tool + rotation * h.target;
-    let (mut sag, mut turn) = (Vec3::zeros(), Vec3::zeros());
-    if gravity {
-        let mut tau = dh_gravity_torques_along(&q, &h.gravity);
-        let force = h.gravity * h.payload.0;
-        let moment = (rotation * h.payload.1).cross(&force);
-        for (k, f) in frames.iter().enumerate() {
-            let (z, o) = (Vec3::new(f[(0, 2)], f[(1, 2)], f[(2, 2)]), Vec3::new(f[(0, 3)], f[(1, 3)], f[(2, 3)]));
-            tau[k] += z.cross(&(tool - o)).dot(&force) + z.dot(&moment);
-        }
-        for (k, f) in frames.iter().enumerate() {
-            let (z, o) = (Vec3::new(f[(0, 2)], f[(1, 2)], f[(2, 2)]), Vec3::new(f[(0, 3)], f[(1, 3)], f[(2, 3)]));
-            // The joint's turn: its spring's, and its play taken up in the sense of its load.
-            let dq =
-                tau[k] * h.compliance[k] / K_JOINT[k] + h.play[k] * if tau[k] == 0.0 { 0.0 } else { tau[k].signum() };
-            sag += z.cross(&(x - o)) * dq;
-            turn += z * dq;
+/// The joints' torques at model angles `q` under the links' weight and the payload's (its force m g at
+/// the tool point p, its moment (R c) x F: (z_k x (p - o_k)) . F + z_k . M), N mm.
+fn loaded_torques(h: &Hidden, q: &[f64; 6]) -> nalgebra::Vector6<f64> {
+    let (tool, frames) = dh_kinematics(q);
+    let rotation = frames[5].fixed_view::<3, 3>(0, 0).into_owned();
+    let mut tau = dh_gravity_torques_along(q, &h.gravity);
+    let force = h.gravity * h.payload.0;
+    let moment = (rotation * h.payload.1).cross(&force);
+    for (k, f) in frames.iter().enumerate() {
+        let (z, o) = (Vec3::new(f[(0, 2)], f[(1, 2)], f[(2, 2)]), Vec3::new(f[(0, 3)], f[(1, 3)], f[(2, 3)]));
+        tau[k] += z.cross(&(tool - o)).dot(&force) + z.dot(&moment);
+    }
+    tau
+}
+
+/// The model angles where the joints' springs hold the weights: K_k (q_k - q0_k) = tau_k(q) c_k (the
+/// source's stiffnesses K_k, the hidden factors c_k on their compliances), each joint's play b_k taken up in
+/// the sense of its load, the torques at the loaded angles themselves (not at q0: the exact equilibrium,
+/// not its first order), by fixed-point iterations, each shrinking the change by about the sag's relative
+/// size (1e-3).
+fn loaded_angles(h: &Hidden, q0: &[f64; 6]) -> [f64; 6] {
+    let mut q = *q0;
+    for _ in 0..100 {
+        let tau = loaded_torques(h, &q);
+        let sign = |t: f64| if t == 0.0 { 0.0 } else { t.signum() };
+        let next: [f64; 6] =
+            std::array::from_fn(|k| q0[k] + tau[k] * h.compliance[k] / K_JOINT[k] + h.play[k] * sign(tau[k]));
+        let change = (0..6).map(|k| (next[k] - q[k]).abs()).fold(0.0, f64::max);
+        q = next;
+        if change < 1e-16 {
+            break;
         }
     }
+    q
+}
+
+/// As `measured_target`, with the target's axes in the instrument's frame: R_instrument R_flange R_axes at
+/// the loaded angles, `axes` the rotation vector of R_axes in the DH flange frame.
+fn measured_pose(h: &Hidden, t: &[f64; 6], gravity: bool, axes: &Vec3) -> (Vec3, Mat3) {
+    let truth: [f64; 6] = std::array::from_fn(|k| t[k] + h.offsets[k]);
+    let q0 = model_angles(&truth);
+    let q = if gravity { loaded_angles(h, &q0) } else { q0 };
+    let (tool, frames) = dh_kinematics(&q);
+    let rotation = frames[5].fixed_view::<3, 3>(0, 0).into_owned();
+    let x = tool + rotation * h.target;
     let instrument = rotation_from_vector(&h.rotation);
-    let seen = instrument * rotation_from_vector(&turn) * rotation * rotation_from_vector(axes);
-    (instrument * (x + sag) + h.translation, seen)
+    (instrument * x + h.translation, instrument * rotation * rotation_from_vector(axes))
 }
 
 /// A joint-space measurement file of `configurations` random configurations (a third held out: every third
@@ -1682,4 +1696,139 @@ fn a_calibrated_model_is_validated_on_new_data_by_fitting_only_the_set_up() {
         .output()
         .unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--candidates"));
+}
+
+/// The FANUC's description read again with text appended, as `stiff diagnose` rebuilds it with the
+/// corrections it writes.
+fn fanuc_rebuild() -> Option<calibrate::Rebuild> {
+    let source = std::fs::read_to_string(FANUC).unwrap();
+    Some(calibrate::Rebuild::of_description(Path::new(FANUC), source, Default::default(), None))
+}
+
+/// The hidden robot of the exactness tests: the registration, J2 1.5352 times as compliant as the source
+/// says (the factor the blinded benchmark got back as 1.541 +- 0.001 when compliances acted at first order
+/// about the nominal sag), J3's encoder 1.2 mrad off and 20 kg carried 100 mm along the tool's z.
+fn softer_j2() -> Hidden {
+    let mut h = Hidden::registration_only();
+    h.compliance[1] = 1.5352;
+    h.offsets[2] = 1.2e-3;
+    h.payload = (20.0, Vec3::new(0.0, 0.0, 100.0));
+    h
+}
+
+/// The calibration fits the model with its effects built in, not their first order: on noise-free data
+/// from this file's exact equilibrium of the joints' springs under the weights (`loaded_angles`), the
+/// effects fitted by name come back to round-off of the sag (J2's factor 1.5352 to 1e-6, the offset to
+/// 1e-9 rad, the mass to 1e-5 kg) and every residual is below 1e-6 mm. The same fit with the effects at
+/// first order about the model's sag (no rebuilt description) leaves J2's factor off by more than 1e-4.
+#[test]
+fn effects_fitted_on_exact_data_come_back_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let h = softer_j2();
+    let csv = synthetic(&h, 40, 0.0, &[], true, 7);
+    let fitted = vec![
+        effect(ArmKind::JointCompliance, "J2"),
+        effect(ArmKind::JointOffset, "J3"),
+        ArmEffect { kind: ArmKind::Payload, joint: 0 },
+    ];
+    let c2 = 1.0 / K_JOINT[1];
+    let factor_of = |rebuild: Option<calibrate::Rebuild>| {
+        let o = Options { fitted: fitted.clone(), rebuild, ..options(Some(0.01)) };
+        let (_, c) = calibrate_text(&m, &csv, dir.path(), &fitted, &o);
+        let value = |label: &str| c.report.accepted.iter().find(|a| a.label == label).unwrap().values.clone();
+        ((c2 + value("joint-compliance:J2")[0]) / c2, value("joint-offset:J3")[0], value("payload")[0], c)
+    };
+    let (factor, offset, mass, c) = factor_of(fanuc_rebuild());
+    let report = calibrate::text(&c.report, "FANUC");
+    assert!((factor - 1.5352).abs() < 1e-6, "factor {factor}: {report}");
+    assert!((offset - 1.2e-3).abs() < 1e-9, "offset {offset}: {report}");
+    assert!((mass - 20.0).abs() < 1e-5, "mass {mass}: {report}");
+    for stage in [&c.report.stages.last().unwrap().fit, &c.report.stages.last().unwrap().check] {
+        assert!(stage.max < 1e-6, "{report}");
+    }
+    let (first_order, ..) = factor_of(None);
+    assert!((first_order - 1.5352).abs() > 1e-4, "first order {first_order}");
+}
+
+/// At SNR >= 100 (J2's extra sag is up to a millimetre, the noise 0.01 mm), over 100 seeds: candidates
+/// the hidden effects stand among (both compliances, both offsets, the payload) name J2's compliance,
+/// J3's offset and the payload, never fewer, more in at most 5 seeds (alpha 1%); J2's factor errs by its
+/// standard errors with mean 0 and RMS 1, and lies within two of them of 1.5352 in about 95% of the seeds
+/// (printed; over 600 seeds 571 of 598).
+#[test]
+fn a_compliance_factor_is_named_and_covered_by_its_standard_errors_over_seeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let h = softer_j2();
+    let c2 = 1.0 / K_JOINT[1];
+    let (seeds, mut covered, mut z, mut extra) = (100, 0, Vec::new(), 0);
+    let o = Options { rebuild: fanuc_rebuild(), ..options(Some(0.01)) };
+    let candidates = vec![
+        effect(ArmKind::JointCompliance, "J2"),
+        effect(ArmKind::JointCompliance, "J3"),
+        effect(ArmKind::JointOffset, "J2"),
+        effect(ArmKind::JointOffset, "J3"),
+        ArmEffect { kind: ArmKind::Payload, joint: 0 },
+    ];
+    for seed in 0..seeds {
+        let csv = synthetic(&h, 40, 0.01, &[], true, 5000 + seed);
+        let (_, c) = calibrate_text(&m, &csv, dir.path(), &candidates, &o);
+        let report = calibrate::text(&c.report, "FANUC");
+        let mut named: Vec<String> = c.report.accepted.iter().map(|a| a.label.clone()).collect();
+        named.sort();
+        if named != ["joint-compliance:J2", "joint-offset:J3", "payload"] {
+            assert!(named.len() > 3, "seed {seed}: a hidden effect missed: {report}");
+            extra += 1;
+            continue;
+        }
+        let a = c.report.accepted.iter().find(|a| a.label == "joint-compliance:J2").unwrap();
+        let (factor, se) = ((c2 + a.values[0]) / c2, a.se[0] / c2);
+        covered += usize::from((factor - 1.5352).abs() <= 2.0 * se);
+        z.push((factor - 1.5352) / se);
+    }
+    let mean = z.iter().sum::<f64>() / z.len() as f64;
+    let rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    println!("J2's factor within two standard errors in {covered} of {} seeds; its error in standard errors: mean {mean:.3}, rms {rms:.3}; {extra} seeds named more", z.len());
+    // A fit with the right standard errors errs by them with mean 0 and RMS 1 (t with ~100 degrees of
+    // freedom: 1.01); over 100 seeds the RMS scatters by 7% and the coverage of 95.4% by 2 points: the
+    // bounds are 3 of those from the truth. (Here the first order's bias is 0.2 standard errors; its
+    // exactness is `effects_fitted_on_exact_data_come_back_exactly`'s.)
+    assert!(extra <= 5, "{extra} seeds named an effect not hidden");
+    assert!(mean.abs() < 0.3 && (0.8..1.25).contains(&rms), "mean {mean}, rms {rms}");
+    assert!(covered as f64 >= 0.89 * z.len() as f64, "covered in {covered} of {} seeds", z.len());
+}
+
+/// The model `--model-out` writes reproduces the fit: validated on the same data (only the set-up fitted,
+/// on the same rows), every row's residual is the calibration's to 1e-6 mm, fitted and held-out rows alike.
+#[test]
+fn the_written_model_reproduces_the_calibrations_residuals() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = synthetic(&softer_j2(), 40, 0.01, &[], true, 11);
+    let data = dir.path().join("d.csv");
+    std::fs::write(&data, csv).unwrap();
+    let (r1, r2, model) = (dir.path().join("r1.csv"), dir.path().join("r2.csv"), dir.path().join("c.toml"));
+    let p = |p: &Path| p.to_str().unwrap().to_string();
+    let run = |args: &[String]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_stiff")).args(args).output().unwrap();
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let common = ["--data".to_string(), p(&data), "--sigma".into(), "0.01".into(), "--residuals".into()];
+    let mut first = vec!["diagnose".to_string(), FANUC.into()];
+    first.extend(common.iter().cloned().chain([p(&r1), "--model-out".into(), p(&model)]));
+    let report = run(&first);
+    assert!(report.contains("joint-compliance:J2"), "{report}");
+    let mut second = vec!["diagnose".to_string(), p(&model), "--validate".into()];
+    second.extend(common.iter().cloned().chain([p(&r2)]));
+    let validation = run(&second);
+    let columns = ["ex_mm", "ey_mm", "ez_mm"];
+    let (a, b) = (
+        crate::common::csv_columns(&std::fs::read_to_string(&r1).unwrap(), &columns),
+        crate::common::csv_columns(&std::fs::read_to_string(&r2).unwrap(), &columns),
+    );
+    assert_eq!(a.len(), 40);
+    let worst = a.iter().zip(&b).flat_map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs())).fold(0.0, f64::max);
+    println!("the written model's residuals differ from the fit's by at most {worst:.2e} mm");
+    assert!(worst < 1e-6, "{worst} mm\n{report}\n{validation}");
 }
