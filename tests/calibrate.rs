@@ -918,7 +918,7 @@ fn a_drift_over_the_measurements_order_is_named() {
     for k in 0..3 {
         assert!((a.values[k] - rate[k]).abs() < 4.0 * a.se[k], "{}", a.shown);
     }
-    let corrected = calibrate::corrected_model("name = \"x\"\n", dir.path(), &c);
+    let corrected = calibrate::corrected_model("name = \"x\"\n", dir.path(), None, &c);
     assert!(corrected.contains("# drift: ") && !corrected.contains("[[joint_correction]]"), "{corrected}");
 }
 
@@ -1464,9 +1464,10 @@ fn position_files_name_every_measurement_they_do_not_use_and_count_none_twice() 
 
 /// Regression: a model named by a bare file name (its folder the working folder) kept its URDF's relative
 /// path when `--model-out` wrote the corrected model to another folder, which then could not be read. The
-/// written model names the URDF where it is, and loads from anywhere.
+/// written model names the URDF relative to itself (`../fanuc-r2000ic.urdf`), and loads where it is written
+/// and where the two folders are moved together.
 #[test]
-fn a_model_written_elsewhere_finds_its_urdf() {
+fn a_model_written_elsewhere_finds_its_urdf_relative_to_itself() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::copy("manipulators/fanuc-r2000ic.urdf", dir.path().join("fanuc-r2000ic.urdf")).unwrap();
     std::fs::copy(FANUC, dir.path().join("arm.toml")).unwrap();
@@ -1480,6 +1481,15 @@ fn a_model_written_elsewhere_finds_its_urdf() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     stiff::model::load_manipulator(&dir.path().join("out/c.toml")).unwrap();
+    // The reference is relative to the written file, so the folders can move together.
+    let written = std::fs::read_to_string(dir.path().join("out/c.toml")).unwrap();
+    assert!(written.contains("file = \"../fanuc-r2000ic.urdf\""), "{written}");
+    let moved = tempfile::tempdir().unwrap();
+    std::fs::create_dir(moved.path().join("out")).unwrap();
+    std::fs::copy(dir.path().join("fanuc-r2000ic.urdf"), moved.path().join("fanuc-r2000ic.urdf")).unwrap();
+    std::fs::copy(dir.path().join("out/c.toml"), moved.path().join("out/c.toml")).unwrap();
+    drop(dir);
+    stiff::model::load_manipulator(&moved.path().join("out/c.toml")).unwrap();
 }
 
 /// The report says why the selection stopped: on data with nothing but the registration, the best

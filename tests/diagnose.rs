@@ -265,7 +265,7 @@ fn two_effects_are_named_and_the_corrected_model_is_clean() {
     let source = std::fs::read_to_string(MODEL).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let fixed = dir.path().join("fixed.toml");
-    std::fs::write(&fixed, corrected_model(&source, Path::new("manipulators"), &d)).unwrap();
+    std::fs::write(&fixed, corrected_model(&source, Path::new("manipulators"), None, &d)).unwrap();
     let corrected = stiff::model::load_model(&fixed).unwrap();
     let again = run_model(&corrected, &data);
     assert_eq!(again.verdict, Verdict::None, "{}", stiff::diagnose::report::sentence(&again));

@@ -172,7 +172,9 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         sink.finish()?;
     }
     if let Some(sink) = model_sink {
-        write_corrected(sink, &a.model.model, |source, dir| report::corrected_model(source, dir, &d))?;
+        write_corrected(sink, &a.model.model, a.model_out.as_deref(), |source, dir, written| {
+            report::corrected_model(source, dir, written, &d)
+        })?;
     }
     let fails = match (a.fail_on, d.verdict) {
         (None, _) | (_, select::Verdict::None) => false,
@@ -291,7 +293,9 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         sink.finish()?;
     }
     if let Some(sink) = model_sink {
-        write_corrected(sink, &a.model.model, |source, dir| calibrate::corrected_model(source, dir, &c))?;
+        write_corrected(sink, &a.model.model, a.model_out.as_deref(), |source, dir, written| {
+            calibrate::corrected_model(source, dir, written, &c)
+        })?;
     }
     if let Some(mut sink) = residual_sink {
         let mut text = crate::output::table::header_line(&residual_columns);
@@ -328,18 +332,26 @@ fn residual_example() -> crate::diagnose::calibrate::RowResidual {
     }
 }
 
-/// Writes the description `model` corrected by `correct` (its text and its folder, from which the corrected
-/// text's references to other files are made absolute) to `sink`.
+/// Writes the description `model` corrected by `correct` (its text, its folder and the folder of `written`,
+/// the file written, from which the corrected text's references to other files are made relative; absolute
+/// where it goes to standard output) to `sink`.
 fn write_corrected(
     mut sink: Sink,
     model: &std::path::Path,
-    correct: impl FnOnce(&str, &std::path::Path) -> String,
+    written: Option<&std::path::Path>,
+    correct: impl FnOnce(&str, &std::path::Path, Option<&std::path::Path>) -> String,
 ) -> Result<()> {
     let source = read_text(model)?;
-    // A bare file name's folder is "" (the working folder), which canonicalises to nothing: ".".
-    let dir = model.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
-    let dir = std::fs::canonicalize(dir).unwrap_or(dir.to_path_buf());
-    sink.writer().write_all(correct(&source, &dir).as_bytes())?;
+    let dir = canonical_folder(model);
+    let written_dir = written.filter(|p| p.as_os_str() != "-").map(canonical_folder);
+    sink.writer().write_all(correct(&source, &dir, written_dir.as_deref()).as_bytes())?;
     sink.finish()?;
     Ok(())
+}
+
+/// The folder of the file at `path`, absolute where it exists (a bare file name's folder is "", the working
+/// folder: ".").
+fn canonical_folder(path: &std::path::Path) -> std::path::PathBuf {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
+    std::fs::canonicalize(dir).unwrap_or(dir.to_path_buf())
 }

@@ -287,10 +287,15 @@ pub fn json(d: &Diagnosis, model: &str) -> DiagnosisReport {
     }
 }
 
-/// The description with the accepted effects appended as `[[effect]]` tables; file references made
-/// absolute so the corrected file works from anywhere.
-pub fn corrected_model(source: &str, model_dir: &std::path::Path, d: &Diagnosis) -> String {
-    let mut out = with_absolute_references(source, model_dir);
+/// The description with the accepted effects appended as `[[effect]]` tables, its references to other files
+/// made to work from where it is written (`with_references`).
+pub fn corrected_model(
+    source: &str,
+    model_dir: &std::path::Path,
+    written_dir: Option<&std::path::Path>,
+    d: &Diagnosis,
+) -> String {
+    let mut out = with_references(source, model_dir, written_dir);
     let _ = writeln!(out, "\n# Added by stiff diagnose: {}", sentence(d));
     for a in &d.accepted {
         write_correction(&mut out, &a.effect);
@@ -298,9 +303,11 @@ pub fn corrected_model(source: &str, model_dir: &std::path::Path, d: &Diagnosis)
     out
 }
 
-/// The description's text with its references to other files (`from`, `parameters_from`, a URDF `file`)
-/// made absolute from `model_dir`, so that the text still reads them wherever it is written.
-pub fn with_absolute_references(source: &str, model_dir: &std::path::Path) -> String {
+/// The description's text with its references to other files (`from`, `parameters_from`, a URDF `file`),
+/// read from `model_dir`, rewritten so that the text still reads them from `written_dir`, the folder it is
+/// written to: relative to it where both are given as absolute paths (the pair of folders can then move
+/// together), else absolute. A reference already absolute is kept.
+pub fn with_references(source: &str, model_dir: &std::path::Path, written_dir: Option<&std::path::Path>) -> String {
     let mut out = String::with_capacity(source.len() + 400);
     for line in source.lines() {
         let trimmed = line.trim_start();
@@ -311,8 +318,9 @@ pub fn with_absolute_references(source: &str, model_dir: &std::path::Path) -> St
         });
         match reference {
             Some((k, path)) if !std::path::Path::new(path).is_absolute() => {
-                let abs = model_dir.join(path);
-                let _ = writeln!(out, "{k} = {:?}", abs.to_string_lossy());
+                let target = model_dir.join(path);
+                let written = written_dir.and_then(|w| relative_path(&target, w)).unwrap_or(target);
+                let _ = writeln!(out, "{k} = {:?}", written.to_string_lossy());
             }
             _ => {
                 out.push_str(line);
@@ -321,6 +329,32 @@ pub fn with_absolute_references(source: &str, model_dir: &std::path::Path) -> St
         }
     }
     out
+}
+
+/// `target` as a path relative to the folder `from` (both absolute): the components they share dropped,
+/// `..` for each of `from`'s left. None where either is relative or they share no root (another drive).
+fn relative_path(target: &std::path::Path, from: &std::path::Path) -> Option<std::path::PathBuf> {
+    use std::path::Component;
+    if !target.is_absolute() || !from.is_absolute() {
+        return None;
+    }
+    let (t, f): (Vec<Component>, Vec<Component>) = (target.components().collect(), from.components().collect());
+    if t.first() != f.first() {
+        return None;
+    }
+    let shared = t.iter().zip(&f).take_while(|(a, b)| a == b).count();
+    let mut out = std::path::PathBuf::new();
+    for c in &f[shared..] {
+        match c {
+            Component::Normal(_) => out.push(".."),
+            // A `..` or `.` in `from` cannot be undone without the file system: keep the absolute path.
+            _ => return None,
+        }
+    }
+    for c in &t[shared..] {
+        out.push(c.as_os_str());
+    }
+    Some(out)
 }
 
 /// One accepted effect as the model change it is (`[[payload]]`, `[[actuator_offset]]`, a spring scaling

@@ -160,9 +160,14 @@ impl PositionProblem<'_> {
 /// study of the corrected file sees them: a serial arm's as `arm_corrections` writes them (the text the fit
 /// rebuilt the arm from, so the file reproduces the fit), a parallel robot's as leg tables; what no
 /// description holds (play, a drift, a tool's spring) as a comment saying so.
-pub fn corrected_model(source: &str, model_dir: &std::path::Path, c: &Calibration) -> String {
+pub fn corrected_model(
+    source: &str,
+    model_dir: &std::path::Path,
+    written_dir: Option<&std::path::Path>,
+    c: &Calibration,
+) -> String {
     use std::fmt::Write;
-    let mut out = crate::diagnose::report::with_absolute_references(source, model_dir);
+    let mut out = crate::diagnose::report::with_references(source, model_dir, written_dir);
     let report = &c.report;
     let _ = writeln!(
         out,
