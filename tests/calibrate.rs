@@ -1842,3 +1842,34 @@ fn the_written_model_reproduces_the_calibrations_residuals() {
     println!("the written model's residuals differ from the fit's by at most {worst:.2e} mm");
     assert!(worst < 1e-6, "{worst} mm\n{report}\n{validation}");
 }
+
+/// Regression: an impossible value was accepted and written (a compliance whose total fell below zero,
+/// shown as `stiffness -1.4438e4 N m/rad`, after which the written file was refused; a negative play). A
+/// robot whose J2 rises under the weights (its compliance -0.5 times the source's) and whose J3 has play
+/// of -1 mrad (taken up against its load) is none: the compliance is tested and not accepted, saying the
+/// joint's compliance would not be above zero; the play is held at zero and said so; the model written
+/// loads.
+#[test]
+fn a_compliance_below_zero_or_a_negative_play_is_never_accepted() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let mut h = Hidden::registration_only();
+    h.compliance[1] = -0.5;
+    h.play[2] = -1e-3;
+    let csv = synthetic(&h, 40, 0.01, &[], true, 3);
+    let candidates = [effect(ArmKind::JointCompliance, "J2"), effect(ArmKind::Backlash, "J3")];
+    let o = Options { rebuild: fanuc_rebuild(), ..options(Some(0.01)) };
+    let (_, c) = calibrate_text(&m, &csv, dir.path(), &candidates, &o);
+    let report = calibrate::text(&c.report, "FANUC");
+    assert!(c.report.accepted.is_empty(), "{report}");
+    let first = &c.report.steps[0];
+    let j2 = first.iter().find(|t| t.label == "joint-compliance:J2").unwrap();
+    assert!(j2.note.as_deref().is_some_and(|n| n.contains("not above zero")), "{report}");
+    assert!(report.contains("not physical: joint-compliance:J2: not accepted"), "{report}");
+    assert!(report.contains("not physical: backlash:J3: fitted below zero and held at zero"), "{report}");
+    let written = dir.path().join("c.toml");
+    let source = std::fs::read_to_string(FANUC).unwrap();
+    let model_dir = std::fs::canonicalize("manipulators").unwrap();
+    std::fs::write(&written, calibrate::corrected_model(&source, &model_dir, None, &c)).unwrap();
+    stiff::model::load_manipulator(&written).unwrap();
+}

@@ -311,7 +311,9 @@ pub fn text(c: &CalibrationReport, model: &str) -> String {
         );
     }
     for h in &c.not_identifiable {
-        let _ = writeln!(s, "not identifiable: {h}");
+        // A value no robot has (held at zero, or a candidate refused for it) is not a question of the data.
+        let physical = h.contains("held at zero") || h.contains(": not accepted:");
+        let _ = writeln!(s, "{}: {h}", if physical { "not physical" } else { "not identifiable" });
     }
     for why in &c.unusable {
         let _ = writeln!(s, "row left out, no prediction: {why}");

@@ -2,7 +2,7 @@
 //! (`choose_effects`), backward elimination and swaps; the gross rows left out of every fit; the position
 //! errors of a set of rows.
 
-use super::effect::ArmEffect;
+use super::effect::{ArmEffect, ArmKind};
 use super::fit::PositionFit;
 use super::options::{CalibrationError, CalibrationOptions};
 use super::problem::PositionProblem;
@@ -241,8 +241,10 @@ fn forward_step(
             step.push(CandidateTest { label, f: None, p: None, note: Some("a row has no pose with it".into()) });
             continue;
         };
+        let own_params = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
+        let held_whole = (own_params..own_params + c.size()).all(|k| f.held.contains(&k));
         // A parameter held at zero counts as one the data see (it is held by its bound, not by the data).
-        if f.rank + f.held.len() <= fit.rank + fit.held.len() {
+        if held_whole || f.rank + f.held.len() <= fit.rank + fit.held.len() {
             // The candidate's parameters follow the nuisance ones and the model's.
             let own = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
             let own = own..own + c.size();
@@ -275,6 +277,11 @@ fn forward_step(
         }
         tested += 1;
         let (statistic, p) = nested_test(fit.rss, fit.rank, &f, sigma_known);
+        let values = f.params.effects.last().expect("the candidate's values");
+        if let Some(why) = unphysical(problem, c, values) {
+            step.push(CandidateTest { label, f: Some(statistic), p: Some(p), note: Some(why) });
+            continue;
+        }
         step.push(CandidateTest { label, f: Some(statistic), p: Some(p), note: None });
         // The smallest p-value is the best (it weighs an effect's drop by the directions it adds); the
         // larger F among equal p-values.
@@ -354,11 +361,36 @@ fn best_swap(
         })
         .collect();
     for ((k, c), f) in swaps.into_iter().zip(fits) {
-        let Some(f) = f else { continue };
+        let Some(f) = f.filter(|f| unphysical(problem, &c, &f.params.effects[k]).is_none()) else { continue };
         let gain = bic(fit) - bic(&f);
         if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
             best = Some((gain, k, c, f));
         }
     }
     best
+}
+
+/// Why a candidate's fitted values are no robot's, where they are not: a joint's compliance that the added
+/// one makes zero or negative (no spring), a payload of no mass or less. Such a candidate is not accepted,
+/// and its test says why. (A compliance at a frame or the tool, and a play, are bounded at zero in the fit
+/// itself: `PositionProblem::fit`.)
+fn unphysical(problem: &PositionProblem, c: &ArmEffect, values: &[f64]) -> Option<String> {
+    match c.kind {
+        ArmKind::JointCompliance => {
+            let nominal = problem.nominal_compliance(c.joint).unwrap_or(0.0);
+            let unit = if problem.prismatic[c.joint] { "mm/N" } else { "rad/(N mm)" };
+            (nominal + values[0] <= 0.0).then(|| {
+                format!(
+                    "not accepted: its fitted value leaves the joint's compliance at {:.4e} {unit} (the model's \
+                     {nominal:.4e} plus {:.4e}), not above zero: no spring has it",
+                    nominal + values[0],
+                    values[0]
+                )
+            })
+        }
+        ArmKind::Payload => {
+            (values[0] <= 0.0).then(|| format!("not accepted: its fitted mass, {:.4} kg, is not above zero", values[0]))
+        }
+        _ => None,
+    }
 }
