@@ -56,6 +56,10 @@ pub(crate) struct DiagnoseArgs {
     /// with --seed, where the file marks none `check` and --check-fraction is not given).
     #[arg(long, conflicts_with_all = ["fit", "candidates"])]
     pub(crate) validate: bool,
+    /// --model-out writes the effects the held-out rows do not confirm (their RMS error grows with them) too;
+    /// without it they are left out, as a comment.
+    #[arg(long, requires = "model_out")]
+    pub(crate) write_unconfirmed: bool,
     /// Measurement standard deviation, mm (when the data has no sigma_mm column).
     #[arg(long)]
     pub(crate) sigma: Option<f64>,
@@ -132,9 +136,10 @@ pub(crate) fn run(a: DiagnoseArgs) -> Result<()> {
         || a.sigma_mrad.is_some()
         || a.residuals.is_some()
         || a.validate
+        || a.write_unconfirmed
     {
         bail!(
-            "--check-fraction, --fit, --candidates, --validate, --sigma-mrad and --residuals are for measured positions (mx_mm,my_mm,mz_mm: a serial arm's at q_<joint> columns, a parallel robot's at commanded poses); {} gives displacements",
+            "--check-fraction, --fit, --candidates, --validate, --write-unconfirmed, --sigma-mrad and --residuals are for measured positions (mx_mm,my_mm,mz_mm: a serial arm's at q_<joint> columns, a parallel robot's at commanded poses); {} gives displacements",
             a.data.display()
         );
     }
@@ -294,7 +299,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     }
     if let Some(sink) = model_sink {
         write_corrected(sink, &a.model.model, a.model_out.as_deref(), |source, dir, written| {
-            calibrate::corrected_model(source, dir, written, &c)
+            calibrate::corrected_model(source, dir, written, &c, a.write_unconfirmed)
         })?;
     }
     if let Some(mut sink) = residual_sink {

@@ -159,48 +159,63 @@ impl PositionProblem<'_> {
 /// The description (`source`, read from `model_dir`) with the calibration's corrections added, so that every
 /// study of the corrected file sees them: a serial arm's as `arm_corrections` writes them (the text the fit
 /// rebuilt the arm from, so the file reproduces the fit), a parallel robot's as leg tables; what no
-/// description holds (play, a drift, a tool's spring) as a comment saying so.
+/// description holds (play, a drift, a tool's spring) as a comment saying so. An effect the held-out rows do
+/// not confirm (their RMS error grows with it) is left out, as a comment, unless `unconfirmed` asks for it.
 pub fn corrected_model(
     source: &str,
     model_dir: &std::path::Path,
     written_dir: Option<&std::path::Path>,
     c: &Calibration,
+    unconfirmed: bool,
 ) -> String {
     use std::fmt::Write;
     let mut out = crate::diagnose::report::with_references(source, model_dir, written_dir);
     let report = &c.report;
+    let kept: Vec<usize> =
+        (0..report.accepted.len()).filter(|&k| unconfirmed || report.accepted[k].confirmed != Some(false)).collect();
     let _ = writeln!(
         out,
         "\n# Added by stiff diagnose (calibration, verdict {}): {}",
         report.verdict.as_str(),
-        if report.accepted.is_empty() {
+        if kept.is_empty() {
             "no effect".to_string()
         } else {
-            report.accepted.iter().map(|a| a.label.clone()).collect::<Vec<_>>().join(", ")
+            kept.iter().map(|&k| report.accepted[k].label.clone()).collect::<Vec<_>>().join(", ")
         }
     );
+    for a in report.accepted.iter().filter(|a| !unconfirmed && a.confirmed == Some(false)) {
+        let _ = writeln!(
+            out,
+            "\n# {}: {} (not written: the held-out rows do not confirm it, their RMS error grows with it; \
+             --write-unconfirmed writes it)",
+            a.label, a.shown
+        );
+    }
     if let Some(legs) = &c.leg_corrections {
-        for ((a, e), leg) in report.accepted.iter().zip(&c.effects).zip(legs) {
-            match leg {
+        for &k in &kept {
+            match &legs[k] {
                 Some(effect) => crate::diagnose::report::write_correction(&mut out, effect),
-                None => out.push_str(&leg_not_written(a, e.kind)),
+                None => out.push_str(&leg_not_written(&report.accepted[k], c.effects[k].kind)),
             }
         }
         return out;
     }
-    for (a, e) in report.accepted.iter().zip(&c.effects) {
-        let why = match e.kind {
+    for &k in &kept {
+        let why = match c.effects[k].kind {
             ArmKind::Backlash => "a description of a URDF arm holds no play yet",
             ArmKind::Drift => "a drift belongs to the measurements, not the robot",
             ArmKind::ToolCompliance => "a description of a URDF arm holds no spring at its tool yet",
             _ => continue,
         };
+        let a = &report.accepted[k];
         let _ = writeln!(out, "\n# {}: {} (not written: {why})", a.label, a.shown);
     }
-    let values: Vec<Vec<f64>> = report.accepted.iter().map(|a| a.values.clone()).collect();
-    let seen: Vec<Vec<bool>> = report.accepted.iter().map(|a| a.se.iter().map(|s| s.is_finite()).collect()).collect();
-    let joints: Vec<String> = report.accepted.iter().map(|a| a.joint.clone()).collect();
-    out.push_str(&arm_corrections(&c.effects, &values, &seen, &joints));
+    let accepted: Vec<&AcceptedEffect> = kept.iter().map(|&k| &report.accepted[k]).collect();
+    let effects: Vec<ArmEffect> = kept.iter().map(|&k| c.effects[k]).collect();
+    let values: Vec<Vec<f64>> = accepted.iter().map(|a| a.values.clone()).collect();
+    let seen: Vec<Vec<bool>> = accepted.iter().map(|a| a.se.iter().map(|s| s.is_finite()).collect()).collect();
+    let joints: Vec<String> = accepted.iter().map(|a| a.joint.clone()).collect();
+    out.push_str(&arm_corrections(&effects, &values, &seen, &joints));
     out
 }
 
