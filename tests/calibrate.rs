@@ -245,6 +245,14 @@ fn offsets_a_compliance_and_a_gross_row_are_named_and_the_held_out_rows_sit_at_t
             checks += 1;
             covered += usize::from((a.values[0] - value).abs() <= 1.96 * a.se[0]);
         }
+        // The payload as the text prints it, in the JSON too: its mass, then its centre in the tool frame
+        // (not the first moment m c it is fitted as), each with its standard error.
+        let payload = c.report.accepted.iter().find(|a| a.label == "payload").unwrap();
+        for (k, truth) in [30.0, 0.0, 100.0].iter().enumerate() {
+            let (v, se) = (payload.values[k + 1], payload.se[k + 1]);
+            assert!((v - truth).abs() < 4.0 * se, "seed {seed}: centre {k} {v} +- {se}: {report}");
+            assert!(report.contains(&format!("{v:.1} +- {se:.1}")), "seed {seed}: {v:.1} +- {se:.1} in {report}");
+        }
         // Named whether fitted or held out (a held-out row is judged against the fitted rows' scale).
         let held = if data.rows[gross[0]].check { ", held out" } else { "" };
         let gross_name = format!("c{} (line {}{held})", gross[0], gross[0] + 2);

@@ -356,8 +356,8 @@ fn a_payloads_centre_along_gravity_is_seen_through_the_platforms_turn_under_load
     let number = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
     let (values, se): (Vec<f64>, Vec<f64>) =
         (0..4).map(|k| (number(&payload["values"][k]), number(&payload["se"][k]))).unzip();
-    // Mass, then first moment m c: (0, 0, 20 * 50) kg mm.
-    for (k, truth) in [20.0, 0.0, 0.0, 1000.0].iter().enumerate() {
+    // Mass, then the centre c in the tool frame, as the text prints them: (0, 0, 50) mm.
+    for (k, truth) in [20.0, 0.0, 0.0, 50.0].iter().enumerate() {
         assert!((values[k] - truth).abs() < 4.0 * se[k], "{k}: {} +- {} against {truth}\n{text}", values[k], se[k]);
     }
 }

@@ -203,7 +203,7 @@ pub fn calibrate(
         .then(|| model.iter().zip(&fit.params.effects).map(|(e, values)| problem.model_form(e, values)).collect());
     let base = problem.in_base_axes(&residuals, &fit.params);
     let rows = residuals::row_residuals(data, &residuals, &base, &problem.unusable, &gross, &unplaced);
-    Ok(Calibration { report, effects: model, leg_corrections, rows })
+    Ok(Calibration { report, effects: model, values: fit.params.effects.clone(), leg_corrections, rows })
 }
 
 /// The data as the fit reads them: a parallel robot's rows at the pose its actuators' readings give, each
@@ -479,10 +479,22 @@ fn accepted_effects(
     let mut k = problem.nuisance_count();
     let mut accepted = Vec::new();
     for (i, e) in model.iter().enumerate() {
-        let values = fit.params.effects[i].clone();
-        let se: Vec<f64> = (k..k + e.size())
+        let mut values = fit.params.effects[i].clone();
+        let mut se: Vec<f64> = (k..k + e.size())
             .map(|j| if seen(j) { (fit.covariance[(j, j)] * variance).sqrt() } else { f64::NAN })
             .collect();
+        if e.kind == ArmKind::Payload {
+            // Fitted as (m, m c), linear in the sag; reported as the text prints it, (m, c), the centre's
+            // variance propagated through c = s / m: (var s - 2 c cov(s, m) + c^2 var m) / m^2.
+            let m = values[0];
+            for a in 1..4 {
+                let c = values[a] / m;
+                let cov = |x: usize, y: usize| fit.covariance[(k + x, k + y)] * variance;
+                let var = (cov(a, a) - 2.0 * c * cov(a, 0) + c * c * cov(0, 0)) / (m * m);
+                se[a] = if se[a].is_finite() && se[0].is_finite() { var.max(0.0).sqrt() } else { f64::NAN };
+                values[a] = c;
+            }
+        }
         k += e.size();
         accepted.push(AcceptedEffect {
             label: e.label(&problem.joints),

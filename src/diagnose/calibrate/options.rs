@@ -68,6 +68,8 @@ pub struct Calibration {
     pub report: CalibrationReport,
     /// The effects of `report.accepted`, in its order.
     pub effects: Vec<ArmEffect>,
+    /// Their fitted parameters, as the fit holds them (a payload's as (m, m c); the report gives (m, c)).
+    pub values: Vec<Vec<f64>>,
     /// A parallel robot's accepted effects as the model-form effects a description holds (`model_form`; None
     /// for one it holds not), in the order of `effects`; None for a serial arm.
     pub leg_corrections: Option<Vec<Option<Effect>>>,

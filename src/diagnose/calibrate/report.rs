@@ -113,15 +113,12 @@ impl PositionProblem<'_> {
                 listed(&values[..3], &ses[..3], 1e3, 4),
                 listed(&values[3..], &ses[3..], 1e9, 4)
             ),
-            ArmKind::Payload => {
-                let centre: Vec<f64> = values[1..].iter().map(|s| s / value).collect();
-                let centre_se: Vec<f64> = ses[1..].iter().map(|s| s / value.abs()).collect();
-                format!(
-                    "{} kg at ({}) mm in the tool frame",
-                    listed(&values[..1], &ses[..1], 1.0, 3),
-                    listed(&centre, &centre_se, 1.0, 1)
-                )
-            }
+            // Given as (m, c), its centre in the tool frame (`accepted_effects`).
+            ArmKind::Payload => format!(
+                "{} kg at ({}) mm in the tool frame",
+                listed(&values[..1], &ses[..1], 1.0, 3),
+                listed(&values[1..], &ses[1..], 1.0, 1)
+            ),
             ArmKind::JointOffset | ArmKind::Backlash if prismatic => format!("{} mm", listed(values, ses, 1.0, 4)),
             ArmKind::JointOffset | ArmKind::Backlash => format!("{} mrad", listed(values, ses, 1e3, 3)),
             ArmKind::JointCompliance => {
@@ -212,7 +209,7 @@ pub fn corrected_model(
     }
     let accepted: Vec<&AcceptedEffect> = kept.iter().map(|&k| &report.accepted[k]).collect();
     let effects: Vec<ArmEffect> = kept.iter().map(|&k| c.effects[k]).collect();
-    let values: Vec<Vec<f64>> = accepted.iter().map(|a| a.values.clone()).collect();
+    let values: Vec<Vec<f64>> = kept.iter().map(|&k| c.values[k].clone()).collect();
     let seen: Vec<Vec<bool>> = accepted.iter().map(|a| a.se.iter().map(|s| s.is_finite()).collect()).collect();
     let joints: Vec<String> = accepted.iter().map(|a| a.joint.clone()).collect();
     out.push_str(&arm_corrections(&effects, &values, &seen, &joints));
