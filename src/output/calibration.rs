@@ -24,7 +24,7 @@ pub struct AcceptedEffect {
     /// The joint's name.
     pub joint: String,
     /// The fitted values: rad (mm) for an offset or backlash, rad/(N mm) (mm/N) added compliance; mm and
-    /// rad for a joint's geometry (translation, then rotation vector, in the joint's frame); kg and kg mm for a
+    /// rad for a joint's geometry (translation, then rotation vector, in the joint's frame); for a
     /// payload (its mass, kg, then its centre in the tool frame, mm: as the text prints them).
     #[serde(deserialize_with = "null_is_nan::floats")]
     pub values: Vec<f64>,
