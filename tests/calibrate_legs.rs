@@ -142,7 +142,7 @@ fn offset(leg: usize) -> ArmEffect {
 }
 
 fn options(sigma: f64, fitted: Vec<ArmEffect>) -> Options {
-    Options { alpha: 0.01, sigma: Some(sigma), sigma_rad: None, fitted, max_effects: 6, rebuild: None }
+    Options { alpha: 0.01, sigma: Some(sigma), sigma_rad: None, fitted, max_effects: 6, rebuild: None, progress: None }
 }
 
 /// The three actuators' offsets (up to 1.2 mm) and the instrument's frame, from noise-free positions at 30

@@ -387,6 +387,7 @@ fn a_calibration_of_a_tree_measures_a_target_on_each_hand() {
         fitted: Vec::new(),
         max_effects: 6,
         rebuild: None,
+        progress: None,
     };
     let c = calibrate::calibrate(&m, &data, &[], &options).unwrap();
     let report = calibrate::text(&c.report, "tree");

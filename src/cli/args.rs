@@ -498,6 +498,28 @@ pub(crate) fn progress_bar(len: Option<u64>, quiet: bool) -> ProgressBar {
     bar
 }
 
+/// A calibration's progress on stderr where it is a terminal: the time, the fits made and what the
+/// selection is doing; it shows after two seconds, so a quick calibration prints none.
+pub(crate) fn fit_counter() -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} {spinner} {human_pos} fits: {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    let shown = bar.clone();
+    std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_secs(2));
+        if !shown.is_finished() {
+            shown.set_draw_target(ProgressDrawTarget::stderr());
+            shown.enable_steady_tick(std::time::Duration::from_millis(200));
+        }
+    });
+    bar
+}
+
 /// The rate as a whole number of points per second with thousands separators (`14,643/s`): indicatif's
 /// `{per_sec}` prints four decimals.
 fn write_rate(state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write) {

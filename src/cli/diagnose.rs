@@ -272,6 +272,7 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
         fitted: parse(&a.fit, "--fit")?,
         max_effects: if a.validate { 0 } else { 6 },
         rebuild: m.joint_space.is_some().then(|| a.model.rebuild()).transpose()?,
+        progress: Some(super::args::fit_counter()),
     };
     let candidates = parse(&a.candidates, "--candidates")?;
     let json_sink = a.json.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
@@ -279,8 +280,11 @@ fn run_calibration(a: &DiagnoseArgs, m: &crate::platform::manipulator::Manipulat
     let plot_sink = a.plot.as_deref().map(|p| Sink::create(Some(p))).transpose()?;
     let residual_columns = crate::output::table::selected_columns(&residual_example(), &(), None);
     let residual_sink = a.residuals.as_deref().map(|p| Sink::table(Some(p), &residual_columns)).transpose()?;
-    let c = calibrate::calibrate(m, &data, &candidates, &options)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    let c = calibrate::calibrate(m, &data, &candidates, &options);
+    if let Some(bar) = &options.progress {
+        bar.finish_and_clear();
+    }
+    let c = c.map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let name = a.model.model.display().to_string();
     write_stdout(&calibrate::text(&c.report, &name))?;
     let file = CalibrationFile { model: name, calibration: c.report.clone() };

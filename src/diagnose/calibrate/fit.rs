@@ -172,7 +172,11 @@ impl PositionProblem<'_> {
             state: RefCell::new(self.m.new_state()),
             jac_row: RefCell::new(DMatrix::zeros(3, p)),
         };
-        let s = lm::solve(&on_rows, start.clone()).ok()?;
+        let s = lm::solve(&on_rows, start.clone()).ok();
+        if let Some(bar) = &self.progress {
+            bar.inc(1);
+        }
+        let s = s?;
         Some(PositionFit {
             params: s.point,
             rss: s.rss,

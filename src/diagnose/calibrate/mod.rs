@@ -102,6 +102,7 @@ pub fn calibrate(
     let data = &*prepared;
     let mut problem = PositionProblem::new(m, data, options.sigma, options.sigma_rad)?;
     problem.rebuild = options.rebuild.clone();
+    problem.progress = options.progress.clone();
     // No effect at all is offered where none may be selected (a validation: the model as it is).
     let candidates: Vec<ArmEffect> = match (candidates.is_empty(), options.max_effects) {
         (_, 0) => Vec::new(),

@@ -23,6 +23,8 @@ pub struct CalibrationOptions {
     /// equilibrium (`PositionProblem::exact_misses`). None: its effects stay first order about the loaded
     /// equilibrium of the model as it is.
     pub rebuild: Option<Rebuild>,
+    /// Where the calibration says how far it is (each fit counted, each selection step named); None: silent.
+    pub progress: Option<indicatif::ProgressBar>,
 }
 
 /// Builds the manipulator of the description with some text appended (`CalibrationOptions::rebuild`), or says

@@ -92,6 +92,8 @@ pub(super) struct PositionProblem<'a> {
     /// A serial arm's description rebuilt with corrections (`CalibrationOptions::rebuild`), for its exact
     /// misses; None: the effects stay first order.
     pub(super) rebuild: Option<super::options::Rebuild>,
+    /// Counts the fits and names the selection's steps (`CalibrationOptions::progress`).
+    pub(super) progress: Option<indicatif::ProgressBar>,
 }
 
 impl<'a> PositionProblem<'a> {
@@ -150,6 +152,7 @@ impl<'a> PositionProblem<'a> {
             turn_of: turns_of(data),
             misses: std::sync::RwLock::new(Vec::new()),
             rebuild: None,
+            progress: None,
         })
     }
 }

@@ -143,6 +143,9 @@ pub(super) fn choose_effects(
                 );
                 break;
             }
+            if let Some(bar) = &problem.progress {
+                bar.set_message(format!("testing candidates beside the model's {} effects", model.len()));
+            }
             let (step, best, tested) = forward_step(problem, rows, candidates, &model, &fit, sigma_known);
             let threshold = options.alpha / tested.max(1) as f64;
             stopped = match &best {
@@ -272,6 +275,25 @@ fn forward_step(
                     ),
                 }
             };
+            step.push(CandidateTest { label, f: None, p: None, note: Some(note) });
+            continue;
+        }
+        // A candidate that adds directions but whose parameters also move with others in a direction no row
+        // sees (a geometry at the base turning as the instrument's frame does) has no values of its own
+        // there: the fit splits them as its smallest change, 120 mrad and 1.56 m at a column's base. Not
+        // accepted; a direction within its own parameters alone (held at the start) is.
+        let own = own_params..own_params + c.size();
+        let mixed: Vec<String> = f
+            .hidden
+            .iter()
+            .filter(|d| d.iter().any(|(k, _)| own.contains(k)) && d.iter().any(|(k, _)| !own.contains(k)))
+            .map(|d| problem.describe_hidden(d, &trial))
+            .collect();
+        if !mixed.is_empty() {
+            let note = format!(
+                "not identifiable from these rows: its parameters move with others where no point moves ({})",
+                mixed.join("); (")
+            );
             step.push(CandidateTest { label, f: None, p: None, note: Some(note) });
             continue;
         }
