@@ -196,6 +196,12 @@ impl PositionProblem<'_> {
                 loaded = None;
                 continue;
             }
+            // A repeated measurement misses as its first does (`PositionProblem::repeat_of`).
+            if let Some(k) = self.repeat_of[r] {
+                misses.push(misses[k]);
+                loaded = None;
+                continue;
+            }
             // The rows of one line share its equilibrium.
             if !(super::problem::same_line(self.data, &self.tilt_of, r) && loaded.is_some()) {
                 let (m, state) = (arm(r), &mut exact_state);
