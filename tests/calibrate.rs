@@ -265,7 +265,8 @@ fn offsets_a_compliance_and_a_gross_row_are_named_and_the_held_out_rows_sit_at_t
 }
 
 /// Null data: the registration alone hidden, 0.05 mm noise: no effect is named (20 seeds, each of which
-/// would name a false one with probability at most alpha = 1%).
+/// would name a false one with probability at most alpha = 1%), and the report names the candidates the
+/// defaults do not offer.
 #[test]
 fn null_data_names_no_effect() {
     let dir = tempfile::tempdir().unwrap();
@@ -276,9 +277,16 @@ fn null_data_names_no_effect() {
         let csv = synthetic(&h, 45, 0.05, &[], true, 500 + seed);
         let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
         named += usize::from(c.report.verdict != Verdict::None);
-        assert!(c.report.left_out.is_empty(), "{}", calibrate::text(&c.report, "FANUC"));
+        let report = calibrate::text(&c.report, "FANUC");
+        assert!(c.report.left_out.is_empty(), "{report}");
+        // The default candidates say what they leave out, for a user to name.
+        assert!(report.contains("note: not offered by default: frame-compliance at each joint"), "{report}");
     }
     assert!(named <= 1, "{named} of 20 null data sets named an effect");
+    // Candidates named: none is left out by default, and nothing says so.
+    let csv = synthetic(&h, 45, 0.05, &[], true, 500);
+    let (_, c) = calibrate_text(&m, &csv, dir.path(), &[effect(ArmKind::JointOffset, "J2")], &options(Some(0.05)));
+    assert!(!c.report.notes.iter().any(|n| n.contains("not offered")), "{:?}", c.report.notes);
 }
 
 /// The FANUC's real deflections (the cable force's, a differential measurement) with every joint's

@@ -104,6 +104,7 @@ pub fn calibrate(
     problem.rebuild = options.rebuild.clone();
     problem.progress = options.progress.clone();
     // No effect at all is offered where none may be selected (a validation: the model as it is).
+    let defaulted = candidates.is_empty() && options.max_effects > 0;
     let candidates: Vec<ArmEffect> = match (candidates.is_empty(), options.max_effects) {
         (_, 0) => Vec::new(),
         (true, _) => problem.default_candidates(),
@@ -196,7 +197,7 @@ pub fn calibrate(
         stopped,
         not_used_count: data.not_used.len() + unplaced.len(),
         not_used: data.not_used.iter().cloned().chain(unplaced.iter().map(|(_, why)| why.clone())).collect(),
-        notes: data.notes.clone(),
+        notes: data.notes.iter().cloned().chain(defaulted.then(|| not_offered(&problem))).collect(),
     };
     let leg_corrections = problem
         .space
@@ -635,4 +636,18 @@ fn gross_report(data: &PositionData, gross: &[usize], residuals: &[Option<Vec3>]
             }
         })
         .collect()
+}
+
+/// What the default candidates leave out, said where they were offered: the effects a user names with
+/// `--candidates` to test them (the held-out rows' errors against the noise say whether something is left).
+fn not_offered(problem: &PositionProblem) -> String {
+    let kinds = match (problem.space.is_some(), problem.absolute) {
+        (true, true) => "frame-compliance at each joint (a link, column or mounting bending), drift and tool-compliance",
+        (true, false) => "joint-offset, joint-geometry and payload (displacements do not see them), frame-compliance, drift and tool-compliance",
+        (false, _) => "joint-geometry of each leg (its end-point error), drift and tool-compliance",
+    };
+    format!(
+        "not offered by default: {kinds}; name them with --candidates to test them (the held-out rows' errors \
+         below, against the noise, say whether the model leaves something)"
+    )
 }
