@@ -1742,6 +1742,18 @@ fn softer_j2() -> Hidden {
     h
 }
 
+/// The candidates `softer_j2`'s hidden effects stand among: both compliances and both offsets of J2 and
+/// J3, and the payload.
+fn softer_j2_candidates() -> Vec<ArmEffect> {
+    vec![
+        effect(ArmKind::JointCompliance, "J2"),
+        effect(ArmKind::JointCompliance, "J3"),
+        effect(ArmKind::JointOffset, "J2"),
+        effect(ArmKind::JointOffset, "J3"),
+        ArmEffect { kind: ArmKind::Payload, joint: 0 },
+    ]
+}
+
 /// The calibration fits the model with its effects built in, not their first order: on noise-free data
 /// from this file's exact equilibrium of the joints' springs under the weights (`loaded_angles`), the
 /// effects fitted by name come back to round-off of the sag (J2's factor 1.5352 to 1e-6, the offset to
@@ -1790,13 +1802,7 @@ fn a_compliance_factor_is_named_and_covered_by_its_standard_errors_over_seeds() 
     let c2 = 1.0 / K_JOINT[1];
     let (seeds, mut covered, mut z, mut extra) = (100, 0, Vec::new(), 0);
     let o = Options { rebuild: fanuc_rebuild(), ..options(Some(0.01)) };
-    let candidates = vec![
-        effect(ArmKind::JointCompliance, "J2"),
-        effect(ArmKind::JointCompliance, "J3"),
-        effect(ArmKind::JointOffset, "J2"),
-        effect(ArmKind::JointOffset, "J3"),
-        ArmEffect { kind: ArmKind::Payload, joint: 0 },
-    ];
+    let candidates = softer_j2_candidates();
     for seed in 0..seeds {
         let csv = synthetic(&h, 40, 0.01, &[], true, 5000 + seed);
         let (_, c) = calibrate_text(&m, &csv, dir.path(), &candidates, &o);
@@ -1898,13 +1904,7 @@ fn a_compliance_below_zero_or_a_negative_play_is_never_accepted() {
 fn an_effect_the_held_out_rows_do_not_confirm_is_not_written_unless_asked() {
     let dir = tempfile::tempdir().unwrap();
     let m = fanuc(false, dir.path());
-    let candidates = vec![
-        effect(ArmKind::JointCompliance, "J2"),
-        effect(ArmKind::JointCompliance, "J3"),
-        effect(ArmKind::JointOffset, "J2"),
-        effect(ArmKind::JointOffset, "J3"),
-        ArmEffect { kind: ArmKind::Payload, joint: 0 },
-    ];
+    let candidates = softer_j2_candidates();
     let o = Options { rebuild: fanuc_rebuild(), ..options(Some(0.01)) };
     let (_, c) = calibrate_text(&m, &synthetic(&softer_j2(), 40, 0.01, &[], true, 5062), dir.path(), &candidates, &o);
     let report = calibrate::text(&c.report, "FANUC");

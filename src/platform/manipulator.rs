@@ -57,6 +57,11 @@ pub struct CarriedMass {
 }
 
 impl Manipulator {
+    /// Whether some leg has a spring: a rigid manipulator stays where its joints put it under any load.
+    pub fn is_compliant(&self) -> bool {
+        self.legs.iter().any(|l| l.spring_groups().next().is_some())
+    }
+
     /// The tips of a serial arm read from URDF, the reference point's first (one for a chain; empty for
     /// any other manipulator).
     pub fn tips(&self) -> &[String] {

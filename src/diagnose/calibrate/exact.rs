@@ -152,23 +152,22 @@ impl PositionProblem<'_> {
     /// first order. Without effects to write, the model's own (the lever's second order). None where the
     /// corrected description cannot be built (a compliance below zero) or a row has no equilibrium.
     fn arm_misses(&self, effects: &[ArmEffect], fit: &PositionFit) -> Option<Vec<Vec6>> {
+        // The effects a description holds, with their values and which of their parameters the data see (a
+        // spring's unseen direction is written rigid).
         let written: Vec<usize> = (0..effects.len()).filter(|&k| written_in_description(effects[k].kind)).collect();
+        let kept_effects: Vec<ArmEffect> = written.iter().map(|&k| effects[k]).collect();
+        let kept_params =
+            Params { effects: written.iter().map(|&k| fit.params.effects[k].clone()).collect(), ..fit.params.clone() };
         let corrected = match written.is_empty() {
             true => None,
             false => {
-                // A parameter in a direction the data do not see is written rigid where it is a spring's.
-                let mut k = self.nuisance_count();
-                let mut seen = Vec::new();
-                for e in effects {
-                    let unseen = |j: usize| fit.hidden.iter().any(|d| d.iter().any(|(i, _)| *i == j));
-                    seen.push((k..k + e.size()).map(|j| !unseen(j)).collect::<Vec<bool>>());
-                    k += e.size();
-                }
-                let e: Vec<ArmEffect> = written.iter().map(|&k| effects[k]).collect();
-                let v: Vec<Vec<f64>> = written.iter().map(|&k| fit.params.effects[k].clone()).collect();
-                let s: Vec<Vec<bool>> = written.iter().map(|&k| seen[k].clone()).collect();
-                let j: Vec<String> = e.iter().map(|e| self.joints[e.joint].clone()).collect();
-                let text = super::report::arm_corrections(&e, &v, &s, &j);
+                let first = |k: usize| self.nuisance_count() + effects[..k].iter().map(ArmEffect::size).sum::<usize>();
+                let seen: Vec<Vec<bool>> = written
+                    .iter()
+                    .map(|&k| (first(k)..first(k) + effects[k].size()).map(|j| fit.sees(j)).collect())
+                    .collect();
+                let joints: Vec<String> = kept_effects.iter().map(|e| self.joints[e.joint].clone()).collect();
+                let text = super::report::arm_corrections(&kept_effects, &kept_params.effects, &seen, &joints);
                 Some((self.rebuild.as_ref()?.0)(&text).ok()?)
             }
         };
@@ -181,13 +180,9 @@ impl PositionProblem<'_> {
             (Some(m), None) => m,
             (Some(_), Some(t)) => &variants[t],
         };
-        let kept_effects: Vec<ArmEffect> = written.iter().map(|&k| effects[k]).collect();
-        let kept_params =
-            Params { effects: written.iter().map(|&k| fit.params.effects[k].clone()).collect(), ..fit.params.clone() };
         // The corrected arm's state is its own (a frame compliance adds coordinates).
         let mut state = self.m.new_state();
         let mut exact_state = corrected.as_ref().unwrap_or(self.m).new_state();
-        let compliant = |m: &Manipulator| m.legs.iter().any(|l| l.spring_groups().next().is_some());
         let mut loaded: Option<(Frame, Option<Frame>)> = None;
         let mut misses = Vec::with_capacity(self.data.rows.len());
         for (r, row) in self.data.rows.iter().enumerate() {
@@ -207,7 +202,7 @@ impl PositionProblem<'_> {
                 let (m, state) = (arm(r), &mut exact_state);
                 let frame = row.nominal_frame(m, state)?;
                 // A rigid arm stays where its joints put it.
-                let settled = |w: &Vec6, state: &mut ManipulatorState| match compliant(m) {
+                let settled = |w: &Vec6, state: &mut ManipulatorState| match m.is_compliant() {
                     false => Some(frame),
                     true => Some(m.deflect(&frame, w, None, state).ok()?.pose),
                 };
@@ -245,12 +240,5 @@ impl PositionProblem<'_> {
 
 /// Whether a description holds a serial arm's effect of this kind (`arm_corrections` writes it).
 fn written_in_description(kind: ArmKind) -> bool {
-    matches!(
-        kind,
-        ArmKind::JointOffset
-            | ArmKind::JointCompliance
-            | ArmKind::JointGeometry
-            | ArmKind::Payload
-            | ArmKind::FrameCompliance
-    )
+    super::report::not_written(kind).is_none()
 }

@@ -46,6 +46,11 @@ pub(super) struct PositionFit {
 }
 
 impl PositionFit {
+    /// Whether the data see parameter `k` (it is in no hidden direction; a held one is seen).
+    pub(super) fn sees(&self, k: usize) -> bool {
+        !self.hidden.iter().any(|d| d.iter().any(|(i, _)| *i == k))
+    }
+
     pub(super) fn dof(&self) -> usize {
         self.observations.saturating_sub(self.rank).max(1)
     }
@@ -132,8 +137,7 @@ impl PositionProblem<'_> {
         let mut below = Vec::new();
         for (e, values) in effects.iter().zip(&fit.params.effects) {
             if matches!(e.kind, ArmKind::FrameCompliance | ArmKind::ToolCompliance | ArmKind::Backlash) {
-                let unseen = |j: usize| fit.hidden.iter().any(|d| d.iter().any(|(i, _)| *i == j));
-                below.extend((0..e.size()).map(|i| k + i).filter(|&j| values[j - k] < 0.0 && !unseen(j)));
+                below.extend((0..e.size()).map(|i| k + i).filter(|&j| values[j - k] < 0.0 && fit.sees(j)));
             }
             k += e.size();
         }

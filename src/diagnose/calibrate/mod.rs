@@ -477,7 +477,7 @@ fn accepted_effects(
     variance: f64,
 ) -> Vec<AcceptedEffect> {
     // A parameter in a direction the data cannot see has no standard error.
-    let seen = |k: usize| !fit.hidden.iter().any(|d| d.iter().any(|(j, _)| *j == k)) && !fit.held.contains(&k);
+    let seen = |k: usize| fit.sees(k) && !fit.held.contains(&k);
     let mut k = problem.nuisance_count();
     let mut accepted = Vec::new();
     for (i, e) in model.iter().enumerate() {

@@ -450,7 +450,7 @@ pub(super) fn deflections<'m>(
     (arm_of, arm_index): (&dyn Fn(usize) -> &'m Manipulator, &[Option<usize>]),
     state: &mut ManipulatorState,
 ) -> Deflections {
-    let compliant = m.legs.iter().any(|l| l.spring_groups().next().is_some());
+    let compliant = m.is_compliant();
     let under = |m: &Manipulator,
                  r: &PositionRow,
                  wrench: &Vec6,

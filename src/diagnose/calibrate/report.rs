@@ -198,12 +198,7 @@ pub fn corrected_model(
         return out;
     }
     for &k in &kept {
-        let why = match c.effects[k].kind {
-            ArmKind::Backlash => "a description of a URDF arm holds no play yet",
-            ArmKind::Drift => "a drift belongs to the measurements, not the robot",
-            ArmKind::ToolCompliance => "a description of a URDF arm holds no spring at its tool yet",
-            _ => continue,
-        };
+        let Some(why) = not_written(c.effects[k].kind) else { continue };
         let a = &report.accepted[k];
         let _ = writeln!(out, "\n# {}: {} (not written: {why})", a.label, a.shown);
     }
@@ -214,6 +209,21 @@ pub fn corrected_model(
     let joints: Vec<String> = accepted.iter().map(|a| a.joint.clone()).collect();
     out.push_str(&arm_corrections(&effects, &values, &seen, &joints));
     out
+}
+
+/// Why a description cannot hold a serial arm's effect of this kind; None for the kinds `arm_corrections`
+/// writes.
+pub(super) fn not_written(kind: ArmKind) -> Option<&'static str> {
+    match kind {
+        ArmKind::Backlash => Some("a description of a URDF arm holds no play yet"),
+        ArmKind::Drift => Some("a drift belongs to the measurements, not the robot"),
+        ArmKind::ToolCompliance => Some("a description of a URDF arm holds no spring at its tool yet"),
+        ArmKind::JointOffset
+        | ArmKind::JointCompliance
+        | ArmKind::JointGeometry
+        | ArmKind::Payload
+        | ArmKind::FrameCompliance => None,
+    }
 }
 
 /// A serial arm's effects (`effects` at `values`, each on joint `joints[k]`) as the tables a description
