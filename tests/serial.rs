@@ -759,6 +759,53 @@ fn batch_studies_take_joint_coordinates_and_keep_the_configuration() {
     assert_eq!(summary[0], vec![worst[3], worst[0], worst[1]], "{swept}");
 }
 
+/// A map given joint coordinates answers the arm where they put it without placing it again (inverse
+/// kinematics would start, and stay, at the configuration given): its unloaded compliance is the one the
+/// arm placed at the pose they reach gives, to the bit, and its sag under its own weight (Newton's method
+/// from the same rest) the same to round-off, at 50 random configurations of the FANUC.
+#[test]
+fn an_arm_at_joint_coordinates_answers_as_the_arm_placed_at_their_pose() {
+    use stiff::model::grid::PosePoint;
+    use stiff::study::{point, warm_start::LoadedHistory};
+    let m = fanuc();
+    let mut r = rng(71);
+    let mut compared = 0;
+    for _ in 0..50 {
+        let t = random_angles(&mut r);
+        let given = PosePoint {
+            name: None,
+            position: Vec3::zeros(),
+            rotation: Vec3::zeros(),
+            wrench: None,
+            joints: t.to_vec(),
+        };
+        let (mut a, mut b) = (m.new_state(), m.new_state());
+        let placed = point::pose_of_joints(&m, &given, &mut a).expect("a finite pose").into_owned();
+        point::pose_of_joints(&m, &given, &mut b).unwrap();
+        let at_joints = point::unloaded_at_joints(&m, &placed, &mut a);
+        let at_pose = point::unloaded_point(&m, &placed, &mut b);
+        assert_eq!(at_joints.status, at_pose.status, "unloaded at {t:?}");
+        assert_eq!(at_joints.condition, at_pose.condition, "unloaded at {t:?}");
+        assert_eq!(at_joints.compliance, at_pose.compliance, "unloaded at {t:?}");
+
+        point::pose_of_joints(&m, &given, &mut a).unwrap();
+        point::pose_of_joints(&m, &given, &mut b).unwrap();
+        let zero = Vec6::zeros();
+        let history = &mut LoadedHistory::default();
+        let sag_joints = point::loaded_at_joints(&m, &placed, &zero, &mut a, history);
+        let sag_pose = point::loaded_point(&m, &placed, &zero, &mut b, history);
+        assert_eq!(sag_joints.status, sag_pose.status, "sag at {t:?}");
+        let (d1, d0) = (sag_joints.deflection.unwrap(), sag_pose.deflection.unwrap());
+        assert!(d0.fixed_rows::<3>(0).norm() > 0.1, "the arm sags: {d0}");
+        assert!((d1 - d0).norm() <= 1e-12 * d0.norm(), "sag at {t:?}: {d1} vs {d0}");
+        if let (Some(c1), Some(c0)) = (sag_joints.compliance, sag_pose.compliance) {
+            assert!((c1 - c0).norm() <= 1e-12 * c0.norm(), "tangent compliance at {t:?}");
+            compared += 1;
+        }
+    }
+    assert!(compared >= 40, "{compared} tangents compared");
+}
+
 /// A 6-dof spring at a named link (`[leg.urdf] links`): a link that bends, in the link's frame. With a
 /// compliance C_L at the root link (the base's mounting) and a stiffness K_L at link_3 (the upper arm), the
 /// compliance at the tool point is Salisbury's plus, per link, A C_L A^T with A the motion of the tool by

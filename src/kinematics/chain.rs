@@ -72,20 +72,31 @@ impl Joint {
             (JointKind::Prismatic, _) => Frame { rot: f.rot, pos: f.pos + f.rot * (self.axis * value) },
             (JointKind::Revolute, Some(k)) => {
                 let (s, c) = small_angle_sin_cos(value);
-                let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
-                let (new_i, new_j) = (ci * c + cj * s, cj * c - ci * s);
-                let kept = f.rot.column(k).into_owned();
-                // Built whole rather than copied and overwritten column by column, so that the frame is not
-                // stored in pieces that the next joint's loads must wait for.
-                let rot = match k {
-                    0 => Mat3::from_columns(&[kept, new_i, new_j]),
-                    1 => Mat3::from_columns(&[new_j, kept, new_i]),
-                    _ => Mat3::from_columns(&[new_i, new_j, kept]),
-                };
-                Frame { rot, pos: f.pos }
+                turned_about_column(f, k, s, c)
             }
             (JointKind::Revolute, None) => Frame { rot: f.rot * rotation_about(&self.axis, value), pos: f.pos },
+        }
+    }
+}
+
+/// `f` turned about its own column `k` by the angle whose sine and cosine are `s` and `c`: two columns
+/// mixed.
+#[inline(always)]
+fn turned_about_column(f: &Frame, k: usize, s: f64, c: f64) -> Frame {
+    {
+        {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
+            let (new_i, new_j) = (ci * c + cj * s, cj * c - ci * s);
+            let kept = f.rot.column(k).into_owned();
+            // Built whole rather than copied and overwritten column by column, so that the frame is not
+            // stored in pieces that the next joint's loads must wait for.
+            let rot = match k {
+                0 => Mat3::from_columns(&[kept, new_i, new_j]),
+                1 => Mat3::from_columns(&[new_j, kept, new_i]),
+                _ => Mat3::from_columns(&[new_i, new_j, kept]),
+            };
+            Frame { rot, pos: f.pos }
         }
     }
 }
@@ -247,29 +258,56 @@ impl PlacedJoint {
     }
 }
 
-/// What `ChainJacobians::add_point_hessian` needs of one joint with an unknown: the unknown's index, the
-/// joint's gain, kind and world axis, the motion dx of the load point per unit motion of the joint, and the
-/// vectors u and s of the joint's pairs with the joints before and after it.
+/// The point loads (force f at x, moment m; base frame) beyond one joint of a chain, summed so that the
+/// joint's generalised force and its Hessian entries read them once rather than once per load: the force
+/// F = sum f, the moment about the base origin T = sum (m + x x f), and P = sum x f^T. A joint of origin o
+/// then carries the moment T - o x F, and the bilinear sums of `add_load_hessian` are linear in P.
+#[derive(Clone, Copy, Debug)]
+struct LoadSum {
+    force: Vec3,
+    moment: Vec3,
+    spread: Mat3,
+}
+
+impl LoadSum {
+    const ZERO: LoadSum = LoadSum {
+        force: Vec3::new(0.0, 0.0, 0.0),
+        moment: Vec3::new(0.0, 0.0, 0.0),
+        spread: Mat3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    };
+
+    fn add_load(&mut self, x: &Vec3, f: &Vec3, m: &Vec3) {
+        self.force += f;
+        self.moment += m + x.cross(f);
+        self.spread += x * f.transpose();
+    }
+
+    fn add(&mut self, other: &LoadSum) {
+        self.force += other.force;
+        self.moment += other.moment;
+        self.spread += other.spread;
+    }
+}
+
+/// What `ChainJacobians::add_summed_hessian` needs of one joint with an unknown: the unknown's index, gain, kind and world axis, and the vectors u (its pairs with the
+/// joints before it) and v (with those after it, and itself).
 #[derive(Clone, Copy, Debug)]
 struct HessianTerm {
     index: usize,
-    /// The offset of the unknown's column in the column-major matrix.
-    column: usize,
     gain: f64,
     revolute: bool,
     axis: Vec3,
-    motion: Vec3,
     u: Vec3,
-    s: Vec3,
+    v: Vec3,
 }
 
-/// What a revolute joint gives its pairs with the joints after it in `add_point_hessian`: its column's
-/// offset, gain and world axis.
+/// One point load and how many of the chain's joints (in order) lie before it and carry it.
 #[derive(Clone, Copy, Debug)]
-struct EarlierRevolute {
-    column: usize,
-    gain: f64,
-    axis: Vec3,
+struct PointLoad {
+    x: Vec3,
+    f: Vec3,
+    m: Vec3,
+    upto: usize,
 }
 
 /// A mass's place in the base frame during one evaluation, and how many joints lie before it.
@@ -296,9 +334,12 @@ pub struct ChainJacobians {
     n_virtual: usize,
     placed: Vec<PlacedJoint>,
     masses: Vec<PlacedMass>,
-    /// Scratch of `add_point_hessian`: its per-joint vectors, and the revolute joints' of them so far.
+    /// Each joint's last angle with its sine and cosine (NaN before the first).
+    turns: Vec<(f64, f64, f64)>,
+    /// Scratch of the load terms: the loads beyond each joint (`LoadSum`), in chain order, and the
+    /// Hessian's per-joint vectors.
+    load_sums: Vec<LoadSum>,
     hessian_terms: Vec<HessianTerm>,
-    earlier_revolute: Vec<EarlierRevolute>,
 }
 
 /// Where a coordinate sits among the unknowns of an equilibrium: passive coordinates first, then virtual
@@ -318,11 +359,72 @@ impl ChainJacobians {
     /// masses: `J^T w + sum_j J_j^T G_j` (paper 000 eq 28-29). Added into `out`.
     pub fn add_generalised_forces(&self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut [f64]) {
         let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
-        self.add_point_forces(&self.end.pos, &f, &m, self.placed.len(), n_passive, out);
-        if *gravity != Vec3::zeros() {
-            for pm in &self.masses {
-                self.add_point_forces(&pm.point, &(gravity * pm.kg), &Vec3::zeros(), pm.upstream, n_passive, out);
+        let weighed = if *gravity == Vec3::zeros() { &[][..] } else { &self.masses[..] };
+        self.add_forces(&self.end.pos, &f, &m, weighed, gravity, n_passive, out);
+    }
+
+    /// The generalised forces of a load (f at x, moment m) on the end and of the weights of `masses`
+    /// (the chain's, in chain order), added into `out`: a revolute joint k of axis w_k through o_k takes
+    /// w_k . (T_k - o_k x F_k), a prismatic one w_k . F_k, times its gain, where F_k and T_k (about the base
+    /// origin) sum the loads beyond it, gathered from the chain's end back.
+    #[allow(clippy::too_many_arguments)]
+    fn add_forces(
+        &self,
+        x: &Vec3,
+        f: &Vec3,
+        m: &Vec3,
+        masses: &[PlacedMass],
+        gravity: &Vec3,
+        n_passive: usize,
+        out: &mut [f64],
+    ) {
+        let (mut force, mut moment) = (*f, m + x.cross(f));
+        let mut next = masses.len();
+        for (a, pj) in self.placed.iter().enumerate().rev() {
+            while next > 0 && masses[next - 1].upstream > a {
+                next -= 1;
+                let weight = gravity * masses[next].kg;
+                force += weight;
+                moment += masses[next].point.cross(&weight);
             }
+            let Some(k) = unknown_index(&pj.joint, n_passive) else { continue };
+            let w = pj.axis_world;
+            out[k] += pj.joint.gain
+                * match pj.joint.kind {
+                    JointKind::Revolute => w.dot(&(moment - pj.origin_world.cross(&force))),
+                    JointKind::Prismatic => w.dot(&force),
+                };
+        }
+    }
+
+    /// The loads beyond each joint (`load_sums`) of the wrench `w` on the end and the masses' weights.
+    fn sum_end_and_weights(&mut self, w: &Vec6, gravity: &Vec3) {
+        let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
+        let end = PointLoad { x: self.end.pos, f, m, upto: self.placed.len() };
+        let masses = std::mem::take(&mut self.masses);
+        let weights = masses.iter().filter(|_| *gravity != Vec3::zeros()).map(|pm| PointLoad {
+            x: pm.point,
+            f: gravity * pm.kg,
+            m: Vec3::zeros(),
+            upto: pm.upstream,
+        });
+        self.sum_loads(std::iter::once(end).chain(weights));
+        self.masses = masses;
+    }
+
+    /// Fills `load_sums` so that `load_sums[a + 1]` is the sum of the `loads` the joint placed `a`-th in
+    /// chain order carries (those with more than `a` joints before them).
+    fn sum_loads(&mut self, loads: impl Iterator<Item = PointLoad>) {
+        let n = self.placed.len();
+        self.load_sums.clear();
+        self.load_sums.resize(n + 1, LoadSum::ZERO);
+        // Each load where its carriers end, then summed from the chain's end back.
+        for l in loads {
+            self.load_sums[l.upto.min(n)].add_load(&l.x, &l.f, &l.m);
+        }
+        for a in (1..n).rev() {
+            let beyond = self.load_sums[a + 1];
+            self.load_sums[a].add(&beyond);
         }
     }
 
@@ -366,25 +468,14 @@ impl ChainJacobians {
     /// Generalised forces of a force `f` (N, fixed in the base frame) at a point `x` carried by the chain's
     /// end (a payload's weight at its centre), added into `out` as `add_generalised_forces` does.
     pub fn add_point_force(&self, x: &Vec3, f: &Vec3, n_passive: usize, out: &mut [f64]) {
-        self.add_point_forces(x, f, &Vec3::zeros(), self.placed.len(), n_passive, out);
+        self.add_forces(x, f, &Vec3::zeros(), &[], &Vec3::zeros(), n_passive, out);
     }
 
     /// The derivative of `add_point_force` with respect to the unknowns, as `add_load_hessian`'s.
     pub fn add_point_force_hessian(&mut self, x: &Vec3, f: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
         let upto = self.placed.len();
-        self.add_point_hessian(x, f, &Vec3::zeros(), upto, n_passive, out);
-    }
-
-    fn add_point_forces(&self, x: &Vec3, f: &Vec3, m: &Vec3, upto: usize, n_passive: usize, out: &mut [f64]) {
-        for pj in &self.placed[..upto] {
-            let Some(k) = unknown_index(&pj.joint, n_passive) else { continue };
-            let w = pj.axis_world;
-            out[k] += pj.joint.gain
-                * match pj.joint.kind {
-                    JointKind::Revolute => w.dot(&(m + (x - pj.origin_world).cross(f))),
-                    JointKind::Prismatic => w.dot(f),
-                };
-        }
+        self.sum_loads(std::iter::once(PointLoad { x: *x, f: *f, m: Vec3::zeros(), upto }));
+        self.add_summed_hessian(n_passive, out);
     }
 
     /// The derivative of `add_generalised_forces` with respect to the unknowns, the loads held fixed in the
@@ -393,74 +484,66 @@ impl ChainJacobians {
     /// `out`, square in the unknowns (rows: generalised force, columns: coordinate): the statics block of
     /// eq 45's Newton matrix takes them in place.
     pub fn add_load_hessian(&mut self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
-        let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
-        self.add_point_hessian(&self.end.pos.clone(), &f, &m, self.placed.len(), n_passive, out);
-        if *gravity != Vec3::zeros() {
-            for i in 0..self.masses.len() {
-                let pm = self.masses[i];
-                self.add_point_hessian(&pm.point, &(gravity * pm.kg), &Vec3::zeros(), pm.upstream, n_passive, out);
-            }
-        }
+        self.sum_end_and_weights(w, gravity);
+        self.add_summed_hessian(n_passive, out);
     }
 
-    fn add_point_hessian(
-        &mut self,
-        x: &Vec3,
-        f: &Vec3,
-        m: &Vec3,
-        upto: usize,
-        n_passive: usize,
-        out: &mut nalgebra::DMatrix<f64>,
-    ) {
-        // For a joint k, phi_k = w_k . (m + (x - o_k) x f) (revolute) or w_k . f (prismatic). A unit motion of
-        // joint l moves x by dx_l = w_l x (x - o_l) (revolute) or w_l (prismatic); if l comes before k it also
-        // turns w_k by w_l x w_k and carries o_k with x (revolute l). Hence, with per-joint vectors,
-        //   l before k, l revolute:  dphi_k = w_l . u_k,  u_k = w_k x c_k + (x - o_k) x (f x w_k)  (revolute k)
-        //                                                 u_k = w_k x f                             (prismatic k)
-        //   l before k, l prismatic: dphi_k = 0
-        //   l at or after k:         dphi_k = dx_l . (f x w_k) (revolute k), 0 (prismatic k)
-        // where c_k = m + (x - o_k) x f: one dot product per pair.
-        // Per joint with an unknown (actuated ones take no part), in chain order, what its pairs read:
-        // as the later joint k its u_k and (revolute) s_k = f x w_k, as the earlier joint l its axis
-        // (revolute) and dx_l, the motion of x: once per joint rather than once per pair.
+    /// The Hessian of the loads `sum_loads` summed, added into `out`.
+    ///
+    /// For one load (f at x, moment m) and a joint k, phi_k = w_k . (m + (x - o_k) x f) (revolute) or
+    /// w_k . f (prismatic). A unit motion of joint l moves x by dx_l = w_l x (x - o_l) (revolute) or w_l
+    /// (prismatic); if l comes before k it also turns w_k by w_l x w_k and carries o_k with x (revolute l):
+    ///   l before k, l revolute:  dphi_k = w_l . u_k,  u_k = w_k x (m + (x - o_k) x f) + (x - o_k) x (f x w_k)
+    ///                            (revolute k), u_k = w_k x f (prismatic k)
+    ///   l before k, l prismatic: dphi_k = 0
+    ///   l at or after k:         dphi_k = dx_l . (f x w_k) (revolute k), 0 (prismatic k).
+    /// A pair reads the loads both joints carry, those beyond the later one. Summed over them with
+    /// (a x b) . (c x d) = (a . c)(b . d) - (a . d)(b . c), both are linear in the sums F, T, P:
+    ///   sum u_k = w_k x (T - o_k x F) + P^T w_k - (o_k . w_k) F - (tr P - o_k . F) w_k   (revolute k)
+    ///   sum dx_l . (f x w_k) = v_l . w_k, v_l = P w_l - (w_l . F) o_l - (tr P - o_l . F) w_l (revolute l),
+    ///                          v_l = w_l x F (prismatic l),
+    /// so each pair costs one dot product whatever the number of loads.
+    fn add_summed_hessian(&mut self, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
         let rows = out.nrows();
+        // Per joint with an unknown, in chain order, what its pairs read: once per joint, not per pair.
         let mut terms = std::mem::take(&mut self.hessian_terms);
         terms.clear();
-        terms.extend(self.placed[..upto].iter().filter_map(|pk| {
-            let index = unknown_index(&pk.joint, n_passive)?;
-            let wk = pk.axis_world;
-            let revolute = pk.joint.kind == JointKind::Revolute;
-            let (motion, u, s) = if revolute {
-                let arm = x - pk.origin_world;
-                let fxw = f.cross(&wk);
-                (wk.cross(&arm), wk.cross(&(m + arm.cross(f))) + arm.cross(&fxw), fxw)
+        terms.extend(self.placed.iter().zip(&self.load_sums[1..]).filter_map(|(p, s)| {
+            let index = unknown_index(&p.joint, n_passive)?;
+            let (w, o, f) = (p.axis_world, p.origin_world, s.force);
+            let revolute = p.joint.kind == JointKind::Revolute;
+            let spread = s.spread.trace() - o.dot(&f);
+            let (u, v) = if revolute {
+                (
+                    w.cross(&(s.moment - o.cross(&f))) + s.spread.tr_mul(&w) - f * o.dot(&w) - w * spread,
+                    s.spread * w - o * w.dot(&f) - w * spread,
+                )
             } else {
-                (wk, wk.cross(f), Vec3::zeros())
+                (w.cross(&f), w.cross(&f))
             };
-            Some(HessianTerm { index, column: index * rows, gain: pk.joint.gain, revolute, axis: wk, motion, u, s })
+            Some(HessianTerm { index, gain: p.joint.gain, revolute, axis: w, u, v })
         }));
-        // Entry (k, l) of the column-major matrix by its offset (one bounds check where a 2-D index makes two).
         debug_assert!(terms.iter().all(|t| t.index < rows), "an unknown's index within the matrix");
         let entries = out.as_mut_slice();
-        // A pair whose d is zero (an earlier prismatic l; a prismatic k with any later l) adds nothing: the
-        // entries start at +0 and never become -0, so skipping the addition of a zero leaves the same bits.
-        // The revolute joints before k are kept apart as k goes on, so the zero pairs are skipped without a
-        // test each.
-        let mut earlier_revolute = std::mem::take(&mut self.earlier_revolute);
-        earlier_revolute.clear();
+        // Entry (k, l) of the column-major matrix at l * rows + k. A pair whose term is zero (an earlier
+        // prismatic l; a prismatic k with a later l) is skipped: its entry keeps its bits.
         for (a, tk) in terms.iter().enumerate() {
-            for tl in &earlier_revolute {
-                entries[tl.column + tk.index] += tk.gain * tl.gain * tl.axis.dot(&tk.u);
-            }
-            if tk.revolute {
-                for tl in &terms[a..] {
-                    entries[tl.column + tk.index] += tk.gain * tl.gain * tl.motion.dot(&tk.s);
-                }
-                earlier_revolute.push(EarlierRevolute { column: tk.column, gain: tk.gain, axis: tk.axis });
+            for (b, tl) in terms.iter().enumerate() {
+                let d = if b < a {
+                    if !tl.revolute {
+                        continue;
+                    }
+                    tl.axis.dot(&tk.u)
+                } else {
+                    if !tk.revolute {
+                        continue;
+                    }
+                    tl.v.dot(&tk.axis)
+                };
+                entries[tl.index * rows + tk.index] += tk.gain * tl.gain * d;
             }
         }
         self.hessian_terms = terms;
-        self.earlier_revolute = earlier_revolute;
     }
 
     /// Computes the Jacobian columns of the virtual coordinates from the last evaluation.
@@ -661,6 +744,7 @@ impl Chain {
             origin_world: Vec3::zeros(),
         };
         out.placed.resize(self.n_joints, placeholder);
+        out.turns.resize(self.n_joints, (f64::NAN, 0.0, 1.0));
         out.masses.clear();
         let mut f = Frame::IDENTITY;
         let mut placed = 0;
@@ -681,7 +765,20 @@ impl Chain {
                     placed += 1;
                     let v = j.gain * c.get(j.role, j.index);
                     if v != 0.0 {
-                        f = j.apply(&f, v, *principal);
+                        f = match (j.kind, principal) {
+                            // An actuated joint keeps its angle through an equilibrium's iterations: its
+                            // sine and cosine are kept with it (libm's reduction of a large angle is a third
+                            // of an evaluation).
+                            (JointKind::Revolute, Some(k)) => {
+                                let turn = &mut out.turns[placed - 1];
+                                if turn.0 != v {
+                                    let (s, c) = small_angle_sin_cos(v);
+                                    *turn = (v, s, c);
+                                }
+                                turned_about_column(&f, *k, turn.1, turn.2)
+                            }
+                            _ => j.apply(&f, v, *principal),
+                        };
                     }
                 }
             }

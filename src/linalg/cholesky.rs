@@ -22,6 +22,12 @@ pub(super) fn positive_definite_in_place(a: &mut [f64], n: usize) -> bool {
     cholesky_rows(a, n, paired_dot)
 }
 
+/// True where the dense n x n symmetric matrix `a` (row-major; its lower triangle read, and overwritten)
+/// is positive definite to round-off (`positive_definite_in_place`).
+pub fn positive_definite(a: &mut [f64], n: usize) -> bool {
+    positive_definite_in_place(a, n)
+}
+
 /// The row-by-row Cholesky factorisation of `dense_cholesky`, each entry's dot product of two rows' leading
 /// parts taken by `dot`.
 #[inline(always)]

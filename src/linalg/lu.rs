@@ -54,6 +54,17 @@ impl<const N: usize> SmallLu<N> {
         SmallLu { columns: a, exchanges }
     }
 
+    /// The inverse, column by column as the solutions for the identity's columns (nalgebra's
+    /// `try_inverse` for a matrix larger than 4 x 4, to the bit); None where a pivot is zero.
+    pub fn inverse(&self) -> Option<nalgebra::SMatrix<f64, N, N>> {
+        let mut inverse = nalgebra::SMatrix::<f64, N, N>::zeros();
+        for c in 0..N {
+            let column = self.solve(&nalgebra::SVector::<f64, N>::from_fn(|r, _| if r == c { 1.0 } else { 0.0 }))?;
+            inverse.set_column(c, &column);
+        }
+        Some(inverse)
+    }
+
     /// Solves for one right-hand side; None where a pivot is zero.
     pub fn solve(&self, b: &nalgebra::SVector<f64, N>) -> Option<nalgebra::SVector<f64, N>> {
         let mut x: [f64; N] = std::array::from_fn(|i| b[i]);

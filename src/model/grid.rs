@@ -476,13 +476,17 @@ impl PointSet {
                     // The record must be text, as a reader of string records would require (the fields read
                     // are checked one by one as well).
                     let not_text = |i: usize| at(i + 1, "this field is not UTF-8 text: save the file as UTF-8".into());
-                    if std::str::from_utf8(record.as_slice()).is_err() {
+                    let Ok(whole) = std::str::from_utf8(record.as_slice()) else {
                         let bad = record.iter().position(|f| std::str::from_utf8(f).is_err());
                         return Err(not_text(bad.unwrap_or(0)));
-                    }
+                    };
+                    // Each field a slice of the record's text, checked once above (its ends fall between
+                    // characters: the separators are ASCII).
                     let text = |i: usize| -> Result<&str, InputError> {
-                        let bytes = record.get(i).unwrap_or(b"");
-                        std::str::from_utf8(bytes).map(str::trim).map_err(|_| not_text(i))
+                        match record.range(i) {
+                            Some(r) => whole.get(r).map(str::trim).ok_or_else(|| not_text(i)),
+                            None => Ok(""),
+                        }
                     };
                     let field = |i: usize| -> Result<f64, InputError> {
                         let t = text(i)?;

@@ -149,7 +149,7 @@ impl std::error::Error for DeflectionFailure {}
 /// A serial arm's loaded answer as a `Deflection`: the holding wrench is the one applied, the stiffness the
 /// inverse of the tangent compliance (not finite where the arm is rigid along some direction).
 fn arm_deflection(a: &super::serial::ArmAnswer, wrench: &Vec6) -> Deflection {
-    let stiffness = a.compliance.try_inverse().unwrap_or(Mat6::from_element(f64::NAN));
+    let stiffness = SmallLu::new(&a.compliance).inverse().unwrap_or(Mat6::from_element(f64::NAN));
     let held = Held {
         force: *wrench,
         stiffness,

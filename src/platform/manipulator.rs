@@ -252,6 +252,8 @@ pub struct ManipulatorState {
     /// What the loaded solve at the first point of the last line left (`keep_line_start`): the legs'
     /// linearisations, whose factorisations each leg's workspace sets aside, and its chord.
     line_start: Option<(Vec<LegLinear>, Chord)>,
+    /// A serial arm's loaded solve's buffers (`serial.rs`), reused from one point to the next.
+    pub(super) arm: super::serial::ArmWork,
 }
 
 impl ManipulatorState {
@@ -409,6 +411,7 @@ impl Manipulator {
         ManipulatorState {
             legs: self.legs.iter().map(Leg::new_state).collect(),
             linear: Vec::new(),
+            arm: Default::default(),
             chord: None,
             line_start: None,
         }

@@ -14,7 +14,7 @@ use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use super::vjm_leg::VjmLeg;
 use crate::kinematics::chain::Coordinates;
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
-use crate::linalg::all_finite;
+use crate::linalg::{all_finite, positive_definite, DenseLu};
 use crate::vjm::stiffness::spring_compliance_at_end;
 
 /// A serial arm's answer at one configuration.
@@ -79,21 +79,42 @@ impl Manipulator {
         platform: &Frame,
         state: &mut ManipulatorState,
     ) -> Option<Result<ArmAnswer, PoseFailure>> {
-        let leg = self.serial_arm()?;
+        self.serial_arm()?;
         if let Err(e) = self.place(platform, state) {
             return Some(Err(e));
         }
+        self.arm_unloaded_as_seeded(Some(platform), state)
+    }
+
+    /// A serial arm's unloaded compliance at the configuration `pose_at_joints` seeded `state` with, its
+    /// reference point where that configuration puts it: no placement (inverse kinematics would find the
+    /// configuration it starts from). None where this is no serial arm.
+    pub fn arm_unloaded_at_joints(&self, state: &mut ManipulatorState) -> Option<Result<ArmAnswer, PoseFailure>> {
+        self.arm_unloaded_as_seeded(None, state)
+    }
+
+    /// The compliance of the arm as its state is placed, moved to `platform`'s origin where one is given
+    /// (inverse kinematics left the end within its tolerance of it).
+    fn arm_unloaded_as_seeded(
+        &self,
+        platform: Option<&Frame>,
+        state: &mut ManipulatorState,
+    ) -> Option<Result<ArmAnswer, PoseFailure>> {
+        let leg = self.serial_arm()?;
         let s = &mut state.legs[0];
         if !springs_positive(leg, &s.coords) {
             return Some(Err(PoseFailure { leg: 0, failure: LegFailure::SingularChain }));
         }
         let (jac, coords) = leg.evaluated(s);
-        let compliance =
-            shifted(&spring_compliance_at_end(&jac.virtual_, &leg.springs, coords), &(platform.pos - jac.end.pos));
+        let at_end = spring_compliance_at_end(&jac.virtual_, &leg.springs, coords);
+        let (pose, compliance) = match platform {
+            Some(p) => (*p, shifted(&at_end, &(p.pos - jac.end.pos))),
+            None => (jac.end, at_end),
+        };
         if !all_finite(compliance.as_slice()) {
             return Some(Err(PoseFailure { leg: 0, failure: LegFailure::NotFinite }));
         }
-        Some(Ok(ArmAnswer { pose: *platform, displacement: Vec6::zeros(), compliance, stable: true, iterations: 0 }))
+        Some(Ok(ArmAnswer { pose, displacement: Vec6::zeros(), compliance, stable: true, iterations: 0 }))
     }
 
     /// A serial arm's loaded equilibrium under `wrench` (N, N mm at the reference point, fixed in the base
@@ -111,10 +132,13 @@ impl Manipulator {
         if !springs_positive(leg, &s.coords) {
             return Some(Err(DeflectionFailure::Leg(PoseFailure { leg: 0, failure: LegFailure::SingularChain })));
         }
-        let mut coords = s.coords.clone();
-        coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
-        let mut solver = ArmSolver { m: self, leg, states: &mut state.legs, wrench: *wrench };
-        Some(solver.continuation(commanded, &mut coords))
+        let mut work = std::mem::take(&mut state.arm);
+        work.coords.clone_from(&s.coords);
+        work.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
+        let mut solver = ArmSolver { m: self, leg, states: &mut state.legs, wrench: *wrench, work: &mut work };
+        let answer = solver.continuation(commanded);
+        state.arm = work;
+        Some(answer)
     }
 }
 
@@ -140,6 +164,25 @@ fn shifted(c: &Mat6, arm: &Vec3) -> Mat6 {
     a * c * a.transpose()
 }
 
+/// A serial arm's loaded solve's buffers, sized by its first solve and reused at every point after it.
+#[derive(Clone, Debug, Default)]
+pub struct ArmWork {
+    /// The elastic coordinates being solved for.
+    coords: Coordinates,
+    /// The residual g - K (theta - theta0), then Newton's step solved in its place.
+    residual: Vec<f64>,
+    /// The Newton matrix K - H (column-major), and its factorisation.
+    matrix: DMatrix<f64>,
+    factor: DenseLu,
+    /// The factorisation is the matrix at the current coordinates' iterate (false: compute it afresh).
+    factored: bool,
+    /// The coordinates before a load step, restored where it fails.
+    saved: Vec<f64>,
+    /// The tangent's (K - H)^-1 J^T by rows, and the symmetric part of K - H for the stability test.
+    solved: Vec<[f64; 6]>,
+    symmetric: Vec<f64>,
+}
+
 /// One loaded solve of a serial arm.
 struct ArmSolver<'a> {
     m: &'a Manipulator,
@@ -148,13 +191,7 @@ struct ArmSolver<'a> {
     /// One per chain: their evaluations (`jac`) are the solve's buffers.
     states: &'a mut [LegState],
     wrench: Vec6,
-}
-
-/// What one evaluation of the arm's statics gives: the residual g - K (theta - theta0) and, where asked for,
-/// the Newton matrix K - H.
-struct Statics {
-    residual: Vec<f64>,
-    matrix: Option<DMatrix<f64>>,
+    work: &'a mut ArmWork,
 }
 
 /// A chord step that shrinks the step by less than this has a matrix too far from the state's: the next
@@ -162,14 +199,26 @@ struct Statics {
 const CHORD_STALL: f64 = 0.1;
 
 impl ArmSolver<'_> {
-    /// The statics at `coords` under the share `load` of every load (the wrench, the links' and the
-    /// payload's weight), the chain evaluated there into `jac`; the Newton matrix with `with_matrix` (its
-    /// load Hessian costs more than the rest).
-    fn statics(&mut self, coords: &Coordinates, load: f64, with_matrix: bool) -> Statics {
+    /// The statics at the work's coordinates under the share `load` of every load (the wrench, the links'
+    /// and the payload's weight), the chain evaluated there into `jac`: the residual g - K (theta - theta0)
+    /// into `work.residual` and, with `with_matrix` (its load Hessian costs more than the rest), the Newton
+    /// matrix K - H into `work.matrix`.
+    fn statics(&mut self, load: f64, with_matrix: bool) {
+        let work = &mut *self.work;
+        let coords = &work.coords;
         let n = coords.virtual_.len();
         let gravity = self.leg.gravity * load;
-        let mut residual = vec![0.0; n];
-        let mut matrix = with_matrix.then(|| DMatrix::zeros(n, n));
+        work.residual.clear();
+        work.residual.resize(n, 0.0);
+        if with_matrix {
+            if work.matrix.nrows() != n {
+                work.matrix = DMatrix::zeros(n, n);
+            } else {
+                work.matrix.fill(0.0);
+            }
+        }
+        let (residual, matrix) = (&mut work.residual, with_matrix.then_some(&mut work.matrix));
+        let mut matrix = matrix;
         // Every chain's weight, the wrench at the reference point's: the chains of a tree share their
         // coordinates, and each body is in one chain, so their generalised forces and Hessians add.
         for (k, chain) in self.m.arm_chains().enumerate() {
@@ -181,8 +230,8 @@ impl ArmSolver<'_> {
             } else {
                 chain.chain.place_joints(coords, jac);
             }
-            jac.add_generalised_forces(&wrench, &gravity, 0, &mut residual);
-            if let Some(h) = matrix.as_mut() {
+            jac.add_generalised_forces(&wrench, &gravity, 0, residual);
+            if let Some(h) = matrix.as_deref_mut() {
                 jac.add_load_hessian(&wrench, &gravity, 0, h);
             }
         }
@@ -192,47 +241,59 @@ impl ArmSolver<'_> {
             (end.pos + end.rot * p.centre, self.m.weight_gravity() * (p.mass_kg * load))
         });
         if let Some((point, force)) = payload {
-            jac.add_point_force(&point, &force, 0, &mut residual);
-            if let Some(h) = matrix.as_mut() {
+            jac.add_point_force(&point, &force, 0, residual);
+            if let Some(h) = matrix.as_deref_mut() {
                 jac.add_point_force_hessian(&point, &force, 0, h);
             }
         }
-        if let Some(h) = matrix.as_mut() {
+        if let Some(h) = matrix.as_deref_mut() {
             h.neg_mut();
         }
         for g in &self.leg.springs {
-            let k = g.stiffness_at(coords);
+            let varying;
+            let k = match g.constant_stiffness() {
+                Some(k) => k,
+                None => {
+                    varying = g.stiffness_at(coords);
+                    &varying
+                }
+            };
             let rest = &self.leg.preload[g.first..g.first + g.dim];
             let theta = &coords.virtual_[g.first..g.first + g.dim];
             for i in 0..g.dim {
                 for j in 0..g.dim {
                     residual[g.first + i] -= k[(i, j)] * (theta[j] - rest[j]);
-                    if let Some(m) = matrix.as_mut() {
+                    if let Some(m) = matrix.as_deref_mut() {
                         m[(g.first + i, g.first + j)] += k[(i, j)];
                     }
                 }
             }
         }
-        Statics { residual, matrix }
     }
 
-    /// Newton's method for the share `load` from `coords` (left at the solution), chord steps on the last
-    /// matrix while they shrink the step tenfold or more: the iterations.
-    fn newton(&mut self, coords: &mut Coordinates, load: f64) -> Result<usize, DeflectionFailure> {
+    /// Newton's method for the share `load` from the work's coordinates (left at the solution), chord
+    /// steps on the last matrix while they shrink the step tenfold or more: the iterations.
+    fn newton(&mut self, load: f64) -> Result<usize, DeflectionFailure> {
         let scale = self.leg.length_scale;
-        let mut factor: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>> = None;
+        let singular = DeflectionFailure::SingularStiffness { load_fraction: load };
+        self.work.factored = false;
         let mut last_size = f64::INFINITY;
         for iteration in 1..=MAX_NEWTON {
-            let Statics { residual, matrix } = self.statics(coords, load, factor.is_none());
-            if let Some(m) = matrix {
-                factor = Some(m.lu());
+            let fresh = !self.work.factored;
+            self.statics(load, fresh);
+            let work = &mut *self.work;
+            if fresh {
+                let n = work.matrix.nrows();
+                if !work.factor.factor(work.matrix.as_slice(), n) {
+                    return Err(singular);
+                }
+                work.factored = true;
             }
-            let step = factor
-                .as_ref()
-                .expect("made above")
-                .solve(&nalgebra::DVector::from_vec(residual))
-                .filter(|s| all_finite(s.as_slice()))
-                .ok_or(DeflectionFailure::SingularStiffness { load_fraction: load })?;
+            work.factor.solve_in_place(&mut work.residual);
+            let step = &work.residual;
+            if !all_finite(step) {
+                return Err(singular);
+            }
             let lengths = self.leg.chain.length_coordinates();
             let size = step
                 .iter()
@@ -243,14 +304,14 @@ impl ArmSolver<'_> {
                 // A step past a radian (or the arm's length) has left the region the linearisation describes.
                 return Err(DeflectionFailure::NotConverged { load_fraction: load });
             }
-            for (t, d) in coords.virtual_.iter_mut().zip(step.iter()) {
+            for (t, d) in work.coords.virtual_.iter_mut().zip(step.iter()) {
                 *t += d;
             }
             if size <= NEWTON_TOLERANCE {
                 return Ok(iteration);
             }
             if size > CHORD_STALL * last_size {
-                factor = None;
+                work.factored = false;
             }
             last_size = size;
         }
@@ -258,19 +319,20 @@ impl ArmSolver<'_> {
     }
 
     /// The equilibrium under the whole load, by load steps where a direct solve fails, and its answer.
-    fn continuation(&mut self, commanded: &Frame, coords: &mut Coordinates) -> Result<ArmAnswer, DeflectionFailure> {
+    fn continuation(&mut self, commanded: &Frame) -> Result<ArmAnswer, DeflectionFailure> {
         let (mut done, mut step, mut iterations) = (0.0f64, 1.0f64, 0);
         while done < 1.0 {
             let target = (done + step).min(1.0);
-            let saved = coords.virtual_.clone();
-            match self.newton(coords, target) {
+            self.work.saved.clone_from(&self.work.coords.virtual_);
+            match self.newton(target) {
                 Ok(its) => {
                     iterations += its;
                     done = target;
                     step = (step * 2.0).min(1.0);
                 }
                 Err(e) => {
-                    coords.virtual_.copy_from_slice(&saved);
+                    let work = &mut *self.work;
+                    work.coords.virtual_.copy_from_slice(&work.saved);
                     step /= 4.0;
                     if step < SMALLEST_LOAD_STEP {
                         return Err(match e {
@@ -284,32 +346,40 @@ impl ArmSolver<'_> {
             }
         }
         // At the equilibrium (the last step moved it by round-off): the pose, the Jacobian and the matrix of
-        // the tangent.
-        let matrix = self.statics(coords, 1.0, true).matrix.expect("asked for");
+        // the tangent, C = J (K - H)^-1 J^T with (K - H)^-1 J^T solved for J's six rows at once.
+        self.statics(1.0, true);
+        let singular = DeflectionFailure::SingularStiffness { load_fraction: 1.0 };
+        let work = &mut *self.work;
         let jac = &self.states[0].jac;
         let pose = jac.end;
-        let singular = DeflectionFailure::SingularStiffness { load_fraction: 1.0 };
-        let inverse = matrix.clone().lu().try_inverse().ok_or(singular)?;
-        let n = coords.virtual_.len();
-        let j = DMatrix::from_fn(6, n, |r, c| jac.virtual_[c][r]);
-        let c = &j * inverse * j.transpose();
-        let compliance = Mat6::from_fn(|r, k| c[(r, k)]);
+        let n = work.matrix.nrows();
+        if !work.factor.factor(work.matrix.as_slice(), n) {
+            return Err(singular);
+        }
+        work.solved.clear();
+        work.solved.extend(jac.virtual_.iter().map(|c| [c[0], c[1], c[2], c[3], c[4], c[5]]));
+        work.factor.solve_rows(&mut work.solved);
+        let compliance =
+            Mat6::from_fn(|r, k| jac.virtual_.iter().zip(&work.solved).map(|(column, x)| column[r] * x[k]).sum());
         if !all_finite(compliance.as_slice()) || !all_finite(pose.pos.as_slice()) {
             return Err(DeflectionFailure::Leg(PoseFailure { leg: 0, failure: LegFailure::NotFinite }));
         }
-        let stable = energy_minimum(&matrix);
+        let stable = energy_minimum(&work.matrix, &mut work.symmetric);
         Ok(ArmAnswer { pose, displacement: commanded.error_to(&pose), compliance, stable, iterations })
     }
 }
 
 /// The symmetric part of the energy's Hessian `m` is positive definite (Cholesky, after a diagonal
-/// equilibration, which changes no eigenvalue's sign).
-fn energy_minimum(m: &DMatrix<f64>) -> bool {
+/// equilibration, which changes no eigenvalue's sign), formed in `buffer`.
+fn energy_minimum(m: &DMatrix<f64>, buffer: &mut Vec<f64>) -> bool {
     let n = m.nrows();
-    let d: Vec<f64> = (0..n).map(|i| m[(i, i)]).collect();
-    if d.iter().any(|v| v.is_nan() || *v <= 0.0) {
+    if (0..n).any(|i| m[(i, i)].is_nan() || m[(i, i)] <= 0.0) {
         return false;
     }
-    let s = DMatrix::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] + m[(j, i)]) / (d[i] * d[j]).sqrt());
-    s.cholesky().is_some()
+    buffer.clear();
+    buffer.extend((0..n * n).map(|e| {
+        let (i, j) = (e / n, e % n);
+        0.5 * (m[(i, j)] + m[(j, i)]) / (m[(i, i)] * m[(j, j)]).sqrt()
+    }));
+    positive_definite(buffer, n)
 }

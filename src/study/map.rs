@@ -234,7 +234,15 @@ pub fn map_given_point<'a>(
 ) -> (Cow<'a, PosePoint>, PointResult) {
     match super::point::pose_of_joints(m, p, &mut state.0) {
         Some(placed) => {
-            let r = map_point(m, &placed, options, state);
+            // At joint coordinates the arm is where `pose_of_joints` seeded it: no placement.
+            let r = if p.joints.is_empty() {
+                map_point(m, &placed, options, state)
+            } else {
+                match point_wrench(&placed, options) {
+                    None => super::point::unloaded_at_joints(m, &placed, &mut state.0),
+                    Some(w) => super::point::loaded_at_joints(m, &placed, &w, &mut state.0, &mut state.1),
+                }
+            };
             (placed, r)
         }
         None => (Cow::Borrowed(p), PointResult::failed(Status::Unreachable)),
@@ -248,12 +256,17 @@ pub fn map_point(
     options: &MapOptions,
     (state, history): &mut (ManipulatorState, LoadedHistory),
 ) -> PointResult {
-    let wrench = if options.use_point_wrench { p.wrench } else { options.wrench };
-    match (options.wrench.is_some() || options.use_point_wrench, wrench) {
-        (false, _) => unloaded_point(m, p, state),
-        (true, Some(w)) => loaded_point(m, p, &w, state, history),
-        (true, None) => loaded_point(m, p, &Vec6::zeros(), state, history),
+    match point_wrench(p, options) {
+        None => unloaded_point(m, p, state),
+        Some(w) => loaded_point(m, p, &w, state, history),
     }
+}
+
+/// The wrench a loaded map applies at `p` (its own, or the run's; zero where a point has none); None for
+/// an unloaded map.
+fn point_wrench(p: &PosePoint, options: &MapOptions) -> Option<Vec6> {
+    let wrench = if options.use_point_wrench { p.wrench } else { options.wrench };
+    (options.wrench.is_some() || options.use_point_wrench).then(|| wrench.unwrap_or_else(Vec6::zeros))
 }
 
 /// The map as a streamed study.

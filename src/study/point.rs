@@ -10,8 +10,9 @@ use crate::model::grid::PosePoint;
 use crate::output::report::{fmt6, matrix, TWIST, WRENCH};
 use crate::platform::compliance::{analyse, analyse_compliance, principal, ArmOutcome, Outcome, PrincipalCompliance};
 use crate::platform::leg::LegFailure;
-use crate::platform::loaded::DeflectionFailure;
+use crate::platform::loaded::{Deflection, DeflectionFailure};
 use crate::platform::manipulator::{Manipulator, ManipulatorState, PoseFailure};
+use crate::platform::serial::ArmAnswer;
 
 /// The outcome of one point, as the map reports it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -228,17 +229,33 @@ impl PointResult {
 
 /// The unloaded stiffness and compliance at the point's pose.
 pub fn unloaded_point(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorState) -> PointResult {
-    if let Some(answer) = m.arm_unloaded(&p.frame(), state) {
-        let mut r = match answer {
-            Ok(a) => PointResult::from_compliance(a.compliance, m.length_scale, false),
-            Err(e) => return PointResult::failed_at(e),
-        };
-        r.deflection = match (&r.compliance, &p.wrench) {
-            (Some(c), Some(w)) => Some(c * w),
-            _ => None,
-        };
-        return r.check_finite();
-    }
+    arm_answer(m.arm_unloaded(&p.frame(), state), p, m.length_scale).unwrap_or_else(|| unloaded_parallel(m, p, state))
+}
+
+/// A serial arm's unloaded result at the joint coordinates `pose_of_joints` seeded `state` with (`placed`
+/// the pose they give): no placement, the configuration being given. As `unloaded_point` for any other
+/// manipulator.
+pub fn unloaded_at_joints(m: &Manipulator, placed: &PosePoint, state: &mut ManipulatorState) -> PointResult {
+    arm_answer(m.arm_unloaded_at_joints(state), placed, m.length_scale)
+        .unwrap_or_else(|| unloaded_point(m, placed, state))
+}
+
+/// A serial arm's unloaded answer as a result (its deflection under the point's wrench); None where the
+/// manipulator is no serial arm.
+fn arm_answer(answer: Option<Result<ArmAnswer, PoseFailure>>, p: &PosePoint, length_scale: f64) -> Option<PointResult> {
+    let mut r = match answer? {
+        Ok(a) => PointResult::from_compliance(a.compliance, length_scale, false),
+        Err(e) => return Some(PointResult::failed_at(e)),
+    };
+    r.deflection = match (&r.compliance, &p.wrench) {
+        (Some(c), Some(w)) => Some(c * w),
+        _ => None,
+    };
+    Some(r.check_finite())
+}
+
+/// A parallel manipulator's unloaded result at `p`.
+fn unloaded_parallel(m: &Manipulator, p: &PosePoint, state: &mut ManipulatorState) -> PointResult {
     let agg = match m.unloaded(&p.frame(), state) {
         Ok(a) => a,
         Err(e) => return PointResult::failed_at(e),
@@ -308,6 +325,9 @@ pub fn loaded_point(
     state: &mut ManipulatorState,
     history: &mut LoadedHistory,
 ) -> PointResult {
+    if m.is_serial_arm() {
+        return loaded_arm_point(m, p, wrench, state, true);
+    }
     let commanded = p.frame();
     if let Err(e) = m.place_for_load(&commanded, state) {
         history.clear();
@@ -325,12 +345,57 @@ pub fn loaded_point(
         m.place_for_load(&commanded, state).ok();
         attempt = m.deflect(&commanded, wrench, None, state);
     }
-    match attempt {
+    match &attempt {
         Ok(d) => {
             if first_of_line {
                 state.keep_line_start();
             }
             history.push(p.position, d.displacement, &state.legs);
+        }
+        Err(_) => history.clear(),
+    }
+    loaded_result(m, attempt)
+}
+
+/// A serial arm's loaded result at `p` (placed there first with `place`; without, at the configuration
+/// `pose_of_joints` seeded `state` with): Newton's method on its joints from their rest, which no warm
+/// start from the points before would shorten.
+fn loaded_arm_point(
+    m: &Manipulator,
+    p: &PosePoint,
+    wrench: &Vec6,
+    state: &mut ManipulatorState,
+    place: bool,
+) -> PointResult {
+    let commanded = p.frame();
+    if place {
+        if let Err(e) = m.place_for_load(&commanded, state) {
+            return PointResult::failed_at(e);
+        }
+    }
+    loaded_result(m, m.deflect(&commanded, wrench, None, state))
+}
+
+/// A serial arm's loaded result at the joint coordinates `pose_of_joints` seeded `state` with (`placed`
+/// the pose they give), not placed again; as `loaded_point` for any other manipulator.
+pub fn loaded_at_joints(
+    m: &Manipulator,
+    placed: &PosePoint,
+    wrench: &Vec6,
+    state: &mut ManipulatorState,
+    history: &mut LoadedHistory,
+) -> PointResult {
+    if m.is_serial_arm() {
+        loaded_arm_point(m, placed, wrench, state, false)
+    } else {
+        loaded_point(m, placed, wrench, state, history)
+    }
+}
+
+/// The result of a loaded solve.
+fn loaded_result(m: &Manipulator, attempt: Result<Deflection, DeflectionFailure>) -> PointResult {
+    match attempt {
+        Ok(d) => {
             let mut r = match d.compliance {
                 Some(c) => PointResult::from_compliance(c, m.length_scale, true),
                 None => PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true),
@@ -344,12 +409,8 @@ pub fn loaded_point(
             }
             r.check_finite()
         }
-        Err(DeflectionFailure::Leg(e)) => {
-            history.clear();
-            PointResult::failed_at(e)
-        }
+        Err(DeflectionFailure::Leg(e)) => PointResult::failed_at(e),
         Err(e @ (DeflectionFailure::NotConverged { .. } | DeflectionFailure::SingularStiffness { .. })) => {
-            history.clear();
             PointResult { failure: Some(PointFailure::Equilibrium(e)), ..PointResult::failed(Status::NotConverged) }
         }
     }

@@ -82,6 +82,12 @@ impl SpringGroup {
         (k, c.unwrap_or(Mat6::from_element(f64::NAN)))
     }
 
+    /// The stiffness where it does not depend on the coordinates (no copy of the block: a Newton
+    /// iteration reads every spring's).
+    pub fn constant_stiffness(&self) -> Option<&Mat6> {
+        (!self.varies()).then_some(&self.stiffness)
+    }
+
     /// The stiffness alone at the given coordinates (`at` without the compliance).
     pub fn stiffness_at(&self, coords: &Coordinates) -> Mat6 {
         match (&self.posture, &self.of_coordinate) {
