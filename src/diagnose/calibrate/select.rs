@@ -191,6 +191,14 @@ pub(super) fn choose_effects(
                 None => break,
             }
         }
+        // Once the swaps settle, a split: an effect of several parameters doing the work of a few simpler
+        // ones together (a joint's geometry standing in for its offset and the offset of the joint before
+        // it), replaced by them where the BIC says so; the next round's steps then judge the model anew.
+        if let Some((_, smaller, f)) = best_split(problem, rows, candidates, options, sigma_known, &model, &fit) {
+            model = smaller;
+            fit = problem.fit_exact(rows, &model, &f.params).unwrap_or(f);
+            swapped = true;
+        }
         if !swapped {
             break;
         }
@@ -205,6 +213,9 @@ pub(super) fn choose_effects(
     }
     Ok(Selection { model, fit, steps, hidden, stopped })
 }
+
+/// How many of a split's first candidates are each tried as its first replacement (`best_split`).
+const SPLIT_STARTS: usize = 3;
 
 /// A candidate tested best: its F statistic, its p-value, the candidate and its fit.
 type Best = (f64, f64, ArmEffect, PositionFit);
@@ -387,6 +398,75 @@ fn best_swap(
         let gain = bic(fit) - bic(&f);
         if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
             best = Some((gain, k, c, f));
+        }
+    }
+    best
+}
+
+/// The best split: the accepted effect of several parameters whose place is better taken by candidates
+/// with fewer parameters in all, found by forward selection among them on the model without it (each
+/// accepted as `choose_effects` accepts one), where the BIC comes out lower. The first replacement is tried
+/// from each of the `SPLIT_STARTS` best of the first step (the best alone may be a third effect that fits
+/// part of both, a payload beside two offsets). Returns the gain, the model (the others, then the
+/// replacements) and its fit; None where no split lowers the BIC.
+fn best_split(
+    problem: &PositionProblem,
+    rows: &[usize],
+    candidates: &[ArmEffect],
+    options: &CalibrationOptions,
+    sigma_known: bool,
+    model: &[ArmEffect],
+    fit: &PositionFit,
+) -> Option<(f64, Vec<ArmEffect>, PositionFit)> {
+    let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
+    let mut best: Option<(f64, Vec<ArmEffect>, PositionFit)> = None;
+    for k in (options.fitted.len()..model.len()).filter(|&k| model[k].size() > 1) {
+        let mut others = model.to_vec();
+        let removed = others.remove(k);
+        let mut start = fit.params.clone();
+        start.effects.remove(k);
+        let Some(without) = problem.fit(rows, &others, &start) else { continue };
+        // Fewer parameters in all than the effect replaced.
+        let offered = |budget: usize| -> Vec<ArmEffect> {
+            candidates.iter().filter(|c| **c != removed && c.size() <= budget).copied().collect()
+        };
+        let first = offered(removed.size() - 1);
+        let (tests, _, tested) = forward_step(problem, rows, &first, &others, &without, sigma_known);
+        let threshold = options.alpha / tested.max(1) as f64;
+        let mut starts: Vec<(f64, ArmEffect)> = tests
+            .iter()
+            .filter(|t| t.note.is_none())
+            .filter_map(|t| Some((t.p?, *first.iter().find(|c| c.label(&problem.joints) == t.label)?)))
+            .filter(|(p, _)| *p < threshold)
+            .collect();
+        starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for &(_, c) in starts.iter().take(SPLIT_STARTS) {
+            let mut smaller = others.clone();
+            smaller.push(c);
+            let mut start = without.params.clone();
+            start.effects.push(vec![0.0; c.size()]);
+            let Some(mut f) = problem.fit(rows, &smaller, &start) else { continue };
+            if bic(&f) >= bic(&without) - STRONG_EVIDENCE {
+                continue;
+            }
+            let mut budget = removed.size() - 1 - c.size();
+            while budget > 0 && smaller.len() < options.fitted.len() + options.max_effects {
+                let (_, chosen, tested) = forward_step(problem, rows, &offered(budget), &smaller, &f, sigma_known);
+                let threshold = options.alpha / tested.max(1) as f64;
+                let Some((_, _, c, with)) =
+                    chosen.filter(|(_, p, _, g)| *p < threshold && bic(g) < bic(&f) - STRONG_EVIDENCE)
+                else {
+                    break;
+                };
+                smaller.push(c);
+                budget -= c.size();
+                f = with;
+            }
+            let gain = bic(fit) - bic(&f);
+            // One replacement alone is a swap's (`best_swap`).
+            if smaller.len() > others.len() + 1 && gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {
+                best = Some((gain, smaller, f));
+            }
         }
     }
     best
