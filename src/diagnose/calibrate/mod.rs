@@ -53,7 +53,7 @@ pub use synth::{
 
 use fit::PositionFit;
 use problem::PositionProblem;
-use select::{choose_effects, error_stats, gross_rows, gross_rows_against, nested_test, Selection};
+use select::{choose_effects, error_stats, gross_rows, gross_rows_against, nested_test, Screen, Selection};
 
 use std::borrow::Cow;
 
@@ -126,7 +126,8 @@ pub fn calibrate(
     let fit_rows: Vec<usize> = fit_rows.into_iter().filter(|r| placed(data, &unplaced, *r)).collect();
     let (candidates, one_sided) = problem.two_sided_play(candidates, &fit_rows);
     check_fittable(&problem, data, &fit_rows, &unplaced, options)?;
-    let (mut kept, selection, mut gross) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
+    let (mut kept, selection, screen) = screened_selection(&problem, &fit_rows, &candidates, options, sigma_known)?;
+    let (mut gross, mut kept_gross) = (screen.gross, screen.kept_why);
     // A set-up that its gross rows left without enough rows to fix its frame: set aside as well (its
     // unseen directions move none of the rows fitted, so the fit stands; its held-out rows would be
     // predicted through an arbitrary frame).
@@ -158,7 +159,8 @@ pub fn calibrate(
     let residuals = problem.residuals(&model, &fit.params);
     // Held-out rows are judged by the same rule against the fitted rows' scale: a gross one is named and left
     // out of the held-out errors too.
-    let gross_checks = gross_rows_against(&problem, &residuals, &kept, &check_rows);
+    let Screen { gross: gross_checks, kept_why } = gross_rows_against(&problem, &residuals, &kept, &check_rows);
+    kept_gross.extend(kept_why.into_iter().map(|why| format!("held out: {why}")));
     let all_checks = check_rows.clone();
     let check_rows: Vec<usize> = check_rows.into_iter().filter(|r| !gross_checks.contains(r)).collect();
     gross.extend(&gross_checks);
@@ -197,7 +199,7 @@ pub fn calibrate(
         stopped,
         not_used_count: data.not_used.len() + unplaced.len(),
         not_used: data.not_used.iter().cloned().chain(unplaced.iter().map(|(_, why)| why.clone())).collect(),
-        notes: data.notes.iter().cloned().chain(defaulted.then(|| not_offered(&problem))).collect(),
+        notes: data.notes.iter().cloned().chain(kept_gross).chain(defaulted.then(|| not_offered(&problem))).collect(),
     };
     let leg_corrections = problem
         .space
@@ -404,32 +406,32 @@ fn screened_selection(
     candidates: &[ArmEffect],
     options: &CalibrationOptions,
     sigma_known: bool,
-) -> Result<(Vec<usize>, Selection, Vec<usize>), CalibrationError> {
-    let mut gross: Vec<usize> = Vec::new();
+) -> Result<(Vec<usize>, Selection, Screen), CalibrationError> {
+    let mut screen = Screen::default();
     for _ in 0..3 {
-        let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
+        let kept: Vec<usize> = fit_rows.iter().filter(|r| !screen.gross.contains(r)).copied().collect();
         let start = problem.start(&kept, &options.fitted);
         let Some(f) = problem.fit(&kept, &options.fitted, &start) else { break };
         let next = gross_rows(problem, &problem.residuals(&options.fitted, &f.params), fit_rows);
-        if next == gross {
+        if next == screen {
             break;
         }
-        gross = next;
+        screen = next;
     }
     let mut outcome = None;
     for _ in 0..3 {
-        let kept: Vec<usize> = fit_rows.iter().filter(|r| !gross.contains(r)).copied().collect();
+        let kept: Vec<usize> = fit_rows.iter().filter(|r| !screen.gross.contains(r)).copied().collect();
         let selection = choose_effects(problem, &kept, candidates, options, sigma_known)?;
         let next = gross_rows(problem, &problem.residuals(&selection.model, &selection.fit.params), fit_rows);
-        let settled = next == gross;
+        let settled = next.gross == screen.gross;
         outcome = Some((kept, selection));
+        screen = next;
         if settled {
             break;
         }
-        gross = next;
     }
     let (kept, selection) = outcome.expect("at least one selection");
-    Ok((kept, selection, gross))
+    Ok((kept, selection, screen))
 }
 
 /// A joint's geometry holds its offset (a leg's end-point error along its actuator, an arm joint's turn

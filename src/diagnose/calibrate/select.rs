@@ -48,23 +48,36 @@ pub(super) fn error_stats(residuals: &[Option<Vec3>], base: Option<&[Option<Vec3
     }
 }
 
+/// A screen that finds more than this share of a kind's rows gross (and more than one) leaves none of them
+/// out, and says so: a model or a set-up that misses that many rows misses an effect, not a few bad
+/// measurements (a target's place fitted along a direction no row sees once screened 317 of 321 rows).
+pub(super) const MOST_GROSS_SHARE: f64 = 0.1;
+
+/// The gross rows of a screen, and why rows beyond the scale were kept where there were too many of them.
+#[derive(Debug, Default, PartialEq)]
+pub(super) struct Screen {
+    pub(super) gross: Vec<usize>,
+    pub(super) kept_why: Vec<String>,
+}
+
 /// The gross rows among `rows`: weighted misfit beyond `stats::GROSS_FACTOR_POSITIONS` robust standard deviations.
-pub(super) fn gross_rows(problem: &PositionProblem, residuals: &[Option<Vec3>], rows: &[usize]) -> Vec<usize> {
+pub(super) fn gross_rows(problem: &PositionProblem, residuals: &[Option<Vec3>], rows: &[usize]) -> Screen {
     gross_rows_against(problem, residuals, rows, rows)
 }
 
 /// The gross rows among `tested`, against the robust scale of the rows `scaled` (a held-out row is judged
 /// by the fitted rows' scale). Positions and orientations are judged each against their own kind's scale,
-/// so that a stated sigma of one kind that is off does not make the other's rows look gross.
+/// so that a stated sigma of one kind that is off does not make the other's rows look gross; where more
+/// than `MOST_GROSS_SHARE` of a kind's tested rows would be gross, none of them is, and the screen says why.
 pub(super) fn gross_rows_against(
     problem: &PositionProblem,
     residuals: &[Option<Vec3>],
     scaled: &[usize],
     tested: &[usize],
-) -> Vec<usize> {
+) -> Screen {
     let misfit = |r: usize| residuals[r].map_or(f64::INFINITY, |v| v.norm() * problem.weight[r]);
     let turning = |r: &usize| problem.data.rows[*r].observed.is_orientation();
-    let mut gross = Vec::new();
+    let mut screen = Screen::default();
     for kind in [false, true] {
         let mut sorted: Vec<f64> =
             scaled.iter().filter(|r| turning(r) == kind).map(|&r| misfit(r)).filter(|m| m.is_finite()).collect();
@@ -73,12 +86,27 @@ pub(super) fn gross_rows_against(
         }
         sorted.sort_by(f64::total_cmp);
         let scale = robust_scale(&sorted);
-        gross.extend(
-            tested.iter().copied().filter(|r| turning(r) == kind && misfit(*r) > GROSS_FACTOR_POSITIONS * scale),
-        );
+        let of_kind = tested.iter().filter(|r| turning(r) == kind).count();
+        let gross: Vec<usize> = tested
+            .iter()
+            .copied()
+            .filter(|r| turning(r) == kind && misfit(*r) > GROSS_FACTOR_POSITIONS * scale)
+            .collect();
+        if gross.len() > 1 && gross.len() as f64 > MOST_GROSS_SHARE * of_kind as f64 {
+            let what = if kind { "orientation" } else { "position" };
+            screen.kept_why.push(format!(
+                "{} of {of_kind} {what} rows lie beyond {GROSS_FACTOR_POSITIONS} robust standard deviations of the \
+                 fit, more than {:.0}% of them: none is left out as gross (a model or a set-up that misses this \
+                 many rows misses something, not a few bad measurements; the errors below include them)",
+                gross.len(),
+                100.0 * MOST_GROSS_SHARE
+            ));
+            continue;
+        }
+        screen.gross.extend(gross);
     }
-    gross.sort_unstable();
-    gross
+    screen.gross.sort_unstable();
+    screen
 }
 
 /// The test of adding an effect to a fit of residual sum `rss0` (weighted) and rank `rank0`, giving `with`: its F
