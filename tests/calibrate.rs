@@ -2019,3 +2019,58 @@ fn two_offsets_on_adjacent_joints_are_named_as_offsets_not_as_a_geometry() {
         }
     }
 }
+
+/// Every effect kind the exact simulator of this file hides, one at a time at SNR >= 100 (each moves the
+/// target by a millimetre or more, the noise 0.01 mm), 40 seeds per kind, the default candidates: the
+/// effect is named in every seed (alone in all but a few: alpha 1% per step), the model corrected by it
+/// (fitted from the start) names nothing more on the same data in every seed, and its value lies within two
+/// standard errors of the truth in about 95% of the seeds (printed per kind). 34 of 40 is the 1% lower
+/// bound of 40 draws covered with probability 95%. Over 200 seeds (run once): offset 188 (94%, errors in
+/// standard errors RMS 0.99), payload 189 (94.5%, 1.02). Play is still fitted at first order about the
+/// model's sag (a description holds no play, so its exact miss is not built): 169 of 200 (84.5%, RMS 1.38),
+/// held here to 30 of 40 as a regression bound. A joint's compliance has its own test over 100 seeds
+/// (`a_compliance_factor_is_named_and_covered_by_its_standard_errors_over_seeds`).
+#[test]
+fn each_effect_kind_is_named_and_covered_by_its_standard_errors_and_its_corrected_model_names_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let names = &m.joint_space.as_ref().unwrap().names;
+    let o = Options { rebuild: fanuc_rebuild(), ..options(Some(0.01)) };
+    type Kind = (&'static str, ArmEffect, f64, fn(&mut Hidden));
+    let kinds: [Kind; 3] = [
+        ("offset", effect(ArmKind::JointOffset, "J3"), 1.2e-3, |h| h.offsets[2] = 1.2e-3),
+        ("play", effect(ArmKind::Backlash, "J2"), 1e-3, |h| h.play[1] = 1e-3),
+        ("payload", ArmEffect { kind: ArmKind::Payload, joint: 0 }, 40.0, |h| {
+            h.payload = (40.0, Vec3::new(0.0, 0.0, 100.0))
+        }),
+    ];
+    for (kind, e, truth, hide) in kinds {
+        let mut h = Hidden::registration_only();
+        hide(&mut h);
+        let label = e.label(names);
+        let (mut covered, mut exact, mut extra, mut z) = (0, 0, 0, Vec::new());
+        for seed in 0..40 {
+            // Play is seen through the rows whose load has the less common sign: 60 configurations.
+            let configurations = if kind == "play" { 60 } else { 40 };
+            let csv = synthetic(&h, configurations, 0.01, &[], true, 7000 + seed);
+            let (data, c) = calibrate_text(&m, &csv, dir.path(), &[], &o);
+            let report = calibrate::text(&c.report, "FANUC");
+            let a = c.report.accepted.iter().find(|a| a.label == label);
+            let a = a.unwrap_or_else(|| panic!("{kind}, seed {seed}: {label} not named: {report}"));
+            exact += usize::from(c.report.accepted.len() == 1);
+            extra += usize::from(c.report.accepted.len() > 1);
+            covered += usize::from((a.values[0] - truth).abs() <= 2.0 * a.se[0]);
+            z.push((a.values[0] - truth) / a.se[0]);
+            // The model with the effects found, fitted from the start: nothing more to name.
+            let corrected = Options { fitted: c.effects.clone(), ..o.clone() };
+            let again = calibrate::calibrate(&m, &data, &[], &corrected).unwrap();
+            let more: Vec<&str> = again.report.accepted[c.effects.len()..].iter().map(|a| a.label.as_str()).collect();
+            assert!(more.is_empty(), "{kind}, seed {seed}: the corrected model names {more:?}");
+        }
+        let rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+        println!("{kind}: named in 40 of 40 seeds (alone in {exact}); within two standard errors in {covered} of 40; error in standard errors rms {rms:.2}");
+        assert!(extra <= 2, "{kind}: {extra} seeds named more");
+        let bound = if kind == "play" { 30 } else { 34 };
+        assert!(covered >= bound, "{kind}: covered in {covered} of 40");
+    }
+}
