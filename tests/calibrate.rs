@@ -281,6 +281,10 @@ fn null_data_names_no_effect() {
         assert!(c.report.left_out.is_empty(), "{report}");
         // The default candidates say what they leave out, for a user to name.
         assert!(report.contains("note: not offered by default: frame-compliance at each joint"), "{report}");
+        // With what the held-out rows leave, against the noise: at it on null data.
+        let left = report.split("held out, the model leaves ").nth(1).expect("the held-out scale");
+        let left: f64 = left.split(' ').next().unwrap().parse().unwrap();
+        assert!((0.6..1.5).contains(&left), "{left}: {report}");
     }
     assert!(named <= 1, "{named} of 20 null data sets named an effect");
     // Candidates named: none is left out by default, and nothing says so.
@@ -315,6 +319,9 @@ fn a_large_share_of_rows_beyond_the_scale_is_kept_and_named_not_screened_as_gros
     assert!(c.report.left_out.is_empty(), "{report}");
     assert!(c.report.notes.iter().any(|n| n.contains("none is left out as gross")), "{report}");
     assert!(report.contains("held out: 20 of 20 position rows lie beyond"), "{report}");
+    // The note on the candidates not offered gives what the held-out rows leave: far above the noise.
+    let left = report.split("held out, the model leaves ").nth(1).expect("the held-out scale");
+    assert!(left.split(' ').next().unwrap().parse::<f64>().unwrap() > 10.0, "{report}");
     let last = c.report.stages.last().unwrap();
     assert!(last.check.rms > 2.9 && last.fit.rms < 0.1, "{report}");
     // The same data unmoved, with one gross row: screened as before.

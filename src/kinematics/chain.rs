@@ -340,6 +340,7 @@ pub struct ChainJacobians {
     /// Hessian's per-joint vectors.
     load_sums: Vec<LoadSum>,
     hessian_terms: Vec<HessianTerm>,
+    earlier_revolute: Vec<HessianTerm>,
 }
 
 /// Where a coordinate sits among the unknowns of an equilibrium: passive coordinates first, then virtual
@@ -473,9 +474,7 @@ impl ChainJacobians {
 
     /// The derivative of `add_point_force` with respect to the unknowns, as `add_load_hessian`'s.
     pub fn add_point_force_hessian(&mut self, x: &Vec3, f: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
-        let upto = self.placed.len();
-        self.sum_loads(std::iter::once(PointLoad { x: *x, f: *f, m: Vec3::zeros(), upto }));
-        self.add_summed_hessian(n_passive, out);
+        self.add_one_load_hessian(x, f, &Vec3::zeros(), n_passive, out);
     }
 
     /// The derivative of `add_generalised_forces` with respect to the unknowns, the loads held fixed in the
@@ -484,8 +483,43 @@ impl ChainJacobians {
     /// `out`, square in the unknowns (rows: generalised force, columns: coordinate): the statics block of
     /// eq 45's Newton matrix takes them in place.
     pub fn add_load_hessian(&mut self, w: &Vec6, gravity: &Vec3, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
+        if *gravity == Vec3::zeros() || self.masses.is_empty() {
+            // The end's wrench alone (a parallel robot's leg): its terms without the sums.
+            let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
+            let x = self.end.pos;
+            return self.add_one_load_hessian(&x, &f, &m, n_passive, out);
+        }
         self.sum_end_and_weights(w, gravity);
         self.add_summed_hessian(n_passive, out);
+    }
+
+    /// The Hessian of one load (f at x, moment m) that every joint carries, added into `out`: the terms of
+    /// `add_summed_hessian` for that load alone, u_k = w_k x (m + (x - o_k) x f) + (x - o_k) x (f x w_k)
+    /// (revolute k; w_k x f prismatic) and v_l = dx_l x f, as `dx_l . (f x w_k) = (dx_l x f) . w_k`.
+    fn add_one_load_hessian(
+        &mut self,
+        x: &Vec3,
+        f: &Vec3,
+        m: &Vec3,
+        n_passive: usize,
+        out: &mut nalgebra::DMatrix<f64>,
+    ) {
+        let mut terms = std::mem::take(&mut self.hessian_terms);
+        terms.clear();
+        terms.extend(self.placed.iter().filter_map(|p| {
+            let index = unknown_index(&p.joint, n_passive)?;
+            let w = p.axis_world;
+            let revolute = p.joint.kind == JointKind::Revolute;
+            let (u, v) = if revolute {
+                let arm = x - p.origin_world;
+                (w.cross(&(m + arm.cross(f))) + arm.cross(&f.cross(&w)), w.cross(&arm).cross(f))
+            } else {
+                (w.cross(f), w.cross(f))
+            };
+            Some(HessianTerm { index, gain: p.joint.gain, revolute, axis: w, u, v })
+        }));
+        self.add_pairs(&terms, out);
+        self.hessian_terms = terms;
     }
 
     /// The Hessian of the loads `sum_loads` summed, added into `out`.
@@ -504,7 +538,6 @@ impl ChainJacobians {
     ///                          v_l = w_l x F (prismatic l),
     /// so each pair costs one dot product whatever the number of loads.
     fn add_summed_hessian(&mut self, n_passive: usize, out: &mut nalgebra::DMatrix<f64>) {
-        let rows = out.nrows();
         // Per joint with an unknown, in chain order, what its pairs read: once per joint, not per pair.
         let mut terms = std::mem::take(&mut self.hessian_terms);
         terms.clear();
@@ -523,27 +556,34 @@ impl ChainJacobians {
             };
             Some(HessianTerm { index, gain: p.joint.gain, revolute, axis: w, u, v })
         }));
+        self.add_pairs(&terms, out);
+        self.hessian_terms = terms;
+    }
+
+    /// Each pair's Hessian entry from the per-joint `terms` (in chain order), added into `out`: entry (k, l)
+    /// of the column-major matrix at l * rows + k takes g_k g_l w_l . u_k for a revolute l before k and
+    /// g_k g_l v_l . w_k for l at or after a revolute k. A pair whose term is zero (an earlier prismatic l;
+    /// a prismatic k with a later l) adds nothing: the entries start at +0 and never become -0, so skipping
+    /// it leaves the same bits; the revolute joints before k are kept apart as k goes on, so the zero pairs
+    /// are skipped without a test each.
+    fn add_pairs(&mut self, terms: &[HessianTerm], out: &mut nalgebra::DMatrix<f64>) {
+        let rows = out.nrows();
         debug_assert!(terms.iter().all(|t| t.index < rows), "an unknown's index within the matrix");
         let entries = out.as_mut_slice();
-        // Entry (k, l) of the column-major matrix at l * rows + k. A pair whose term is zero (an earlier
-        // prismatic l; a prismatic k with a later l) is skipped: its entry keeps its bits.
+        let mut earlier_revolute = std::mem::take(&mut self.earlier_revolute);
+        earlier_revolute.clear();
         for (a, tk) in terms.iter().enumerate() {
-            for (b, tl) in terms.iter().enumerate() {
-                let d = if b < a {
-                    if !tl.revolute {
-                        continue;
-                    }
-                    tl.axis.dot(&tk.u)
-                } else {
-                    if !tk.revolute {
-                        continue;
-                    }
-                    tl.v.dot(&tk.axis)
-                };
-                entries[tl.index * rows + tk.index] += tk.gain * tl.gain * d;
+            for tl in &earlier_revolute {
+                entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.axis.dot(&tk.u);
+            }
+            if tk.revolute {
+                for tl in &terms[a..] {
+                    entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.v.dot(&tk.axis);
+                }
+                earlier_revolute.push(*tk);
             }
         }
-        self.hessian_terms = terms;
+        self.earlier_revolute = earlier_revolute;
     }
 
     /// Computes the Jacobian columns of the virtual coordinates from the last evaluation.

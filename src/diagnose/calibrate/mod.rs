@@ -199,7 +199,17 @@ pub fn calibrate(
         stopped,
         not_used_count: data.not_used.len() + unplaced.len(),
         not_used: data.not_used.iter().cloned().chain(unplaced.iter().map(|(_, why)| why.clone())).collect(),
-        notes: data.notes.iter().cloned().chain(kept_gross).chain(defaulted.then(|| not_offered(&problem))).collect(),
+        notes: data
+            .notes
+            .iter()
+            .cloned()
+            .chain(kept_gross)
+            .chain(defaulted.then(|| {
+                // Where the noise is not given, the weights' units: the fitted rows' scale divides them.
+                let held_out = held_out_scale(&problem, &residuals, &check_rows);
+                not_offered(&problem, held_out.map(|v| if sigma_known { v } else { v / scale }), sigma_known)
+            }))
+            .collect(),
     };
     let leg_corrections = problem
         .space
@@ -642,14 +652,31 @@ fn gross_report(data: &PositionData, gross: &[usize], residuals: &[Option<Vec3>]
 
 /// What the default candidates leave out, said where they were offered: the effects a user names with
 /// `--candidates` to test them (the held-out rows' errors against the noise say whether something is left).
-fn not_offered(problem: &PositionProblem) -> String {
+fn not_offered(problem: &PositionProblem, held_out: Option<f64>, sigma_known: bool) -> String {
     let kinds = match (problem.space.is_some(), problem.absolute) {
         (true, true) => "frame-compliance at each joint (a link, column or mounting bending), drift and tool-compliance",
         (true, false) => "joint-offset, joint-geometry and payload (displacements do not see them), frame-compliance, drift and tool-compliance",
         (false, _) => "joint-geometry of each leg (its end-point error), drift and tool-compliance",
     };
+    // What the held-out rows leave, against the noise: above it, something the candidates offered did not
+    // name (one of those left out, or another).
+    let left = match (held_out, sigma_known) {
+        (Some(v), true) => format!("; held out, the model leaves {v:.3} sigma per coordinate (1 at the noise)"),
+        (Some(v), false) => {
+            format!("; held out, the model leaves {v:.3} sigma per coordinate of the fitted rows' scale")
+        }
+        (None, _) => String::new(),
+    };
     format!(
         "not offered by default: {kinds}; name them with --candidates to test them (the held-out rows' errors \
-         below, against the noise, say whether the model leaves something)"
+         below, against the noise, say whether the model leaves something){left}"
     )
+}
+
+/// The held-out rows' weighted residual, RMS per coordinate (in sigma where the noise is known); None
+/// without held-out rows.
+fn held_out_scale(problem: &PositionProblem, residuals: &[Option<Vec3>], rows: &[usize]) -> Option<f64> {
+    let weighted: Vec<f64> =
+        rows.iter().filter_map(|&r| residuals[r].map(|v| v.norm_squared() * problem.weight[r].powi(2))).collect();
+    (!weighted.is_empty()).then(|| (weighted.iter().sum::<f64>() / (3 * weighted.len()) as f64).sqrt())
 }
