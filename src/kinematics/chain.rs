@@ -289,8 +289,9 @@ impl LoadSum {
     }
 }
 
-/// What `ChainJacobians::add_summed_hessian` needs of one joint with an unknown: the unknown's index, gain, kind and world axis, and the vectors u (its pairs with the
-/// joints before it) and v (with those after it, and itself).
+/// What `ChainJacobians::add_pairs` needs of one joint with an unknown: the unknown's index, gain, kind and
+/// world axis, the vector u of its pairs with the joints before it (they read `axis . u`), and the vectors
+/// of its pairs with the joints at or after it, which read `motion_l . s_k`.
 #[derive(Clone, Copy, Debug)]
 struct HessianTerm {
     index: usize,
@@ -298,7 +299,8 @@ struct HessianTerm {
     revolute: bool,
     axis: Vec3,
     u: Vec3,
-    v: Vec3,
+    motion: Vec3,
+    s: Vec3,
 }
 
 /// One point load and how many of the chain's joints (in order) lie before it and carry it.
@@ -495,7 +497,7 @@ impl ChainJacobians {
 
     /// The Hessian of one load (f at x, moment m) that every joint carries, added into `out`: the terms of
     /// `add_summed_hessian` for that load alone, u_k = w_k x (m + (x - o_k) x f) + (x - o_k) x (f x w_k)
-    /// (revolute k; w_k x f prismatic) and v_l = dx_l x f, as `dx_l . (f x w_k) = (dx_l x f) . w_k`.
+    /// (revolute k; w_k x f prismatic), the later pairs' dx_l . s_k with s_k = f x w_k.
     fn add_one_load_hessian(
         &mut self,
         x: &Vec3,
@@ -510,13 +512,14 @@ impl ChainJacobians {
             let index = unknown_index(&p.joint, n_passive)?;
             let w = p.axis_world;
             let revolute = p.joint.kind == JointKind::Revolute;
-            let (u, v) = if revolute {
+            let (motion, u, s) = if revolute {
                 let arm = x - p.origin_world;
-                (w.cross(&(m + arm.cross(f))) + arm.cross(&f.cross(&w)), w.cross(&arm).cross(f))
+                let fxw = f.cross(&w);
+                (w.cross(&arm), w.cross(&(m + arm.cross(f))) + arm.cross(&fxw), fxw)
             } else {
-                (w.cross(f), w.cross(f))
+                (w, w.cross(f), Vec3::zeros())
             };
-            Some(HessianTerm { index, gain: p.joint.gain, revolute, axis: w, u, v })
+            Some(HessianTerm { index, gain: p.joint.gain, revolute, axis: w, u, motion, s })
         }));
         self.add_pairs(&terms, out);
         self.hessian_terms = terms;
@@ -554,7 +557,7 @@ impl ChainJacobians {
             } else {
                 (w.cross(&f), w.cross(&f))
             };
-            Some(HessianTerm { index, gain: p.joint.gain, revolute, axis: w, u, v })
+            Some(HessianTerm { index, gain: p.joint.gain, revolute, axis: w, u, motion: v, s: w })
         }));
         self.add_pairs(&terms, out);
         self.hessian_terms = terms;
@@ -562,7 +565,7 @@ impl ChainJacobians {
 
     /// Each pair's Hessian entry from the per-joint `terms` (in chain order), added into `out`: entry (k, l)
     /// of the column-major matrix at l * rows + k takes g_k g_l w_l . u_k for a revolute l before k and
-    /// g_k g_l v_l . w_k for l at or after a revolute k. A pair whose term is zero (an earlier prismatic l;
+    /// g_k g_l motion_l . s_k for l at or after a revolute k (v_l . w_k for summed loads). A pair whose term is zero (an earlier prismatic l;
     /// a prismatic k with a later l) adds nothing: the entries start at +0 and never become -0, so skipping
     /// it leaves the same bits; the revolute joints before k are kept apart as k goes on, so the zero pairs
     /// are skipped without a test each.
@@ -578,7 +581,7 @@ impl ChainJacobians {
             }
             if tk.revolute {
                 for tl in &terms[a..] {
-                    entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.v.dot(&tk.axis);
+                    entries[tl.index * rows + tk.index] += tk.gain * tl.gain * tl.motion.dot(&tk.s);
                 }
                 earlier_revolute.push(*tk);
             }
