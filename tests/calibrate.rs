@@ -2081,3 +2081,46 @@ fn each_effect_kind_is_named_and_covered_by_its_standard_errors_and_its_correcte
         assert!(covered >= bound, "{kind}: covered in {covered} of 40");
     }
 }
+
+/// A target's place the rows cannot tell from the instrument's translation is not given a standard error it
+/// does not have: every configuration at one tool orientation (J1 fixed, J4 and J6 at zero, J5 turning back
+/// what J2 and J3 turn), so the target's lever R_tool t is one vector in every row, which the instrument's
+/// translation takes; on noise-level data the arm's sag under its own weight turns the tool by too little to
+/// separate them. Their components are reported `not-seen` (no standard error in the JSON), the
+/// combinations are named under not identifiable, the fit keeps the target's start there (the tool point),
+/// and the rows sit at the noise.
+#[test]
+fn a_target_place_no_row_sees_is_reported_not_seen_and_kept_at_its_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let h = Hidden::registration_only();
+    let mut r = rng(77);
+    let mut csv = String::from("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,set\n");
+    for c in 0..45 {
+        // The model's q5 = -t5 and q3 = -(t2 + t3): J2, J3 and J5 parallel (q4 = 0) and q2 + q3 + q5 fixed.
+        let t3: f64 = r.random_range(-1.0..1.0);
+        let t = [0.3, r.random_range(-0.5..0.8), t3, 0.0, -1.5 - t3, 0.0];
+        let mut p = measured_target(&h, &t, true);
+        for a in 0..3 {
+            p[a] += 0.05 * normal(&mut r);
+        }
+        let q: Vec<String> = t.iter().map(|v| format!("{v:?}")).collect();
+        let set = if c % 3 == 2 { "check" } else { "fit" };
+        csv += &format!("c{c},{},{:?},{:?},{:?},{set}\n", q.join(","), p.x, p.y, p.z);
+    }
+    let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
+    let report = calibrate::text(&c.report, "FANUC");
+    let target = c.report.nuisance.iter().find(|n| n.name.starts_with("target")).unwrap();
+    assert!(target.se.iter().all(|e| e.is_nan()), "{report}");
+    assert!(Vec3::from(target.value).norm() < 5.0, "kept near its start, the tool point: {report}");
+    assert!(report.contains("fitted target: place in the tool frame, mm:") && report.contains("not-seen"), "{report}");
+    assert!(c.report.not_identifiable.iter().any(|n| n.contains("the target's place") && !n.contains(':')), "{report}");
+    assert!(c.report.left_out.is_empty(), "{report}");
+    assert!(c.report.stages.last().unwrap().check.rms < 0.087 * 1.35, "{report}");
+    // The rows at several tool orientations see it: a standard error again, the place recovered.
+    let csv = synthetic(&h, 45, 0.05, &[], true, 77);
+    let (_, c) = calibrate_text(&m, &csv, dir.path(), &[], &options(Some(0.05)));
+    let target = c.report.nuisance.iter().find(|n| n.name.starts_with("target")).unwrap();
+    assert!(target.se.iter().all(|e| e.is_finite()), "{}", calibrate::text(&c.report, "FANUC"));
+    assert!((Vec3::from(target.value) - h.target).norm() < 0.1, "{:?}", target.value);
+}

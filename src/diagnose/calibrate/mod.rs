@@ -535,7 +535,15 @@ fn nuisance_values(
     variance: f64,
     unplaced: &[(usize, String)],
 ) -> Vec<Nuisance> {
-    let se3 = |k: usize, factor: f64| [0, 1, 2].map(|a| (fit.covariance[(k + a, k + a)] * variance).sqrt() * factor);
+    // A component in a direction the data do not see has no standard error (NaN: `not seen`): the fit kept
+    // its start there (the tool point for a target, Kabsch's registration for a set-up), and the
+    // combinations are named under not identifiable.
+    let se3 = |k: usize, factor: f64| {
+        [0, 1, 2].map(|a| match fit.sees(k + a) {
+            true => (fit.covariance[(k + a, k + a)] * variance).sqrt() * factor,
+            false => f64::NAN,
+        })
+    };
     let mut nuisance = Vec::new();
     for (s, name) in data.setups.iter().enumerate() {
         if unplaced.iter().any(|(u, _)| *u == s) {

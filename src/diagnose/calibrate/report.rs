@@ -326,10 +326,18 @@ pub fn text(c: &CalibrationReport, model: &str) -> String {
         if c.sigma_known { "" } else { " (the noise level was not given: no test of what is left)" }
     );
     for n in &c.nuisance {
+        let se = n.se.map(|e| if e.is_nan() { "not-seen".to_string() } else { format!("{e:.2e}") });
+        let unseen = if n.se.iter().any(|e| e.is_nan()) {
+            "; not-seen: it moves with others in a combination no row sees, named under not identifiable, \
+             along which the fit kept its start: the tool point for a target, the nominal points' \
+             registration for a set-up"
+        } else {
+            ""
+        };
         let _ = writeln!(
             s,
-            "fitted {}: {:.4} {:.4} {:.4} (+- {:.2e} {:.2e} {:.2e})",
-            n.name, n.value[0], n.value[1], n.value[2], n.se[0], n.se[1], n.se[2]
+            "fitted {}: {:.4} {:.4} {:.4} (+- {} {} {}{unseen})",
+            n.name, n.value[0], n.value[1], n.value[2], se[0], se[1], se[2]
         );
     }
     for h in &c.not_identifiable {
