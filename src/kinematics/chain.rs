@@ -83,22 +83,18 @@ impl Joint {
 /// mixed.
 #[inline(always)]
 fn turned_about_column(f: &Frame, k: usize, s: f64, c: f64) -> Frame {
-    {
-        {
-            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-            let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
-            let (new_i, new_j) = (ci * c + cj * s, cj * c - ci * s);
-            let kept = f.rot.column(k).into_owned();
-            // Built whole rather than copied and overwritten column by column, so that the frame is not
-            // stored in pieces that the next joint's loads must wait for.
-            let rot = match k {
-                0 => Mat3::from_columns(&[kept, new_i, new_j]),
-                1 => Mat3::from_columns(&[new_j, kept, new_i]),
-                _ => Mat3::from_columns(&[new_i, new_j, kept]),
-            };
-            Frame { rot, pos: f.pos }
-        }
-    }
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let (ci, cj) = (f.rot.column(i).into_owned(), f.rot.column(j).into_owned());
+    let (new_i, new_j) = (ci * c + cj * s, cj * c - ci * s);
+    let kept = f.rot.column(k).into_owned();
+    // Built whole rather than copied and overwritten column by column, so that the frame is not stored in
+    // pieces that the next joint's loads must wait for.
+    let rot = match k {
+        0 => Mat3::from_columns(&[kept, new_i, new_j]),
+        1 => Mat3::from_columns(&[new_j, kept, new_i]),
+        _ => Mat3::from_columns(&[new_i, new_j, kept]),
+    };
+    Frame { rot, pos: f.pos }
 }
 
 /// Below this angle (rad) `small_angle_sin_cos` sums the Taylor series: its first omitted terms,
@@ -303,15 +299,6 @@ struct HessianTerm {
     s: Vec3,
 }
 
-/// One point load and how many of the chain's joints (in order) lie before it and carry it.
-#[derive(Clone, Copy, Debug)]
-struct PointLoad {
-    x: Vec3,
-    f: Vec3,
-    m: Vec3,
-    upto: usize,
-}
-
 /// A mass's place in the base frame during one evaluation, and how many joints lie before it.
 #[derive(Clone, Copy, Debug)]
 struct PlacedMass {
@@ -400,30 +387,17 @@ impl ChainJacobians {
         }
     }
 
-    /// The loads beyond each joint (`load_sums`) of the wrench `w` on the end and the masses' weights.
+    /// Fills `load_sums` so that `load_sums[a + 1]` sums the loads the joint placed `a`-th in chain order
+    /// carries: the wrench `w` on the end (every joint's) and the weights of the masses beyond it.
     fn sum_end_and_weights(&mut self, w: &Vec6, gravity: &Vec3) {
-        let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
-        let end = PointLoad { x: self.end.pos, f, m, upto: self.placed.len() };
-        let masses = std::mem::take(&mut self.masses);
-        let weights = masses.iter().filter(|_| *gravity != Vec3::zeros()).map(|pm| PointLoad {
-            x: pm.point,
-            f: gravity * pm.kg,
-            m: Vec3::zeros(),
-            upto: pm.upstream,
-        });
-        self.sum_loads(std::iter::once(end).chain(weights));
-        self.masses = masses;
-    }
-
-    /// Fills `load_sums` so that `load_sums[a + 1]` is the sum of the `loads` the joint placed `a`-th in
-    /// chain order carries (those with more than `a` joints before them).
-    fn sum_loads(&mut self, loads: impl Iterator<Item = PointLoad>) {
         let n = self.placed.len();
+        let (f, m) = (w.fixed_rows::<3>(0).into_owned(), w.fixed_rows::<3>(3).into_owned());
         self.load_sums.clear();
         self.load_sums.resize(n + 1, LoadSum::ZERO);
         // Each load where its carriers end, then summed from the chain's end back.
-        for l in loads {
-            self.load_sums[l.upto.min(n)].add_load(&l.x, &l.f, &l.m);
+        self.load_sums[n].add_load(&self.end.pos, &f, &m);
+        for pm in &self.masses {
+            self.load_sums[pm.upstream.min(n)].add_load(&pm.point, &(gravity * pm.kg), &Vec3::zeros());
         }
         for a in (1..n).rev() {
             let beyond = self.load_sums[a + 1];
@@ -525,7 +499,7 @@ impl ChainJacobians {
         self.hessian_terms = terms;
     }
 
-    /// The Hessian of the loads `sum_loads` summed, added into `out`.
+    /// The Hessian of the loads `sum_end_and_weights` summed, added into `out`.
     ///
     /// For one load (f at x, moment m) and a joint k, phi_k = w_k . (m + (x - o_k) x f) (revolute) or
     /// w_k . f (prismatic). A unit motion of joint l moves x by dx_l = w_l x (x - o_l) (revolute) or w_l

@@ -18,14 +18,8 @@ pub(super) fn dense_cholesky(a: &mut [f64], n: usize) -> bool {
 /// sums changes no result but at a pivot within round-off of zero (the stability test's margin, 1e-12 of
 /// the largest entry, is ten thousand times round-off), and the factor's values go nowhere.
 #[inline(always)]
-pub(super) fn positive_definite_in_place(a: &mut [f64], n: usize) -> bool {
+pub fn positive_definite_in_place(a: &mut [f64], n: usize) -> bool {
     cholesky_rows(a, n, paired_dot)
-}
-
-/// True where the dense n x n symmetric matrix `a` (row-major; its lower triangle read, and overwritten)
-/// is positive definite to round-off (`positive_definite_in_place`).
-pub fn positive_definite(a: &mut [f64], n: usize) -> bool {
-    positive_definite_in_place(a, n)
 }
 
 /// The row-by-row Cholesky factorisation of `dense_cholesky`, each entry's dot product of two rows' leading

@@ -39,7 +39,7 @@ mod orthonormal;
 mod saddle_point;
 mod svd;
 
-pub use cholesky::{positive_definite, small_cholesky, small_forward, spd_inverse6};
+pub use cholesky::{positive_definite_in_place, small_cholesky, small_forward, spd_inverse6};
 pub use envelope::EnvelopeCholesky;
 pub use lu::{DenseLu, SmallLu};
 pub use orthonormal::Orthonormal6;

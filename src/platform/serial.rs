@@ -14,7 +14,7 @@ use super::manipulator::{Manipulator, ManipulatorState, PoseFailure};
 use super::vjm_leg::VjmLeg;
 use crate::kinematics::chain::Coordinates;
 use crate::kinematics::frame::{Frame, Mat6, Vec3, Vec6};
-use crate::linalg::{all_finite, positive_definite, DenseLu};
+use crate::linalg::{all_finite, positive_definite_in_place, DenseLu};
 use crate::vjm::stiffness::spring_compliance_at_end;
 
 /// A serial arm's answer at one configuration.
@@ -217,8 +217,8 @@ impl ArmSolver<'_> {
                 work.matrix.fill(0.0);
             }
         }
-        let (residual, matrix) = (&mut work.residual, with_matrix.then_some(&mut work.matrix));
-        let mut matrix = matrix;
+        let residual = &mut work.residual;
+        let mut matrix = with_matrix.then_some(&mut work.matrix);
         // Every chain's weight, the wrench at the reference point's: the chains of a tree share their
         // coordinates, and each body is in one chain, so their generalised forces and Hessians add.
         for (k, chain) in self.m.arm_chains().enumerate() {
@@ -381,5 +381,5 @@ fn energy_minimum(m: &DMatrix<f64>, buffer: &mut Vec<f64>) -> bool {
         let (i, j) = (e / n, e % n);
         0.5 * (m[(i, j)] + m[(j, i)]) / (m[(i, i)] * m[(j, j)]).sqrt()
     }));
-    positive_definite(buffer, n)
+    positive_definite_in_place(buffer, n)
 }

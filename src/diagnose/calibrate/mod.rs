@@ -423,10 +423,11 @@ fn screened_selection(
         let start = problem.start(&kept, &options.fitted);
         let Some(f) = problem.fit(&kept, &options.fitted, &start) else { break };
         let next = gross_rows(problem, &problem.residuals(&options.fitted, &f.params), fit_rows);
-        if next == screen {
+        let settled = next.gross == screen.gross;
+        screen = next;
+        if settled {
             break;
         }
-        screen = next;
     }
     let mut outcome = None;
     for _ in 0..3 {

@@ -54,7 +54,7 @@ pub(super) fn error_stats(residuals: &[Option<Vec3>], base: Option<&[Option<Vec3
 pub(super) const MOST_GROSS_SHARE: f64 = 0.1;
 
 /// The gross rows of a screen, and why rows beyond the scale were kept where there were too many of them.
-#[derive(Debug, Default, PartialEq)]
+#[derive(Debug, Default)]
 pub(super) struct Screen {
     pub(super) gross: Vec<usize>,
     pub(super) kept_why: Vec<String>,
@@ -152,7 +152,6 @@ pub(super) fn choose_effects(
     let mut fit = problem.fit_exact(rows, &model, &start).ok_or_else(too_few)?;
     let mut steps = Vec::new();
     let mut hidden: Vec<String> = fit.hidden.iter().map(|d| problem.describe_hidden(d, &model)).collect();
-    let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
     let mut stopped = String::new();
     // Rounds of forward selection, backward elimination and swaps: an effect chosen early, while the model
     // still missed others, can absorb parts of several and leave each too weak to pass alone; a swap frees
@@ -187,7 +186,7 @@ pub(super) fn choose_effects(
             // Accepted when its test passes and the evidence for it is strong (the BIC lower by more than 10,
             // as the other diagnosis asks): an effect of six parameters on few rows must pay for them.
             let accept = best
-                .filter(|(_, p, _, f)| *p < threshold && bic(f) < bic(&fit) - STRONG_EVIDENCE)
+                .filter(|(_, p, _, f)| accepted(*p, threshold, f, &fit))
                 .map(|(statistic, _, c, f)| (statistic, c, f));
             steps.push(step);
             match accept {
@@ -240,6 +239,19 @@ pub(super) fn choose_effects(
         }
     }
     Ok(Selection { model, fit, steps, hidden, stopped })
+}
+
+/// A fit's BIC with the noise unknown: n ln(rss / n) + rank ln n.
+fn bic(f: &PositionFit) -> f64 {
+    bic_unknown_noise(f.rss, f.observations, f.rank)
+}
+
+/// Whether a candidate tested at p-value `p` against `threshold`, its fit `with` beside the model's `fit`,
+/// is accepted: its test passes and the evidence for it is strong (the BIC lower by more than
+/// `STRONG_EVIDENCE`, as the other diagnosis asks: an effect of six parameters on few rows must pay for
+/// them).
+fn accepted(p: f64, threshold: f64, with: &PositionFit, fit: &PositionFit) -> bool {
+    p < threshold && bic(with) < bic(fit) - STRONG_EVIDENCE
 }
 
 /// How many of a split's first candidates are each tried as its first replacement (`best_split`).
@@ -404,7 +416,6 @@ fn best_swap(
     model: &[ArmEffect],
     fit: &PositionFit,
 ) -> Option<(f64, usize, ArmEffect, PositionFit)> {
-    let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
     let mut best: Option<(f64, usize, ArmEffect, PositionFit)> = None;
     let swaps: Vec<(usize, ArmEffect)> = (options.fitted.len()..model.len())
         .flat_map(|k| {
@@ -446,7 +457,6 @@ fn best_split(
     model: &[ArmEffect],
     fit: &PositionFit,
 ) -> Option<(f64, Vec<ArmEffect>, PositionFit)> {
-    let bic = |f: &PositionFit| bic_unknown_noise(f.rss, f.observations, f.rank);
     let mut best: Option<(f64, Vec<ArmEffect>, PositionFit)> = None;
     for k in (options.fitted.len()..model.len()).filter(|&k| model[k].size() > 1) {
         let mut others = model.to_vec();
@@ -468,22 +478,20 @@ fn best_split(
             .filter(|(p, _)| *p < threshold)
             .collect();
         starts.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for &(_, c) in starts.iter().take(SPLIT_STARTS) {
+        for &(p, c) in starts.iter().take(SPLIT_STARTS) {
             let mut smaller = others.clone();
             smaller.push(c);
             let mut start = without.params.clone();
             start.effects.push(vec![0.0; c.size()]);
             let Some(mut f) = problem.fit(rows, &smaller, &start) else { continue };
-            if bic(&f) >= bic(&without) - STRONG_EVIDENCE {
+            if !accepted(p, threshold, &f, &without) {
                 continue;
             }
             let mut budget = removed.size() - 1 - c.size();
             while budget > 0 && smaller.len() < options.fitted.len() + options.max_effects {
                 let (_, chosen, tested) = forward_step(problem, rows, &offered(budget), &smaller, &f, sigma_known);
                 let threshold = options.alpha / tested.max(1) as f64;
-                let Some((_, _, c, with)) =
-                    chosen.filter(|(_, p, _, g)| *p < threshold && bic(g) < bic(&f) - STRONG_EVIDENCE)
-                else {
+                let Some((_, _, c, with)) = chosen.filter(|(_, p, _, g)| accepted(*p, threshold, g, &f)) else {
                     break;
                 };
                 smaller.push(c);
