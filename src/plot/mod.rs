@@ -7,6 +7,7 @@ pub mod calibration;
 pub mod compensation;
 pub mod curve;
 pub mod diagnosis;
+pub mod glyphs;
 pub mod png;
 pub mod points;
 pub mod raster;
