@@ -8,15 +8,22 @@ use anyhow::{bail, Result};
 
 /// A TrueType font's tables, read in place.
 pub struct Font<'a> {
-    data: &'a [u8],
     units_per_em: f64,
     long_offsets: bool,
     glyph_count: u16,
     metrics_count: u16,
-    cmap: &'a [u8],
+    /// The character map's subtable: format 12 (all of Unicode) where the font has one, else format 4.
+    cmap: CharacterMap<'a>,
     hmtx: &'a [u8],
     loca: &'a [u8],
     glyf: &'a [u8],
+}
+
+/// Where characters are looked up: the `cmap` subtable chosen when the font is read.
+enum CharacterMap<'a> {
+    Full(&'a [u8]),
+    Basic(&'a [u8]),
+    None,
 }
 
 /// A point of an outline in font units and whether it lies on the curve (else it is a quadratic
@@ -66,17 +73,16 @@ impl<'a> Font<'a> {
         };
         let (head, maxp, hhea) = (table(b"head")?, table(b"maxp")?, table(b"hhea")?);
         let font = Font {
-            data,
             units_per_em: u16_at(head, 18).unwrap_or(0) as f64,
             long_offsets: i16_at(head, 50) == Some(1),
             glyph_count: u16_at(maxp, 4).unwrap_or(0),
             metrics_count: u16_at(hhea, 34).unwrap_or(0),
-            cmap: table(b"cmap")?,
+            cmap: character_map(table(b"cmap")?),
             hmtx: table(b"hmtx")?,
             loca: table(b"loca")?,
             glyf: table(b"glyf")?,
         };
-        if font.units_per_em <= 0.0 || font.metrics_count == 0 || font.data.is_empty() {
+        if font.units_per_em <= 0.0 || font.metrics_count == 0 {
             bail!("the font's head or hhea table is empty");
         }
         Ok(font)
@@ -89,22 +95,10 @@ impl<'a> Font<'a> {
 
     /// The glyph of a character (0, the font's "missing" glyph, where the font has none).
     pub fn glyph(&self, c: char) -> u16 {
-        let code = c as u32;
-        let count = u16_at(self.cmap, 2).unwrap_or(0) as usize;
-        let mut format4 = None;
-        for k in 0..count {
-            let record = 4 + 8 * k;
-            let (platform, encoding) = (u16_at(self.cmap, record), u16_at(self.cmap, record + 2));
-            let Some(sub) = u32_at(self.cmap, record + 4).and_then(|o| self.cmap.get(o as usize..)) else { continue };
-            match (platform, encoding, u16_at(sub, 0)) {
-                (Some(3), Some(10), Some(12)) | (Some(0), Some(4), Some(12)) => return format12(sub, code),
-                (Some(3), Some(1), Some(4)) | (Some(0), Some(3), Some(4)) => format4 = Some(sub),
-                _ => {}
-            }
-        }
-        match (format4, u16::try_from(code)) {
-            (Some(sub), Ok(code)) => format4_glyph(sub, code),
-            _ => 0,
+        match self.cmap {
+            CharacterMap::Full(sub) => format12(sub, c as u32),
+            CharacterMap::Basic(sub) => u16::try_from(c as u32).map_or(0, |code| format4_glyph(sub, code)),
+            CharacterMap::None => 0,
         }
     }
 
@@ -133,13 +127,6 @@ impl<'a> Font<'a> {
             (Some(s), Some(e)) if s < e => self.glyf.get(s..e).unwrap_or(&[]),
             _ => &[],
         }
-    }
-
-    /// A glyph's bounding box as its `glyf` header states it (x_min, y_min, x_max, y_max; font units), None
-    /// for a glyph without an outline (a space).
-    pub fn stated_bounds(&self, glyph: u16) -> Option<[f64; 4]> {
-        let d = self.glyph_data(glyph);
-        Some([i16_at(d, 2)? as f64, i16_at(d, 4)? as f64, i16_at(d, 6)? as f64, i16_at(d, 8)? as f64])
     }
 
     /// A glyph's contours (font units, y up), components of a composite glyph placed by their offsets and
@@ -232,7 +219,7 @@ impl<'a> Font<'a> {
             let glyph = self.glyph(c);
             for contour in self.contours(glyph) {
                 let place = |p: &OutlinePoint| (n(pen + s * p.x), n(y - s * p.y));
-                write_contour(&mut d, &contour, place);
+                write_contour(&mut d, &contour, &place);
             }
             pen += s * self.advance(glyph);
         }
@@ -241,42 +228,27 @@ impl<'a> Font<'a> {
 }
 
 /// One closed contour as M, Q and L commands: two control points in a row imply the on-curve point
-/// half-way between them; a contour that starts off the curve starts at its last on-curve point, or
-/// half-way to it.
-fn write_contour(d: &mut String, contour: &[OutlinePoint], place: impl Fn(&OutlinePoint) -> (f64, f64)) {
-    use std::fmt::Write;
-    let Some(first_on) = contour.iter().position(|p| p.on_curve) else {
-        // All control points: start half-way between the first two.
-        if contour.len() < 2 {
-            return;
-        }
-        let (a, b) = (place(&contour[0]), place(&contour[1]));
-        let start = ((a.0 + b.0) / 2.0, (a.1 + b.1) / 2.0);
-        let _ = write!(d, "M{} {}", start.0, start.1);
-        write_from(d, contour, 1, start, place);
-        return;
-    };
-    let start = place(&contour[first_on]);
-    let _ = write!(d, "M{} {}", start.0, start.1);
-    write_from(d, contour, first_on, start, place);
-}
-
-/// The contour's segments from point `from` (its start, `start` in place) round to it again.
-fn write_from(
-    d: &mut String,
-    contour: &[OutlinePoint],
-    from: usize,
-    start: (f64, f64),
-    place: impl Fn(&OutlinePoint) -> (f64, f64),
-) {
+/// half-way between them; a contour starts at its first on-curve point, or, made of control points alone,
+/// at the point half-way between its first two.
+fn write_contour(d: &mut String, contour: &[OutlinePoint], place: &impl Fn(&OutlinePoint) -> (f64, f64)) {
     use std::fmt::Write;
     let len = contour.len();
+    let Some(from) = contour.iter().position(|p| p.on_curve) else {
+        if len < 2 {
+            return;
+        }
+        let (a, b) = (contour[0], contour[1]);
+        let mid = OutlinePoint { x: (a.x + b.x) / 2.0, y: (a.y + b.y) / 2.0, on_curve: true };
+        let opened: Vec<OutlinePoint> = std::iter::once(mid).chain(contour[1..].iter().copied()).chain([a]).collect();
+        return write_contour(d, &opened, place);
+    };
+    let start = place(&contour[from]);
+    let _ = write!(d, "M{} {}", start.0, start.1);
     let mut control: Option<(f64, f64)> = None;
     for k in 1..=len {
         let p = &contour[(from + k) % len];
-        let at = if k == len { start } else { place(p) };
-        let on_curve = k == len || p.on_curve;
-        match (control, on_curve) {
+        let at = place(p);
+        match (control, p.on_curve) {
             (None, true) => {
                 let _ = write!(d, "L{} {}", at.0, at.1);
             }
@@ -352,6 +324,23 @@ fn simple_glyph(d: &[u8], contour_count: usize) -> Option<Vec<Vec<OutlinePoint>>
     Some(contours)
 }
 
+/// The Unicode subtable of a `cmap` table: format 12 (platform 3 encoding 10, or Unicode full
+/// repertoire) first, else format 4 (platform 3 encoding 1, or Unicode BMP).
+fn character_map(cmap: &[u8]) -> CharacterMap<'_> {
+    let mut found = CharacterMap::None;
+    for k in 0..u16_at(cmap, 2).unwrap_or(0) as usize {
+        let record = 4 + 8 * k;
+        let (platform, encoding) = (u16_at(cmap, record), u16_at(cmap, record + 2));
+        let Some(sub) = u32_at(cmap, record + 4).and_then(|o| cmap.get(o as usize..)) else { continue };
+        match (platform, encoding, u16_at(sub, 0)) {
+            (Some(3), Some(10), Some(12)) | (Some(0), Some(4), Some(12)) => return CharacterMap::Full(sub),
+            (Some(3), Some(1), Some(4)) | (Some(0), Some(3), Some(4)) => found = CharacterMap::Basic(sub),
+            _ => {}
+        }
+    }
+    found
+}
+
 fn format4_glyph(sub: &[u8], code: u16) -> u16 {
     let segments = u16_at(sub, 6).unwrap_or(0) as usize / 2;
     let (ends, starts, deltas, ranges) = (14, 16 + 2 * segments, 16 + 4 * segments, 16 + 6 * segments);
@@ -400,6 +389,24 @@ mod tests {
         Font::parse(dejavu::sans::regular()).unwrap()
     }
 
+    /// A glyph's bounding box as its `glyf` header states it (x_min, y_min, x_max, y_max; font units), None
+    /// for a glyph without an outline (a space).
+    fn stated_bounds(f: &Font, glyph: u16) -> Option<[f64; 4]> {
+        let d = f.glyph_data(glyph);
+        Some([i16_at(d, 2)? as f64, i16_at(d, 4)? as f64, i16_at(d, 6)? as f64, i16_at(d, 8)? as f64])
+    }
+
+    /// A contour of control points alone (TrueType allows it: a circle of four) is a closed curve through
+    /// the mid-points of its sides, each control point used once, ending where it starts.
+    #[test]
+    fn a_contour_of_control_points_alone_uses_each_once() {
+        let p = |x: f64, y: f64| OutlinePoint { x, y, on_curve: false };
+        let square = [p(0.0, 0.0), p(2.0, 0.0), p(2.0, 2.0), p(0.0, 2.0)];
+        let mut d = String::new();
+        write_contour(&mut d, &square, &|q: &OutlinePoint| (q.x, q.y));
+        assert_eq!(d, "M1 0Q2 0 2 1Q2 2 1 2Q0 2 0 1Q0 0 1 0Z");
+    }
+
     /// Each glyph's outline lies exactly in the bounding box its `glyf` header states (the header is the
     /// font's own, independent record of the outline: a misread flag, delta or component offset moves a
     /// point out of it), for every printable ASCII character and the symbols labels use.
@@ -412,7 +419,7 @@ mod tests {
             let g = f.glyph(c);
             assert!(g != 0 || c == ' ', "{c:?} has a glyph");
             let contours = f.contours(g);
-            let Some([x0, y0, x1, y1]) = f.stated_bounds(g) else { continue };
+            let Some([x0, y0, x1, y1]) = stated_bounds(&f, g) else { continue };
             composites += (i16_at(f.glyph_data(g), 0).unwrap() < 0) as usize;
             let points: Vec<_> = contours.iter().flatten().collect();
             assert!(!points.is_empty(), "{c:?} has an outline");

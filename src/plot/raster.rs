@@ -7,6 +7,7 @@ use anyhow::{anyhow, Result};
 use resvg::{tiny_skia, usvg};
 
 use super::glyphs::Font;
+use super::svg::escape;
 
 /// Pixels per SVG unit: 192 dpi for a picture laid out at 96.
 const SCALE: f32 = 2.0;
@@ -57,15 +58,11 @@ pub fn text_as_outlines(svg: &str, font: &Font) -> Result<String> {
         out.push_str(&format!(r#"<path d="{}""#, font.text_path(&text, size, start, y)));
         for name in ["class", "transform", "fill", "stroke", "stroke-width", "paint-order"] {
             if let Some(v) = node.attribute(name) {
-                out.push_str(&format!(r#" {name}="{}""#, escape_attribute(v)));
+                out.push_str(&format!(r#" {name}="{}""#, escape(v)));
             }
         }
         out.push_str("/>");
     }
     out.push_str(&svg[copied..]);
     Ok(out)
-}
-
-fn escape_attribute(v: &str) -> String {
-    v.replace('&', "&amp;").replace('<', "&lt;").replace('"', "&quot;")
 }

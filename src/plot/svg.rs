@@ -12,7 +12,8 @@ pub struct Svg {
     body: String,
 }
 
-fn escape(t: &str) -> String {
+/// Text made safe inside an element or a quoted attribute.
+pub(super) fn escape(t: &str) -> String {
     t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
