@@ -499,7 +499,11 @@ impl PointSet {
                         Some(c) => Vec3::new(field(c[0])?, field(c[1])?, field(c[2])?),
                         None => Vec3::zeros(),
                     };
-                    let joints = columns.joints.iter().map(|&c| field(c)).collect::<Result<Vec<f64>, _>>()?;
+                    // Sized once: collecting from a fallible iterator would start small and grow.
+                    let mut joints = Vec::with_capacity(columns.joints.len());
+                    for &c in &columns.joints {
+                        joints.push(field(c)?);
+                    }
                     if let Some(w) = watch.as_mut() {
                         if let Some(outside) = w.space.outside_limits(&joints) {
                             (w.warn)(format!("{}, line {line}: {outside}", path.display()));

@@ -282,8 +282,6 @@ pub enum ArmOutcome {
         stiffness: Mat6,
         /// Its condition number, as `analyse` computes it.
         condition: f64,
-        /// The symmetric part of K is positive definite (always, unloaded: C is).
-        positive_definite: bool,
     },
     /// Full rank, but past `CONDITION_LIMIT` (or, unloaded, indefinite by round-off).
     IllConditioned {
@@ -330,9 +328,10 @@ pub fn analyse_compliance(c: &Mat6, length_scale: f64, symmetric: bool) -> ArmOu
     let (ke, t) = equilibrated(&k, &magnitude, length_scale);
     let equilibrated_inverse = Mat6::from_fn(|i, j| c[(i, j)] / (t[i] * t[j]));
     let condition = norm1(&ke) * norm1(&equilibrated_inverse);
+    // No definiteness test: unloaded, the Cholesky factorisation that inverted C proved it; loaded, a
+    // tangent's definiteness is the equilibrium's stability, which the solve decided on K_e - H itself.
     if condition <= CONDITION_LIMIT {
-        let positive_definite = symmetric || definite_beyond_rank_tolerance(&ke);
-        return ArmOutcome::Regular { stiffness: k, condition, positive_definite };
+        return ArmOutcome::Regular { stiffness: k, condition };
     }
     rank_or(ArmOutcome::IllConditioned { condition })
 }

@@ -183,15 +183,16 @@ impl PointResult {
     }
 
     /// A result from a serial arm's compliance C (`platform::serial`): where C has rank below 6 the arm is
-    /// rigid along the rest (`RigidDirections`: C written, no stiffness); otherwise K = C^-1 analysed as
-    /// `from_stiffness` does (condition, definiteness), with C itself written (it was computed directly).
+    /// rigid along the rest (`RigidDirections`: C written, no stiffness); otherwise K = C^-1 and its
+    /// condition as `from_stiffness` finds them, with C itself written (it was computed directly); the
+    /// definiteness is no question here (`analyse_compliance`).
     /// A direction K resists least is never called free: an arm has no passive joint, so nothing is free
     /// (a nearly singular configuration is `ill_conditioned`).
     fn from_compliance(c: Mat6, length_scale: f64, loaded: bool) -> Self {
         let base = PointResult { compliance: Some(c), principal: principal(&c), ..PointResult::failed(Status::Ok) };
         match analyse_compliance(&c, length_scale, !loaded) {
-            ArmOutcome::Regular { stiffness, condition, positive_definite } => PointResult {
-                status: if loaded || positive_definite { Status::Ok } else { Status::IllConditioned },
+            ArmOutcome::Regular { stiffness, condition } => PointResult {
+                status: Status::Ok,
                 rank: Some(6),
                 condition: Some(condition),
                 stiffness: Some(stiffness),
@@ -354,7 +355,7 @@ pub fn loaded_point(
         }
         Err(_) => history.clear(),
     }
-    loaded_result(m, attempt)
+    loaded_result(m, attempt.map(Loaded::of))
 }
 
 /// A serial arm's loaded result at `p` (placed there first with `place`; without, at the configuration
@@ -373,7 +374,41 @@ fn loaded_arm_point(
             return PointResult::failed_at(e);
         }
     }
-    loaded_result(m, m.deflect(&commanded, wrench, None, state))
+    // The arm's own answer, not `deflect`'s: a map writes the tangent compliance, and the stiffness
+    // `deflect` inverts it to for its other callers would be computed for nothing.
+    match m.arm_deflect(&commanded, wrench, state) {
+        Some(answer) => loaded_result(m, answer.map(Loaded::of_arm)),
+        None => loaded_result(m, m.deflect(&commanded, wrench, None, state).map(Loaded::of)),
+    }
+}
+
+/// What a loaded result is made of: the tangent (a serial arm's compliance, computed directly, or the
+/// stiffness holding a parallel platform), the displacement, stability and the Newton iterations.
+struct Loaded {
+    tangent: Tangent,
+    displacement: Vec6,
+    stable: bool,
+    iterations: usize,
+}
+
+enum Tangent {
+    Compliance(Mat6),
+    Stiffness { stiffness: Mat6, magnitude: Vec6 },
+}
+
+impl Loaded {
+    fn of(d: Deflection) -> Self {
+        let tangent = match d.compliance {
+            Some(c) => Tangent::Compliance(c),
+            None => Tangent::Stiffness { stiffness: d.held.stiffness, magnitude: d.held.magnitude },
+        };
+        Loaded { tangent, displacement: d.displacement, stable: d.stable, iterations: d.iterations }
+    }
+
+    fn of_arm(a: ArmAnswer) -> Self {
+        let tangent = Tangent::Compliance(a.compliance);
+        Loaded { tangent, displacement: a.displacement, stable: a.stable, iterations: a.iterations }
+    }
 }
 
 /// A serial arm's loaded result at the joint coordinates `pose_of_joints` seeded `state` with (`placed`
@@ -393,12 +428,14 @@ pub fn loaded_at_joints(
 }
 
 /// The result of a loaded solve.
-fn loaded_result(m: &Manipulator, attempt: Result<Deflection, DeflectionFailure>) -> PointResult {
+fn loaded_result(m: &Manipulator, attempt: Result<Loaded, DeflectionFailure>) -> PointResult {
     match attempt {
         Ok(d) => {
-            let mut r = match d.compliance {
-                Some(c) => PointResult::from_compliance(c, m.length_scale, true),
-                None => PointResult::from_stiffness(d.held.stiffness, &d.held.magnitude, m.length_scale, true),
+            let mut r = match d.tangent {
+                Tangent::Compliance(c) => PointResult::from_compliance(c, m.length_scale, true),
+                Tangent::Stiffness { stiffness, magnitude } => {
+                    PointResult::from_stiffness(stiffness, &magnitude, m.length_scale, true)
+                }
             };
             r.deflection = Some(d.displacement);
             r.iterations = d.iterations;
