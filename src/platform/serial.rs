@@ -215,16 +215,26 @@ struct ArmSolver<'a> {
     evaluated: bool,
 }
 
+/// What one statics of a loaded solve computes: the residual of a chord step, the residual and the Newton
+/// matrix of a full step, or the matrix alone of the tangent at the equilibrium.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Statics {
+    Residual,
+    ResidualAndMatrix,
+    Matrix,
+}
+
 /// A chord step that shrinks the step by less than this has a matrix too far from the state's: the next
 /// step computes it afresh.
 const CHORD_STALL: f64 = 0.1;
 
 impl ArmSolver<'_> {
     /// The statics at the work's coordinates under the share `load` of every load (the wrench, the links'
-    /// and the payload's weight), the chain evaluated there into `jac`: the residual g - K (theta - theta0)
-    /// into `work.residual` and, with `with_matrix` (its load Hessian costs more than the rest), the Newton
-    /// matrix K - H into `work.matrix`.
-    fn statics(&mut self, load: f64, with_matrix: bool) {
+    /// and the payload's weight), the chain evaluated there into `jac`: as `what` asks, the residual
+    /// g - K (theta - theta0) into `work.residual` and the Newton matrix K - H into `work.matrix` (its load
+    /// Hessian costs more than the rest).
+    fn statics(&mut self, load: f64, what: Statics) {
+        let (with_residual, with_matrix) = (what != Statics::Matrix, what != Statics::Residual);
         let work = &mut *self.work;
         let coords = &work.coords;
         let n = coords.virtual_.len();
@@ -256,7 +266,9 @@ impl ArmSolver<'_> {
             if k == 0 {
                 jac.fill_virtual();
             }
-            jac.add_generalised_forces(&wrench, &gravity, 0, residual);
+            if with_residual {
+                jac.add_generalised_forces(&wrench, &gravity, 0, residual);
+            }
             if let Some(h) = matrix.as_deref_mut() {
                 jac.add_load_hessian(&wrench, &gravity, 0, h);
             }
@@ -267,7 +279,9 @@ impl ArmSolver<'_> {
             (end.pos + end.rot * p.centre, self.m.weight_gravity() * (p.mass_kg * load))
         });
         if let Some((point, force)) = payload {
-            jac.add_point_force(&point, &force, 0, residual);
+            if with_residual {
+                jac.add_point_force(&point, &force, 0, residual);
+            }
             if let Some(h) = matrix.as_deref_mut() {
                 jac.add_point_force_hessian(&point, &force, 0, h);
             }
@@ -288,7 +302,9 @@ impl ArmSolver<'_> {
             let theta = &coords.virtual_[g.first..g.first + g.dim];
             for i in 0..g.dim {
                 for j in 0..g.dim {
-                    residual[g.first + i] -= k[(i, j)] * (theta[j] - rest[j]);
+                    if with_residual {
+                        residual[g.first + i] -= k[(i, j)] * (theta[j] - rest[j]);
+                    }
                     if let Some(m) = matrix.as_deref_mut() {
                         m[(g.first + i, g.first + j)] += k[(i, j)];
                     }
@@ -306,7 +322,7 @@ impl ArmSolver<'_> {
         let mut last_size = f64::INFINITY;
         for iteration in 1..=MAX_NEWTON {
             let fresh = !self.work.factored;
-            self.statics(load, fresh);
+            self.statics(load, if fresh { Statics::ResidualAndMatrix } else { Statics::Residual });
             let work = &mut *self.work;
             if fresh {
                 let n = work.matrix.nrows();
@@ -379,7 +395,7 @@ impl ArmSolver<'_> {
         }
         // At the equilibrium (the last step moved it by round-off): the pose, the Jacobian and the matrix of
         // the tangent, C = J (K - H)^-1 J^T with (K - H)^-1 J^T solved for J's six rows at once.
-        self.statics(1.0, true);
+        self.statics(1.0, Statics::Matrix);
         let singular = DeflectionFailure::SingularStiffness { load_fraction: 1.0 };
         let work = &mut *self.work;
         let jac = &self.states[0].jac;
@@ -408,10 +424,14 @@ fn energy_minimum(m: &DMatrix<f64>, buffer: &mut Vec<f64>) -> bool {
     if (0..n).any(|i| m[(i, i)].is_nan() || m[(i, i)] <= 0.0) {
         return false;
     }
+    // The diagonal's scales first, then the matrix after them: one square root per row, not per entry.
     buffer.clear();
-    buffer.extend((0..n * n).map(|e| {
-        let (i, j) = (e / n, e % n);
-        0.5 * (m[(i, j)] + m[(j, i)]) / (m[(i, i)] * m[(j, j)]).sqrt()
-    }));
-    positive_definite_in_place(buffer, n)
+    buffer.extend((0..n).map(|i| 1.0 / m[(i, i)].sqrt()));
+    for j in 0..n {
+        for i in 0..n {
+            let v = 0.5 * (m[(i, j)] + m[(j, i)]) * buffer[i] * buffer[j];
+            buffer.push(v);
+        }
+    }
+    positive_definite_in_place(&mut buffer[n..], n)
 }
