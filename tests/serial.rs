@@ -485,20 +485,19 @@ fn bad_urdf_input_is_a_located_error() {
     assert!(!ok && err.contains("not a serial arm read from URDF"), "{err}");
 }
 
-/// A planar two-joint arm in the vertical x-z plane (joints about y, gravity along -z), point masses at the
-/// middle of each link and at its end, read from URDF (four stiff joints after the end mass, which carry no
-/// load, give the tool the other four directions, so that its stiffness has rank 6). Its sag under its own weight, computed here from the
-/// potential energy V = sum m g z + 1/2 k1 t1^2 + 1/2 k2 t2^2: to first order t = K^-1 tau(q) (the gravity
-/// torques at the commanded angles); exactly, the root of dV/dt = 0 found here by Newton's method on the two
-/// angles. `map --wrench 0,0,0,0,0,0` gives the exact one to 1e-9 mm, and differs from the first order by
-/// the second-order term (checked to be above 1e-3 mm, so the comparison tells them apart). Made soft and
-/// heavy and commanded upright, the arm is an inverted pendulum past its limit (m g L > k): its
-/// equilibrium at the commanded pose is reported `unstable`, never `ok`.
-#[test]
-fn self_weight_of_a_planar_arm_against_its_closed_form() {
-    let (l1, l2) = (800.0, 600.0);
-    let (m1, m2, tip) = (40.0, 25.0, 15.0);
-    let dir = tempfile::tempdir().unwrap();
+/// The planar arm's link lengths (mm) and masses (kg: mid-link 1, mid-link 2, at its end) of
+/// `write_planar_arm`.
+const PLANAR_L1: f64 = 800.0;
+const PLANAR_L2: f64 = 600.0;
+const PLANAR_MASSES: (f64, f64, f64) = (40.0, 25.0, 15.0);
+
+/// A planar two-joint arm in the vertical x-z plane (joints J1, J2 about y, gravity along -z; masses
+/// `PLANAR_MASSES` at the middle of each link and at its end) as `planar.urdf` and `planar.toml` in `dir`,
+/// J1 and J2 of stiffness `k` (N mm/rad), with four stiff joints X1-X4 after the end mass (no load) so that
+/// the tool has rank 6, and `extra` appended to the description.
+fn write_planar_arm(dir: &Path, k: [f64; 2], extra: &str) {
+    let (l1, l2) = (PLANAR_L1, PLANAR_L2);
+    let (m1, m2, tip) = PLANAR_MASSES;
     let urdf = format!(
         r#"<robot name="planar">
   <link name="base"/>
@@ -519,13 +518,76 @@ fn self_weight_of_a_planar_arm_against_its_closed_form() {
         l1m = l1 / 1000.0,
         l2m = l2 / 1000.0
     );
-    std::fs::write(dir.path().join("planar.urdf"), urdf).unwrap();
-    let write_model = |k1: f64, k2: f64| {
-        let toml = format!(
-            "name = \"planar\"\ngravity = [0, 0, -9.81]\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"planar.urdf\"\nroot = \"base\"\ntip = \"g\"\njoints = {{ J1 = {{ stiffness = {k1:e} }}, J2 = {{ stiffness = {k2:e} }}, X1 = {{ stiffness = 1e4 }}, X2 = {{ stiffness = 1e9 }}, X3 = {{ stiffness = 1e9 }}, X4 = {{ stiffness = 1e4 }} }}\n"
-        );
-        std::fs::write(dir.path().join("planar.toml"), toml).unwrap();
+    std::fs::write(dir.join("planar.urdf"), urdf).unwrap();
+    let (k1, k2) = (k[0], k[1]);
+    let toml = format!(
+        "name = \"planar\"\ngravity = [0, 0, -9.81]\n[[leg]]\nname = \"arm\"\n[leg.urdf]\nfile = \"planar.urdf\"\nroot = \"base\"\ntip = \"g\"\njoints = {{ J1 = {{ stiffness = {k1:e} }}, J2 = {{ stiffness = {k2:e} }}, X1 = {{ stiffness = 1e4 }}, X2 = {{ stiffness = 1e9 }}, X3 = {{ stiffness = 1e9 }}, X4 = {{ stiffness = 1e4 }} }}\n{extra}"
+    );
+    std::fs::write(dir.join("planar.toml"), toml).unwrap();
+}
+
+/// Play is a model term every loaded study sees: a joint with play b sits b off in the sense of the load
+/// it carries at the commanded configuration. On the planar arm, J2 carries the weight of link 2 and the
+/// end mass, whose torque about y has the sign of cos(q1 + q2) (the outer link leaning out along +x or -x
+/// of its joint); the sag map of the arm with 2 mrad of play at J2 therefore puts its tool where the arm
+/// without play, commanded 2 mrad further in that sense, puts its own (to 1e-9 mm: the same equilibrium),
+/// for links leaning either way; the unloaded map does not see it, and a play below zero is refused.
+#[test]
+fn a_joints_play_turns_it_in_the_sense_of_its_load_in_every_loaded_study() {
+    let dir = tempfile::tempdir().unwrap();
+    let play = 2e-3;
+    // The tool where the map puts it: its commanded pose, moved by the sag where loaded (zero wrench).
+    let tool = |q: [f64; 2], loaded: bool| -> Vec3 {
+        std::fs::write(dir.path().join("q.csv"), format!("q_J1,q_J2,q_X1,q_X2,q_X3,q_X4\n{},{},0,0,0,0\n", q[0], q[1]))
+            .unwrap();
+        let mut args = vec!["map", "planar.toml", "--points", "q.csv", "-q"];
+        if loaded {
+            args.extend(["--wrench", "0,0,0,0,0,0"]);
+        }
+        let done = std::process::Command::new(env!("CARGO_BIN_EXE_stiff")).args(&args).current_dir(dir.path()).output();
+        let done = done.unwrap();
+        assert!(done.status.success(), "{}", String::from_utf8_lossy(&done.stderr));
+        let out = String::from_utf8(done.stdout).unwrap();
+        let r = &crate::common::csv_columns(&out, &["x_mm", "y_mm", "z_mm"])[0];
+        let pose = Vec3::new(r[0], r[1], r[2]);
+        match loaded {
+            true => pose + Vec3::from_row_slice(&crate::common::csv_columns(&out, &["dx_mm", "dy_mm", "dz_mm"])[0]),
+            false => pose,
+        }
     };
+    let k = [4e7, 1.5e7];
+    for q in [[0.3f64, -0.5], [-0.2, 0.9], [1.0, 1.2], [0.4, 2.0]] {
+        // The weight pulls the outer link down: rotation about y by phi takes x to (cos phi, 0, -sin phi), so a
+        // link leaning along +x (cos > 0) is turned towards +phi by its weight.
+        let sense = (q[0] + q[1]).cos().signum();
+        write_planar_arm(dir.path(), k, "");
+        let (turned, without, unloaded) = (tool([q[0], q[1] + sense * play], true), tool(q, true), tool(q, false));
+        write_planar_arm(dir.path(), k, &format!("[[joint_correction]]\njoint = \"J2\"\nplay = {play}\n"));
+        let with_play = tool(q, true);
+        assert!((with_play - turned).norm() < 1e-9, "{q:?}: {with_play} with play, {turned} turned by it");
+        assert!((with_play - without).norm() > 0.5, "{q:?}: the play moves the tool ({with_play} against {without})");
+        assert_eq!(tool(q, false), unloaded, "{q:?}: unloaded, no load and no play");
+    }
+    write_planar_arm(dir.path(), k, "[[joint_correction]]\njoint = \"J2\"\nplay = -1e-3\n");
+    let (ok, err) = stiff_in(dir.path(), &["map", "planar.toml", "--points", "q.csv", "-q"]);
+    assert!(!ok && err.contains("a play is a width, zero or above"), "{err}");
+}
+
+/// A planar two-joint arm in the vertical x-z plane (joints about y, gravity along -z), point masses at the
+/// middle of each link and at its end, read from URDF (four stiff joints after the end mass, which carry no
+/// load, give the tool the other four directions, so that its stiffness has rank 6). Its sag under its own weight, computed here from the
+/// potential energy V = sum m g z + 1/2 k1 t1^2 + 1/2 k2 t2^2: to first order t = K^-1 tau(q) (the gravity
+/// torques at the commanded angles); exactly, the root of dV/dt = 0 found here by Newton's method on the two
+/// angles. `map --wrench 0,0,0,0,0,0` gives the exact one to 1e-9 mm, and differs from the first order by
+/// the second-order term (checked to be above 1e-3 mm, so the comparison tells them apart). Made soft and
+/// heavy and commanded upright, the arm is an inverted pendulum past its limit (m g L > k): its
+/// equilibrium at the commanded pose is reported `unstable`, never `ok`.
+#[test]
+fn self_weight_of_a_planar_arm_against_its_closed_form() {
+    let (l1, l2) = (PLANAR_L1, PLANAR_L2);
+    let (m1, m2, tip) = PLANAR_MASSES;
+    let dir = tempfile::tempdir().unwrap();
+    let write_model = |k1: f64, k2: f64| write_planar_arm(dir.path(), [k1, k2], "");
     let map = |q: [f64; 2]| -> (String, Vec3) {
         std::fs::write(dir.path().join("q.csv"), format!("q_J1,q_J2,q_X1,q_X2,q_X3,q_X4\n{},{},0,0,0,0\n", q[0], q[1]))
             .unwrap();

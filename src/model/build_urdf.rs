@@ -173,10 +173,11 @@ impl Builder<'_> {
         }
         let controller = self.controller_map(u, &names)?;
         let offsets = self.joint_offsets(corrections, &names)?;
+        let play = self.joint_play(corrections, &names)?;
         let limits = coordinates.iter().map(|j| j.limits).collect();
         let masses = arm.chains[0].masses;
         let carried = CarriedMass { kg: masses.carried, off_path_kg: masses.off_path, on_base_kg: masses.on_base };
-        let space = JointSpace { names, controller, offsets, limits, carried, tips: arm.tips.clone() };
+        let space = JointSpace { names, controller, offsets, play, limits, carried, tips: arm.tips.clone() };
         let mut legs = parts.into_tree_legs(chains, space.names.len(), gravity);
         if !u.seed.is_empty() {
             // The seed is given in the controller's angles, like the points: mapped to the model's coordinates.
@@ -324,7 +325,7 @@ impl Builder<'_> {
         for c in arm.corrections {
             let c = c.get_ref();
             let (name, span) = (c.joint.get_ref().as_str(), c.joint.span());
-            if c.offset.is_some() {
+            if c.offset.is_some() || c.play.is_some() {
                 named_joint(name, span.clone(), "joint_correction", false)?;
             }
             if c.geometry.is_some() || c.frame_compliance.is_some() {
@@ -545,6 +546,32 @@ impl Builder<'_> {
             }
         }
         Ok(offsets)
+    }
+
+    /// Each joint's play: its corrections' plays summed, each zero or above.
+    fn joint_play(
+        &self,
+        corrections: &[Spanned<JointCorrectionSpec>],
+        names: &[String],
+    ) -> Result<Vec<f64>, InputError> {
+        let mut play = vec![0.0; names.len()];
+        for c in corrections {
+            if let Some(b) = &c.get_ref().play {
+                let value = self.num(b)?;
+                if !(value.is_finite() && value >= 0.0) {
+                    return Err(self.loc.at(
+                        c.span(),
+                        format!(
+                            "`play` of joint `{}` is {value}: a play is a width, zero or above (rad, or mm for a prismatic joint)",
+                            c.get_ref().joint.get_ref()
+                        ),
+                    ));
+                }
+                let k = names.iter().position(|n| n == c.get_ref().joint.get_ref()).expect("checked on the path");
+                play[k] += value;
+            }
+        }
+        Ok(play)
     }
 
     /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.

@@ -62,6 +62,11 @@ pub struct JointCorrectionSpec {
     /// (mm for a prismatic joint).
     #[serde(default)]
     pub offset: Option<Num>,
+    /// The joint's play (backlash), rad (mm for a prismatic joint), zero or above: under load its model
+    /// coordinate sits this far off in the sense of the load it carries (at the commanded configuration),
+    /// in every loaded study; unloaded compliance does not see it.
+    #[serde(default)]
+    pub play: Option<Num>,
     /// Added to the joint's compliance (a spring where `joints` gives none), rad/(N mm) or mm/N.
     #[serde(default)]
     pub compliance: Option<Num>,

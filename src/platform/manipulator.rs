@@ -35,6 +35,10 @@ pub struct JointSpace {
     /// Per joint, added to the controller's angle before the map (an encoder's zero offset found by
     /// calibration, `[[joint_correction]]`).
     pub offsets: Vec<f64>,
+    /// Per joint, its play (rad or mm, zero or above; `[[joint_correction]] play`): under load the joint's
+    /// model coordinate sits this far off in the sense of the load it carries (`ArmStatics::load`), in
+    /// every loaded solve (`Manipulator::arm_deflect`).
+    pub play: Vec<f64>,
     /// Per joint, its range (lower, upper; rad or mm) where the description gives one (URDF's `<limit>`).
     pub limits: Vec<Option<(f64, f64)>>,
     /// The mass the arm carries, as the description shares it.
@@ -60,6 +64,11 @@ impl Manipulator {
     /// Whether some leg has a spring: a rigid manipulator stays where its joints put it under any load.
     pub fn is_compliant(&self) -> bool {
         self.legs.iter().any(|l| l.spring_groups().next().is_some())
+    }
+
+    /// Its loaded pose differs from its rigid one: it has springs, or (a serial arm) a joint with play.
+    pub fn deflects(&self) -> bool {
+        self.is_compliant() || self.joint_space.as_ref().is_some_and(|s| s.play.iter().any(|b| *b > 0.0))
     }
 
     /// The tips of a serial arm read from URDF, the reference point's first (one for a chain; empty for
@@ -202,6 +211,23 @@ pub struct ArmStatics {
     /// Per joint, the wrench everything beyond it puts through its frame (the links' weight, the payload and
     /// the wrench; force, then moment about the frame's origin; base frame): what bends the link there.
     pub transmitted: Vec<Vec6>,
+}
+
+/// A joint load below this fraction of the configuration's largest is round-off (`ArmStatics::load`).
+const LOAD_ROUND_OFF: f64 = 1e-9;
+
+impl ArmStatics {
+    /// The load joint `j` carries, zero where it is round-off (below `LOAD_ROUND_OFF` of the largest joint
+    /// load: a vertical first axis carries no weight, and the sign of its round-off is no play).
+    pub fn load(&self, j: usize) -> f64 {
+        let largest = self.loads.iter().fold(0.0f64, |a, l| a.max(l.abs()));
+        let load = self.loads[j];
+        if load.abs() <= LOAD_ROUND_OFF * largest {
+            0.0
+        } else {
+            load
+        }
+    }
 }
 
 /// A wrench `w` (force, moment) acting at a point `arm` from another point, as the wrench at that other point:
@@ -445,7 +471,12 @@ impl Manipulator {
         if controller.len() != space.names.len() || self.serial_arm().is_none() {
             return None;
         }
-        let q = space.model_coordinates(controller);
+        self.arm_statics_at(&space.model_coordinates(controller), wrench, state)
+    }
+
+    /// As `arm_statics`, at the model's coordinates `q` (one per joint, as the chain reads them).
+    pub(super) fn arm_statics_at(&self, q: &[f64], wrench: &Vec6, state: &mut ManipulatorState) -> Option<ArmStatics> {
+        let q = q.to_vec();
         let mut chains = self.arm_chains().zip(state.legs.iter_mut());
         let (leg, s) = chains.next()?;
         let ArmStatics { frame: end, columns, mut loads, mut joint_frames, mut transmitted } = leg.statics(&q, s)?;

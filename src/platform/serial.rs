@@ -129,6 +129,7 @@ impl Manipulator {
         state: &mut ManipulatorState,
     ) -> Option<Result<ArmAnswer, DeflectionFailure>> {
         let leg = self.serial_arm()?;
+        let played = self.played(wrench, state);
         let s = &mut state.legs[0];
         if !springs_positive(leg, &s.coords) {
             return Some(Err(DeflectionFailure::Leg(PoseFailure { leg: 0, failure: LegFailure::SingularChain })));
@@ -136,12 +137,32 @@ impl Manipulator {
         let mut work = std::mem::take(&mut state.arm);
         work.coords.clone_from(&s.coords);
         work.coords.virtual_.iter_mut().for_each(|t| *t = 0.0);
+        if let Some(q) = played {
+            work.coords.actuated.copy_from_slice(&q);
+        }
         let evaluated = take_placement_evaluations(&mut state.legs, &work.coords);
         let mut solver =
             ArmSolver { m: self, leg, states: &mut state.legs, wrench: *wrench, work: &mut work, evaluated };
         let answer = solver.continuation(commanded);
         state.arm = work;
         Some(answer)
+    }
+}
+
+impl Manipulator {
+    /// The arm's coordinates as its state is placed, each moved by its joint's play in the sense of the load
+    /// the joint carries there under `wrench`, the links' and the payload's weight (`ArmStatics::load`; no
+    /// move where that is round-off): where the loaded solve starts and stays. None where no joint has play,
+    /// or the statics fail (the solve then fails as it would).
+    fn played(&self, wrench: &Vec6, state: &mut ManipulatorState) -> Option<Vec<f64>> {
+        let play = &self.joint_space.as_ref()?.play;
+        if play.iter().all(|b| *b == 0.0) {
+            return None;
+        }
+        let q = state.legs[0].coords.actuated.clone();
+        let statics = self.arm_statics_at(&q, wrench, state)?;
+        let sign = |l: f64| if l == 0.0 { 0.0 } else { l.signum() };
+        Some(q.iter().zip(play).enumerate().map(|(j, (q, b))| q + b * sign(statics.load(j))).collect())
     }
 }
 

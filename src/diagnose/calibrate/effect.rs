@@ -5,9 +5,6 @@
 use crate::kinematics::frame::{Vec3, Vec6};
 use crate::platform::manipulator::ArmStatics;
 
-/// A joint load below this fraction of the row's largest is round-off (`load_of`).
-const LOAD_ROUND_OFF: f64 = 1e-9;
-
 /// What kind of effect a candidate is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ArmKind {
@@ -113,16 +110,10 @@ impl ArmEffect {
     }
 }
 
-/// A joint's load as the effects read it: zero where it is round-off (below `LOAD_ROUND_OFF` of the row's
-/// largest joint load: a vertical first axis carries no weight, and the sign of its round-off is no play).
+/// A joint's load as the effects read it: zero where it is round-off (`ArmStatics::load`, the rule the
+/// model's play follows).
 pub(super) fn load_of(s: &ArmStatics, joint: usize) -> f64 {
-    let largest = s.loads.iter().fold(0.0f64, |a, l| a.max(l.abs()));
-    let load = s.loads[joint];
-    if load.abs() <= LOAD_ROUND_OFF * largest {
-        0.0
-    } else {
-        load
-    }
+    s.load(joint)
 }
 
 /// How far a unit of effect `e` turns its joint in a row: nothing for an offset (it moves the configuration

@@ -148,7 +148,7 @@ impl PositionProblem<'_> {
     /// misses of the loaded equilibrium of the arm read again with those effects written in
     /// (`arm_corrections`, `CalibrationOptions::rebuild`): the body's point for a position (its lever
     /// turned by the whole loaded rotation, not its first order) as a translation, the tool's turn for an
-    /// orientation as a rotation. The effects no description holds (play, a drift, a tool's spring) stay
+    /// orientation as a rotation. The effects no description holds (a drift, a tool's spring) stay
     /// first order. Without effects to write, the model's own (the lever's second order). None where the
     /// corrected description cannot be built (a compliance below zero) or a row has no equilibrium.
     fn arm_misses(&self, effects: &[ArmEffect], fit: &PositionFit) -> Option<Vec<Vec6>> {
@@ -202,7 +202,7 @@ impl PositionProblem<'_> {
                 let (m, state) = (arm(r), &mut exact_state);
                 let frame = row.nominal_frame(m, state)?;
                 // A rigid arm stays where its joints put it.
-                let settled = |w: &Vec6, state: &mut ManipulatorState| match m.is_compliant() {
+                let settled = |w: &Vec6, state: &mut ManipulatorState| match m.deflects() {
                     false => Some(frame),
                     true => Some(m.deflect(&frame, w, None, state).ok()?.pose),
                 };

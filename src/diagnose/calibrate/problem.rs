@@ -450,7 +450,7 @@ pub(super) fn deflections<'m>(
     (arm_of, arm_index): (&dyn Fn(usize) -> &'m Manipulator, &[Option<usize>]),
     state: &mut ManipulatorState,
 ) -> Deflections {
-    let compliant = m.is_compliant();
+    let compliant = m.deflects();
     let under = |m: &Manipulator,
                  r: &PositionRow,
                  wrench: &Vec6,

@@ -156,7 +156,7 @@ impl PositionProblem<'_> {
 /// The description (`source`, read from `model_dir`) with the calibration's corrections added, so that every
 /// study of the corrected file sees them: a serial arm's as `arm_corrections` writes them (the text the fit
 /// rebuilt the arm from, so the file reproduces the fit), a parallel robot's as leg tables; what no
-/// description holds (play, a drift, a tool's spring) as a comment saying so. An effect the held-out rows do
+/// description holds (a drift, a tool's spring) as a comment saying so. An effect the held-out rows do
 /// not confirm (their RMS error grows with it) is left out, as a comment, unless `unconfirmed` asks for it.
 pub fn corrected_model(
     source: &str,
@@ -215,20 +215,21 @@ pub fn corrected_model(
 /// writes.
 pub(super) fn not_written(kind: ArmKind) -> Option<&'static str> {
     match kind {
-        ArmKind::Backlash => Some("a description of a URDF arm holds no play yet"),
         ArmKind::Drift => Some("a drift belongs to the measurements, not the robot"),
         ArmKind::ToolCompliance => Some("a description of a URDF arm holds no spring at its tool yet"),
         ArmKind::JointOffset
         | ArmKind::JointCompliance
         | ArmKind::JointGeometry
         | ArmKind::Payload
-        | ArmKind::FrameCompliance => None,
+        | ArmKind::FrameCompliance
+        | ArmKind::Backlash => None,
     }
 }
 
 /// A serial arm's effects (`effects` at `values`, each on joint `joints[k]`) as the tables a description
 /// holds: offsets, compliances, geometries and frame compliances as `[[joint_correction]]`, a payload as
-/// `[[payload]]`; nothing for the effects no description holds (play, a drift, a tool's spring). A frame
+/// `[[payload]]`, a play as `[[joint_correction]] play`; nothing for the effects no description holds (a
+/// drift, a tool's spring). A frame
 /// compliance's direction the data did not see (`seen` false: the fit's number there is its smallest change,
 /// 31 mm/N or 1e20 as it fell) or whose value is below zero is written rigid, as the description had it.
 /// The fit rebuilds the arm from this text (`CalibrationOptions::rebuild`), and `--model-out` appends it.
@@ -257,7 +258,7 @@ pub(super) fn leg_not_written(a: &AcceptedEffect, kind: ArmKind) -> String {
         }
         ArmKind::Payload => "a payload's mass must be above zero",
         ArmKind::JointGeometry => "a description holds no leg's end-point error; stiff assemble takes it",
-        ArmKind::Backlash => "a description holds no play yet",
+        ArmKind::Backlash => "a description holds no play of a leg's actuator yet",
         ArmKind::Drift => "a drift belongs to the measurements, not the robot",
         _ => "a description holds no spring there",
     };
@@ -265,8 +266,9 @@ pub(super) fn leg_not_written(a: &AcceptedEffect, kind: ArmKind) -> String {
 }
 
 /// One effect as the description's table: `[[joint_correction]]` for an offset, compliance, geometry or
-/// frame compliance, `[[payload]]` for a payload (`values` its mass and first moment in the tool frame);
-/// play has none.
+/// frame compliance or play, `[[payload]]` for a payload (`values` its mass and first moment in the tool
+/// frame). A play below zero (the fit holds none there, but a value given is written as it is read) is
+/// written as none.
 pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
     let list = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
     match kind {
@@ -283,7 +285,10 @@ pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
         ArmKind::FrameCompliance => {
             format!("\n[[joint_correction]]\njoint = {joint:?}\nframe_compliance = [{}]\n", list(values))
         }
-        ArmKind::Backlash | ArmKind::Drift | ArmKind::ToolCompliance => String::new(),
+        ArmKind::Backlash => {
+            format!("\n[[joint_correction]]\njoint = {joint:?}\nplay = {:?}\n", values[0].max(0.0))
+        }
+        ArmKind::Drift | ArmKind::ToolCompliance => String::new(),
     }
 }
 

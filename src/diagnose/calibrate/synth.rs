@@ -90,7 +90,7 @@ pub fn synthesize_positions(
     if m.joint_space.is_none() {
         return Err(CalibrationError::NotAnArm(m.name.clone()));
     }
-    let compliant = m.is_compliant();
+    let compliant = m.deflects();
     let mut state = m.new_state();
     Ok(measured_rows(configurations, s, |(_, commanded, wrench)| {
         let played;
