@@ -15,7 +15,9 @@ use stiff::kinematics::frame::{rotation_from_vector, Mat3, Vec3};
 use stiff::platform::manipulator::Manipulator;
 
 use crate::common::rng;
-use crate::serial::{dh_gravity_torques_along, dh_kinematics, model_angles, random_angles, FANUC, K_JOINT};
+use crate::serial::{
+    dh_gravity_torques_changed, dh_kinematics, dh_kinematics_changed, model_angles, random_angles, FANUC, K_JOINT,
+};
 
 const JOINTS: [&str; 6] = ["J1", "J2", "J3", "J4", "J5", "J6"];
 
@@ -37,6 +39,9 @@ struct Hidden {
     gravity: Vec3,
     /// Play per joint, rad: the joint turned by it in the sense of its load, b sign(tau).
     play: [f64; 6],
+    /// A joint's geometry (0-based joint, `[dx, dy, dz, rx, ry, rz]`: the fixed transform leading to it
+    /// moved by a translation in mm, then turned by a rotation vector, in the joint's frame).
+    geometry: Option<(usize, [f64; 6])>,
 }
 
 impl Hidden {
@@ -50,7 +55,18 @@ impl Hidden {
             payload: (0.0, Vec3::zeros()),
             gravity: Vec3::new(0.0, 0.0, -9.81),
             play: [0.0; 6],
+            geometry: None,
         }
+    }
+
+    /// The geometry as the simulator's change of a joint's fixed transform: T(d) R(r).
+    fn geometry_change(&self) -> crate::serial::GeometryChange {
+        self.geometry.map(|(j, g)| {
+            let mut m = nalgebra::Matrix4::identity();
+            m.fixed_view_mut::<3, 3>(0, 0).copy_from(&rotation_from_vector(&Vec3::new(g[3], g[4], g[5])));
+            m.fixed_view_mut::<3, 1>(0, 3).copy_from(&Vec3::new(g[0], g[1], g[2]));
+            (j, m)
+        })
     }
 }
 
@@ -65,9 +81,9 @@ fn measured_target(h: &Hidden, t: &[f64; 6], gravity: bool) -> Vec3 {
 /// The joints' torques at model angles `q` under the links' weight and the payload's (its force m g at
 /// the tool point p, its moment (R c) x F: (z_k x (p - o_k)) . F + z_k . M), N mm.
 fn loaded_torques(h: &Hidden, q: &[f64; 6]) -> nalgebra::Vector6<f64> {
-    let (tool, frames) = dh_kinematics(q);
+    let (tool, frames) = dh_kinematics_changed(q, h.geometry_change());
     let rotation = frames[5].fixed_view::<3, 3>(0, 0).into_owned();
-    let mut tau = dh_gravity_torques_along(q, &h.gravity);
+    let mut tau = dh_gravity_torques_changed(q, &h.gravity, h.geometry_change());
     let force = h.gravity * h.payload.0;
     let moment = (rotation * h.payload.1).cross(&force);
     for (k, f) in frames.iter().enumerate() {
@@ -104,7 +120,7 @@ fn measured_pose(h: &Hidden, t: &[f64; 6], gravity: bool, axes: &Vec3) -> (Vec3,
     let truth: [f64; 6] = std::array::from_fn(|k| t[k] + h.offsets[k]);
     let q0 = model_angles(&truth);
     let q = if gravity { loaded_angles(h, &q0) } else { q0 };
-    let (tool, frames) = dh_kinematics(&q);
+    let (tool, frames) = dh_kinematics_changed(&q, h.geometry_change());
     let rotation = frames[5].fixed_view::<3, 3>(0, 0).into_owned();
     let x = tool + rotation * h.target;
     let instrument = rotation_from_vector(&h.rotation);
@@ -2116,6 +2132,47 @@ fn each_effect_kind_is_named_and_covered_by_its_standard_errors_and_its_correcte
         assert!(extra <= 2, "{kind}: {extra} seeds named more");
         assert!(covered >= 34, "{kind}: covered in {covered} of 40");
     }
+}
+
+/// A joint's geometry, hidden by the simulator's own kinematics (the DH table with the fixed transform
+/// leading to J3 changed by T(d) R(r) in the joint's frame, `dh_kinematics_changed`), at SNR >= 100 (each
+/// component moves the target by a millimetre or more, the noise 0.01 mm), 40 seeds, the default
+/// candidates: `joint-geometry:J3` is named in every seed, the model corrected by it names nothing more,
+/// and each of its parameters the data see lies within two standard errors of the truth in about 95% of
+/// the draws: at least 216 of the 240 (90%: below the 1% lower bound of 240 independent draws at 95%,
+/// about 220, since a seed's six are not independent). Run once over 200 seeds: named alone in all 200,
+/// every parameter seen, 1,137 of 1,200 covered (94.75%), errors RMS 1.00 standard errors: the simulator's
+/// frame for the change (the DH table's, turned by its offset) is the description's joint frame.
+#[test]
+fn a_joints_geometry_is_named_and_covered_by_its_standard_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let o = Options { rebuild: fanuc_rebuild(), ..options(Some(0.01)) };
+    let truth = [1.5, -1.0, 2.0, 1.0e-3, -1.5e-3, 1.2e-3];
+    let h = Hidden { geometry: Some((2, truth)), ..Hidden::registration_only() };
+    let (mut draws, mut covered, mut alone, mut z) = (0, 0, 0, Vec::new());
+    for seed in 0..40 {
+        let csv = synthetic(&h, 40, 0.01, &[], true, 9100 + seed);
+        let (data, c) = calibrate_text(&m, &csv, dir.path(), &[], &o);
+        let report = calibrate::text(&c.report, "FANUC");
+        let a = c.report.accepted.iter().find(|a| a.label == "joint-geometry:J3");
+        let a = a.unwrap_or_else(|| panic!("seed {seed}: joint-geometry:J3 not named: {report}"));
+        alone += usize::from(c.report.accepted.len() == 1);
+        for (k, t) in truth.iter().enumerate() {
+            if a.se[k].is_finite() {
+                draws += 1;
+                covered += usize::from((a.values[k] - t).abs() <= 2.0 * a.se[k]);
+                z.push((a.values[k] - t) / a.se[k]);
+            }
+        }
+        let corrected = Options { fitted: c.effects.clone(), ..o.clone() };
+        let again = calibrate::calibrate(&m, &data, &[], &corrected).unwrap();
+        let more: Vec<&str> = again.report.accepted[c.effects.len()..].iter().map(|a| a.label.as_str()).collect();
+        assert!(more.is_empty(), "seed {seed}: the corrected model names {more:?}");
+    }
+    let rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    println!("geometry: named in 40 of 40 seeds (alone in {alone}); {covered} of {draws} seen parameters within two standard errors; error in standard errors rms {rms:.2}");
+    assert!(draws == 240 && covered >= 216, "{covered} of {draws}");
 }
 
 /// A target's place the rows cannot tell from the instrument's translation is not given a standard error it

@@ -55,10 +55,24 @@ fn mdh(alpha: f64, a: f64, theta: f64, d: f64) -> nalgebra::Matrix4<f64> {
 
 /// The tool point and each joint's frame (axis z, origin) from the DH table at model angles q.
 pub(crate) fn dh_kinematics(q: &[f64; 6]) -> (Vec3, Vec<nalgebra::Matrix4<f64>>) {
+    dh_kinematics_changed(q, None)
+}
+
+/// A change of the fixed transform leading to joint `.0` (0-based): a homogeneous transform in the joint's
+/// frame before its motion (z its axis, x where the DH table's offset turns it), `G = T(d) R(r)`.
+pub(crate) type GeometryChange = Option<(usize, nalgebra::Matrix4<f64>)>;
+
+/// As `dh_kinematics`, with the fixed transform leading to one joint changed: link k's transform is
+/// Rx(alpha) Tx(a) Tz(d) Rz(offset) Rz(q) (the table's, Rz and Tz commuting), the change G put between
+/// Rz(offset) and the joint's motion Rz(q).
+pub(crate) fn dh_kinematics_changed(q: &[f64; 6], change: GeometryChange) -> (Vec3, Vec<nalgebra::Matrix4<f64>>) {
     let mut m = nalgebra::Matrix4::identity();
     let mut frames = Vec::new();
     for (k, (alpha, a, offset, d)) in DH.iter().enumerate() {
-        m *= mdh(*alpha, *a, q[k] + offset, *d);
+        match change {
+            Some((j, g)) if j == k => m *= mdh(*alpha, *a, *offset, *d) * g * mdh(0.0, 0.0, q[k], 0.0),
+            _ => m *= mdh(*alpha, *a, q[k] + offset, *d),
+        }
         frames.push(m);
     }
     let tool = m * nalgebra::Vector4::new(TOOL[0], TOOL[1], TOOL[2], 1.0);
@@ -293,7 +307,12 @@ pub(crate) fn dh_gravity_torques(q: &[f64; 6]) -> Vec6 {
 
 /// As `dh_gravity_torques`, under gravity `g` (m/s^2, base frame).
 pub(crate) fn dh_gravity_torques_along(q: &[f64; 6], g: &Vec3) -> Vec6 {
-    let (_, frames) = dh_kinematics(q);
+    dh_gravity_torques_changed(q, g, None)
+}
+
+/// As `dh_gravity_torques_along`, the arm's geometry changed as `dh_kinematics_changed` changes it.
+pub(crate) fn dh_gravity_torques_changed(q: &[f64; 6], g: &Vec3, change: GeometryChange) -> Vec6 {
+    let (_, frames) = dh_kinematics_changed(q, change);
     let mut tau = Vec6::zeros();
     for (i, (kg, c)) in MASSES.iter().enumerate() {
         let f = frames[i];
