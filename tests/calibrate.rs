@@ -1021,36 +1021,57 @@ fn columns_the_calibration_does_not_read_are_named() {
 
 /// A compliance at the tool (a tool holder): this file's generator carries 80 kg at the tool on every
 /// second configuration (given per row, `payload_kg`) and moves the target by 3e-4 mm/N times the force
-/// along the flange frame's z. Offered (`--candidates`), `tool-compliance` alone is named, its z compliance
-/// within four standard errors of the hidden one, x and y within four of zero.
+/// along the flange frame's z (0.24 mm at most, the noise 0.0115 mm). Offered (`--candidates`, beside
+/// every joint's compliance), `tool-compliance` is named in each of 40 seeds (with another effect in at
+/// most 2: alpha 1% per step); its z compliance lies within two standard errors of the hidden 3e-4 mm/N
+/// in at least 34 of 40 (the 1% lower bound of 40 draws at 95%), and x and y, hidden zero on the bound a
+/// compliance has, come back held at zero or within two standard errors of it in at least 76 of 80. Run
+/// once over 200 seeds: z 192 of 200 (96%, errors RMS 0.98 standard errors), x and y 392 of 400, another
+/// effect named beside it in 1.
 #[test]
-fn a_compliance_at_the_tool_is_named_from_the_force_it_carries() {
+fn a_compliance_at_the_tool_is_named_from_the_force_it_carries_and_covered() {
     let dir = tempfile::tempdir().unwrap();
     let m = fanuc(false, dir.path());
-    let mut r = rng(52);
     let h = Hidden::registration_only();
-    let mut csv = String::from("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,payload_kg\n");
-    for c in 0..60 {
-        let t = random_angles(&mut r);
-        let kg = if c % 2 == 1 { 80.0 } else { 0.0 };
-        let loaded = Hidden { payload: (kg, Vec3::zeros()), ..Hidden::registration_only() };
-        let (_, frames) = dh_kinematics(&model_angles(&t));
-        let z = Vec3::new(frames[5][(0, 2)], frames[5][(1, 2)], frames[5][(2, 2)]);
-        let holder = z * (3e-4 * z.dot(&(h.gravity * kg)));
-        let noise = Vec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0)) * 0.02;
-        let p = measured_target(&loaded, &t, true) + rotation_from_vector(&h.rotation) * holder + noise;
-        let q: Vec<String> = t.iter().map(|v| format!("{v:?}")).collect();
-        csv += &format!("c{c},{},{:?},{:?},{:?},{kg}\n", q.join(","), p.x, p.y, p.z);
-    }
+    let hidden = [0.0, 0.0, 3e-4];
     let mut offered: Vec<ArmEffect> = JOINTS.iter().map(|j| effect(ArmKind::JointCompliance, j)).collect();
     offered.push(ArmEffect { kind: ArmKind::ToolCompliance, joint: 0 });
-    let (_, c) = calibrate_text(&m, &csv, dir.path(), &offered, &options(Some(0.02 / 3f64.sqrt())));
-    let names: Vec<&str> = c.report.accepted.iter().map(|a| a.label.as_str()).collect();
-    assert_eq!(names, ["tool-compliance"], "{:?}", c.report.accepted.iter().map(|a| &a.shown).collect::<Vec<_>>());
-    let a = &c.report.accepted[0];
-    for (k, hidden) in [0.0, 0.0, 3e-4].iter().enumerate() {
-        assert!((a.values[k] - hidden).abs() < 4.0 * a.se[k], "{}", a.shown);
+    let (mut covered, mut at_zero, mut extra, mut z) = (0, 0, 0, Vec::new());
+    for seed in 0..40 {
+        let mut r = rng(52 + 1000 * seed);
+        let mut csv = String::from("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,mx_mm,my_mm,mz_mm,payload_kg\n");
+        for c in 0..60 {
+            let t = random_angles(&mut r);
+            let kg = if c % 2 == 1 { 80.0 } else { 0.0 };
+            let loaded = Hidden { payload: (kg, Vec3::zeros()), ..Hidden::registration_only() };
+            let (_, frames) = dh_kinematics(&model_angles(&t));
+            let axis = Vec3::new(frames[5][(0, 2)], frames[5][(1, 2)], frames[5][(2, 2)]);
+            let holder = axis * (hidden[2] * axis.dot(&(h.gravity * kg)));
+            let noise =
+                Vec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0)) * 0.02;
+            let p = measured_target(&loaded, &t, true) + rotation_from_vector(&h.rotation) * holder + noise;
+            let q: Vec<String> = t.iter().map(|v| format!("{v:?}")).collect();
+            csv += &format!("c{c},{},{:?},{:?},{:?},{kg}\n", q.join(","), p.x, p.y, p.z);
+        }
+        let (_, c) = calibrate_text(&m, &csv, dir.path(), &offered, &options(Some(0.02 / 3f64.sqrt())));
+        let a = c.report.accepted.iter().find(|a| a.label == "tool-compliance");
+        let a = a.unwrap_or_else(|| {
+            panic!("seed {seed}: tool-compliance not named: {}", calibrate::text(&c.report, "FANUC"))
+        });
+        extra += usize::from(c.report.accepted.len() > 1);
+        // z, the hidden compliance, against its standard error; x and y, hidden zero on the bound a
+        // compliance has, come back held at zero (rigid: no standard error) or within two of zero.
+        covered += usize::from((a.values[2] - hidden[2]).abs() <= 2.0 * a.se[2]);
+        z.push((a.values[2] - hidden[2]) / a.se[2]);
+        for k in 0..2 {
+            let held = a.se[k].is_nan() && a.values[k] == 0.0;
+            at_zero += usize::from(held || a.values[k].abs() <= 2.0 * a.se[k]);
+        }
     }
+    let rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    println!("tool compliance: named with more in {extra} seeds; z: {covered} within two standard errors (error rms {rms:.2} of them); x, y: {at_zero} held at zero or within two of it");
+    assert!(extra <= 2, "{extra} seeds named more");
+    assert!(covered >= 34 && at_zero >= 76, "z {covered} of 40, x and y {at_zero} of 80");
 }
 
 /// Regression: `plan` on a serial arm with a candidates file of joint columns and no rows panicked (the
