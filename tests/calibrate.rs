@@ -42,6 +42,12 @@ struct Hidden {
     /// A joint's geometry (0-based joint, `[dx, dy, dz, rx, ry, rz]`: the fixed transform leading to it
     /// moved by a translation in mm, then turned by a rotation vector, in the joint's frame).
     geometry: Option<(usize, [f64; 6])>,
+    /// A compliance at the frame leading to a joint (0-based joint, `[cx, cy, cz, crx, cry, crz]`, mm/N and
+    /// rad/(N mm)): a spring Tx Ty Tz Rx Ry Rz along and about that frame's axes (`loaded_with_frame`).
+    frame: Option<(usize, [f64; 6])>,
+    /// A force on the tool point (N, base frame), read by the frame spring's route alone
+    /// (`weights_potential`).
+    tool_force: Vec3,
 }
 
 impl Hidden {
@@ -56,6 +62,28 @@ impl Hidden {
             gravity: Vec3::new(0.0, 0.0, -9.81),
             play: [0.0; 6],
             geometry: None,
+            frame: None,
+            tool_force: Vec3::zeros(),
+        }
+    }
+
+    /// The change of the fixed transform leading to the frame spring's joint where the spring sits at
+    /// `theta` (Tx Ty Tz Rx Ry Rz), after the geometry where both are at that joint; the geometry alone
+    /// otherwise.
+    fn change_with_frame(&self, theta: &[f64; 6]) -> crate::serial::GeometryChange {
+        let Some((j, _)) = self.frame else { return self.geometry_change() };
+        let mut spring = nalgebra::Matrix4::identity();
+        spring.fixed_view_mut::<3, 1>(0, 3).copy_from(&Vec3::new(theta[0], theta[1], theta[2]));
+        let turn = |axis: Vec3, angle: f64| {
+            let mut m = nalgebra::Matrix4::identity();
+            m.fixed_view_mut::<3, 3>(0, 0).copy_from(&rotation_from_vector(&(axis * angle)));
+            m
+        };
+        spring = spring * turn(Vec3::x(), theta[3]) * turn(Vec3::y(), theta[4]) * turn(Vec3::z(), theta[5]);
+        match self.geometry_change() {
+            Some((g, m)) if g == j => Some((j, m * spring)),
+            Some(_) => panic!("the simulator holds a geometry and a frame spring at one joint only"),
+            None => Some((j, spring)),
         }
     }
 
@@ -114,13 +142,74 @@ fn loaded_angles(h: &Hidden, q0: &[f64; 6]) -> [f64; 6] {
     q
 }
 
+/// The potential of the loads (N mm: minus the sum of m g . x over the links' masses and the payload's
+/// centre, and minus F . x of the tool's force at the tool point) at model angles `q` with the frame spring at `theta`.
+fn weights_potential(h: &Hidden, q: &[f64; 6], theta: &[f64; 6]) -> f64 {
+    let (_, frames) = dh_kinematics_changed(q, h.change_with_frame(theta));
+    let point = |f: &nalgebra::Matrix4<f64>, c: &Vec3| {
+        let p = f * nalgebra::Vector4::new(c.x, c.y, c.z, 1.0);
+        Vec3::new(p.x, p.y, p.z)
+    };
+    let links: f64 = crate::serial::MASSES
+        .iter()
+        .enumerate()
+        .map(|(i, (kg, c))| -(h.gravity * *kg).dot(&point(&frames[i], &Vec3::new(c[0], c[1], c[2]))))
+        .sum();
+    let tool = crate::serial::TOOL;
+    let centre = Vec3::new(tool[0], tool[1], tool[2]) + h.payload.1;
+    let tool_point = point(&frames[5], &Vec3::new(tool[0], tool[1], tool[2]));
+    links - (h.gravity * h.payload.0).dot(&point(&frames[5], &centre)) - h.tool_force.dot(&tool_point)
+}
+
+/// The exact loaded equilibrium with a compliance at a joint's frame (`Hidden::frame`): the joint angles
+/// and the frame spring's coordinates where the springs hold the weights, K_k (q_k - q0_k) = -dV/dq_k
+/// (scaled by the hidden factors on the joints' compliances) and theta_i / c_i = -dV/dtheta_i (zero where
+/// c_i is zero: rigid), V the weights' potential (`weights_potential`) differentiated by central
+/// differences (its own route: no Jacobian of stiff's), by fixed-point iterations. Play is not modelled
+/// here.
+fn loaded_with_frame(h: &Hidden, q0: &[f64; 6]) -> ([f64; 6], [f64; 6]) {
+    let c = h.frame.expect("a frame spring").1;
+    let (mut q, mut theta) = (*q0, [0.0; 6]);
+    let step = 1e-6;
+    for _ in 0..200 {
+        let along = |k: usize| {
+            let (mut qa, mut qb, mut ta, mut tb) = (q, q, theta, theta);
+            if k < 6 {
+                qa[k] += step;
+                qb[k] -= step;
+            } else {
+                ta[k - 6] += step;
+                tb[k - 6] -= step;
+            }
+            -(weights_potential(h, &qa, &ta) - weights_potential(h, &qb, &tb)) / (2.0 * step)
+        };
+        let next_q: [f64; 6] = std::array::from_fn(|k| q0[k] + along(k) * h.compliance[k] / K_JOINT[k]);
+        let next_theta: [f64; 6] = std::array::from_fn(|i| if c[i] > 0.0 { c[i] * along(6 + i) } else { 0.0 });
+        let change = (0..6).map(|k| (next_q[k] - q[k]).abs().max((next_theta[k] - theta[k]).abs())).fold(0.0, f64::max);
+        (q, theta) = (next_q, next_theta);
+        // The central differences' round-off (about 3e-3 N mm on potentials of 1e7 N mm) leaves about 1e-12
+        // of a coordinate: converged well above it, 2e-8 mm at the tool.
+        if change < 1e-11 {
+            break;
+        }
+    }
+    (q, theta)
+}
+
 /// As `measured_target`, with the target's axes in the instrument's frame: R_instrument R_flange R_axes at
 /// the loaded angles, `axes` the rotation vector of R_axes in the DH flange frame.
 fn measured_pose(h: &Hidden, t: &[f64; 6], gravity: bool, axes: &Vec3) -> (Vec3, Mat3) {
     let truth: [f64; 6] = std::array::from_fn(|k| t[k] + h.offsets[k]);
     let q0 = model_angles(&truth);
-    let q = if gravity { loaded_angles(h, &q0) } else { q0 };
-    let (tool, frames) = dh_kinematics_changed(&q, h.geometry_change());
+    let (q, change) = match (gravity, h.frame.is_some()) {
+        (true, true) => {
+            let (q, theta) = loaded_with_frame(h, &q0);
+            (q, h.change_with_frame(&theta))
+        }
+        (true, false) => (loaded_angles(h, &q0), h.geometry_change()),
+        (false, _) => (q0, h.geometry_change()),
+    };
+    let (tool, frames) = dh_kinematics_changed(&q, change);
     let rotation = frames[5].fixed_view::<3, 3>(0, 0).into_owned();
     let x = tool + rotation * h.target;
     let instrument = rotation_from_vector(&h.rotation);
@@ -1017,6 +1106,76 @@ fn columns_the_calibration_does_not_read_are_named() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report = String::from_utf8(out.stdout).unwrap();
     assert!(report.contains("columns not read (no rule uses them): mrx_rad, stamp\n"), "{report}");
+}
+
+/// A compliance at the frame leading to J3 (the upper arm's mounting bends), hidden by the simulator's own
+/// equilibrium (`loaded_with_frame`: the loads' potential differentiated by central differences, a spring
+/// Tx Ty Tz Rx Ry Rz along and about the frame's axes), the tool pulled by 2 kN in a random direction on
+/// every second configuration, each component moving the target by 0.1 mm or more (the noise 0.01 mm), 40
+/// seeds, `frame-compliance:J3` offered (it is not by default): named in every seed, and each of its six
+/// compliances within two standard errors of the truth in at least 216 of the 240 draws (90%; 95%
+/// expected, a seed's six not independent). Run once over 200 seeds: every parameter seen, 1,142 of 1,200
+/// covered (95.2%), errors RMS 1.03 standard errors. (Under the weight alone its in-plane translations
+/// move the target as the instrument's translation does, and the candidate is refused as not
+/// identifiable, at J2 as at J3.) The simulator's route is checked first: with the frame rigid it gives
+/// the analytic equilibrium's target (`loaded_angles`) to 1e-8 mm.
+#[test]
+fn a_compliance_at_a_joints_frame_is_named_and_covered_by_its_standard_errors() {
+    let rigid = Hidden { frame: Some((1, [0.0; 6])), ..softer_j2() };
+    let mut r = rng(3);
+    for _ in 0..5 {
+        let t = random_angles(&mut r);
+        let (a, b) = (measured_target(&rigid, &t, true), measured_target(&softer_j2(), &t, true));
+        assert!((a - b).norm() < 1e-8, "{a} by differences, {b} by the analytic torques");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let m = fanuc(false, dir.path());
+    let o = Options { rebuild: fanuc_rebuild(), ..options(Some(0.01)) };
+    let truth = [2e-4, 1e-4, 3e-4, 3e-10, 2e-10, 2e-10];
+    let h = Hidden { frame: Some((2, truth)), ..Hidden::registration_only() };
+    let offered = [effect(ArmKind::FrameCompliance, "J3")];
+    let (mut draws, mut covered, mut z) = (0, 0, Vec::new());
+    for seed in 0..40 {
+        // Every second configuration pulled at the tool by 2 kN in a random direction (a cable test): under
+        // the weight alone the frame's force turns with the frame, and its in-plane translations are
+        // the instrument's (not identifiable: the candidate is refused whole).
+        let mut r = rng(9300 + seed);
+        let mut csv = String::from("pose_id,q_J1,q_J2,q_J3,q_J4,q_J5,q_J6,Fx_N,Fy_N,Fz_N,mx_mm,my_mm,mz_mm,set\n");
+        for k in 0..40 {
+            let t = random_angles(&mut r);
+            let d = Vec3::new(normal(&mut r), normal(&mut r), normal(&mut r));
+            let force = if k % 2 == 1 { d.normalize() * 2000.0 } else { Vec3::zeros() };
+            let mut p = measured_target(&Hidden { tool_force: force, ..h.clone() }, &t, true);
+            for a in 0..3 {
+                p[a] += 0.01 * normal(&mut r);
+            }
+            let q: Vec<String> = t.iter().map(|v| format!("{v:?}")).collect();
+            let set = if k % 3 == 2 { "check" } else { "fit" };
+            csv += &format!(
+                "c{k},{},{:?},{:?},{:?},{:?},{:?},{:?},{set}\n",
+                q.join(","),
+                force.x,
+                force.y,
+                force.z,
+                p.x,
+                p.y,
+                p.z
+            );
+        }
+        let (_, c) = calibrate_text(&m, &csv, dir.path(), &offered, &o);
+        let a = c.report.accepted.iter().find(|a| a.label == "frame-compliance:J3");
+        let a = a.unwrap_or_else(|| panic!("seed {seed}: not named: {}", calibrate::text(&c.report, "FANUC")));
+        for (k, t) in truth.iter().enumerate() {
+            if a.se[k].is_finite() {
+                draws += 1;
+                covered += usize::from((a.values[k] - t).abs() <= 2.0 * a.se[k]);
+                z.push((a.values[k] - t) / a.se[k]);
+            }
+        }
+    }
+    let rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    println!("frame compliance: {covered} of {draws} seen parameters within two standard errors; error in standard errors rms {rms:.2}");
+    assert!(draws == 240 && covered >= 216, "{covered} of {draws}");
 }
 
 /// A compliance at the tool (a tool holder): this file's generator carries 80 kg at the tool on every

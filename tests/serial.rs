@@ -290,7 +290,7 @@ fn the_fanuc_measurements_are_reproduced_with_the_sources_stiffnesses() {
 }
 
 /// The source's link masses (kg) and centres of mass in their DH frames (mm).
-const MASSES: [(f64, [f64; 3]); 6] = [
+pub(crate) const MASSES: [(f64, [f64; 3]); 6] = [
     (262.614, [-13.9, 76.5, -110.7]),
     (156.154, [424.8, 42.87, 216.3]),
     (149.341, [134.2, 241.5, 39.1]),
