@@ -147,9 +147,7 @@ impl Manipulator {
         state.arm = work;
         Some(answer)
     }
-}
 
-impl Manipulator {
     /// The arm's coordinates as its state is placed, each moved by its joint's play in the sense of the load
     /// the joint carries there under `wrench`, the links' and the payload's weight (`ArmStatics::load`; no
     /// move where that is round-off): where the loaded solve starts and stays. None where no joint has play,
