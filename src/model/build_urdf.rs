@@ -538,14 +538,7 @@ impl Builder<'_> {
         corrections: &[Spanned<JointCorrectionSpec>],
         names: &[String],
     ) -> Result<Vec<f64>, InputError> {
-        let mut offsets = vec![0.0; names.len()];
-        for c in corrections {
-            if let Some(o) = &c.get_ref().offset {
-                let k = names.iter().position(|n| n == c.get_ref().joint.get_ref()).expect("checked on the path");
-                offsets[k] += self.num(o)?;
-            }
-        }
-        Ok(offsets)
+        summed_per_joint(corrections, names, |c| c.get_ref().offset.as_ref().map(|o| self.num(o)).transpose())
     }
 
     /// Each joint's play: its corrections' plays summed, each zero or above.
@@ -554,24 +547,20 @@ impl Builder<'_> {
         corrections: &[Spanned<JointCorrectionSpec>],
         names: &[String],
     ) -> Result<Vec<f64>, InputError> {
-        let mut play = vec![0.0; names.len()];
-        for c in corrections {
-            if let Some(b) = &c.get_ref().play {
-                let value = self.num(b)?;
-                if !(value.is_finite() && value >= 0.0) {
-                    return Err(self.loc.at(
-                        c.span(),
-                        format!(
-                            "`play` of joint `{}` is {value}: a play is a width, zero or above (rad, or mm for a prismatic joint)",
-                            c.get_ref().joint.get_ref()
-                        ),
-                    ));
-                }
-                let k = names.iter().position(|n| n == c.get_ref().joint.get_ref()).expect("checked on the path");
-                play[k] += value;
+        summed_per_joint(corrections, names, |c| {
+            let Some(b) = &c.get_ref().play else { return Ok(None) };
+            let value = self.num(b)?;
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(self.loc.at(
+                    c.span(),
+                    format!(
+                        "`play` of joint `{}` is {value}: a play is a width, zero or above (rad, or mm for a prismatic joint)",
+                        c.get_ref().joint.get_ref()
+                    ),
+                ));
             }
-        }
-        Ok(play)
+            Ok(Some(value))
+        })
     }
 
     /// A URDF joint's spring stiffness: `stiffness`, or the inverse of `compliance`.
@@ -616,6 +605,23 @@ impl Builder<'_> {
             _ => Err(self.loc.at(k.span(), "give exactly one of `stiffness` (N mm/rad or N/mm) and `compliance`")),
         }
     }
+}
+
+/// Per joint of `names`, the sum of what `read` gives of each correction naming it (its joint checked on
+/// the path before), zero where none gives anything.
+fn summed_per_joint(
+    corrections: &[Spanned<JointCorrectionSpec>],
+    names: &[String],
+    read: impl Fn(&Spanned<JointCorrectionSpec>) -> Result<Option<f64>, InputError>,
+) -> Result<Vec<f64>, InputError> {
+    let mut sums = vec![0.0; names.len()];
+    for c in corrections {
+        if let Some(v) = read(c)? {
+            let k = names.iter().position(|n| n == c.get_ref().joint.get_ref()).expect("checked on the path");
+            sums[k] += v;
+        }
+    }
+    Ok(sums)
 }
 
 /// A joint's motion by `value` (rad, or mm for a prismatic joint) along its axis: a mimic joint's offset.

@@ -476,14 +476,13 @@ impl Manipulator {
 
     /// As `arm_statics`, at the model's coordinates `q` (one per joint, as the chain reads them).
     pub(super) fn arm_statics_at(&self, q: &[f64], wrench: &Vec6, state: &mut ManipulatorState) -> Option<ArmStatics> {
-        let q = q.to_vec();
         let mut chains = self.arm_chains().zip(state.legs.iter_mut());
         let (leg, s) = chains.next()?;
-        let ArmStatics { frame: end, columns, mut loads, mut joint_frames, mut transmitted } = leg.statics(&q, s)?;
+        let ArmStatics { frame: end, columns, mut loads, mut joint_frames, mut transmitted } = leg.statics(q, s)?;
         // The other chains of a tree (their columns at their own tips are not the reference point's): their
         // weight on the joints they share, each joint's frame where the reference chain does not reach it.
         for (other, s) in chains {
-            let o = other.statics(&q, s)?;
+            let o = other.statics(q, s)?;
             loads.iter_mut().zip(&o.loads).for_each(|(a, b)| *a += b);
             transmitted.iter_mut().zip(&o.transmitted).for_each(|(a, b)| *a += b);
             for ((frame, seen), theirs) in joint_frames.iter_mut().zip(&columns).zip(&o.joint_frames) {
