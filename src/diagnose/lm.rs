@@ -67,6 +67,9 @@ pub struct Solution<P> {
     /// prediction at unit norm, so that a rotation and a translation weigh alike): (parameter, weight) of
     /// its entries above 0.05.
     pub hidden: Vec<Direction>,
+    /// Each parameter's column scale there (the norm of its Jacobian column; 1 for a column of zeros): a
+    /// hidden direction's weight over it is the parameter's own change along the direction.
+    pub scales: Vec<f64>,
 }
 
 impl<P> Solution<P> {
@@ -102,6 +105,7 @@ pub fn solve<L: LeastSquares>(problem: &L, start: L::Point) -> Result<Solution<L
             rank: 0,
             covariance: DMatrix::zeros(0, 0),
             hidden: Vec::new(),
+            scales: Vec::new(),
         });
     }
     let mut lambda = FIRST_DAMPING;
@@ -159,7 +163,8 @@ pub fn solve<L: LeastSquares>(problem: &L, start: L::Point) -> Result<Solution<L
     }
     let decomposed = last.unwrap_or_else(|| scaled_svd(&jac));
     let (rank, covariance, hidden) = seen_directions(&decomposed);
-    Ok(Solution { point, rss, residuals: e, rank, covariance, hidden })
+    let scales = decomposed.scale.iter().copied().collect();
+    Ok(Solution { point, rss, residuals: e, rank, covariance, hidden, scales })
 }
 
 /// The column-scaled Jacobian's singular values and right singular vectors, with the scales.

@@ -41,8 +41,14 @@ pub(super) struct PositionFit {
     /// Directions of the parameters the data cannot see: (parameter index, weight) of each, in the
     /// column-scaled parameters.
     pub(super) hidden: Vec<Vec<(usize, f64)>>,
-    /// Parameters held at zero: a spring's compliance or a play fitted below zero (`held_below_zero`).
+    /// Parameters held at zero: a spring's compliance or a play fitted below zero (`held_below_zero`), and
+    /// those in `tied`.
     pub(super) held: Vec<usize>,
+    /// The effects' parameters held at zero (their nominal value; rigid, for a spring) because they moved
+    /// with others in a direction no row sees (`tied_to_others`), each with that direction.
+    pub(super) tied: Vec<(usize, Vec<(usize, f64)>)>,
+    /// Each parameter's column scale (`lm::Solution::scales`).
+    scales: Vec<f64>,
 }
 
 impl PositionFit {
@@ -53,6 +59,12 @@ impl PositionFit {
 
     pub(super) fn dof(&self) -> usize {
         self.observations.saturating_sub(self.rank).max(1)
+    }
+
+    /// How many parameters a bound holds (a compliance or play at zero): they count as seen, held by the
+    /// bound rather than the data; a tied one counts as unseen.
+    pub(super) fn bounded(&self) -> usize {
+        self.held.len() - self.tied.len()
     }
 }
 
@@ -112,22 +124,83 @@ impl PositionProblem<'_> {
 
     /// Levenberg-Marquardt over the parameters on `rows`, from `start` (`lm::solve`), a compliance or a
     /// play bounded below by zero: one fitted below zero in a direction the data see is held at zero (rigid,
-    /// no play) and the fit made again, until none is (`held_below_zero`).
+    /// no play) and the fit made again, until none is (`held_below_zero`). An effect whose parameters move
+    /// with others (the set-up's, or an earlier effect's) in a direction no row sees is fitted in the
+    /// directions the rows see: one of its parameters per such direction is held at its nominal value
+    /// (`tied_to_others`), so its values are its own, not a share of the others' change.
     pub(super) fn fit(&self, rows: &[usize], effects: &[ArmEffect], start: &Params) -> Option<PositionFit> {
         let mut held: Vec<usize> = Vec::new();
+        let mut tied: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
+        let first = start;
         let mut start = start.clone();
         loop {
-            let fit = self.fit_holding(rows, effects, &start, &held)?;
+            let mut fit = self.fit_holding(rows, effects, &start, &held)?;
+            fit.tied.clone_from(&tied);
             let below = self.held_below_zero(effects, &fit);
-            if below.is_empty() || held.len() >= MOST_HELD {
+            // The bound first: a tie is chosen among values that respect it.
+            let mixed = if below.is_empty() { self.tied_to_others(effects, &fit) } else { Vec::new() };
+            if (below.is_empty() && mixed.is_empty()) || held.len() >= MOST_HELD {
                 return Some(fit);
             }
-            start = fit.params;
-            for k in below {
-                *self.effect_value(&mut start, effects, k) = 0.0;
+            // A tied parameter's value was the others' change (the set-up moved to undo it): the fit starts
+            // again from where it first started, not from a point that undoing only one side would spoil.
+            start = if mixed.is_empty() { fit.params } else { first.clone() };
+            held.extend(below);
+            for (k, direction) in mixed {
                 held.push(k);
+                tied.push((k, direction));
+            }
+            for &k in &held {
+                *self.effect_value(&mut start, effects, k) = 0.0;
             }
         }
+    }
+
+    /// Per direction of `fit` no row sees that holds an effect's parameters together with others (a
+    /// set-up's or target's, or another effect's): the parameter to hold, of the last effect it holds (the
+    /// one added after the others), with the direction. Moving along the direction changes no prediction, so
+    /// holding one parameter at zero moves the others of the direction with it: for a compliance or play,
+    /// bounded below by zero, the one that reaches zero first along the direction (the others then stay
+    /// at or above zero, and the fit loses nothing); otherwise the largest in it. A direction within one
+    /// effect's own parameters is left to the fit (held at the start), as are the set-up's own.
+    fn tied_to_others(&self, effects: &[ArmEffect], fit: &PositionFit) -> Vec<(usize, Vec<(usize, f64)>)> {
+        let first = self.nuisance_count();
+        let mut bounds = vec![first];
+        for e in effects {
+            bounds.push(bounds.last().unwrap() + e.size());
+        }
+        let owner = |k: usize| (k >= first).then(|| bounds.partition_point(|&b| b <= k) - 1);
+        let mut values = fit.params.clone();
+        // A parameter's value in the column-scaled units the direction is given in.
+        let mut scaled = |k: usize| *self.effect_value(&mut values, effects, k) * fit.scales[k];
+        let mut tied: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
+        for d in &fit.hidden {
+            let Some(last) = d.iter().filter_map(|(k, _)| owner(*k)).max() else { continue };
+            if d.iter().all(|(k, _)| owner(*k) == Some(last)) {
+                continue;
+            }
+            let own: Vec<(usize, f64, f64)> = d
+                .iter()
+                .filter(|(k, _)| owner(*k) == Some(last) && !fit.held.contains(k))
+                .map(|&(k, w)| (k, w, scaled(k)))
+                .collect();
+            let bounded =
+                matches!(effects[last].kind, ArmKind::FrameCompliance | ArmKind::ToolCompliance | ArmKind::Backlash);
+            // Holding k moves the direction by t = -value_k / w_k; the others stay at or above zero.
+            let keeps_bound = |&(k, w, v): &(usize, f64, f64)| {
+                let t = -v / w;
+                own.iter().all(|&(j, wj, vj)| j == k || vj + t * wj >= 0.0)
+            };
+            let largest = |a: &&(usize, f64, f64), b: &&(usize, f64, f64)| a.1.abs().total_cmp(&b.1.abs());
+            let chosen = match bounded {
+                true => own.iter().filter(|c| keeps_bound(c)).max_by(largest).or_else(|| own.iter().max_by(largest)),
+                false => own.iter().max_by(largest),
+            };
+            if let Some(&(k, _, _)) = chosen.filter(|(k, _, _)| !tied.iter().any(|(t, _)| t == k)) {
+                tied.push((k, d.clone()));
+            }
+        }
+        tied
     }
 
     /// The parameters of `fit` (indices) that are a spring's compliance (at a frame, at the tool) or a play,
@@ -189,6 +262,8 @@ impl PositionProblem<'_> {
             covariance: s.covariance,
             hidden: s.hidden.into_iter().filter(|d| !d.iter().all(|(k, _)| held.contains(k))).collect(),
             held: held.to_vec(),
+            tied: Vec::new(),
+            scales: s.scales,
         })
     }
 

@@ -150,11 +150,17 @@ pub fn calibrate(
     }
     // The first order completed by the exact equilibrium of the model with the effects built in.
     let fit = problem.fit_exact(&kept, &model, &fit.params).unwrap_or(fit);
-    hidden.extend(fit.held.iter().map(|&k| {
-        format!(
+    hidden.extend(fit.held.iter().map(|&k| match fit.tied.iter().find(|(t, _)| *t == k) {
+        Some((_, d)) => format!(
+            "{}: moves with others where no point moves ({}); held at its nominal value (rigid, for a spring), \
+             the effect fitted in the directions the rows see",
+            problem.parameter_name(k, &model),
+            problem.describe_hidden(d, &model)
+        ),
+        None => format!(
             "{}: fitted below zero, held at zero (a compliance or a play is not negative; rigid there)",
             problem.parameter_name(k, &model)
-        )
+        ),
     }));
     let residuals = problem.residuals(&model, &fit.params);
     // Held-out rows are judged by the same rule against the fitted rows' scale: a gross one is named and left

@@ -275,7 +275,7 @@ pub fn correction_table(kind: ArmKind, joint: &str, values: &[f64]) -> String {
         ArmKind::JointOffset => format!("\n[[joint_correction]]\njoint = {joint:?}\noffset = {:?}\n", values[0]),
         ArmKind::JointCompliance => format!("\n[[joint_correction]]\njoint = {joint:?}\ncompliance = {:?}\n", values[0]),
         ArmKind::JointGeometry => format!(
-            "\n# The directions the data did not see are kept at the fit's smallest change.\n[[joint_correction]]\njoint = {joint:?}\ngeometry = [{}]\n",
+            "\n# A direction the data did not see: zero where it moved with others (the set-up), else the fit's smallest change.\n[[joint_correction]]\njoint = {joint:?}\ngeometry = [{}]\n",
             list(values)
         ),
         ArmKind::Payload => {

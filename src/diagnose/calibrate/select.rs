@@ -297,13 +297,25 @@ fn forward_step(
         };
         let own_params = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
         let held_whole = (own_params..own_params + c.size()).all(|k| f.held.contains(&k));
-        // A parameter held at zero counts as one the data see (it is held by its bound, not by the data).
-        if held_whole || f.rank + f.held.len() <= fit.rank + fit.held.len() {
+        // A parameter held at zero by its bound counts as one the data see (it is held by the bound, not by
+        // the data); one tied to others (held at its nominal value) does not.
+        if held_whole || f.rank + f.bounded() <= fit.rank + fit.bounded() {
             // The candidate's parameters follow the nuisance ones and the model's.
             let own = problem.nuisance_count() + model.iter().map(ArmEffect::size).sum::<usize>();
             let own = own..own + c.size();
             let alone = f.hidden.iter().any(|d| d.len() == 1 && own.contains(&d[0].0));
-            let note = if own.clone().all(|k| f.held.contains(&k)) {
+            let tied: Vec<String> = f
+                .tied
+                .iter()
+                .filter(|(k, _)| own.contains(k))
+                .map(|(_, d)| problem.describe_hidden(d, &trial))
+                .collect();
+            let note = if !tied.is_empty() && own.clone().all(|k| f.held.contains(&k)) {
+                format!(
+                    "not identifiable from these rows: its parameters move with others where no point moves ({})",
+                    tied.join("); (")
+                )
+            } else if own.clone().all(|k| f.held.contains(&k)) {
                 "fitted below zero and held at zero (a compliance or a play is not negative): it adds nothing".into()
             } else if alone {
                 // Its column is zero: a compliance or play whose joint carries no load (or the same sign of
@@ -329,10 +341,10 @@ fn forward_step(
             step.push(CandidateTest { label, f: None, p: None, note: Some(note) });
             continue;
         }
-        // A candidate that adds directions but whose parameters also move with others in a direction no row
-        // sees (a geometry at the base turning as the instrument's frame does) has no values of its own
-        // there: the fit splits them as its smallest change, 120 mrad and 1.56 m at a column's base. Not
-        // accepted; a direction within its own parameters alone (held at the start) is.
+        // A candidate whose parameters still move with others in a direction no row sees (the fit holds one
+        // of its parameters per such direction, `PositionProblem::fit`, up to its limit of held ones) has no
+        // values of its own there: the fit would split them as its smallest change, 120 mrad and 1.56 m at
+        // a column's base. Not accepted; a direction within its own parameters alone (held at the start) is.
         let own = own_params..own_params + c.size();
         let mixed: Vec<String> = f
             .hidden
