@@ -1859,7 +1859,9 @@ fn a_set_up_the_fit_cannot_place_is_named_and_kept_out_of_the_verdict() {
 /// A repeated measurement is predicted once (the fit's shortcut for files of many repeats): least squares over
 /// k repeats of a configuration equals least squares over their mean with sigma / sqrt(k) (the normal
 /// equations are the same), so the fit of 12 configurations measured 5 times each (noise 0.05 mm) gives the
-/// values of the fit of the 12 means, weighted so, to 1e-7 of a standard error. (The standard errors differ
+/// values of the fit of the 12 means, weighted so, to 1e-6 of a standard error (3e-9 of the values here: the
+/// two fits sum their rows in different orders, and the fit's conditioning carries that round-off into the
+/// values; tighter convergence of the fit or of its exact passes does not move it). (The standard errors differ
 /// where they are scaled by the residual: the repeats' scatter about their means is in the one, not the other.)
 #[test]
 fn repeated_measurements_fit_as_their_means_do() {
@@ -1895,7 +1897,7 @@ fn repeated_measurements_fit_as_their_means_do() {
     assert_eq!(a.report.accepted.len(), 2);
     for (x, y) in a.report.accepted.iter().zip(&b.report.accepted) {
         assert_eq!(x.label, y.label);
-        assert!((x.values[0] - y.values[0]).abs() <= 1e-7 * y.se[0], "{}: {} vs {}", x.label, x.values[0], y.values[0]);
+        assert!((x.values[0] - y.values[0]).abs() <= 1e-6 * y.se[0], "{}: {} vs {}", x.label, x.values[0], y.values[0]);
     }
 }
 
@@ -2267,7 +2269,8 @@ fn an_effect_the_held_out_rows_do_not_confirm_is_not_written_unless_asked() {
 /// directions the rows see only, and found wanting), and J2's compliance, which the data hold, is named.
 /// Fitted in by force, the geometry at J1 keeps the combinations that move with the registration at their
 /// nominal value (its translations at zero, no standard error) and says so; the instrument's translation is
-/// then fitted, seen, where before the geometry took a share of it.
+/// then fitted, seen, where before the geometry took a share of it; its turns cover zero and the fit is
+/// as good as without them.
 #[test]
 fn a_candidate_whose_values_move_with_the_registration_is_not_accepted() {
     let dir = tempfile::tempdir().unwrap();
@@ -2294,8 +2297,16 @@ fn a_candidate_whose_values_move_with_the_registration_is_not_accepted() {
     for a in 0..3 {
         assert!(g.values[a] == 0.0 && g.se[a].is_nan(), "component {a}: {} +- {}: {report}", g.values[a], g.se[a]);
     }
-    // Its turns are fitted, with a standard error each (through the weight's lever that they turn).
-    assert!(g.se[3..].iter().all(|se| se.is_finite()), "{report}");
+    // Its turns, barely seen (the weight's lever they turn is second order, left to the exact passes), are
+    // fitted with wide standard errors that cover the truth, zero; and fitting them costs the fit nothing.
+    // (Regression: the effects' first order turned the unloaded target, which differs from the set-up's
+    // turn of the loaded one by the sag; the tilts seemed seen through that difference, came back at 6
+    // standard errors, and the fit ended at 1.31 sigma where the model without them gives 0.97.)
+    for a in 3..6 {
+        let (v, se) = (g.values[a], g.se[a]);
+        assert!(se.is_finite() && v.abs() < 3.0 * se, "rotation {a}: {v} +- {se}: {report}");
+    }
+    assert!(c.report.residual_scale < 1.1, "{report}");
     // The instrument's translation is then the set-up's own, seen (before, the geometry took a share of it
     // and the instrument's translation was reported not seen).
     let instrument = c.report.nuisance.iter().find(|n| n.name.starts_with("instrument: translation")).unwrap();

@@ -78,6 +78,20 @@ impl PositionProblem<'_> {
             // A serial arm's lever turned at first order, v + w x lever; an orientation turns by w.
             _ => tool + seen.of(&deflected),
         };
+        // What the effects' first order moves on a serial arm: the target where the loads put it (the model's
+        // own deflection; not the kept miss, which the first order it completes must not see), so that a
+        // joint's turn or a geometry's moves it as it stands.
+        // At a first joint, whose axis no load moves, that is exactly the set-up's turn: before, the turn
+        // was taken at the unloaded target, which differed from the set-up's by the sag, and a base's tilt
+        // seemed seen through that difference alone (its first order leaves out the weight's lever).
+        let seen = match (seen, self.space, row.observed) {
+            (Seen::Point(lever), Some(_), Observed::Position { .. }) => {
+                let sag = &self.deflection[r];
+                let (t, w) = (sag.fixed_rows::<3>(0).into_owned(), sag.fixed_rows::<3>(3).into_owned());
+                Seen::Point(lever + t + w.cross(&lever))
+            }
+            _ => seen,
+        };
         for (e, v) in effects.iter().zip(&params.effects) {
             for (unit, value) in self.unit_moves(r, e, s, zero, &seen, &payload).iter().zip(v) {
                 y += unit * *value;
