@@ -136,9 +136,10 @@ impl PositionProblem<'_> {
         loop {
             let mut fit = self.fit_holding(rows, effects, &start, &held)?;
             fit.tied.clone_from(&tied);
-            let below = self.held_below_zero(effects, &fit);
-            // The bound first: a tie is chosen among values that respect it.
-            let mixed = if below.is_empty() { self.tied_to_others(effects, &fit) } else { Vec::new() };
+            // Ties first: along a direction no row sees the fit's values are its smallest change, which may
+            // lie below zero for no reason the data give; the bound then judges the values the tie leaves.
+            let mixed = self.tied_to_others(effects, &fit);
+            let below = if mixed.is_empty() { self.held_below_zero(effects, &fit) } else { Vec::new() };
             if (below.is_empty() && mixed.is_empty()) || held.len() >= MOST_HELD {
                 return Some(fit);
             }
