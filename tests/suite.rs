@@ -21,6 +21,7 @@ mod loaded;
 mod loaded_trust;
 mod msa;
 mod orthoglide;
+mod parquet;
 mod plan;
 mod plot;
 mod robustness;

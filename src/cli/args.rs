@@ -427,19 +427,11 @@ impl OutputArgs {
 /// the picture `output`.
 pub(crate) fn plot_file(input: &Path, output: &Path, style: &PlotStyle) -> Result<()> {
     if crate::output::sink::is_parquet(input) {
-        #[cfg(feature = "parquet")]
-        {
-            let file = std::fs::File::open(input).with_context(|| format!("cannot read {}", input.display()))?;
-            let svg = crate::plot::plot_parquet(file, &style.options())
-                .map_err(name_plot_flag)
-                .with_context(|| format!("drawing {}", input.display()))?;
-            return write_picture(&svg, output);
-        }
-        #[cfg(not(feature = "parquet"))]
-        bail!(
-            "cannot read {}: this stiff was built without Parquet support (cargo feature `parquet`)",
-            input.display()
-        );
+        let file = std::fs::File::open(input).with_context(|| format!("cannot read {}", input.display()))?;
+        let svg = crate::plot::plot_parquet(file, &style.options())
+            .map_err(name_plot_flag)
+            .with_context(|| format!("drawing {}", input.display()))?;
+        return write_picture(&svg, output);
     }
     write_plot(crate::model::error::open_input(input)?, output, style)
 }

@@ -1,7 +1,6 @@
 //! CSV rows and Parquet tables, text reports, and files written atomically.
 pub mod calibration;
 pub mod diagnosis;
-#[cfg(feature = "parquet")]
 pub mod parquet;
 pub mod report;
 pub mod sink;

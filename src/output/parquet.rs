@@ -8,24 +8,21 @@
 //! them back gives the same f64 bit for bit. Row groups of `ROWS_PER_GROUP` rows keep memory bounded on
 //! maps of millions of points.
 //!
-//! `read_columns` reads back the columns a picture needs (`stiff plot`, `--plot`), and no others.
+//! The file is written here from the format's specification (apache/parquet-format, `parquet.thrift`): "PAR1",
+//! per row group one data page per column (version 1: the definition levels run-length encoded, the values
+//! PLAIN, both compressed by zstd), then the footer (`FileMetaData` in Thrift's compact protocol, `thrift.rs`),
+//! its length and "PAR1". `read_columns` (`read.rs`) reads back the columns a picture needs (`stiff plot`,
+//! `--plot`), and no others.
 
 use std::io::{self, Write};
-use std::sync::Arc;
-
-use parquet::basic::{Compression, IntType, LogicalType, Repetition, Type as PhysicalType, ZstdLevel};
-use parquet::column::reader::ColumnReader;
-use parquet::column::writer::ColumnWriter;
-use parquet::data_type::ByteArray;
-use parquet::file::metadata::KeyValue;
-use parquet::file::properties::WriterProperties;
-use parquet::file::reader::{FileReader, SerializedFileReader};
-use parquet::file::writer::SerializedFileWriter;
-use parquet::schema::types::Type;
 
 use super::table::{header_line, CellKind, Column};
 
 mod arrow_schema;
+mod read;
+mod thrift;
+
+pub use read::{read_columns, ColumnsRead};
 
 /// Rows per row group: about 30 MB of a 60-column map.
 const ROWS_PER_GROUP: usize = 65_536;
@@ -33,51 +30,56 @@ const ROWS_PER_GROUP: usize = 65_536;
 /// The field metadata key holding a column's unit.
 pub const UNIT_KEY: &str = "unit";
 
-/// The Parquet schema of a table: each column optional (an empty cell is a null), f64 as DOUBLE, a count
-/// as an unsigned 64-bit INT64, text as UTF-8 BYTE_ARRAY (the types Arrow readers map to float64, uint64
-/// and string).
-fn parquet_schema(columns: &[Column]) -> io::Result<Type> {
-    let fields = columns
-        .iter()
-        .map(|c| {
-            let (physical, logical) = match c.kind {
-                CellKind::Number => (PhysicalType::DOUBLE, None),
-                CellKind::Count => {
-                    (PhysicalType::INT64, Some(LogicalType::Integer(IntType { bit_width: 64, is_signed: false })))
-                }
-                CellKind::Text => (PhysicalType::BYTE_ARRAY, Some(LogicalType::String)),
-            };
-            Type::primitive_type_builder(&c.name, physical)
-                .with_repetition(Repetition::OPTIONAL)
-                .with_logical_type(logical)
-                .build()
-                .map(Arc::new)
-        })
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(parquet_error)?;
-    Type::group_type_builder("arrow_schema").with_fields(fields).build().map_err(parquet_error)
+/// The file's first and last four bytes.
+const MAGIC: &[u8; 4] = b"PAR1";
+
+/// zstd's level for the pages (its fastest regular level, as Arrow's writer defaults to).
+const ZSTD_LEVEL: i32 = 1;
+
+/// Enumeration values of `parquet.thrift`.
+mod code {
+    /// `Type`.
+    pub const INT64: i32 = 2;
+    pub const DOUBLE: i32 = 5;
+    pub const BYTE_ARRAY: i32 = 6;
+    /// `FieldRepetitionType`.
+    pub const OPTIONAL: i32 = 1;
+    /// `ConvertedType`.
+    pub const UTF8: i32 = 0;
+    pub const UINT_64: i32 = 14;
+    /// `Encoding`.
+    pub const PLAIN: i32 = 0;
+    pub const RLE: i32 = 3;
+    /// `CompressionCodec`.
+    pub const ZSTD: i32 = 6;
+    /// `PageType`.
+    pub const DATA_PAGE: i32 = 0;
 }
 
-/// One column being filled: its non-null values and its definition levels (1 a value, 0 a null).
-enum Values {
-    Number(Vec<f64>),
-    Count(Vec<i64>),
-    Text(Vec<ByteArray>),
+/// The physical type a column's cells are stored as.
+fn physical_type(kind: CellKind) -> i32 {
+    match kind {
+        CellKind::Number => code::DOUBLE,
+        CellKind::Count => code::INT64,
+        CellKind::Text => code::BYTE_ARRAY,
+    }
 }
 
+/// One column being filled: its non-null values PLAIN-encoded, its definition levels (1 a value, 0 a
+/// null) and its extremes (numbers and counts; a NaN is no extreme).
 struct Builder {
-    values: Values,
-    defined: Vec<i16>,
+    kind: CellKind,
+    plain: Vec<u8>,
+    defined: Vec<u8>,
+    nulls: u64,
+    range: Option<(f64, f64)>,
+    count_range: Option<(u64, u64)>,
 }
 
 impl Builder {
     fn new(kind: CellKind) -> Builder {
-        let values = match kind {
-            CellKind::Number => Values::Number(Vec::with_capacity(ROWS_PER_GROUP)),
-            CellKind::Count => Values::Count(Vec::with_capacity(ROWS_PER_GROUP)),
-            CellKind::Text => Values::Text(Vec::new()),
-        };
-        Builder { values, defined: Vec::with_capacity(ROWS_PER_GROUP) }
+        let plain = if kind == CellKind::Text { Vec::new() } else { Vec::with_capacity(8 * ROWS_PER_GROUP) };
+        Builder { kind, plain, defined: Vec::with_capacity(ROWS_PER_GROUP), nulls: 0, range: None, count_range: None }
     }
 
     /// Appends one CSV cell (unquoted); empty is null.
@@ -86,47 +88,105 @@ impl Builder {
             |what: &str| io::Error::new(io::ErrorKind::InvalidData, format!("column {column}: `{cell}` is not {what}"));
         if cell.is_empty() {
             self.defined.push(0);
+            self.nulls += 1;
             return Ok(());
         }
-        match &mut self.values {
-            Values::Number(v) => v.push(cell.parse().map_err(|_| bad("a number"))?),
+        match self.kind {
+            CellKind::Number => {
+                let v: f64 = cell.parse().map_err(|_| bad("a number"))?;
+                self.plain.extend_from_slice(&v.to_le_bytes());
+                if !v.is_nan() {
+                    let (lo, hi) = self.range.get_or_insert((v, v));
+                    (*lo, *hi) = (lo.min(v), hi.max(v));
+                }
+            }
             // An unsigned count is stored in INT64's bits, as Parquet's UINT_64 logical type says.
-            Values::Count(v) => v.push(cell.parse::<u64>().map_err(|_| bad("a count"))? as i64),
-            Values::Text(v) => v.push(ByteArray::from(cell)),
+            CellKind::Count => {
+                let v: u64 = cell.parse().map_err(|_| bad("a count"))?;
+                self.plain.extend_from_slice(&v.to_le_bytes());
+                let (lo, hi) = self.count_range.get_or_insert((v, v));
+                (*lo, *hi) = ((*lo).min(v), (*hi).max(v));
+            }
+            CellKind::Text => {
+                let len = u32::try_from(cell.len()).map_err(|_| bad("a text under 4 GiB"))?;
+                self.plain.extend_from_slice(&len.to_le_bytes());
+                self.plain.extend_from_slice(cell.as_bytes());
+            }
         }
         self.defined.push(1);
         Ok(())
     }
 
-    /// Writes the column's rows gathered and empties it.
-    fn write(&mut self, writer: &mut ColumnWriter<'_>) -> parquet::errors::Result<()> {
-        let defined = Some(self.defined.as_slice());
-        match (&mut self.values, writer) {
-            (Values::Number(v), ColumnWriter::DoubleColumnWriter(w)) => {
-                w.write_batch(v, defined, None)?;
-                v.clear();
+    /// The rows' largest and smallest values PLAIN-encoded (`Statistics.max_value`, `min_value`): None for
+    /// texts and where every value is null or NaN; a zero minimum is written as -0 and a zero maximum as +0,
+    /// as the format asks of floating-point extremes.
+    fn extremes(&self) -> Option<([u8; 8], [u8; 8])> {
+        match (self.range, self.count_range) {
+            (Some((lo, hi)), _) => {
+                let lo = if lo == 0.0 { -0.0f64 } else { lo };
+                let hi = if hi == 0.0 { 0.0f64 } else { hi };
+                Some((hi.to_le_bytes(), lo.to_le_bytes()))
             }
-            (Values::Count(v), ColumnWriter::Int64ColumnWriter(w)) => {
-                w.write_batch(v, defined, None)?;
-                v.clear();
-            }
-            (Values::Text(v), ColumnWriter::ByteArrayColumnWriter(w)) => {
-                w.write_batch(v, defined, None)?;
-                v.clear();
-            }
-            _ => return Err(parquet::errors::ParquetError::General("a column's type changed".into())),
+            (None, Some((lo, hi))) => Some((hi.to_le_bytes(), lo.to_le_bytes())),
+            (None, None) => None,
         }
-        self.defined.clear();
-        Ok(())
     }
+
+    /// Empties the column for the next row group.
+    fn clear(&mut self) {
+        self.plain.clear();
+        self.defined.clear();
+        (self.nulls, self.range, self.count_range) = (0, None, None);
+    }
+}
+
+/// The definition levels (each 0 or 1) in the run-length/bit-packing hybrid encoding, as runs only: per run
+/// its length shifted left by one (the low bit 0 says a run) as a varint, then its value in one byte.
+fn run_length_levels(levels: &[u8], out: &mut Vec<u8>) {
+    let mut k = 0;
+    while k < levels.len() {
+        let value = levels[k];
+        let run = levels[k..].iter().take_while(|l| **l == value).count();
+        let mut header = (run as u64) << 1;
+        while header >= 0x80 {
+            out.push((header as u8) | 0x80);
+            header >>= 7;
+        }
+        out.push(header as u8);
+        out.push(value);
+        k += run;
+    }
+}
+
+/// Where one column chunk lies and what it holds, for the footer.
+struct ChunkMeta {
+    offset: u64,
+    values: u64,
+    uncompressed: u64,
+    compressed: u64,
+    nulls: u64,
+    extremes: Option<([u8; 8], [u8; 8])>,
+}
+
+/// A row group written, for the footer.
+struct GroupMeta {
+    rows: u64,
+    chunks: Vec<ChunkMeta>,
 }
 
 /// A Parquet file being written from a study's CSV text (`Write`): the header line, then rows.
 pub struct ParquetTable<W: Write + Send> {
-    writer: SerializedFileWriter<W>,
-    names: Vec<String>,
+    out: W,
+    /// Bytes written to `out`.
+    written: u64,
+    columns: Vec<Column>,
     header: String,
     builders: Vec<Builder>,
+    groups: Vec<GroupMeta>,
+    /// A page's uncompressed body and its compressed bytes, kept from page to page.
+    page: Vec<u8>,
+    compressed: Vec<u8>,
+    compressor: zstd::bulk::Compressor<'static>,
     /// Bytes received that do not yet end a record.
     pending: Vec<u8>,
     /// How far `pending` has been scanned for a record's end, and whether that point is inside quotes.
@@ -136,35 +196,36 @@ pub struct ParquetTable<W: Write + Send> {
     rows: usize,
 }
 
-fn parquet_error(e: parquet::errors::ParquetError) -> io::Error {
-    io::Error::other(e.to_string())
+fn too_large(what: &str) -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidData, format!("a Parquet page over 2 GiB ({what})"))
 }
 
 impl<W: Write + Send> ParquetTable<W> {
     /// A table with these columns, written to `out`.
-    pub fn new(out: W, columns: &[Column]) -> io::Result<Self> {
-        // The Arrow schema rides along as Arrow's own writers store it, so pyarrow, pandas and polars read
-        // each column's unit as its field metadata.
-        let arrow = KeyValue::new(arrow_schema::KEY.to_string(), arrow_schema::encode(columns));
-        let properties = WriterProperties::builder()
-            .set_compression(Compression::ZSTD(ZstdLevel::default()))
-            .set_max_row_group_row_count(Some(ROWS_PER_GROUP))
-            .set_created_by(format!("stiff {}", env!("CARGO_PKG_VERSION")))
-            .set_key_value_metadata(Some(vec![arrow]))
-            .build();
-        let writer = SerializedFileWriter::new(out, Arc::new(parquet_schema(columns)?), Arc::new(properties))
-            .map_err(parquet_error)?;
+    pub fn new(mut out: W, columns: &[Column]) -> io::Result<Self> {
+        out.write_all(MAGIC)?;
         Ok(ParquetTable {
-            writer,
-            names: columns.iter().map(|c| c.name.clone()).collect(),
+            out,
+            written: MAGIC.len() as u64,
+            columns: columns.to_vec(),
             header: header_line(columns).trim_end().to_string(),
             builders: columns.iter().map(|c| Builder::new(c.kind)).collect(),
+            groups: Vec::new(),
+            page: Vec::new(),
+            compressed: Vec::new(),
+            compressor: zstd::bulk::Compressor::new(ZSTD_LEVEL)?,
             pending: Vec::new(),
             scanned: 0,
             in_quotes: false,
             header_seen: false,
             rows: 0,
         })
+    }
+
+    fn emit(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.out.write_all(bytes)?;
+        self.written += bytes.len() as u64;
+        Ok(())
     }
 
     /// Takes every complete record out of `pending`.
@@ -216,8 +277,8 @@ impl<W: Write + Send> ParquetTable<W> {
                 format!("a row has {} cells for {} columns", cells.len(), self.builders.len()),
             ));
         }
-        for ((builder, cell), name) in self.builders.iter_mut().zip(&cells).zip(&self.names) {
-            builder.push(cell, name)?;
+        for ((builder, cell), column) in self.builders.iter_mut().zip(&cells).zip(&self.columns) {
+            builder.push(cell, &column.name)?;
         }
         self.rows += 1;
         if self.rows == ROWS_PER_GROUP {
@@ -226,21 +287,154 @@ impl<W: Write + Send> ParquetTable<W> {
         Ok(())
     }
 
-    /// Writes the rows gathered as one row group.
+    /// Writes the rows gathered as one row group: per column one data page, its header then its body
+    /// (the levels' byte length, the levels, the values) compressed.
     fn flush_rows(&mut self) -> io::Result<()> {
         if self.rows == 0 {
             return Ok(());
         }
-        let mut group = self.writer.next_row_group().map_err(parquet_error)?;
-        for builder in &mut self.builders {
-            let mut column =
-                group.next_column().map_err(parquet_error)?.ok_or_else(|| io::Error::other("a column too many"))?;
-            builder.write(column.untyped()).map_err(parquet_error)?;
-            column.close().map_err(parquet_error)?;
+        let mut chunks = Vec::with_capacity(self.builders.len());
+        for k in 0..self.builders.len() {
+            let b = &self.builders[k];
+            self.page.clear();
+            self.page.extend_from_slice(&[0; 4]);
+            run_length_levels(&b.defined, &mut self.page);
+            let levels = u32::try_from(self.page.len() - 4).map_err(|_| too_large("its levels"))?;
+            self.page[..4].copy_from_slice(&levels.to_le_bytes());
+            self.page.extend_from_slice(&b.plain);
+            self.compressed.clear();
+            self.compressed.reserve(zstd::zstd_safe::compress_bound(self.page.len()));
+            self.compressor.compress_to_buffer(&self.page, &mut self.compressed)?;
+            let size = |n: usize| i32::try_from(n).map_err(|_| too_large(&self.columns[k].name));
+            let mut header = thrift::Writer::default();
+            header.begin();
+            header.i32(1, code::DATA_PAGE);
+            header.i32(2, size(self.page.len())?);
+            header.i32(3, size(self.compressed.len())?);
+            header.field_struct(5);
+            header.i32(1, size(b.defined.len())?);
+            header.i32(2, code::PLAIN);
+            header.i32(3, code::RLE);
+            header.i32(4, code::RLE);
+            header.end();
+            header.end();
+            let (values, nulls, extremes) = (b.defined.len() as u64, b.nulls, b.extremes());
+            let offset = self.written;
+            self.emit(&header.bytes)?;
+            let compressed = std::mem::take(&mut self.compressed);
+            let emitted = self.emit(&compressed);
+            self.compressed = compressed;
+            emitted?;
+            chunks.push(ChunkMeta {
+                offset,
+                values,
+                uncompressed: (header.bytes.len() + self.page.len()) as u64,
+                compressed: self.written - offset,
+                nulls,
+                extremes,
+            });
+            self.builders[k].clear();
         }
-        group.close().map_err(parquet_error)?;
+        self.groups.push(GroupMeta { rows: self.rows as u64, chunks });
         self.rows = 0;
         Ok(())
+    }
+
+    /// The footer: `FileMetaData` (version 1, the schema, the row groups, the Arrow schema under its key,
+    /// who wrote it, each column's sort order as its type's).
+    fn footer(&self) -> Vec<u8> {
+        let mut w = thrift::Writer::default();
+        w.begin();
+        w.i32(1, 1);
+        w.list(2, thrift::STRUCT, self.columns.len() + 1);
+        w.begin();
+        w.binary(4, b"arrow_schema");
+        w.i32(5, self.columns.len() as i32);
+        w.end();
+        for c in &self.columns {
+            w.begin();
+            w.i32(1, physical_type(c.kind));
+            w.i32(3, code::OPTIONAL);
+            w.binary(4, c.name.as_bytes());
+            match c.kind {
+                CellKind::Number => {}
+                CellKind::Count => {
+                    w.i32(6, code::UINT_64);
+                    // LogicalType INTEGER (10): IntType { bitWidth 64, isSigned false }.
+                    w.field_struct(10);
+                    w.field_struct(10);
+                    w.byte(1, 64);
+                    w.bool(2, false);
+                    w.end();
+                    w.end();
+                }
+                CellKind::Text => {
+                    w.i32(6, code::UTF8);
+                    // LogicalType STRING (1): StringType {}.
+                    w.field_struct(10);
+                    w.field_struct(1);
+                    w.end();
+                    w.end();
+                }
+            }
+            w.end();
+        }
+        w.i64(3, self.groups.iter().map(|g| g.rows as i64).sum());
+        w.list(4, thrift::STRUCT, self.groups.len());
+        for (ordinal, g) in self.groups.iter().enumerate() {
+            w.begin();
+            w.list(1, thrift::STRUCT, g.chunks.len());
+            for (chunk, c) in g.chunks.iter().zip(&self.columns) {
+                w.begin();
+                w.i64(2, 0);
+                w.field_struct(3);
+                w.i32(1, physical_type(c.kind));
+                w.list(2, thrift::I32, 2);
+                w.element_i32(code::PLAIN);
+                w.element_i32(code::RLE);
+                w.list(3, thrift::BINARY, 1);
+                w.element_binary(c.name.as_bytes());
+                w.i32(4, code::ZSTD);
+                w.i64(5, chunk.values as i64);
+                w.i64(6, chunk.uncompressed as i64);
+                w.i64(7, chunk.compressed as i64);
+                w.i64(9, chunk.offset as i64);
+                w.field_struct(12);
+                w.i64(3, chunk.nulls as i64);
+                if let Some((max, min)) = chunk.extremes {
+                    w.binary(5, &max);
+                    w.binary(6, &min);
+                }
+                w.end();
+                w.end();
+                w.end();
+            }
+            w.i64(2, g.chunks.iter().map(|c| c.uncompressed as i64).sum());
+            w.i64(3, g.rows as i64);
+            w.i64(5, g.chunks.first().map_or(0, |c| c.offset as i64));
+            w.i64(6, g.chunks.iter().map(|c| c.compressed as i64).sum());
+            w.i32(7, ordinal as i32);
+            w.end();
+        }
+        // The Arrow schema rides along as Arrow's own writers store it, so pyarrow, pandas and polars read
+        // each column's unit as its field metadata.
+        w.list(5, thrift::STRUCT, 1);
+        w.begin();
+        w.binary(1, arrow_schema::KEY.as_bytes());
+        w.binary(2, arrow_schema::encode(&self.columns).as_bytes());
+        w.end();
+        w.binary(6, format!("stiff version {}", env!("CARGO_PKG_VERSION")).as_bytes());
+        // ColumnOrder TYPE_ORDER (1) for every column: its extremes are ordered as its type (and logical
+        // type) say, unsigned for a count.
+        w.list(7, thrift::STRUCT, self.columns.len());
+        for _ in &self.columns {
+            w.begin();
+            w.field_struct(1);
+            w.end();
+            w.end();
+        }
+        w.end();
+        w.bytes
     }
 
     /// Writes the last rows and the file's footer; hands back the output.
@@ -249,7 +443,12 @@ impl<W: Write + Send> ParquetTable<W> {
             return Err(io::Error::new(io::ErrorKind::InvalidData, "the table ends inside a row"));
         }
         self.flush_rows()?;
-        self.writer.into_inner().map_err(parquet_error)
+        let footer = self.footer();
+        let length = u32::try_from(footer.len()).map_err(|_| too_large("the footer"))?;
+        self.emit(&footer)?;
+        self.emit(&length.to_le_bytes())?;
+        self.emit(MAGIC)?;
+        Ok(self.out)
     }
 }
 
@@ -285,110 +484,6 @@ fn split_record(line: &str) -> Vec<String> {
     }
     cells.push(cell);
     cells
-}
-
-/// Columns of a Parquet table read back: every column name, the row count, and the columns kept, numbers
-/// as f64 (counts converted, nulls as NaN) and texts as text (nulls empty).
-pub struct ColumnsRead {
-    /// Every column name of the file, in order.
-    pub header: Vec<String>,
-    /// Rows.
-    pub rows: usize,
-    /// The numeric columns kept.
-    pub numbers: Vec<(String, Vec<f64>)>,
-    /// The text columns kept.
-    pub texts: Vec<(String, Vec<String>)>,
-}
-
-/// The column names of a Parquet table, then the columns `numbers` and `texts` choose among them, read
-/// alone (a projection: a picture of a million-point map reads 4 columns, not 40).
-pub fn read_columns(
-    file: std::fs::File,
-    numbers: &dyn Fn(&[String], &str) -> bool,
-    texts: &dyn Fn(&[String], &str) -> bool,
-) -> io::Result<ColumnsRead> {
-    let invalid = |e: parquet::errors::ParquetError| {
-        io::Error::new(io::ErrorKind::InvalidData, format!("not a Parquet table: {e}"))
-    };
-    let reader = SerializedFileReader::new(file).map_err(invalid)?;
-    let metadata = reader.metadata();
-    let header: Vec<String> =
-        metadata.file_metadata().schema_descr().columns().iter().map(|c| c.name().to_string()).collect();
-    let mut number_columns: Vec<(usize, String, Vec<f64>)> = Vec::new();
-    let mut text_columns: Vec<(usize, String, Vec<String>)> = Vec::new();
-    for (k, name) in header.iter().enumerate() {
-        if numbers(&header, name) {
-            number_columns.push((k, name.clone(), Vec::new()));
-        } else if texts(&header, name) {
-            text_columns.push((k, name.clone(), Vec::new()));
-        }
-    }
-    let rows = usize::try_from(metadata.file_metadata().num_rows()).map_err(|_| io::Error::other("negative rows"))?;
-    let mut defined: Vec<i16> = Vec::new();
-    for group in 0..reader.num_row_groups() {
-        let group = reader.get_row_group(group).map_err(invalid)?;
-        let group_rows = usize::try_from(group.metadata().num_rows()).unwrap_or(0);
-        for (k, name, values) in &mut number_columns {
-            let column = group.get_column_reader(*k).map_err(invalid)?;
-            let numbers: Vec<f64> = match column {
-                ColumnReader::DoubleColumnReader(mut r) => read_all(&mut r, group_rows, &mut defined)?,
-                ColumnReader::Int64ColumnReader(mut r) => {
-                    read_all(&mut r, group_rows, &mut defined)?.into_iter().map(|v| v as u64 as f64).collect()
-                }
-                _ => return Err(io::Error::new(io::ErrorKind::InvalidData, format!("column {name} is not numeric"))),
-            };
-            spread(values, numbers, &defined, f64::NAN);
-        }
-        for (k, name, values) in &mut text_columns {
-            let column = group.get_column_reader(*k).map_err(invalid)?;
-            let ColumnReader::ByteArrayColumnReader(mut r) = column else {
-                return Err(io::Error::new(io::ErrorKind::InvalidData, format!("column {name} is not text")));
-            };
-            let texts = read_all(&mut r, group_rows, &mut defined)?
-                .into_iter()
-                .map(|b| String::from_utf8_lossy(b.data()).into_owned())
-                .collect();
-            spread(values, texts, &defined, String::new());
-        }
-    }
-    Ok(ColumnsRead {
-        header,
-        rows,
-        numbers: number_columns.into_iter().map(|(_, n, v)| (n, v)).collect(),
-        texts: text_columns.into_iter().map(|(_, n, v)| (n, v)).collect(),
-    })
-}
-
-/// Every value of one column chunk of `rows` rows, its definition levels left in `defined`.
-fn read_all<T: parquet::data_type::DataType>(
-    reader: &mut parquet::column::reader::ColumnReaderImpl<T>,
-    rows: usize,
-    defined: &mut Vec<i16>,
-) -> io::Result<Vec<T::T>>
-where
-    T::T: Default + Clone,
-{
-    defined.clear();
-    let mut values = Vec::new();
-    let mut read = 0;
-    while read < rows {
-        let (records, _, _) = reader
-            .read_records(rows - read, Some(defined), None, &mut values)
-            .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.to_string()))?;
-        if records == 0 {
-            return Err(io::Error::new(io::ErrorKind::InvalidData, "a column chunk ends early"));
-        }
-        read += records;
-    }
-    Ok(values)
-}
-
-/// Appends a column chunk's rows: its values where defined, `null` where not.
-fn spread<T: Clone>(out: &mut Vec<T>, values: Vec<T>, defined: &[i16], null: T) {
-    let mut values = values.into_iter();
-    for &d in defined {
-        out.push(if d > 0 { values.next().unwrap_or_else(|| null.clone()) } else { null.clone() });
-    }
 }
 
 #[cfg(test)]

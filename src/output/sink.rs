@@ -15,7 +15,6 @@ use std::sync::Mutex;
 
 use anyhow::{anyhow, bail, Context, Result};
 
-#[cfg(feature = "parquet")]
 use super::parquet::ParquetTable;
 use super::table::Column;
 
@@ -23,11 +22,6 @@ use super::table::Column;
 pub fn is_parquet(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("parquet"))
 }
-
-/// Refusal of a Parquet output by a binary built without the `parquet` feature.
-#[cfg(not(feature = "parquet"))]
-const NO_PARQUET: &str = "this stiff was built without Parquet support (cargo feature `parquet`, on by default): \
-                          write .csv, .csv.gz or .csv.zst, or rebuild with the default features";
 
 /// Temporary files being written, removed if the process is interrupted.
 static PARTIAL: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
@@ -123,7 +117,6 @@ pub enum Encoded {
     /// zstandard at its default level (3).
     Zstd(zstd::Encoder<'static, BufWriter<tempfile::NamedTempFile>>),
     /// A Parquet table, filled from the CSV text written to it.
-    #[cfg(feature = "parquet")]
     Parquet(Box<ParquetTable<BufWriter<tempfile::NamedTempFile>>>),
 }
 
@@ -136,15 +129,7 @@ impl Encoded {
         let file = BufWriter::with_capacity(WRITE_BUFFER, temp);
         let name = path.to_string_lossy();
         Ok(if let Some(columns) = columns.filter(|_| is_parquet(path)) {
-            #[cfg(feature = "parquet")]
-            {
-                Encoded::Parquet(Box::new(ParquetTable::new(file, columns)?))
-            }
-            #[cfg(not(feature = "parquet"))]
-            {
-                let _ = columns;
-                return Err(io::Error::other(NO_PARQUET));
-            }
+            Encoded::Parquet(Box::new(ParquetTable::new(file, columns)?))
         } else if name.ends_with(".gz") {
             Encoded::Gzip(flate2::write::GzEncoder::new(file, flate2::Compression::default()))
         } else if name.ends_with(".zst") {
@@ -159,7 +144,6 @@ impl Encoded {
             Encoded::Plain(w) => w,
             Encoded::Gzip(w) => w,
             Encoded::Zstd(w) => w,
-            #[cfg(feature = "parquet")]
             Encoded::Parquet(w) => w.as_mut(),
         }
     }
@@ -170,7 +154,6 @@ impl Encoded {
             Encoded::Plain(w) => Ok(w),
             Encoded::Gzip(w) => w.finish(),
             Encoded::Zstd(w) => w.finish(),
-            #[cfg(feature = "parquet")]
             Encoded::Parquet(w) => w.finish(),
         }
     }

@@ -80,7 +80,6 @@ pub fn plot_reader(input: impl std::io::Read, o: &PlotOptions) -> Result<String>
 }
 
 /// Draws a Parquet table written by a study, reading only the columns the picture needs.
-#[cfg(feature = "parquet")]
 pub fn plot_parquet(file: std::fs::File, o: &PlotOptions) -> Result<String> {
     let numbers = |header: &[String], c: &str| TableKind::of(header).is_some_and(|k| wanted_numbers(k, o)(c));
     let texts = |header: &[String], c: &str| TableKind::of(header).is_some_and(|k| wanted_texts(k)(c));
