@@ -566,3 +566,60 @@ fn the_advice_for_loaded_without_wrenches_is_runnable() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 3);
 }
+
+/// A panic in a worker (a bug, which no input should reach) ends a streamed study with an error naming the
+/// items it stopped on, for one thread and for two, instead of a hang: the writer waits for every run in
+/// input order and the dispatcher for the tokens the writer returns, so a run that never reports would
+/// block both for ever. The rows before the failed run may be written; the error says no output was put in
+/// place (the CLI's output file is renamed into place only on success).
+#[test]
+fn a_panicking_worker_ends_the_run_with_an_error_not_a_hang() {
+    use stiff::batch::{stream, Source, Study, Tally};
+    use stiff::output::table::{CellKind, Column};
+
+    #[derive(Default)]
+    struct Count;
+    impl Tally for Count {
+        fn merge(&mut self, _: &Self) {}
+    }
+    struct Items(std::ops::Range<u64>);
+    impl Source for Items {
+        type Item = u64;
+        fn next_block(&mut self, n: usize, out: &mut Vec<u64>) -> Result<usize, stiff::model::error::InputError> {
+            let before = out.len();
+            out.extend(self.0.by_ref().take(n));
+            Ok(out.len() - before)
+        }
+        fn first_index(&self) -> u64 {
+            0
+        }
+    }
+    struct PanicsAt(u64);
+    impl Study for PanicsAt {
+        type Item = u64;
+        type State = ();
+        type Tally = Count;
+        fn columns(&self) -> Vec<Column> {
+            vec![Column { name: "index".into(), kind: CellKind::Count }]
+        }
+        fn new_state(&self) {}
+        fn solve(&self, index: u64, _: &u64, _: &mut (), _: &mut Count, out: &mut String) {
+            assert!(index != self.0, "a deliberate panic at item {index}");
+            out.push_str(&format!("{index}\n"));
+        }
+    }
+    for threads in [1, 2] {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut out = Vec::new();
+            let result =
+                stream(&pool, &PanicsAt(3000), &mut Items(0..10_000), &mut out, &indicatif::ProgressBar::hidden());
+            let _ = tx.send(result.map(|_| ()).map_err(|e| e.to_string()));
+        });
+        let outcome = rx.recv_timeout(Duration::from_secs(60)).expect("the study hung after a worker's panic");
+        let message = outcome.expect_err("a worker's panic is an error");
+        assert!(message.contains("internal error") && message.contains("deliberate panic"), "{message}");
+        assert!(message.contains("from input index 2816"), "the run of item 3000 (256 per run): {message}");
+    }
+}

@@ -105,6 +105,10 @@ pub fn point_seed(seed: u64, index: u64) -> u64 {
     seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
+/// A run solved: its first input index, its items, and its rows and tally, or the message of the panic
+/// that stopped its worker.
+type Solved<T> = (u64, usize, std::result::Result<(String, T), String>);
+
 /// Room reserved per row (a map row with K and C is ~700 bytes; the buffer grows if needed).
 const TYPICAL_ROW_BYTES: usize = 700;
 
@@ -128,7 +132,8 @@ where
     let window = WINDOW_PER_THREAD * pool.current_num_threads();
     let mut first_index = points.first_index();
     let (run_tx, run_rx) = sync_channel::<Result<Vec<I>>>(window);
-    let (done_tx, done_rx) = channel::<(usize, usize, String, T)>();
+    // Each run's rows, or the message of the panic that stopped its worker.
+    let (done_tx, done_rx) = channel::<(usize, Solved<T>)>();
     let (token_tx, token_rx) = sync_channel::<()>(window);
     for _ in 0..window {
         token_tx.send(()).expect("the token channel holds the window");
@@ -154,27 +159,40 @@ where
         });
         let writer = threads.spawn(move || -> Result<T> {
             let mut tally = T::default();
-            let mut pending: BTreeMap<usize, (usize, String, T)> = BTreeMap::new();
+            let mut pending: BTreeMap<usize, Solved<T>> = BTreeMap::new();
             let mut next = 0usize;
-            let mut failure: Option<std::io::Error> = None;
-            for (index, points, text, t) in done_rx {
-                pending.insert(index, (points, text, t));
-                while let Some((points, text, t)) = pending.remove(&next) {
-                    // After a write error keep draining, so that workers and the dispatcher never block.
-                    if failure.is_none() {
-                        if let Err(e) = out.write_all(text.as_bytes()) {
-                            failure = Some(e);
+            let mut failure: Option<anyhow::Error> = None;
+            for (index, solved) in done_rx {
+                pending.insert(index, solved);
+                while let Some((first, points, solved)) = pending.remove(&next) {
+                    // After a failure keep draining, so that workers and the dispatcher never block.
+                    match solved {
+                        Ok((text, t)) if failure.is_none() => {
+                            if let Err(e) = out.write_all(text.as_bytes()) {
+                                failure = Some(e.into());
+                                stop.store(true, Ordering::Relaxed);
+                            }
+                            tally.merge(&t);
+                        }
+                        Ok(_) => {}
+                        Err(message) => {
+                            if failure.is_none() {
+                                failure = Some(anyhow!(
+                                    "internal error: a worker stopped ({message}) on the {points} items from input \
+                                     index {first}; no output file was put in place. This is a bug in stiff: please \
+                                     report it with the command and its input"
+                                ));
+                            }
                             stop.store(true, Ordering::Relaxed);
                         }
                     }
-                    tally.merge(&t);
                     progress.inc(points as u64);
                     next += 1;
                     let _ = token_tx.send(());
                 }
             }
             match failure {
-                Some(e) => Err(e.into()),
+                Some(e) => Err(e),
                 None => Ok(tally),
             }
         });
@@ -196,8 +214,18 @@ where
                 let first = first_index;
                 first_index += run.len() as u64;
                 scope.spawn(move |_| {
-                    let (text, t) = solve_run(first, &run);
-                    let _ = done.send((index, run.len(), text, t));
+                    // A panic is a bug, but it must not hang the run: the writer waits for every run in
+                    // order, and the dispatcher for the tokens the writer hands back. The panic is caught
+                    // and reported as the run's outcome (its message was printed by the panic hook).
+                    let solved = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| solve_run(first, &run)))
+                        .map_err(|payload| {
+                            payload
+                                .downcast_ref::<&str>()
+                                .map(|s| s.to_string())
+                                .or_else(|| payload.downcast_ref::<String>().cloned())
+                                .unwrap_or_else(|| "a panic".to_string())
+                        });
+                    let _ = done.send((index, (first, run.len(), solved)));
                 });
             }
             drop(run_rx);
