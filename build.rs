@@ -12,8 +12,11 @@ fn main() {
         .map(|s| s.trim().to_string())
         .filter(|s| !s.is_empty())
         .unwrap_or_else(|| "unknown".into());
+    // Without optional locks, `git status` does not write the refreshed index back: a fresh clone's first
+    // status rewrote .git/index, which this script watches, so the next cargo command (README's `cargo test
+    // --release` after its build) ran the script again and compiled the whole crate a second time (90 CPU s).
     let dirty = Command::new("git")
-        .args(["status", "--porcelain", "--untracked-files=no"])
+        .args(["--no-optional-locks", "status", "--porcelain", "--untracked-files=no"])
         .output()
         .ok()
         .filter(|o| o.status.success())
