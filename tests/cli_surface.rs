@@ -154,6 +154,55 @@ fn version_names_the_commit() {
     assert!(hex == "unknown" || (hex.len() == 12 && hex.chars().all(|c| c.is_ascii_hexdigit())), "{commit}");
 }
 
+/// The build script that records the commit leaves the git index it watches as it found it: in a fresh
+/// clone a plain `git status` rewrites .git/index (it refreshes the entries' file times), so README's second
+/// command ran the script again and compiled the whole crate a second time (about 90 CPU s). The script, run
+/// in a fresh clone of a one-commit repository, must leave the index's bytes and modification time alone,
+/// and still name the commit.
+#[test]
+fn the_build_script_leaves_the_git_index_it_watches_untouched() {
+    let git = |dir: &Path, args: &[&str]| {
+        let ok =
+            std::process::Command::new("git").args(args).current_dir(dir).output().is_ok_and(|o| o.status.success());
+        assert!(ok, "git {}", args.join(" "));
+    };
+    if std::process::Command::new("git").arg("--version").output().is_err() {
+        eprintln!("git is not installed: the build script names no commit, and watches no index");
+        return;
+    }
+    // The build script compiled last beside this test binary (target/<profile>/build/stiff-*/
+    // build-script-build; older ones are earlier versions of build.rs, kept by the build cache).
+    let profile_dir = std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_path_buf();
+    let script = std::fs::read_dir(profile_dir.join("build"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path().join("build-script-build")))
+        .filter(|p| p.parent().unwrap().file_name().unwrap().to_string_lossy().starts_with("stiff-"))
+        .filter_map(|p| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p)))
+        .max()
+        .map(|(_, p)| p)
+        .unwrap_or_else(|| panic!("no build script under {}", profile_dir.display()));
+    let scripts = [script];
+    let dir = tempfile::tempdir().unwrap();
+    let origin = dir.path().join("origin");
+    std::fs::create_dir(&origin).unwrap();
+    std::fs::write(origin.join("a.txt"), "a\n").unwrap();
+    git(&origin, &["init", "-q"]);
+    git(&origin, &["add", "a.txt"]);
+    git(&origin, &["-c", "user.name=stiff", "-c", "user.email=stiff@localhost", "commit", "-q", "-m", "a"]);
+    for (k, script) in scripts.iter().enumerate() {
+        let clone = dir.path().join(format!("clone{k}"));
+        git(dir.path(), &["clone", "-q", "origin", clone.to_str().unwrap()]);
+        let index = clone.join(".git/index");
+        let before = (std::fs::read(&index).unwrap(), std::fs::metadata(&index).unwrap().modified().unwrap());
+        let out = std::process::Command::new(script).current_dir(&clone).output().unwrap();
+        let printed = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success() && printed.contains("STIFF_GIT_COMMIT="), "{printed}");
+        assert!(!printed.contains("STIFF_GIT_COMMIT=unknown"), "the clone's commit is named: {printed}");
+        let after = (std::fs::read(&index).unwrap(), std::fs::metadata(&index).unwrap().modified().unwrap());
+        assert!(before == after, "{} rewrote the clone's .git/index", script.display());
+    }
+}
+
 /// `-` reads standard input: a points file, a grid, measurements, a study's output to draw.
 #[test]
 fn a_dash_reads_standard_input() {
